@@ -1,0 +1,231 @@
+#include "co_hb.h"
+
+#include <string.h>
+
+bool co_hb_state_is_valid(uint8_t state)
+{
+    return state == CO_NMT_INITIALISING || state == CO_NMT_STOPPED ||
+           state == CO_NMT_OPERATIONAL || state == CO_NMT_PRE_OPERATIONAL;
+}
+
+bool co_hb_encode(co_nmt_state_t state, co_frame_t *frame, uint8_t node_id)
+{
+    if (node_id < 1 || node_id > 127 || !co_hb_state_is_valid((uint8_t)state)) {
+        return false;
+    }
+    const uint8_t data = (uint8_t)state;
+    return co_frame_set(frame, CO_NMT_EC_COB_ID_BASE + node_id, 0, &data, 1);
+}
+
+/* ---------------------------------------------------------------- producer */
+
+static void send_heartbeat(co_hb_producer_t *p)
+{
+    const uint8_t state = (uint8_t)p->nmt->state;
+    co_line_send(p->line, CO_NMT_EC_COB_ID_BASE + p->nmt->node_id, &state, 1);
+}
+
+static void on_producer_timer(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    co_hb_producer_t *p = user;
+    /* A node still initialising has sent no boot-up yet: stay quiet. */
+    if (p->nmt->state != CO_NMT_INITIALISING) {
+        send_heartbeat(p);
+    }
+    co_timer_start(&p->line->timers, timer, now_us + (uint64_t)p->time_ms * 1000u);
+}
+
+void co_hb_producer_init(co_hb_producer_t *p, co_line_t *line, co_nmt_t *nmt)
+{
+    p->line = line;
+    p->nmt = nmt;
+    p->time_ms = 0;
+    co_timer_init(&p->timer, on_producer_timer, p);
+}
+
+void co_hb_producer_set_time(co_hb_producer_t *p, uint16_t time_ms)
+{
+    p->time_ms = time_ms;
+    co_timer_cancel(&p->line->timers, &p->timer);
+    if (time_ms > 0) {
+        co_timer_start(&p->line->timers, &p->timer,
+                       p->line->now_us + (uint64_t)time_ms * 1000u);
+    }
+}
+
+void co_hb_producer_stop(co_hb_producer_t *p)
+{
+    co_timer_cancel(&p->line->timers, &p->timer);
+}
+
+/* ---------------------------------------------------------------- consumer */
+
+static void emit(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t event,
+                 co_nmt_state_t state)
+{
+    if (c->on_event) {
+        c->on_event(c, node_id, event, state, c->user);
+    }
+}
+
+static co_hb_entry_t *entry_of(co_hb_consumer_t *c, uint8_t node_id)
+{
+    for (uint8_t i = 0; i < c->capacity; i++) {
+        if (c->entries[i].node_id == node_id) {
+            return &c->entries[i];
+        }
+    }
+    return NULL;
+}
+
+static void on_consumer_timeout(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    (void)timer;
+    (void)now_us;
+    co_hb_entry_t *e = user;
+    e->monitor = CO_HB_MONITOR_LOST;
+    emit(e->owner, e->node_id, CO_HB_LOST, (co_nmt_state_t)e->owner->last_state[e->node_id]);
+}
+
+static void monitor_heartbeat(co_hb_consumer_t *c, co_hb_entry_t *e, co_nmt_state_t state)
+{
+    if (e->monitor != CO_HB_MONITOR_ACTIVE) {
+        e->monitor = CO_HB_MONITOR_ACTIVE;
+        emit(c, e->node_id, CO_HB_STARTED, state);
+    }
+    if (e->time_ms > 0) {
+        co_timer_start(&c->line->timers, &e->timer,
+                       c->line->now_us + (uint64_t)e->time_ms * 1000u);
+    }
+}
+
+static void on_heartbeat_frame(co_line_t *line, const co_frame_t *frame, void *user)
+{
+    co_hb_consumer_t *c = user;
+    uint8_t node_id = (uint8_t)(frame->id - CO_NMT_EC_COB_ID_BASE);
+    if (node_id == 0) {
+        line->stats.hb_bad_node++;
+        return;
+    }
+    if (frame->len != 1) {
+        line->stats.hb_bad_length++;
+        return;
+    }
+    if (!co_hb_state_is_valid(frame->data[0])) {
+        line->stats.hb_bad_state++;
+        return;
+    }
+    co_nmt_state_t state = (co_nmt_state_t)frame->data[0];
+    uint8_t previous = c->last_state[node_id];
+    c->last_state[node_id] = (uint8_t)state;
+    co_hb_entry_t *e = entry_of(c, node_id);
+
+    if (state == CO_NMT_INITIALISING) {
+        /* Boot-up: the node starts over; monitoring resumes with its first
+         * real heartbeat (its producer may not be configured yet). */
+        emit(c, node_id, CO_HB_BOOTUP, state);
+        if (e) {
+            co_timer_cancel(&line->timers, &e->timer);
+            e->monitor = CO_HB_MONITOR_OFF;
+        }
+        return;
+    }
+    if (previous != (uint8_t)state) {
+        emit(c, node_id, CO_HB_STATE_CHANGED, state);
+    }
+    if (e) {
+        monitor_heartbeat(c, e, state);
+    }
+}
+
+bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *entries,
+                         uint8_t capacity, co_hb_event_fn on_event, void *user)
+{
+    c->line = line;
+    c->entries = entries;
+    c->capacity = capacity;
+    c->on_event = on_event;
+    c->user = user;
+    memset(c->last_state, CO_NMT_UNKNOWN, sizeof c->last_state);
+    for (uint8_t i = 0; i < capacity; i++) {
+        entries[i] = (co_hb_entry_t){.owner = c};
+        co_timer_init(&entries[i].timer, on_consumer_timeout, &entries[i]);
+    }
+    return co_line_subscribe(line, CO_NMT_EC_COB_ID_BASE, CO_NMT_EC_COB_ID_BASE + 127,
+                             on_heartbeat_frame, c);
+}
+
+void co_hb_consumer_deinit(co_hb_consumer_t *c)
+{
+    for (uint8_t i = 0; i < c->capacity; i++) {
+        co_timer_cancel(&c->line->timers, &c->entries[i].timer);
+    }
+    co_line_unsubscribe(c->line, on_heartbeat_frame, c);
+}
+
+co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t index,
+                                               uint32_t value)
+{
+    if (index >= c->capacity) {
+        return CO_HB_CONFIG_NO_ROOM;
+    }
+    uint32_t node_field = (value >> 16) & 0xFFu;
+    /* CiA 301: node-id 0 or > 127 leaves the entry unused. */
+    uint8_t node_id = (node_field >= 1 && node_field <= 127) ? (uint8_t)node_field : 0;
+    co_hb_entry_t *e = &c->entries[index];
+    if (node_id != 0) {
+        co_hb_entry_t *other = entry_of(c, node_id);
+        if (other && other != e) {
+            return CO_HB_CONFIG_DUPLICATE;
+        }
+    }
+    co_timer_cancel(&c->line->timers, &e->timer);
+    e->node_id = node_id;
+    e->time_ms = node_id ? (uint16_t)(value & 0xFFFFu) : 0;
+    e->monitor = CO_HB_MONITOR_OFF;
+    return CO_HB_CONFIG_OK;
+}
+
+co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
+                                           uint16_t time_ms)
+{
+    if (node_id < 1 || node_id > 127) {
+        return CO_HB_CONFIG_BAD_NODE;
+    }
+    co_hb_entry_t *e = entry_of(c, node_id);
+    if (!e) {
+        e = entry_of(c, 0);
+    }
+    if (!e) {
+        return CO_HB_CONFIG_NO_ROOM;
+    }
+    return co_hb_consumer_set_entry(c, (uint8_t)(e - c->entries),
+                                    ((uint32_t)node_id << 16) | time_ms);
+}
+
+void co_hb_consumer_unwatch(co_hb_consumer_t *c, uint8_t node_id)
+{
+    co_hb_entry_t *e = node_id ? entry_of(c, node_id) : NULL;
+    if (e) {
+        co_hb_consumer_set_entry(c, (uint8_t)(e - c->entries), 0);
+    }
+}
+
+uint32_t co_hb_consumer_get_entry(const co_hb_consumer_t *c, uint8_t index)
+{
+    if (index >= c->capacity || c->entries[index].node_id == 0) {
+        return 0;
+    }
+    const co_hb_entry_t *e = &c->entries[index];
+    return ((uint32_t)e->node_id << 16) | e->time_ms;
+}
+
+co_hb_monitor_t co_hb_consumer_monitor(const co_hb_consumer_t *c, uint8_t node_id)
+{
+    for (uint8_t i = 0; i < c->capacity; i++) {
+        if (c->entries[i].node_id == node_id && node_id != 0) {
+            return c->entries[i].monitor;
+        }
+    }
+    return CO_HB_MONITOR_OFF;
+}

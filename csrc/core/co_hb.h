@@ -1,0 +1,93 @@
+/* Heartbeat: producer (0x1017) and consumer (0x1016) of the error-control
+ * protocol on CAN-ID 0x700 + node-id. */
+#ifndef CO_HB_H
+#define CO_HB_H
+
+#include "co_nmt.h"
+
+/* cffi:begin */
+typedef enum co_hb_event {
+    CO_HB_BOOTUP = 1,         /* a node sent its boot-up message */
+    CO_HB_STATE_CHANGED = 2,  /* a node reported another NMT state */
+    CO_HB_STARTED = 3,        /* monitoring started (or resumed after lost) */
+    CO_HB_LOST = 4            /* no heartbeat within the consumer time */
+} co_hb_event_t;
+/* cffi:end */
+
+/* -------- producer -------- */
+typedef struct co_hb_producer {
+    co_line_t *line;
+    co_nmt_t *nmt;
+    uint16_t time_ms;             /* 0x1017; 0 = off */
+    co_timer_t timer;
+} co_hb_producer_t;
+
+void co_hb_producer_init(co_hb_producer_t *p, co_line_t *line, co_nmt_t *nmt);
+/* Change the producer time; takes effect at once (the next heartbeat goes out
+ * time_ms from now; 0 stops it). */
+void co_hb_producer_set_time(co_hb_producer_t *p, uint16_t time_ms);
+void co_hb_producer_stop(co_hb_producer_t *p);
+
+/* -------- consumer -------- */
+typedef enum co_hb_monitor {
+    CO_HB_MONITOR_OFF = 0,        /* entry unused or no heartbeat yet */
+    CO_HB_MONITOR_ACTIVE = 1,     /* heartbeats arriving in time */
+    CO_HB_MONITOR_LOST = 2
+} co_hb_monitor_t;
+
+struct co_hb_consumer;
+
+typedef struct co_hb_entry {
+    struct co_hb_consumer *owner;
+    uint8_t node_id;              /* 0 = unused */
+    uint16_t time_ms;             /* 0 = watch states only, no timeout */
+    co_hb_monitor_t monitor;
+    co_timer_t timer;
+} co_hb_entry_t;
+
+typedef void (*co_hb_event_fn)(struct co_hb_consumer *c, uint8_t node_id,
+                               co_hb_event_t event, co_nmt_state_t state, void *user);
+
+typedef struct co_hb_consumer {
+    co_line_t *line;
+    co_hb_entry_t *entries;       /* caller-owned storage */
+    uint8_t capacity;
+    co_hb_event_fn on_event;
+    void *user;
+    /* Last state seen of every node, CO_NMT_UNKNOWN when none. Indexed by node-id. */
+    uint8_t last_state[128];
+} co_hb_consumer_t;
+
+/* Subscribes CAN-IDs 0x701..0x77F. Every node's boot-up and state changes are
+ * reported; STARTED / LOST only for configured entries. */
+bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *entries,
+                         uint8_t capacity, co_hb_event_fn on_event, void *user);
+void co_hb_consumer_deinit(co_hb_consumer_t *c);
+
+/* Result codes for entry configuration (map to SDO aborts later). */
+typedef enum co_hb_config_result {
+    CO_HB_CONFIG_OK = 0,
+    CO_HB_CONFIG_BAD_NODE = 1,     /* node-id outside 1..127 */
+    CO_HB_CONFIG_DUPLICATE = 2,    /* node already watched by another entry */
+    CO_HB_CONFIG_NO_ROOM = 3,      /* index outside the table */
+} co_hb_config_result_t;
+
+/* Set entry `index` the way a write to 0x1016 sub index+1 does: value bits
+ * 23..16 node-id (0 disables the entry), bits 15..0 time in ms. Monitoring of
+ * the entry restarts at the next heartbeat. */
+co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t index,
+                                               uint32_t value);
+/* Watch a node in the first free entry (or update its entry). */
+co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
+                                           uint16_t time_ms);
+/* Stop watching a node (its entry becomes unused); harmless if not watched. */
+void co_hb_consumer_unwatch(co_hb_consumer_t *c, uint8_t node_id);
+/* 0x1016 value of an entry. */
+uint32_t co_hb_consumer_get_entry(const co_hb_consumer_t *c, uint8_t index);
+co_hb_monitor_t co_hb_consumer_monitor(const co_hb_consumer_t *c, uint8_t node_id);
+
+/* Heartbeat frame helpers (one place for the wire format). */
+bool co_hb_encode(co_nmt_state_t state, co_frame_t *frame, uint8_t node_id);
+bool co_hb_state_is_valid(uint8_t state);
+
+#endif

@@ -1,0 +1,175 @@
+#include "co_line.h"
+
+#include <string.h>
+
+bool co_line_init(co_line_t *line, const co_line_config_t *config)
+{
+    if (!config || !config->rx_slots || !config->tx_slots || config->rx_capacity == 0 ||
+        config->tx_capacity == 0 ||
+        (config->mode != CO_MODE_CLASSIC && config->mode != CO_MODE_FD)) {
+        return false;
+    }
+    memset(line, 0, sizeof *line);
+    line->mode = config->mode;
+    if (config->mode == CO_MODE_FD) {
+        line->tx_flags = CO_FRAME_FD | (config->brs ? CO_FRAME_BRS : 0);
+    }
+    co_queue_init(&line->rx, config->rx_slots, config->rx_capacity);
+    co_queue_init(&line->tx, config->tx_slots, config->tx_capacity);
+    co_timer_list_init(&line->timers);
+    return true;
+}
+
+void co_line_set_comm_indication(co_line_t *line, co_comm_fn fn, void *user)
+{
+    line->on_comm = fn;
+    line->comm_user = user;
+}
+
+void co_line_comm_event(co_line_t *line, co_comm_event_t event)
+{
+    if (line->on_comm) {
+        line->on_comm(line, event, line->comm_user);
+    }
+}
+
+bool co_line_subscribe(co_line_t *line, uint32_t first_id, uint32_t last_id,
+                       co_rx_fn fn, void *user)
+{
+    if (!fn || first_id > last_id || last_id >= CO_LINE_ID_MAP_SIZE ||
+        line->receiver_count >= CO_LINE_MAX_RECEIVERS) {
+        return false;
+    }
+    for (uint32_t id = first_id; id <= last_id; id++) {
+        if (line->id_map[id] != 0) {
+            return false;
+        }
+    }
+    uint8_t slot = line->receiver_count++;
+    line->receivers[slot] = (co_receiver_t){first_id, last_id, fn, user};
+    for (uint32_t id = first_id; id <= last_id; id++) {
+        line->id_map[id] = (uint8_t)(slot + 1);
+    }
+    return true;
+}
+
+static void rebuild_id_map(co_line_t *line)
+{
+    memset(line->id_map, 0, sizeof line->id_map);
+    for (uint8_t slot = 0; slot < line->receiver_count; slot++) {
+        const co_receiver_t *r = &line->receivers[slot];
+        for (uint32_t id = r->first_id; id <= r->last_id; id++) {
+            line->id_map[id] = (uint8_t)(slot + 1);
+        }
+    }
+}
+
+void co_line_unsubscribe(co_line_t *line, co_rx_fn fn, void *user)
+{
+    uint8_t kept = 0;
+    for (uint8_t slot = 0; slot < line->receiver_count; slot++) {
+        const co_receiver_t *r = &line->receivers[slot];
+        if (r->fn != fn || r->user != user) {
+            line->receivers[kept++] = *r;
+        }
+    }
+    if (kept != line->receiver_count) {
+        line->receiver_count = kept;
+        rebuild_id_map(line);
+    }
+}
+
+bool co_line_receive(co_line_t *line, const co_frame_t *frame)
+{
+    line->stats.rx_frames++;
+    if (co_queue_push(&line->rx, frame)) {
+        return true;
+    }
+    line->stats.rx_overflow++;
+    co_line_comm_event(line, CO_COMM_RX_OVERFLOW);
+    return false;
+}
+
+bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
+{
+    if (!co_queue_pop(&line->tx, out)) {
+        return false;
+    }
+    line->stats.tx_frames++;
+    if (line->tx_was_full && co_queue_is_empty(&line->tx)) {
+        line->tx_was_full = false;
+        co_line_comm_event(line, CO_COMM_TX_QUEUE_EMPTY);
+    }
+    return true;
+}
+
+bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
+{
+    if (!co_queue_push(&line->tx, frame)) {
+        line->stats.tx_overflow++;
+        co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
+        return false;
+    }
+    if (co_queue_is_full(&line->tx) && !line->tx_was_full) {
+        line->tx_was_full = true;
+        co_line_comm_event(line, CO_COMM_TX_QUEUE_FULL);
+    }
+    return true;
+}
+
+bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len)
+{
+    co_frame_t frame;
+    if (!co_frame_set(&frame, id, line->tx_flags, data, len)) {
+        return false;
+    }
+    return co_line_send_frame(line, &frame);
+}
+
+/* Decide whether a received frame reaches a service; everything refused is
+ * counted in the line statistics. */
+static bool frame_is_acceptable(co_line_t *line, const co_frame_t *frame)
+{
+    if (!co_frame_is_valid(frame)) {
+        line->stats.rx_invalid++;
+        return false;
+    }
+    if ((frame->flags & CO_FRAME_FD) && line->mode == CO_MODE_CLASSIC) {
+        line->stats.rx_wrong_format++;
+        return false;
+    }
+    if (frame->flags & CO_FRAME_RTR) {
+        line->stats.rx_rtr++;
+        return false;
+    }
+    if ((frame->flags & CO_FRAME_EXT) || line->id_map[frame->id] == 0) {
+        line->stats.rx_unhandled++;
+        return false;
+    }
+    return true;
+}
+
+static void dispatch(co_line_t *line, const co_frame_t *frame)
+{
+    if (!frame_is_acceptable(line, frame)) {
+        return;
+    }
+    const co_receiver_t *r = &line->receivers[line->id_map[frame->id] - 1];
+    r->fn(line, frame, r->user);
+}
+
+uint64_t co_line_process(co_line_t *line, uint64_t now_us)
+{
+    if (now_us > line->now_us) {
+        line->now_us = now_us;
+    }
+    /* Only the frames present at entry: a handler that causes more input
+     * (loopback drivers) cannot keep this call busy forever. */
+    uint32_t pending = co_queue_count(&line->rx);
+    co_frame_t frame;
+    while (pending-- > 0 && co_queue_pop(&line->rx, &frame)) {
+        dispatch(line, &frame);
+    }
+    co_timer_list_run(&line->timers, line->now_us);
+    return co_timer_list_next(&line->timers);
+}

@@ -1,0 +1,121 @@
+/* A CAN line as the protocol core sees it: mode (classic or fd) fixed at init,
+ * the local node-id, bounded rx/tx queues, a timer list, dispatch of received
+ * frames by CAN-ID to the services, and communication-state events. */
+#ifndef CO_LINE_H
+#define CO_LINE_H
+
+#include "co_frame.h"
+#include "co_queue.h"
+#include "co_timer.h"
+
+/* cffi:begin */
+typedef enum co_mode {
+    CO_MODE_CLASSIC = 0,
+    CO_MODE_FD = 1
+} co_mode_t;
+
+/* Communication-state events, reported to the line's indication. */
+typedef enum co_comm_event {
+    CO_COMM_BUS_OFF = 1,
+    CO_COMM_ERROR_PASSIVE = 2,
+    CO_COMM_ERROR_ACTIVE = 3,      /* back to error active (recovered) */
+    CO_COMM_RX_OVERFLOW = 4,       /* a received frame was lost */
+    CO_COMM_TX_OVERFLOW = 5,       /* a frame to send was lost */
+    CO_COMM_TX_QUEUE_FULL = 6,
+    CO_COMM_TX_QUEUE_EMPTY = 7,
+    CO_COMM_IFACE_DOWN = 8,        /* the interface went away or down */
+    CO_COMM_IFACE_UP = 9,          /* ... and is back */
+    CO_COMM_ERROR_WARNING = 10,
+    CO_COMM_BUS_OFF_RECOVERED = 11
+} co_comm_event_t;
+
+/* Per-line statistics: everything ignored is counted here, never silent. */
+typedef struct co_line_stats {
+    uint32_t rx_frames;            /* frames handed to co_line_receive */
+    uint32_t tx_frames;            /* frames taken by the driver */
+    uint32_t rx_overflow;          /* rx queue full: frame lost */
+    uint32_t tx_overflow;          /* tx queue full: frame lost */
+    uint32_t rx_unhandled;         /* no service listens on that CAN-ID */
+    uint32_t rx_invalid;           /* malformed frame (bad id/length/flags) */
+    uint32_t rx_wrong_format;      /* FD frame on a classic line */
+    uint32_t rx_rtr;               /* remote frames nobody answers */
+    uint32_t nmt_bad_length;
+    uint32_t nmt_bad_command;
+    uint32_t nmt_bad_node;
+    uint32_t hb_bad_length;
+    uint32_t hb_bad_state;
+    uint32_t hb_bad_node;
+} co_line_stats_t;
+/* cffi:end */
+
+typedef struct co_line co_line_t;
+
+/* Receive handler of a service. */
+typedef void (*co_rx_fn)(co_line_t *line, const co_frame_t *frame, void *user);
+typedef void (*co_comm_fn)(co_line_t *line, co_comm_event_t event, void *user);
+
+enum { CO_LINE_MAX_RECEIVERS = 32, CO_LINE_ID_MAP_SIZE = 2048 };
+
+typedef struct co_receiver {
+    uint32_t first_id;   /* inclusive range of 11-bit CAN-IDs */
+    uint32_t last_id;
+    co_rx_fn fn;
+    void *user;
+} co_receiver_t;
+
+struct co_line {
+    co_mode_t mode;
+    uint8_t node_id;              /* 0 = no local node yet */
+    uint8_t tx_flags;             /* flags added to every sent frame (FD, BRS) */
+    bool tx_was_full;
+    co_frame_queue_t rx;
+    co_frame_queue_t tx;
+    co_timer_list_t timers;
+    co_line_stats_t stats;
+    uint64_t now_us;              /* time of the current process() call */
+    co_comm_fn on_comm;
+    void *comm_user;
+    uint8_t receiver_count;
+    co_receiver_t receivers[CO_LINE_MAX_RECEIVERS];
+    uint8_t id_map[CO_LINE_ID_MAP_SIZE];   /* CAN-ID -> receiver index + 1 */
+};
+
+typedef struct co_line_config {
+    co_mode_t mode;
+    bool brs;                     /* FD lines: send with bit-rate switch */
+    co_frame_t *rx_slots;
+    uint32_t rx_capacity;
+    co_frame_t *tx_slots;
+    uint32_t tx_capacity;
+} co_line_config_t;
+
+/* Returns false for an invalid configuration (no queue storage, unknown mode). */
+bool co_line_init(co_line_t *line, const co_line_config_t *config);
+void co_line_set_comm_indication(co_line_t *line, co_comm_fn fn, void *user);
+
+/* Services register for an inclusive range of 11-bit CAN-IDs. A range that
+ * overlaps an existing one, or a full table, returns false. */
+bool co_line_subscribe(co_line_t *line, uint32_t first_id, uint32_t last_id,
+                       co_rx_fn fn, void *user);
+void co_line_unsubscribe(co_line_t *line, co_rx_fn fn, void *user);
+
+/* Driver side: queue a received frame (false + rx overflow event when full). */
+bool co_line_receive(co_line_t *line, const co_frame_t *frame);
+/* Driver side: next frame to transmit, false when none. */
+bool co_line_tx_pop(co_line_t *line, co_frame_t *out);
+/* Driver side: report a communication-state change. */
+void co_line_comm_event(co_line_t *line, co_comm_event_t event);
+
+/* Service side: queue a frame for transmission. The line adds its FD/BRS
+ * flags and rounds the length on fd lines. False (counted, event) when the tx
+ * queue is full. */
+bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len);
+bool co_line_send_frame(co_line_t *line, const co_frame_t *frame);
+
+/* Drain rx, run due timers; returns the next deadline (CO_TIME_NEVER if none).
+ * now_us must not go backwards. */
+uint64_t co_line_process(co_line_t *line, uint64_t now_us);
+
+static inline co_timer_list_t *co_line_timers(co_line_t *line) { return &line->timers; }
+
+#endif
