@@ -32,7 +32,11 @@ static void on_producer_timer(co_timer_t *timer, uint64_t now_us, void *user)
     if (p->nmt->state != CO_NMT_INITIALISING) {
         send_heartbeat(p);
     }
-    co_timer_start(&p->line->timers, timer, now_us + (uint64_t)p->time_ms * 1000u);
+    /* Next one a period after the deadline, not after now, so a late wake-up
+     * does not shift every later heartbeat; after a long stall restart from now. */
+    uint64_t period = (uint64_t)p->time_ms * 1000u;
+    uint64_t next = timer->deadline_us + period;
+    co_timer_start(&p->line->timers, timer, next > now_us ? next : now_us + period);
 }
 
 void co_hb_producer_init(co_hb_producer_t *p, co_line_t *line, co_nmt_t *nmt)
@@ -179,9 +183,20 @@ co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t inde
             return CO_HB_CONFIG_DUPLICATE;
         }
     }
+    uint16_t time_ms = node_id ? (uint16_t)(value & 0xFFFFu) : 0;
     co_timer_cancel(&c->line->timers, &e->timer);
+    if (node_id != 0 && node_id == e->node_id && e->monitor == CO_HB_MONITOR_ACTIVE) {
+        /* Same node, new time: monitoring goes on, the new time counts from
+         * now (a heartbeat may never come again, so do not wait for one). */
+        e->time_ms = time_ms;
+        if (time_ms > 0) {
+            co_timer_start(&c->line->timers, &e->timer,
+                           c->line->now_us + (uint64_t)time_ms * 1000u);
+        }
+        return CO_HB_CONFIG_OK;
+    }
     e->node_id = node_id;
-    e->time_ms = node_id ? (uint16_t)(value & 0xFFFFu) : 0;
+    e->time_ms = time_ms;
     e->monitor = CO_HB_MONITOR_OFF;
     return CO_HB_CONFIG_OK;
 }

@@ -58,7 +58,7 @@ typedef struct co_hb_consumer {
     uint8_t last_state[128];
 } co_hb_consumer_t;
 
-/* Subscribes CAN-IDs 0x701..0x77F. Every node's boot-up and state changes are
+/* Subscribes CAN-IDs 0x700..0x77F (0x700 counted as hb_bad_node). Every node's boot-up and state changes are
  * reported; STARTED / LOST only for configured entries. */
 bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *entries,
                          uint8_t capacity, co_hb_event_fn on_event, void *user);
@@ -67,14 +67,15 @@ void co_hb_consumer_deinit(co_hb_consumer_t *c);
 /* Result codes for entry configuration (map to SDO aborts later). */
 typedef enum co_hb_config_result {
     CO_HB_CONFIG_OK = 0,
-    CO_HB_CONFIG_BAD_NODE = 1,     /* node-id outside 1..127 */
+    CO_HB_CONFIG_BAD_NODE = 1,     /* co_hb_consumer_watch: node-id outside 1..127 */
     CO_HB_CONFIG_DUPLICATE = 2,    /* node already watched by another entry */
     CO_HB_CONFIG_NO_ROOM = 3,      /* index outside the table */
 } co_hb_config_result_t;
 
 /* Set entry `index` the way a write to 0x1016 sub index+1 does: value bits
- * 23..16 node-id (0 disables the entry), bits 15..0 time in ms. Monitoring of
- * the entry restarts at the next heartbeat. */
+ * 23..16 node-id (0 or > 127 leaves the entry unused, per CiA 301), bits 15..0
+ * time in ms. A new node's monitoring starts at its next heartbeat; a new
+ * time for a node already monitored counts from now. */
 co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t index,
                                                uint32_t value);
 /* Watch a node in the first free entry (or update its entry). */

@@ -103,8 +103,13 @@ bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
     return true;
 }
 
-bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
+bool co_line_send_raw(co_line_t *line, const co_frame_t *frame)
 {
+    if (!co_frame_is_valid(frame) ||
+        ((frame->flags & CO_FRAME_FD) && line->mode == CO_MODE_CLASSIC)) {
+        line->stats.tx_invalid++;
+        return false;
+    }
     if (!co_queue_push(&line->tx, frame)) {
         line->stats.tx_overflow++;
         co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
@@ -117,11 +122,33 @@ bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
     return true;
 }
 
+bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
+{
+    if (line->mode == CO_MODE_CLASSIC || (frame->flags & CO_FRAME_RTR)) {
+        return co_line_send_raw(line, frame);
+    }
+    if (frame->len > CO_FRAME_MAX_DATA) {
+        line->stats.tx_invalid++;
+        return false;
+    }
+    co_frame_t fd;
+    co_frame_set(&fd, frame->id, (uint8_t)(frame->flags | line->tx_flags), frame->data,
+                 frame->len);
+    return co_line_send_raw(line, &fd);
+}
+
 bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len)
 {
     co_frame_t frame;
-    if (!co_frame_set(&frame, id, line->tx_flags, data, len)) {
+    if (len > CO_FRAME_MAX_DATA) {
+        line->stats.tx_invalid++;
         return false;
+    }
+    frame.id = id;
+    frame.flags = 0;
+    frame.len = (uint8_t)len;
+    if (len > 0) {
+        memcpy(frame.data, data, len);
     }
     return co_line_send_frame(line, &frame);
 }
@@ -160,9 +187,7 @@ static void dispatch(co_line_t *line, const co_frame_t *frame)
 
 uint64_t co_line_process(co_line_t *line, uint64_t now_us)
 {
-    if (now_us > line->now_us) {
-        line->now_us = now_us;
-    }
+    co_line_set_time(line, now_us);
     /* Only the frames present at entry: a handler that causes more input
      * (loopback drivers) cannot keep this call busy forever. */
     uint32_t pending = co_queue_count(&line->rx);

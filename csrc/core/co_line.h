@@ -39,6 +39,7 @@ typedef struct co_line_stats {
     uint32_t rx_invalid;           /* malformed frame (bad id/length/flags) */
     uint32_t rx_wrong_format;      /* FD frame on a classic line */
     uint32_t rx_rtr;               /* remote frames nobody answers */
+    uint32_t tx_invalid;           /* frames a service or tool tried to send malformed */
     uint32_t nmt_bad_length;
     uint32_t nmt_bad_command;
     uint32_t nmt_bad_node;
@@ -106,15 +107,29 @@ bool co_line_tx_pop(co_line_t *line, co_frame_t *out);
 /* Driver side: report a communication-state change. */
 void co_line_comm_event(co_line_t *line, co_comm_event_t event);
 
-/* Service side: queue a frame for transmission. The line adds its FD/BRS
- * flags and rounds the length on fd lines. False (counted, event) when the tx
- * queue is full. */
+/* Service side: queue a frame for transmission. On fd lines the line adds its
+ * FD/BRS flags and rounds the length up (zero padding); RTR frames stay
+ * classic. False when the frame is invalid (bad id, too long, FD on a classic
+ * line; counted in tx_invalid) or the tx queue is full (counted, event). */
 bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len);
 bool co_line_send_frame(co_line_t *line, const co_frame_t *frame);
+/* Tools and tests: queue a frame exactly as given (a classic frame on an fd
+ * line, say); refused like above when invalid for the line. */
+bool co_line_send_raw(co_line_t *line, const co_frame_t *frame);
 
 /* Drain rx, run due timers; returns the next deadline (CO_TIME_NEVER if none).
- * now_us must not go backwards. */
+ * now_us must not go backwards. Services arm timers relative to the time of
+ * the last process() call (or co_line_set_time), so a caller that changes a
+ * service between calls sets the time first. */
 uint64_t co_line_process(co_line_t *line, uint64_t now_us);
+
+/* Move the line's clock forward without processing (never backwards). */
+static inline void co_line_set_time(co_line_t *line, uint64_t now_us)
+{
+    if (now_us > line->now_us) {
+        line->now_us = now_us;
+    }
+}
 
 static inline co_timer_list_t *co_line_timers(co_line_t *line) { return &line->timers; }
 

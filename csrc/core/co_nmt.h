@@ -67,7 +67,7 @@ co_nmt_state_t co_nmt_command_target(co_nmt_command_t command);
  * our own frames, so when the target includes the local node (its own id, or
  * 0 with include_self) the command is applied to `local` too.
  * local may be NULL (no local node). False when the frame could not be queued
- * or the arguments are invalid. */
+ * or the arguments are invalid (the local node still follows the command). */
 bool co_nmt_master_send(co_line_t *line, co_nmt_t *local, co_nmt_command_t command,
                         uint8_t node_id, bool include_self);
 

@@ -7,6 +7,7 @@ void co_timer_list_init(co_timer_list_t *list)
     list->head = NULL;
     list->tail = NULL;
     list->armed = 0;
+    list->seq = 0;
 }
 
 void co_timer_init(co_timer_t *timer, co_timer_fn fn, void *user)
@@ -14,6 +15,7 @@ void co_timer_init(co_timer_t *timer, co_timer_fn fn, void *user)
     timer->prev = NULL;
     timer->next = NULL;
     timer->deadline_us = 0;
+    timer->seq = 0;
     timer->fn = fn;
     timer->user = user;
     timer->armed = false;
@@ -48,6 +50,7 @@ void co_timer_start(co_timer_list_t *list, co_timer_t *timer, uint64_t deadline_
 {
     co_timer_cancel(list, timer);
     timer->deadline_us = deadline_us;
+    timer->seq = ++list->seq;
     timer->armed = true;
     list->armed++;
 
@@ -79,14 +82,23 @@ uint64_t co_timer_list_next(const co_timer_list_t *list)
     return list->head ? list->head->deadline_us : CO_TIME_NEVER;
 }
 
+/* First timer that was due when the run started: skip the ones armed since
+ * (seq > entry_seq); they sit among the due ones only when armed at <= now. */
+static co_timer_t *first_due(const co_timer_list_t *list, uint64_t now_us, uint64_t entry_seq)
+{
+    co_timer_t *t = list->head;
+    while (t && t->deadline_us <= now_us && t->seq > entry_seq) {
+        t = t->next;
+    }
+    return (t && t->deadline_us <= now_us) ? t : NULL;
+}
+
 uint32_t co_timer_list_run(co_timer_list_t *list, uint64_t now_us)
 {
-    /* Bound the run to the timers due at entry: a callback that re-arms at or
-     * before now must not make this loop spin. */
-    uint32_t budget = list->armed;
+    const uint64_t entry_seq = list->seq;
     uint32_t fired = 0;
-    while (fired < budget && list->head && list->head->deadline_us <= now_us) {
-        co_timer_t *timer = list->head;
+    co_timer_t *timer;
+    while ((timer = first_due(list, now_us, entry_seq)) != NULL) {
         unlink_timer(list, timer);
         fired++;
         if (timer->fn) {

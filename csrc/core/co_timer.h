@@ -17,6 +17,7 @@ struct co_timer {
     co_timer_t *prev;
     co_timer_t *next;
     uint64_t deadline_us;
+    uint64_t seq;          /* arm order: tells timers armed during a run apart */
     co_timer_fn fn;
     void *user;
     bool armed;
@@ -26,6 +27,7 @@ typedef struct co_timer_list {
     co_timer_t *head;     /* earliest deadline */
     co_timer_t *tail;     /* latest deadline: periodic re-arms usually land here */
     uint32_t armed;
+    uint64_t seq;         /* last arm sequence number handed out */
 } co_timer_list_t;
 
 void co_timer_list_init(co_timer_list_t *list);
@@ -36,11 +38,11 @@ void co_timer_start(co_timer_list_t *list, co_timer_t *timer, uint64_t deadline_
 void co_timer_cancel(co_timer_list_t *list, co_timer_t *timer);
 /* Earliest deadline, CO_TIME_NEVER when nothing is armed. */
 uint64_t co_timer_list_next(const co_timer_list_t *list);
-/* Fire timers whose deadline <= now_us, earliest first. A callback may arm,
- * re-arm or cancel any timer. One call fires at most as many timers as were
- * armed when it started, so a callback that re-arms at or before now_us cannot
- * make it spin; whatever is still due then fires on the next call (the next
- * deadline is then <= now_us). Returns the number fired. */
+/* Fire the timers that were due (deadline <= now_us) when the call started,
+ * earliest first. A callback may arm, re-arm or cancel any timer; a timer
+ * armed during the run waits for the next call even when it is already due,
+ * so a zero period cannot make a run spin (the returned next deadline is then
+ * <= now_us). Returns the number fired. */
 uint32_t co_timer_list_run(co_timer_list_t *list, uint64_t now_us);
 
 static inline bool co_timer_is_armed(const co_timer_t *timer) { return timer->armed; }

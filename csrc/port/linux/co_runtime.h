@@ -1,0 +1,133 @@
+/* Linux runtime: runs the core of every line of a network on one C thread
+ * (epoll over the sockets, a timerfd for the next deadline, an eventfd for
+ * wake-ups) without the GIL. Python talks to it through this header only:
+ * commands go in through a mailbox, events come out through a bounded queue. */
+#ifndef CO_RUNTIME_H
+#define CO_RUNTIME_H
+
+#include "../../core/co_line.h"
+#include "../../core/co_nmt.h"
+#include "../../core/co_hb.h"
+
+/* cffi:begin */
+typedef struct co_rt co_rt_t;
+
+typedef enum co_rt_driver {
+    CO_DRIVER_SOCKETCAN = 1,   /* a Linux SocketCAN interface */
+    CO_DRIVER_MEMBUS = 2,      /* the in-process bus named by channel */
+    CO_DRIVER_HOST = 3         /* frames moved by the caller (python-can Bus) */
+} co_rt_driver_t;
+
+typedef enum co_rt_status {
+    CO_RT_OK = 0,
+    CO_RT_ERR_ARGUMENT = -1,      /* invalid argument (see co_rt_last_error) */
+    CO_RT_ERR_NO_INTERFACE = -2,  /* no such network interface */
+    CO_RT_ERR_MTU = -3,           /* interface MTU does not fit the line mode */
+    CO_RT_ERR_SOCKET = -4,        /* socket/ioctl failure (errno text in last error) */
+    CO_RT_ERR_FULL = -5,          /* mailbox or table full */
+    CO_RT_ERR_STATE = -6,         /* not allowed in the current state */
+    CO_RT_ERR_NO_MEMORY = -7,
+    CO_RT_ERR_CLOSED = -8,        /* runtime stopped */
+    CO_RT_ERR_MODE = -9           /* membus already open in the other mode */
+} co_rt_status_t;
+
+typedef struct co_rt_line_config {
+    int driver;                /* co_rt_driver_t */
+    const char *channel;       /* interface name, membus name, or a label */
+    int mode;                  /* co_mode_t */
+    int brs;                   /* fd lines: bit-rate switch on sent frames */
+    uint32_t rx_queue;         /* frames; 0 = default */
+    uint32_t tx_queue;         /* frames; 0 = default */
+    int monitor;               /* post every frame on the line as CO_EV_FRAME */
+} co_rt_line_config_t;
+
+typedef enum co_rt_command_kind {
+    CO_CMD_NODE_CREATE = 1,      /* a = node-id, b = heartbeat ms: create + boot local node */
+    CO_CMD_NMT_SEND = 2,         /* a = command, b = node-id (0 = all), c = include self */
+    CO_CMD_NMT_LOCAL = 3,        /* a = command applied to the local node */
+    CO_CMD_HEARTBEAT_TIME = 4,   /* a = 0x1017 producer time ms */
+    CO_CMD_HB_WATCH = 5,         /* a = node-id, b = consumer time ms (0 = states only) */
+    CO_CMD_HB_UNWATCH = 6,       /* a = node-id */
+    CO_CMD_ALLOW_OPERATIONAL = 7,/* a = 0 veto "to operational", 1 allow */
+    CO_CMD_SEND_FRAME = 8        /* frame sent as is (tools, tests) */
+} co_rt_command_kind_t;
+
+typedef struct co_rt_command {
+    int kind;                  /* co_rt_command_kind_t */
+    int line;                  /* line index from co_rt_add_line */
+    uint32_t a;
+    uint32_t b;
+    uint32_t c;
+    co_frame_t frame;
+} co_rt_command_t;
+
+typedef enum co_rt_event_kind {
+    CO_EV_COMM = 1,            /* a = co_comm_event_t */
+    CO_EV_NMT_STATE = 2,       /* local node: a = old state, b = new state */
+    CO_EV_HEARTBEAT = 3,       /* node = remote, a = co_hb_event_t, b = its state */
+    CO_EV_FRAME = 4,           /* monitor lines: frame, a = 1 when we sent it */
+    CO_EV_NMT_VETOED = 5,      /* "to operational" refused by the application */
+    CO_EV_NMT_RESET = 6,       /* local node reset: a = co_nmt_command_t */
+    CO_EV_EVENTS_LOST = 7,     /* a = events dropped because the queue was full */
+    CO_EV_COMMAND_FAILED = 8   /* a = co_rt_command_kind_t, b = -co_rt_status_t */
+} co_rt_event_kind_t;
+
+typedef struct co_rt_event {
+    int kind;                  /* co_rt_event_kind_t */
+    int line;
+    uint8_t node;
+    uint32_t a;
+    uint32_t b;
+    uint64_t time_us;          /* CLOCK_MONOTONIC */
+    co_frame_t frame;
+} co_rt_event_t;
+
+/* Create a runtime with an event queue of event_capacity entries (0 = default). */
+co_rt_t *co_rt_new(uint32_t event_capacity);
+/* Stops the thread, closes every line, frees everything. */
+void co_rt_free(co_rt_t *rt);
+/* Start the thread (lines may be added before or after). */
+int co_rt_start(co_rt_t *rt);
+/* Stop the thread and wake every waiter with CO_RT_ERR_CLOSED. */
+void co_rt_stop(co_rt_t *rt);
+/* Open a line; returns its index (>= 0) or a co_rt_status_t. */
+int co_rt_add_line(co_rt_t *rt, const co_rt_line_config_t *config);
+/* Text of the last error of this runtime (thread-safe copy into buf). */
+void co_rt_last_error(co_rt_t *rt, char *buf, size_t size);
+const char *co_rt_status_text(int status);
+
+/* Post a command to the mailbox (validated here first). */
+int co_rt_command(co_rt_t *rt, const co_rt_command_t *command);
+/* Wait up to timeout_ms (-1 = forever) for events; copies up to max into
+ * events. Returns the count (0 on timeout) or CO_RT_ERR_CLOSED. */
+int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_ms);
+
+/* Host driver lines: hand a received frame to the line ... */
+int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame);
+/* ... and wait for frames the line wants to send: returns count (0 on
+ * timeout) or CO_RT_ERR_CLOSED. */
+int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int timeout_ms);
+/* Host driver: report a communication-state change (e.g. from python-can). */
+int co_rt_host_comm_event(co_rt_t *rt, int line, int event);
+
+/* Driver-level counters of a line (what happens below the core). */
+typedef struct co_rt_driver_stats {
+    uint32_t kernel_drops;       /* SocketCAN: frames the socket buffer lost */
+    uint32_t error_frames;       /* SocketCAN: error frames received */
+    uint32_t tx_deferred;        /* sends put off because the socket/device queue was full */
+    uint32_t tx_refused;         /* frames the kernel refused: dropped, reported as TX_OVERFLOW */
+    uint32_t iface_down;         /* times the interface went down or away */
+    uint32_t host_pending;       /* host lines: frames waiting for co_rt_host_transmit */
+} co_rt_driver_stats_t;
+
+/* Snapshots (thread-safe). */
+int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
+int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out);
+/* Local node state (co_nmt_state_t) or CO_RT_ERR_STATE when the line has none. */
+int co_rt_local_state(co_rt_t *rt, int line);
+/* Last state seen of a remote node (co_nmt_state_t, CO_NMT_UNKNOWN if none). */
+int co_rt_remote_state(co_rt_t *rt, int line, int node_id);
+uint64_t co_rt_now_us(void);
+/* cffi:end */
+
+#endif
