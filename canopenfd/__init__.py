@@ -1,0 +1,30 @@
+"""canopenfd: a CANopen FD (CiA 1301) and classic CANopen (CiA 301) stack.
+
+The protocol runs in a C core on its own thread; this package is the Python
+facade over it::
+
+    import canopenfd
+
+    with canopenfd.Network() as net:
+        line = net.open_line("mem:demo", mode="fd")
+        me = line.create_local_node(1, heartbeat_ms=100)
+        drive = line.add_node(5, heartbeat_timeout_ms=300)
+        line.nmt.start(5)
+"""
+
+__version__ = "0.1.0"
+
+from .decode import decode
+from .errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
+from .frame import Frame
+from .line import CommEvent, Line
+from .network import Network
+from .nmt import NmtCommand, NmtState
+from .node import LocalNode, RemoteNode
+
+__all__ = [
+    "__version__",
+    "CanopenFDError", "ClosedError", "CommandError", "ConfigurationError", "InterfaceError",
+    "Frame", "NmtCommand", "NmtState", "decode",
+    "Network", "Line", "CommEvent", "LocalNode", "RemoteNode",
+]

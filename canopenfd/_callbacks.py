@@ -1,0 +1,90 @@
+"""Callback lists and waits shared by lines and nodes.
+
+Callbacks run on the network's dispatcher thread. One that raises is logged
+(with its traceback) and the others still run: a user bug must never stop
+event delivery.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import Any, Callable, List, Optional
+
+from .errors import ClosedError, ConfigurationError
+
+log = logging.getLogger("canopenfd")
+
+
+class CallbackList:
+    """Ordered callbacks of one kind of event."""
+
+    def __init__(self, what: str) -> None:
+        self._what = what
+        self._callbacks: List[Callable[..., Any]] = []
+        self._lock = threading.Lock()
+
+    def add(self, callback: Callable[..., Any]) -> Callable[..., Any]:
+        if not callable(callback):
+            raise ConfigurationError(f"{self._what} callback must be callable, got {callback!r}")
+        with self._lock:
+            self._callbacks.append(callback)
+        return callback  # so on_xxx() also works as a decorator
+
+    def remove(self, callback: Callable[..., Any]) -> None:
+        with self._lock:
+            if callback in self._callbacks:
+                self._callbacks.remove(callback)
+
+    def __bool__(self) -> bool:
+        return bool(self._callbacks)
+
+    def fire(self, *args: Any) -> None:
+        with self._lock:
+            callbacks = list(self._callbacks)
+        for callback in callbacks:
+            try:
+                callback(*args)
+            except Exception:  # noqa: BLE001 - logged, never kills the dispatcher
+                log.exception("%s callback %r raised", self._what, callback)
+
+
+class Waiter:
+    """Blocking waits on a condition the dispatcher notifies.
+
+    `closed` is a callable telling whether the network was closed, so a wait
+    ends with ClosedError instead of running into its timeout.
+    """
+
+    def __init__(self, cond: threading.Condition, closed: Callable[[], bool],
+                 is_dispatcher: Callable[[], bool]) -> None:
+        self.cond = cond
+        self._closed = closed
+        self._is_dispatcher = is_dispatcher
+
+    def wait(self, predicate: Callable[[], Any], timeout: Optional[float],
+             what: str, describe_timeout: Callable[[], str]) -> Any:
+        """Wait until predicate() is true; returns its value.
+
+        Raises TimeoutError with describe_timeout()'s text, ClosedError when the
+        network closes meanwhile, ConfigurationError when called from a callback
+        (the dispatcher would wait for itself)."""
+        if timeout is not None and timeout < 0:
+            raise ConfigurationError(f"{what}: timeout must be >= 0 s, got {timeout}")
+        if self._is_dispatcher():
+            raise ConfigurationError(
+                f"{what} called from a callback: callbacks run on the dispatcher thread, "
+                "which delivers the very event waited for; wait from another thread")
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self.cond:
+            while True:
+                if self._closed():
+                    raise ClosedError(f"{what}: the network was closed")
+                result = predicate()
+                if result:
+                    return result
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    raise TimeoutError(f"{what}: {describe_timeout()} after {timeout:g} s")
+                self.cond.wait(remaining)

@@ -1,0 +1,216 @@
+"""Thin, thread-safe wrapper around one `co_rt_t` of the cffi binding.
+
+It is the only module that calls `canopenfd._core` directly: it turns negative
+status codes into exceptions carrying `co_rt_last_error`'s text, and it makes
+every call after `free()` raise ClosedError instead of touching freed memory.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Optional
+
+from .errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
+from .frame import Frame
+
+try:
+    from ._core import ffi, lib
+except ImportError as exc:  # pragma: no cover - only without a build
+    raise ImportError(
+        "canopenfd._core (the compiled C stack) is missing: install the package with "
+        "'pip install .' (or 'pip install -e .') so build_ext.py compiles it") from exc
+
+_ERRORS = {
+    lib.CO_RT_ERR_ARGUMENT: ConfigurationError,
+    lib.CO_RT_ERR_NO_INTERFACE: InterfaceError,
+    lib.CO_RT_ERR_MTU: InterfaceError,
+    lib.CO_RT_ERR_SOCKET: InterfaceError,
+    lib.CO_RT_ERR_FULL: CommandError,
+    lib.CO_RT_ERR_STATE: ConfigurationError,
+    lib.CO_RT_ERR_NO_MEMORY: CommandError,
+    lib.CO_RT_ERR_CLOSED: ClosedError,
+    lib.CO_RT_ERR_MODE: ConfigurationError,
+}
+
+EVENT_BATCH = 64
+HOST_BATCH = 32
+
+
+def status_text(status: int) -> str:
+    return ffi.string(lib.co_rt_status_text(status)).decode("utf-8", "replace")
+
+
+def frame_to_c(frame: Frame, out) -> None:
+    """Fill a co_frame_t (cdata) from a Frame."""
+    out.id = frame.id
+    out.len = len(frame.data) if not frame.rtr else frame.rtr_len
+    out.flags = frame.flags
+    ffi.memmove(out.data, frame.data, len(frame.data))
+
+
+def frame_from_c(cframe, timestamp: float = 0.0, tx: bool = False) -> Frame:
+    """A Frame from a co_frame_t (cdata)."""
+    flags = cframe.flags
+    length = min(cframe.len, 64)
+    rtr = bool(flags & lib.CO_FRAME_RTR)
+    data = b"" if rtr else bytes(ffi.buffer(cframe.data, length))
+    return Frame.from_flags(cframe.id, data, flags, timestamp=timestamp, tx=tx,
+                            rtr_len=length if rtr else 0)
+
+
+class Runtime:
+    """One C runtime (its thread, mailbox, event queue and lines)."""
+
+    def __init__(self, event_capacity: int = 0) -> None:
+        self._lock = threading.Lock()
+        self._rt = ffi.NULL
+        self._stopped = False
+        rt = lib.co_rt_new(event_capacity)
+        if rt == ffi.NULL:
+            raise CommandError("co_rt_new failed: out of memory")
+        self._rt = rt
+        rc = lib.co_rt_start(rt)
+        if rc < 0:
+            text = self.last_error() or status_text(rc)
+            lib.co_rt_free(rt)
+            self._rt = ffi.NULL
+            raise _ERRORS.get(rc, CanopenFDError)(f"cannot start the runtime thread: {text}")
+
+    # ------------------------------------------------------------ lifecycle
+    @property
+    def closed(self) -> bool:
+        return self._stopped
+
+    def stop(self) -> None:
+        """Stop the C thread; waiters (events, host transmit) return CLOSED."""
+        with self._lock:
+            if self._stopped or self._rt == ffi.NULL:
+                self._stopped = True
+                return
+            self._stopped = True
+            lib.co_rt_stop(self._rt)
+
+    def free(self) -> None:
+        """Free the runtime. Only once every thread that waits in it has left."""
+        with self._lock:
+            self._stopped = True
+            if self._rt != ffi.NULL:
+                lib.co_rt_free(self._rt)
+                self._rt = ffi.NULL
+
+    def _live(self, what: str):
+        if self._stopped or self._rt == ffi.NULL:
+            raise ClosedError(f"{what}: the network is closed")
+        return self._rt
+
+    # ------------------------------------------------------------ errors
+    def last_error(self) -> str:
+        if self._rt == ffi.NULL:
+            return ""
+        buf = ffi.new("char[]", 512)
+        lib.co_rt_last_error(self._rt, buf, 512)
+        return ffi.string(buf).decode("utf-8", "replace")
+
+    def _raise(self, status: int, what: str, overrides: Optional[dict] = None) -> None:
+        text = self.last_error() or status_text(status)
+        kind = (overrides or {}).get(status) or _ERRORS.get(status, CanopenFDError)
+        raise kind(f"{what}: {text}")
+
+    # ------------------------------------------------------------ calls
+    def add_line(self, driver: int, channel: str, mode: int, brs: bool, rx_queue: int,
+                 tx_queue: int, monitor: bool, what: str) -> int:
+        config = ffi.new("co_rt_line_config_t *")
+        channel_c = ffi.new("char[]", channel.encode("utf-8"))
+        config.driver = driver
+        config.channel = channel_c
+        config.mode = mode
+        config.brs = int(brs)
+        config.rx_queue = rx_queue
+        config.tx_queue = tx_queue
+        config.monitor = int(monitor)
+        with self._lock:
+            rc = lib.co_rt_add_line(self._live(what), config)
+            if rc < 0:
+                # Opening a line, "wrong state" means the interface is down.
+                self._raise(rc, what, {lib.CO_RT_ERR_STATE: InterfaceError})
+        return rc
+
+    def command(self, kind: int, line: int, a: int = 0, b: int = 0, c: int = 0,
+                frame: Optional[Frame] = None, what: str = "command") -> None:
+        cmd = ffi.new("co_rt_command_t *")
+        cmd.kind = kind
+        cmd.line = line
+        cmd.a = a
+        cmd.b = b
+        cmd.c = c
+        if frame is not None:
+            frame_to_c(frame, cmd.frame)
+        with self._lock:
+            rc = lib.co_rt_command(self._live(what), cmd)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def line_stats(self, line: int, what: str) -> dict:
+        out = ffi.new("co_line_stats_t *")
+        with self._lock:
+            rc = lib.co_rt_line_stats(self._live(what), line, out)
+            if rc < 0:
+                self._raise(rc, what)
+        return {name: getattr(out, name) for name, _ in ffi.typeof("co_line_stats_t").fields}
+
+    def local_state(self, line: int, what: str) -> Optional[int]:
+        """The local node's state, None while the line has none (yet)."""
+        with self._lock:
+            rc = lib.co_rt_local_state(self._live(what), line)
+        if rc == lib.CO_RT_ERR_STATE:
+            return None
+        if rc < 0:
+            self._raise(rc, what)
+        return rc
+
+    def remote_state(self, line: int, node_id: int, what: str) -> int:
+        with self._lock:
+            rc = lib.co_rt_remote_state(self._live(what), line, node_id)
+            if rc < 0:
+                self._raise(rc, what)
+        return rc
+
+    def remote_states(self, line: int, what: str) -> dict:
+        """{node_id: state code} of every node 1..127 the line has heard of."""
+        result = {}
+        unknown = lib.CO_NMT_UNKNOWN
+        with self._lock:
+            rt = self._live(what)
+            for node_id in range(1, 128):
+                rc = lib.co_rt_remote_state(rt, line, node_id)
+                if rc < 0:
+                    self._raise(rc, what)
+                if rc != unknown:
+                    result[node_id] = rc
+        return result
+
+    def host_receive(self, line: int, cframe) -> int:
+        """Hand a frame to a host-driver line; returns the status (no raise:
+        the caller is a bridge thread that decides what to do)."""
+        with self._lock:
+            if self._stopped or self._rt == ffi.NULL:
+                return lib.CO_RT_ERR_CLOSED
+            return lib.co_rt_host_receive(self._rt, line, cframe)
+
+    # The two blocking waits run without the lock (they may block for a while);
+    # Network.close() joins their threads before free(), so _rt stays valid.
+    def wait_events(self, events, max_events: int, timeout_ms: int) -> int:
+        rt = self._rt
+        if rt == ffi.NULL:
+            return lib.CO_RT_ERR_CLOSED
+        return lib.co_rt_wait_events(rt, events, max_events, timeout_ms)
+
+    def host_transmit(self, line: int, frames, max_frames: int, timeout_ms: int) -> int:
+        rt = self._rt
+        if rt == ffi.NULL:
+            return lib.CO_RT_ERR_CLOSED
+        return lib.co_rt_host_transmit(rt, line, frames, max_frames, timeout_ms)
+
+
+def now_us() -> int:
+    return lib.co_rt_now_us()

@@ -1,0 +1,302 @@
+"""`Line`: one CAN line of a network (a SocketCAN interface, an in-process
+bus, or a python-can bus), classic or fd, with its NMT master, its local node
+and the remote nodes it watches."""
+
+from __future__ import annotations
+
+import enum
+import logging
+import threading
+from typing import TYPE_CHECKING, Callable, Dict, List, Optional, Union
+
+from ._callbacks import CallbackList, Waiter
+from ._runtime import lib, now_us, status_text
+from .errors import ConfigurationError
+from .frame import Frame, fd_len_round
+from .nmt import NmtCommand, NmtMaster, NmtState
+from .node import LocalNode, RemoteNode, _remote_state, check_ms, check_node_id
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .network import Network
+
+log = logging.getLogger("canopenfd")
+
+
+class CommEvent(enum.IntEnum):
+    """Communication-state events of a line (co_comm_event_t)."""
+
+    BUS_OFF = 1
+    ERROR_PASSIVE = 2
+    ERROR_ACTIVE = 3
+    RX_OVERFLOW = 4
+    TX_OVERFLOW = 5
+    TX_QUEUE_FULL = 6
+    TX_QUEUE_EMPTY = 7
+    IFACE_DOWN = 8
+    IFACE_UP = 9
+    ERROR_WARNING = 10
+    BUS_OFF_RECOVERED = 11
+
+
+class Line:
+    """One CAN line. Create it with `Network.open_line()`.
+
+    Attributes: `channel` (as given), `mode` ('fd' or 'classic'), `brs`,
+    `monitor`, `nmt` (the line's NMT master), `nodes` ({node_id: RemoteNode}),
+    `local_node` (or None).
+    """
+
+    def __init__(self, network: "Network", index: int, channel: str, mode: str,
+                 brs: bool, monitor: bool) -> None:
+        self.network = network
+        self.index = index
+        self.channel = channel
+        self.mode = mode
+        self.brs = brs
+        self.monitor = monitor
+        self.nmt = NmtMaster(self)
+        self.nodes: Dict[int, RemoteNode] = {}
+        self.local_node: Optional[LocalNode] = None
+        self._cond = threading.Condition()
+        self._waiter = Waiter(self._cond, lambda: network.closed, network._on_dispatcher)
+        self._comm = CallbackList(f"line {channel!r} comm event")
+        self._frames = CallbackList(f"line {channel!r} frame")
+        self._comm_events: List[CommEvent] = []
+
+    def __repr__(self) -> str:
+        kind = "monitor " if self.monitor else ""
+        return f"<Line {self.channel!r} {self.mode} {kind}#{self.index}>"
+
+    @property
+    def _where(self) -> str:
+        return f"line {self.channel!r}"
+
+    @property
+    def _rt(self):
+        return self.network._runtime
+
+    # ---------------------------------------------------------------- nodes
+    def create_local_node(self, node_id: int, heartbeat_ms: int = 0, *,
+                          boot: bool = True) -> LocalNode:
+        """Create our node on this line (one per line) and boot it: boot-up
+        message, PRE-OPERATIONAL, then a heartbeat every heartbeat_ms (0 = none).
+
+        boot=False leaves it off until node.boot(), so callbacks registered in
+        between see its first transition."""
+        node_id = check_node_id(node_id, f"create_local_node on {self._where}")
+        heartbeat_ms = check_ms(heartbeat_ms, "heartbeat_ms",
+                                f"create_local_node({node_id}) on {self._where}")
+        with self._cond:
+            if self.local_node is not None:
+                raise ConfigurationError(
+                    f"{self._where} already has local node {self.local_node.node_id}: "
+                    f"one local node per line (cannot add node {node_id})")
+            if node_id in self.nodes:
+                raise ConfigurationError(
+                    f"{self._where}: node-id {node_id} is already a remote node watched by "
+                    "this line; a local node needs an id of its own")
+            self._rt._live(f"create_local_node({node_id}) on {self._where}")
+            node = LocalNode(self, node_id, heartbeat_ms)
+            self.local_node = node
+            if boot:
+                try:
+                    node.boot()
+                except BaseException:
+                    self.local_node = None
+                    raise
+        return node
+
+    def add_node(self, node_id: int, heartbeat_timeout_ms: int = 0) -> RemoteNode:
+        """Watch a remote node (python-canopen's network.add_node): its boot-up,
+        states and, with heartbeat_timeout_ms > 0, the loss of its heartbeat.
+        Adding a node already watched updates its timeout and returns it."""
+        node_id = check_node_id(node_id, f"add_node on {self._where}")
+        heartbeat_timeout_ms = check_ms(heartbeat_timeout_ms, "heartbeat_timeout_ms",
+                                        f"add_node({node_id}) on {self._where}")
+        with self._cond:
+            if self.local_node is not None and self.local_node.node_id == node_id:
+                raise ConfigurationError(
+                    f"{self._where}: node-id {node_id} is this line's local node; "
+                    "a remote node needs another id")
+            existing = self.nodes.get(node_id)
+        if existing is not None:
+            existing.heartbeat_timeout_ms = heartbeat_timeout_ms
+            return existing
+        node = RemoteNode(self, node_id, heartbeat_timeout_ms)
+        with self._cond:
+            self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, heartbeat_timeout_ms,
+                             what=f"add_node({node_id}) on {self._where}")
+            node._tracked = _remote_state(self._rt.remote_state(self.index, node_id,
+                                                                self._where))
+            self.nodes[node_id] = node
+        return node
+
+    def remove_node(self, node_id: int) -> None:
+        """Stop watching a remote node (its callbacks no longer fire)."""
+        node_id = check_node_id(node_id, f"remove_node on {self._where}")
+        with self._cond:
+            if node_id not in self.nodes:
+                raise ConfigurationError(f"{self._where}: node {node_id} is not watched")
+            self._rt.command(lib.CO_CMD_HB_UNWATCH, self.index, node_id,
+                             what=f"remove_node({node_id}) on {self._where}")
+            del self.nodes[node_id]
+
+    def __getitem__(self, node_id: int) -> RemoteNode:
+        return self.nodes[node_id]
+
+    # ---------------------------------------------------------------- views
+    @property
+    def states(self) -> Dict[int, NmtState]:
+        """{node_id: NmtState} of every node heard on this line, plus the local
+        node. A node that sent its boot-up is PRE-OPERATIONAL."""
+        result = {node_id: _remote_state(code) for node_id, code
+                  in self._rt.remote_states(self.index, f"states of {self._where}").items()}
+        if self.local_node is not None:
+            result[self.local_node.node_id] = self.local_node.state
+        return dict(sorted(result.items()))
+
+    @property
+    def stats(self) -> Dict[str, int]:
+        """The line's counters (co_line_stats_t): frames, overflows and every
+        malformed or unhandled frame, by kind."""
+        return self._rt.line_stats(self.index, f"stats of {self._where}")
+
+    @property
+    def comm_events(self) -> List[CommEvent]:
+        """Communication events seen so far, oldest first (at most 1000 kept)."""
+        with self._cond:
+            return list(self._comm_events)
+
+    # ---------------------------------------------------------------- callbacks
+    def on_comm_event(self, callback: Callable[[CommEvent], None]):
+        """callback(CommEvent): bus-off, error passive, overflow, interface down/up..."""
+        return self._comm.add(callback)
+
+    def on_frame(self, callback: Callable[[Frame], None]):
+        """callback(Frame) for every frame on the line, ours included (tx=True).
+        Monitor lines only: it costs Python code per frame."""
+        if not self.monitor:
+            raise ConfigurationError(
+                f"on_frame needs a monitor line: {self._where} was opened with "
+                "monitor=False (open another line with monitor=True)")
+        return self._frames.add(callback)
+
+    def wait_for_comm_event(self, event: Union[CommEvent, int],
+                            timeout: Optional[float] = 10.0) -> None:
+        """Block until `event` occurs after this call."""
+        event = CommEvent(event)
+        start = len(self._comm_events)
+        self._waiter.wait(lambda: event in self._comm_events[start:], timeout,
+                          f"{self._where}: wait_for_comm_event({event.name})",
+                          lambda: f"no {event.name}")
+
+    # ---------------------------------------------------------------- raw frames
+    def send_frame(self, can_id: int, data: bytes = b"", fd: Optional[bool] = None,
+                   brs: Optional[bool] = None, extended: bool = False) -> None:
+        """Send one frame as is (tools, tests; no protocol check).
+
+        fd/brs default to the line's mode; an FD payload whose length is not a
+        valid FD length is padded with zeros to the next one (12, 16, 20, ...)."""
+        where = f"send_frame on {self._where}"
+        data = bytes(data)
+        fd = (self.mode == "fd") if fd is None else bool(fd)
+        if fd and self.mode != "fd":
+            raise ConfigurationError(f"{where}: an FD frame cannot go on a classic line")
+        brs = (self.brs if fd else False) if brs is None else bool(brs)
+        if brs and not fd:
+            raise ConfigurationError(f"{where}: bit-rate switch needs an FD frame")
+        limit = 0x1FFFFFFF if extended else 0x7FF
+        if isinstance(can_id, bool) or not isinstance(can_id, int) or not 0 <= can_id <= limit:
+            raise ConfigurationError(
+                f"{where}: CAN-ID {can_id!r} outside 0..0x{limit:X} "
+                f"({'29' if extended else '11'}-bit)")
+        if fd:
+            if len(data) > 64:
+                raise ConfigurationError(f"{where}: {len(data)} bytes, an FD frame holds 64")
+            data = data.ljust(fd_len_round(len(data)), b"\0")
+        elif len(data) > 8:
+            raise ConfigurationError(f"{where}: {len(data)} bytes, a classic frame holds 8")
+        frame = Frame(can_id, data, fd=fd, brs=brs, ext=bool(extended))
+        self._rt.command(lib.CO_CMD_SEND_FRAME, self.index, frame=frame, what=where)
+
+    # ---------------------------------------------------------------- for nodes
+    def _create_node(self, node_id: int, heartbeat_ms: int, where: str) -> None:
+        self._rt.command(lib.CO_CMD_NODE_CREATE, self.index, node_id, heartbeat_ms,
+                         what=f"boot of {where}")
+    def _send_nmt(self, command: NmtCommand, node_id: int, include_self: bool) -> None:
+        target = "all" if node_id == 0 else f"node {node_id}"
+        self._rt.command(lib.CO_CMD_NMT_SEND, self.index, int(command), node_id,
+                         int(include_self),
+                         what=f"NMT {command.label} {target} on {self._where}")
+
+    def _apply_local(self, command: NmtCommand, where: str) -> None:
+        self._rt.command(lib.CO_CMD_NMT_LOCAL, self.index, int(command),
+                         what=f"NMT {command.label} on {where}")
+
+    def _set_heartbeat(self, ms: int, where: str) -> None:
+        self._rt.command(lib.CO_CMD_HEARTBEAT_TIME, self.index, ms,
+                         what=f"heartbeat_ms = {ms} on {where}")
+
+    def _set_allow_operational(self, allowed: bool, where: str) -> None:
+        self._rt.command(lib.CO_CMD_ALLOW_OPERATIONAL, self.index, int(allowed),
+                         what=f"allow_operational = {allowed} on {where}")
+
+    def _watch(self, node_id: int, ms: int, where: str) -> None:
+        self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, ms,
+                         what=f"heartbeat_timeout_ms = {ms} on {where}")
+
+    @staticmethod
+    def _now_us() -> int:
+        return now_us()
+
+    def _runtime_local_state(self, where: str) -> Optional[int]:
+        return self._rt.local_state(self.index, where)
+
+    def _runtime_remote_state(self, node_id: int, where: str) -> int:
+        return self._rt.remote_state(self.index, node_id, where)
+
+    # ---------------------------------------------------------------- events
+    def _handle(self, kind: int, node: int, a: int, b: int, frame: Optional[Frame],
+                time_us: int = 0) -> None:
+        """One runtime event for this line (dispatcher thread)."""
+        run: Optional[Callable[[], None]] = None
+        with self._cond:
+            if kind == lib.CO_EV_FRAME:
+                if frame is not None and self._frames:
+                    run = lambda: self._frames.fire(frame)  # noqa: E731
+            elif kind == lib.CO_EV_HEARTBEAT:
+                remote = self.nodes.get(node)
+                if remote is not None:
+                    run = remote._event(a, b, time_us)
+            elif kind == lib.CO_EV_NMT_STATE:
+                if self.local_node is not None:
+                    run = self.local_node._event_state(a, b)
+            elif kind == lib.CO_EV_COMM:
+                try:
+                    event = CommEvent(a)
+                except ValueError:
+                    log.warning("%s: unknown communication event %d", self._where, a)
+                else:
+                    self._comm_events.append(event)
+                    del self._comm_events[:-1000]
+                    run = lambda: self._comm.fire(event)  # noqa: E731
+            elif kind == lib.CO_EV_NMT_VETOED:
+                if self.local_node is not None:
+                    run = self.local_node._event_vetoed()
+            elif kind == lib.CO_EV_NMT_RESET:
+                if self.local_node is not None:
+                    run = self.local_node._event_reset(a)
+            elif kind == lib.CO_EV_COMMAND_FAILED:
+                log.warning("%s: command %d failed in the runtime: %s", self._where, a,
+                            self._status_text(-b))
+            self._cond.notify_all()
+        if run is not None:
+            run()
+
+    def _wake(self) -> None:
+        with self._cond:
+            self._cond.notify_all()
+
+    @staticmethod
+    def _status_text(status: int) -> str:
+        return status_text(status)

@@ -1,0 +1,217 @@
+"""`Network`: one C runtime (one thread running every line) plus the Python
+dispatcher thread that turns its events into callbacks."""
+
+from __future__ import annotations
+
+import atexit
+import logging
+import threading
+import weakref
+from typing import Any, Dict, List, Optional
+
+from ._runtime import EVENT_BATCH, Runtime, ffi, frame_from_c, lib
+from .errors import ClosedError, ConfigurationError
+from .hostbus import HostBridge
+from .line import Line
+
+log = logging.getLogger("canopenfd")
+
+_WAIT_MS = 200          # dispatcher wake-up period (to notice close())
+_JOIN_TIMEOUT_S = 5.0   # generous: close() must never hang, but slow VMs exist
+_MAX_QUEUE = 1 << 20
+_MODES = ("fd", "classic")
+
+# Networks still open at interpreter exit are closed then, so the C thread
+# never outlives the interpreter that owns its callbacks.
+_open_networks: "weakref.WeakSet[Network]" = weakref.WeakSet()
+
+
+@atexit.register
+def _close_open_networks() -> None:
+    for network in list(_open_networks):
+        network.close()
+
+
+class Network:
+    """A set of CAN lines run by one C thread.
+
+    Usable as a context manager; close() is idempotent. Callbacks of every line
+    run on this network's dispatcher thread, one at a time, in event order.
+    """
+
+    def __init__(self, event_capacity: int = 0) -> None:
+        if isinstance(event_capacity, bool) or not isinstance(event_capacity, int) \
+                or not 0 <= event_capacity <= _MAX_QUEUE:
+            raise ConfigurationError(
+                f"event_capacity must be an int 0..{_MAX_QUEUE} (0 = default), "
+                f"got {event_capacity!r}")
+        self._runtime = Runtime(event_capacity)
+        self._lock = threading.RLock()     # lines table, close()
+        self._lines: Dict[int, Line] = {}
+        self._bridges: List[HostBridge] = []
+        self._closed = False
+        self._events_lost = 0
+        self._free_on_exit = False  # close() ran in a callback: the dispatcher frees
+        self._dispatcher = threading.Thread(target=self._dispatch, name="canopenfd-dispatch",
+                                            daemon=True)
+        self._dispatcher.start()
+        _open_networks.add(self)
+
+    def __enter__(self) -> "Network":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        state = "closed" if self._closed else f"{len(self._lines)} lines"
+        return f"<canopenfd.Network {state}>"
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    @property
+    def lines(self) -> List[Line]:
+        with self._lock:
+            return [self._lines[i] for i in sorted(self._lines)]
+
+    @property
+    def events_lost(self) -> int:
+        """Events the runtime dropped because the Python side fell behind."""
+        return self._events_lost
+
+    # ---------------------------------------------------------------- lines
+    def open_line(self, channel: Optional[str] = None, *, bus: Any = None, mode: str = "fd",
+                  brs: bool = True, monitor: bool = False, rx_queue: int = 0,
+                  tx_queue: int = 0) -> Line:
+        """Open a line and return it.
+
+        channel: "mem:NAME" for the in-process bus NAME, otherwise a SocketCAN
+        interface name ("vcan0", "can0"). Or bus=: a python-can Bus (the line
+        then runs over it through two bridge threads; channel is only a label).
+        mode: 'fd' or 'classic'. brs: bit-rate switch on frames sent (fd).
+        monitor: report every frame on the line to on_frame callbacks.
+        rx_queue/tx_queue: queue sizes in frames (0 = runtime default).
+        """
+        if self._closed:
+            raise ClosedError(f"open_line({channel!r}): the network is closed")
+        if mode not in _MODES:
+            raise ConfigurationError(
+                f"line mode {mode!r} unknown: expected 'fd' or 'classic'")
+        for name, value in (("rx_queue", rx_queue), ("tx_queue", tx_queue)):
+            if isinstance(value, bool) or not isinstance(value, int) \
+                    or not 0 <= value <= _MAX_QUEUE:
+                raise ConfigurationError(
+                    f"{name} must be an int 0..{_MAX_QUEUE} frames (0 = default), "
+                    f"got {value!r}")
+        if (channel is None) == (bus is None):
+            raise ConfigurationError(
+                "open_line needs exactly one of channel (an interface name or 'mem:NAME') "
+                "and bus (a python-can Bus)" + ("" if channel is None else
+                                                f"; got both channel={channel!r} and a bus"))
+        if bus is not None:
+            if not (callable(getattr(bus, "recv", None)) and callable(getattr(bus, "send", None))):
+                raise ConfigurationError(f"bus must be a python-can Bus, got {bus!r}")
+            driver = lib.CO_DRIVER_HOST
+            label = str(getattr(bus, "channel_info", None) or type(bus).__name__)
+        else:
+            if not isinstance(channel, str) or not channel.strip():
+                raise ConfigurationError(
+                    f"channel must be an interface name or 'mem:NAME', got {channel!r}")
+            if channel.startswith("mem:"):
+                driver = lib.CO_DRIVER_MEMBUS
+                label = channel[4:]
+                if not label:
+                    raise ConfigurationError(
+                        f"channel {channel!r}: the in-process bus needs a name ('mem:NAME')")
+            else:
+                driver = lib.CO_DRIVER_SOCKETCAN
+                label = channel
+        fd = mode == "fd"
+        brs = bool(brs) and fd
+        name = channel if channel is not None else label
+        with self._lock:
+            if self._closed:
+                raise ClosedError(f"open_line({name!r}): the network is closed")
+            index = self._runtime.add_line(
+                driver, label, lib.CO_MODE_FD if fd else lib.CO_MODE_CLASSIC, brs,
+                rx_queue, tx_queue, monitor, what=f"cannot open {mode} line {name!r}")
+            line = Line(self, index, name, mode, brs, bool(monitor))
+            self._lines[index] = line
+            if bus is not None:
+                bridge = HostBridge(self._runtime, index, bus, name)
+                self._bridges.append(bridge)
+                bridge.start()
+        return line
+
+    # ---------------------------------------------------------------- close
+    def close(self) -> None:
+        """Stop the runtime and every thread; idempotent, never hangs.
+
+        Waits in other threads end with ClosedError. Called from a callback,
+        the runtime is freed by the dispatcher once the callback returns."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        _open_networks.discard(self)
+        for bridge in self._bridges:
+            bridge.stop()
+        self._runtime.stop()
+        for line in self.lines:
+            line._wake()
+        if self._on_dispatcher():
+            self._free_on_exit = True  # the dispatcher frees once the callback returns
+            return
+        self._dispatcher.join(_JOIN_TIMEOUT_S)
+        self._finish()
+
+    def _finish(self) -> None:
+        """Join the bridge threads, then free the runtime if nothing still waits in it."""
+        stuck = [b for b in self._bridges if not b.join(_JOIN_TIMEOUT_S)]
+        if self._dispatcher.is_alive() and not self._on_dispatcher():
+            stuck.append(self._dispatcher)  # type: ignore[arg-type]
+        if stuck:
+            # Freeing now could crash a thread still inside the runtime: leak it instead.
+            log.error("network close: %d thread(s) did not end in %.0f s; runtime not freed",
+                      len(stuck), _JOIN_TIMEOUT_S)
+            return
+        self._runtime.free()
+
+    def _on_dispatcher(self) -> bool:
+        return threading.current_thread() is self._dispatcher
+
+    # ---------------------------------------------------------------- dispatch
+    def _dispatch(self) -> None:
+        events = ffi.new("co_rt_event_t[]", EVENT_BATCH)
+        try:
+            while not self._closed:
+                n = self._runtime.wait_events(events, EVENT_BATCH, _WAIT_MS)
+                if n < 0:
+                    break  # CO_RT_ERR_CLOSED
+                for i in range(n):
+                    try:
+                        self._deliver(events[i])
+                    except Exception:  # noqa: BLE001 - one bad event must not stop the rest
+                        log.exception("canopenfd: event %d of line %d could not be delivered",
+                                      events[i].kind, events[i].line)
+        finally:
+            if self._free_on_exit:
+                self._finish()
+
+    def _deliver(self, ev: Any) -> None:
+        kind = ev.kind
+        if kind == lib.CO_EV_EVENTS_LOST:
+            self._events_lost += ev.a
+            log.warning("canopenfd: %d runtime events lost (callbacks too slow?)", ev.a)
+            return
+        with self._lock:
+            line = self._lines.get(ev.line)
+        if line is None:
+            log.debug("event %d for unknown line %d ignored", kind, ev.line)
+            return
+        frame = None
+        if kind == lib.CO_EV_FRAME:
+            frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
+        line._handle(kind, ev.node, ev.a, ev.b, frame, ev.time_us)

@@ -1,0 +1,371 @@
+"""Nodes of a line: our own `LocalNode` and the `RemoteNode`s we watch."""
+
+from __future__ import annotations
+
+import collections
+from typing import TYPE_CHECKING, Callable, Deque, Optional, Tuple, Union
+
+from ._callbacks import CallbackList
+from ._runtime import lib
+from .errors import ConfigurationError
+from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .line import Line
+
+StateLike = Union[NmtState, str, int]
+
+# How many recent states a node remembers, so a wait that starts a little
+# late still sees a short-lived state (INITIALISING during a reset).
+_HISTORY = 64
+
+
+def check_node_id(node_id: object, where: str) -> int:
+    """A node-id 1..127 or ConfigurationError naming the value and the place."""
+    if isinstance(node_id, bool) or not isinstance(node_id, int):
+        raise ConfigurationError(f"{where}: node-id must be an int 1..127, got {node_id!r}")
+    if not 1 <= node_id <= 127:
+        raise ConfigurationError(f"{where}: node-id {node_id} outside 1..127")
+    return node_id
+
+
+def check_ms(value: object, name: str, where: str) -> int:
+    """A time in ms 0..65535 (16-bit CANopen object) or ConfigurationError."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigurationError(f"{where}: {name} must be an int 0..65535 ms, got {value!r}")
+    if not 0 <= value <= 0xFFFF:
+        raise ConfigurationError(f"{where}: {name} {value} ms outside 0..65535")
+    return value
+
+
+class _StateHistory:
+    """Recent states of a node with a sequence number, for waits."""
+
+    def __init__(self) -> None:
+        self.seq = 0
+        self._states: Deque[Tuple[int, NmtState]] = collections.deque(maxlen=_HISTORY)
+
+    def push(self, state: NmtState) -> None:
+        self.seq += 1
+        self._states.append((self.seq, state))
+
+    def seen_since(self, seq: int, state: NmtState) -> bool:
+        return any(s == state for n, s in self._states if n > seq)
+
+
+class LocalNode:
+    """The node this process runs on a line (NMT slave + heartbeat producer).
+
+    Created by `Line.create_local_node()`: it boots at once (boot-up message,
+    then PRE-OPERATIONAL) and produces its heartbeat every `heartbeat_ms`.
+    With boot=False it waits for `boot()`, so callbacks registered first see
+    the very first transition.
+    """
+
+    def __init__(self, line: "Line", node_id: int, heartbeat_ms: int) -> None:
+        self.line = line
+        self.node_id = node_id
+        self._booted = False
+        self.nmt = LocalNmt(self)
+        self._heartbeat_default_ms = heartbeat_ms
+        self._heartbeat_ms = heartbeat_ms
+        self._allow_operational = True
+        self._history = _StateHistory()
+        self._state_changed = CallbackList(f"node {node_id} state change")
+        self._vetoed = CallbackList(f"node {node_id} veto")
+        self._reset = CallbackList(f"node {node_id} reset")
+
+    def __repr__(self) -> str:
+        return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
+
+    @property
+    def _where(self) -> str:
+        return f"local node {self.node_id} on line {self.line.channel!r}"
+
+    # ---------------------------------------------------------------- boot
+    @property
+    def booted(self) -> bool:
+        return self._booted
+
+    def boot(self) -> None:
+        """Power the node on: boot-up message, PRE-OPERATIONAL, heartbeat.
+        Only once; later restarts are NMT resets (`apply('reset-node')`)."""
+        with self.line._cond:
+            if self._booted:
+                raise ConfigurationError(
+                    f"{self._where} is already booted (restart it with apply('reset-node'))")
+            self.line._create_node(self.node_id, self._heartbeat_ms, self._where)
+            self._booted = True
+
+    # ---------------------------------------------------------------- state
+    @property
+    def state(self) -> NmtState:
+        """Current NMT state (read from the runtime, so always up to date);
+        INITIALISING until the node has booted."""
+        code = self.line._runtime_local_state(self._where)
+        return NmtState.INITIALISING if code is None else NmtState(code)
+
+    def apply(self, command: Union[NmtCommand, int, str]) -> None:
+        """Apply an NMT command to this node as if the master had sent it."""
+        command = NmtCommand.parse(command)
+        if not self._booted:
+            raise ConfigurationError(f"{self._where} is not booted yet: call boot() first")
+        self.line._apply_local(command, self._where)
+
+    def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        """Block until the node is (or has passed through) `state`."""
+        target = NmtState.parse(state)
+        start = self._history.seq
+        self.line._waiter.wait(
+            lambda: self._history.seen_since(start, target) or self.state == target,
+            timeout, f"{self._where}: wait_for_state({target.label})",
+            lambda: f"still {self.state.label}, not {target.label}")
+
+    # ---------------------------------------------------------------- 0x1017
+    @property
+    def heartbeat_ms(self) -> int:
+        """Heartbeat producer time (0x1017) in ms; 0 = no heartbeat.
+
+        Setting it takes effect at once: the next heartbeat goes out one new
+        period from now. A reset (node or communication) restores the value
+        given to create_local_node()."""
+        return self._heartbeat_ms
+
+    @heartbeat_ms.setter
+    def heartbeat_ms(self, value: int) -> None:
+        value = check_ms(value, "heartbeat_ms", self._where)
+        with self.line._cond:
+            if self._booted:
+                self.line._set_heartbeat(value, self._where)
+            else:
+                self._heartbeat_default_ms = value  # becomes the node's 0x1017 default
+            self._heartbeat_ms = value
+
+    # ---------------------------------------------------------------- veto
+    @property
+    def allow_operational(self) -> bool:
+        """When False, "start" (to OPERATIONAL) is refused and on_veto fires."""
+        return self._allow_operational
+
+    @allow_operational.setter
+    def allow_operational(self, allowed: bool) -> None:
+        self.line._set_allow_operational(bool(allowed), self._where)
+        self._allow_operational = bool(allowed)
+
+    # ---------------------------------------------------------------- callbacks
+    def on_state_change(self, callback: Callable[[NmtState, NmtState], None]):
+        """callback(old_state, new_state) after every transition."""
+        return self._state_changed.add(callback)
+
+    def on_veto(self, callback: Callable[[], None]):
+        """callback() when a start was refused (allow_operational is False)."""
+        return self._vetoed.add(callback)
+
+    def on_reset(self, callback: Callable[[NmtCommand], None]):
+        """callback(kind) when a reset runs (RESET_NODE or RESET_COMMUNICATION),
+        before the node's new boot-up message."""
+        return self._reset.add(callback)
+
+    # ---------------------------------------------------------------- events
+    def _event_state(self, old: int, new: int) -> Callable[[], None]:
+        old_s, new_s = _state(old), _state(new)
+        self._history.push(new_s)
+        return lambda: self._state_changed.fire(old_s, new_s)
+
+    def _event_vetoed(self) -> Callable[[], None]:
+        return self._vetoed.fire
+
+    def _event_reset(self, kind: int) -> Callable[[], None]:
+        # The runtime restored 0x1017 to its default (CiA 301 reset of the
+        # communication parameters); mirror it.
+        self._heartbeat_ms = self._heartbeat_default_ms
+        try:
+            command = NmtCommand(kind)
+        except ValueError:
+            command = kind  # type: ignore[assignment]
+        return lambda: self._reset.fire(command)
+
+
+class RemoteNode:
+    """A node on the bus that this line watches (python-canopen's RemoteNode
+    for NMT and heartbeat).
+
+    Its state comes from its boot-up and heartbeat messages. With a heartbeat
+    consumer time (`heartbeat_timeout_ms` > 0) the line reports when they stop
+    (`on_heartbeat_lost`) and come back (`on_heartbeat_started`).
+    """
+
+    def __init__(self, line: "Line", node_id: int, heartbeat_timeout_ms: int) -> None:
+        self.line = line
+        self.node_id = node_id
+        self.nmt = RemoteNmt(self)
+        self._heartbeat_timeout_ms = heartbeat_timeout_ms
+        self._history = _StateHistory()
+        # Event times (CLOCK_MONOTONIC µs, as the runtime stamps them): waits
+        # accept only events that happened after the wait began.
+        self._last_bootup_us = -1
+        self._last_heartbeat_us = -1   # first heartbeat, state change, resumption
+        self._alive: Optional[bool] = None
+        self._tracked = NmtState.UNKNOWN
+        self._bootup = CallbackList(f"node {node_id} boot-up")
+        self._state_changed = CallbackList(f"node {node_id} state change")
+        self._lost = CallbackList(f"node {node_id} heartbeat lost")
+        self._started = CallbackList(f"node {node_id} heartbeat started")
+        self._heartbeat = CallbackList(f"node {node_id} heartbeat")
+
+    def __repr__(self) -> str:
+        return f"<RemoteNode {self.node_id} on {self.line.channel!r}>"
+
+    @property
+    def id(self) -> int:  # python-canopen spelling
+        return self.node_id
+
+    @property
+    def _where(self) -> str:
+        return f"node {self.node_id} on line {self.line.channel!r}"
+
+    # ---------------------------------------------------------------- state
+    @property
+    def state(self) -> NmtState:
+        """Last state the node reported; PRE-OPERATIONAL right after its
+        boot-up (it enters it by itself), UNKNOWN when never heard of."""
+        return _remote_state(self.line._runtime_remote_state(self.node_id, self._where))
+
+    @property
+    def heartbeat_alive(self) -> Optional[bool]:
+        """True while heartbeats arrive, False after a loss or a boot-up,
+        None before the first heartbeat."""
+        return self._alive
+
+    @property
+    def heartbeat_timeout_ms(self) -> int:
+        """Heartbeat consumer time (0x1016 entry) in ms; 0 = states only, no
+        loss detection. A change on a node heard in time keeps monitoring it,
+        the new time counting from now; otherwise monitoring starts with the
+        next heartbeat."""
+        return self._heartbeat_timeout_ms
+
+    @heartbeat_timeout_ms.setter
+    def heartbeat_timeout_ms(self, value: int) -> None:
+        value = check_ms(value, "heartbeat_timeout_ms", self._where)
+        self.line._watch(self.node_id, value, self._where)
+        self._heartbeat_timeout_ms = value
+
+    # ---------------------------------------------------------------- waits
+    def wait_for_bootup(self, timeout: Optional[float] = 10.0) -> None:
+        """Block until the node's next boot-up message (one sent after this
+        call: start waiting before the node boots, or use on_bootup)."""
+        start = self.line._now_us()
+        self.line._waiter.wait(lambda: self._last_bootup_us >= start, timeout,
+                               f"{self._where}: wait_for_bootup", lambda: "no boot-up")
+
+    def wait_for_heartbeat(self, timeout: Optional[float] = 10.0) -> NmtState:
+        """Block until the node is heard heartbeating; returns its state.
+
+        Returns at once while heartbeats arrive in time (the consumer is
+        active); otherwise waits for the next one. Per-frame events do not
+        exist by design (no Python per frame), so an unchanged heartbeat is
+        only seen through the consumer's monitoring."""
+        start = self.line._now_us()
+        self.line._waiter.wait(
+            lambda: self._last_heartbeat_us >= start or self._alive is True, timeout,
+            f"{self._where}: wait_for_heartbeat", lambda: "no heartbeat")
+        return self.state
+
+    def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        """Block until the node reports `state` (or has reported it since the call)."""
+        target = NmtState.parse(state)
+        start = self._history.seq
+        self.line._waiter.wait(
+            lambda: self._history.seen_since(start, target) or self.state == target,
+            timeout, f"{self._where}: wait_for_state({target.label})",
+            lambda: f"last state {self.state.label}, not {target.label}")
+
+    # ---------------------------------------------------------------- NMT shortcuts
+    def start(self) -> None:
+        self.nmt.start()
+
+    def stop(self) -> None:
+        self.nmt.stop()
+
+    def pre_operational(self) -> None:
+        self.nmt.pre_operational()
+
+    def reset_node(self) -> None:
+        self.nmt.reset_node()
+
+    def reset_communication(self) -> None:
+        self.nmt.reset_communication()
+
+    # ---------------------------------------------------------------- callbacks
+    def on_bootup(self, callback: Callable[[], None]):
+        """callback() when the node sends its boot-up message."""
+        return self._bootup.add(callback)
+
+    def on_state_change(self, callback: Callable[[NmtState], None]):
+        """callback(new_state) when the node reports another state."""
+        return self._state_changed.add(callback)
+
+    def on_heartbeat_lost(self, callback: Callable[[], None]):
+        """callback() when no heartbeat came within heartbeat_timeout_ms."""
+        return self._lost.add(callback)
+
+    def on_heartbeat_started(self, callback: Callable[[], None]):
+        """callback() at the first heartbeat, and when heartbeats resume."""
+        return self._started.add(callback)
+
+    def add_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
+        """python-canopen's callback(state), called when a heartbeat brings news:
+        boot-up, the first heartbeat, a state change, resumption after loss
+        (not for every unchanged heartbeat: no Python code per frame)."""
+        self._heartbeat.add(callback)
+
+    # ---------------------------------------------------------------- events
+    def _event(self, hb_event: int, code: int, time_us: int = 0) -> Callable[[], None]:
+        """Update from a CO_EV_HEARTBEAT event (under the line's condition);
+        returns the callbacks to run once the lock is released."""
+        state = _remote_state(code)
+        calls = []
+        if hb_event == lib.CO_HB_BOOTUP:
+            self._last_bootup_us = max(self._last_bootup_us, time_us)
+            self._alive = False
+            self._history.push(NmtState.INITIALISING)
+            self._history.push(NmtState.PRE_OPERATIONAL)
+            calls.append(self._bootup.fire)
+            calls.append(lambda: self._heartbeat.fire(NmtState.INITIALISING))
+        elif hb_event == lib.CO_HB_LOST:
+            self._alive = False
+            calls.append(self._lost.fire)
+            return _chain(calls)
+        else:
+            self._last_heartbeat_us = max(self._last_heartbeat_us, time_us)
+            self._history.push(state)
+            if hb_event == lib.CO_HB_STARTED:
+                self._alive = True
+                calls.append(self._started.fire)
+            calls.append(lambda: self._heartbeat.fire(state))
+        if state != self._tracked:
+            self._tracked = state
+            calls.append(lambda: self._state_changed.fire(state))
+        return _chain(calls)
+
+
+def _chain(calls) -> Callable[[], None]:
+    def run() -> None:
+        for call in calls:
+            call()
+    return run
+
+
+def _state(code: int) -> NmtState:
+    try:
+        return NmtState(code)
+    except ValueError:
+        return NmtState.UNKNOWN
+
+
+def _remote_state(code: int) -> NmtState:
+    """A boot-up (0) means the node is now PRE-OPERATIONAL (CiA 301; python-canopen
+    reports it that way too)."""
+    state = _state(code)
+    return NmtState.PRE_OPERATIONAL if state is NmtState.INITIALISING else state

@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# The whole test suite, from a fresh Debian machine with Python and gcc:
+#   1. installs what it needs (Debian packages when root, a venv with the package + test deps),
+#   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer,
+#   3. pytest over the in-process bus and python-can's virtual bus,
+#   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
+#      otherwise inside a small qemu VM booted with a stock Debian kernel (tests/vm/).
+# Exits non-zero when any stage fails; the last line sums up every test run.
+set -u
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+VENV=${CANOPENFD_VENV:-$ROOT/.venv}
+RESULTS=$ROOT/build/test-results
+VCAN_IFACES="vcan0:72 vcan1:72 vcan2:16"
+mkdir -p "$RESULTS"
+rm -f "$RESULTS"/*.xml "$RESULTS"/*.txt
+
+say() { printf '\n=== %s ===\n' "$*"; }
+
+# ---------------------------------------------------------------- 1. setup
+debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2)
+have_vcan=0
+if bash tests/vm/have_vcan.sh; then have_vcan=1; else
+    debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)
+fi
+missing=()
+for p in "${debian_packages[@]}"; do
+    dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        say "installing Debian packages: ${missing[*]}"
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -q >/dev/null && apt-get install -y -q "${missing[@]}" >/dev/null \
+            || { echo "apt-get install ${missing[*]} failed"; exit 1; }
+    else
+        echo "missing Debian packages (install them as root): ${missing[*]}"
+    fi
+fi
+
+say "python environment ($VENV)"
+[ -x "$VENV/bin/python" ] || python3 -m venv "$VENV" || { echo "python3 -m venv failed"; exit 1; }
+"$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
+"$VENV/bin/python" -m pip install -q ".[test]" || { echo "pip install .[test] failed"; exit 1; }
+
+status=0
+
+# ---------------------------------------------------------------- 2. C tests
+say "C unit tests (plain, then ASan+UBSan)"
+make -C tests/c 2>&1 | tee "$RESULTS/c-tests.txt"
+[ "${PIPESTATUS[0]}" = 0 ] || status=1
+
+# ---------------------------------------------------------------- 3. pytest
+# The venv's pytest (not `python -m pytest`) so the installed package is
+# tested, not the source tree's canopenfd/ without its compiled core.
+say "pytest: in-process bus, python-can virtual bus, CLI"
+"$VENV/bin/pytest" -p no:cacheprovider -m "not vcan" --junitxml="$RESULTS/pytest-local.xml" tests || status=1
+
+# ---------------------------------------------------------------- 4. vcan lane
+run_vcan() {
+    env CANOPENFD_VCAN=vcan0,vcan1,vcan2 "$@" "$VENV/bin/pytest" -p no:cacheprovider -m vcan \
+        --junitxml="$RESULTS/pytest-vcan.xml" tests
+}
+if [ $have_vcan = 1 ]; then
+    say "pytest: vcan lane on this kernel"
+    bash tests/vm/setup_vcan.sh --ifaces "$VCAN_IFACES" && run_vcan || status=1
+else
+    say "pytest: vcan lane inside a qemu VM (this kernel has no vcan)"
+    # Writes inside the VM do not reach the host, so its pytest summary line is
+    # read from the streamed output. Python runs ~20x slower there: protocol
+    # timeouts in the tests are scaled by CANOPENFD_TIME_SCALE.
+    bash tests/vm/run_in_vm.sh --ifaces "$VCAN_IFACES" -- \
+        env CANOPENFD_TIME_SCALE=${CANOPENFD_TIME_SCALE:-10} CANOPENFD_VCAN=vcan0,vcan1,vcan2 \
+        "$VENV/bin/pytest" -p no:cacheprovider -m vcan -rs tests 2>&1 | tee "$RESULTS/pytest-vm.txt"
+    [ "${PIPESTATUS[0]}" = 0 ] || status=1
+fi
+
+# ---------------------------------------------------------------- summary
+say "summary"
+"$VENV/bin/python" - "$RESULTS" <<'PY'
+import glob, re, sys, xml.etree.ElementTree as ET
+passed = failed = skipped = 0
+text = open(sys.argv[1] + "/c-tests.txt").read()
+m = re.findall(r"c-tests[^:\n]*: (\d+) passed, (\d+) failed", text)
+if m:
+    passed += int(m[-1][0]); failed += int(m[-1][1])
+vm = glob.glob(sys.argv[1] + "/pytest-vm.txt")
+if vm:
+    # pytest's closing line, e.g. "==== 12 passed, 1 failed, 2 skipped in 80s ===="
+    lines = [l for l in open(vm[0]) if re.search(r"=+ .*\d+ (passed|failed|error)", l)]
+    if lines:
+        counts = dict((k, int(n)) for n, k in re.findall(r"(\d+) (passed|failed|errors?|skipped)", lines[-1]))
+        passed += counts.get("passed", 0); skipped += counts.get("skipped", 0)
+        failed += counts.get("failed", 0) + counts.get("error", 0) + counts.get("errors", 0)
+    else:
+        failed += 1   # the VM lane produced no pytest summary at all
+for path in glob.glob(sys.argv[1] + "/pytest-*.xml"):
+    for suite in ET.parse(path).getroot().iter("testsuite"):
+        n, f, e, s = (int(suite.get(k, 0)) for k in ("tests", "failures", "errors", "skipped"))
+        passed += n - f - e - s; failed += f + e; skipped += s
+print(f"all: {passed} passed, {failed} failed, {skipped} skipped")
+PY
+exit $status

@@ -1,0 +1,166 @@
+"""Interop with python-canopen (PyPI `canopen`), an independent classic
+CANopen peer, on a classic vcan (the third name in CANOPENFD_VCAN)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+from helpers import Recorder, scaled
+
+import canopenfd
+from canopenfd import NmtState
+
+pytestmark = pytest.mark.vcan
+canopen = pytest.importorskip("canopen")
+
+
+@pytest.fixture
+def channel(vcan):
+    return vcan[2]
+
+
+@pytest.fixture
+def peer(channel):
+    """A python-canopen network on the classic vcan."""
+    network = canopen.Network()
+    network.connect(interface="socketcan", channel=channel)
+    yield network
+    network.disconnect()
+
+
+@pytest.fixture
+def line(channel):
+    with canopenfd.Network() as net:
+        yield net.open_line(channel, mode="classic")
+
+
+def heartbeat_od(ms: int):
+    """A python-canopen object dictionary with 0x1017 (its LocalNode needs it)."""
+    from canopen.objectdictionary import UNSIGNED16, ODVariable
+
+    od = canopen.ObjectDictionary()
+    var = ODVariable("Producer heartbeat time", 0x1017, 0)
+    var.data_type = UNSIGNED16
+    var.access_type = "rw"
+    var.default = ms
+    od.add_object(var)
+    return od
+
+
+def wait_canopen_state(node, state: str, timeout: float = 10.0) -> None:
+    """python-canopen's heartbeat view reaches `state` (its own wait API)."""
+    deadline = time.monotonic() + scaled(timeout)
+    while node.nmt.state != state:
+        remaining = deadline - time.monotonic()
+        assert remaining > 0, f"python-canopen still sees {node.nmt.state}, not {state}"
+        node.nmt.wait_for_heartbeat(timeout=remaining)
+
+
+def test_python_canopen_sees_our_bootup_and_heartbeats(peer, line):
+    remote = peer.add_node(5)
+    ours = line.create_local_node(5, heartbeat_ms=50, boot=False)
+    result = {}
+
+    def wait_bootup():
+        try:
+            remote.nmt.wait_for_bootup(timeout=scaled(20))
+            result["ok"] = True
+        except Exception as exc:  # noqa: BLE001
+            result["error"] = exc
+
+    waiter = threading.Thread(target=wait_bootup)
+    waiter.start()
+    time.sleep(scaled(0.3))           # python-canopen has no hook to know it is waiting
+    ours.boot()
+    waiter.join(scaled(30))
+    assert result == {"ok": True}
+    assert remote.nmt.wait_for_heartbeat(timeout=scaled(10)) == "PRE-OPERATIONAL"
+
+    line.nmt.start(5)                 # our own node: applied locally, heartbeat tells
+    wait_canopen_state(remote, "OPERATIONAL")
+    line.nmt.stop(5)
+    wait_canopen_state(remote, "STOPPED")
+
+
+def test_our_nmt_drives_python_canopen_local_node(peer, line):
+    theirs = canopen.LocalNode(20, heartbeat_od(50))
+    peer.add_node(theirs)
+    remote = line.add_node(20, heartbeat_timeout_ms=400)
+    bootups, started, lost = Recorder(), Recorder(), Recorder()
+    remote.on_bootup(bootups)
+    remote.on_heartbeat_started(started)
+    remote.on_heartbeat_lost(lost)
+
+    theirs.nmt.send_command(0x81)                  # python-canopen: sends its boot-up
+    bootups.wait_count(1, timeout=10)
+    theirs.nmt.state = "PRE-OPERATIONAL"           # starts its heartbeat (0x1017 = 50 ms)
+    started.wait_count(1, timeout=10)
+    remote.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+
+    line.nmt.start(20)
+    remote.wait_for_state(NmtState.OPERATIONAL, timeout=scaled(10))
+    assert theirs.nmt.state == "OPERATIONAL"
+    line.nmt.stop("all")
+    remote.wait_for_state(NmtState.STOPPED, timeout=scaled(10))
+    assert theirs.nmt.state == "STOPPED"
+    remote.nmt.state = "PRE-OPERATIONAL"            # python-canopen style, through our API
+    remote.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+    assert theirs.nmt.state == "PRE-OPERATIONAL"
+
+    theirs.nmt.stop_heartbeat()
+    lost.wait_count(1, timeout=10)
+    assert remote.heartbeat_alive is False
+    theirs.nmt.start_heartbeat(50)
+    started.wait_count(2, timeout=10)
+
+
+def test_python_canopen_master_drives_our_node(peer, line):
+    ours = line.create_local_node(7, heartbeat_ms=50)
+    ours.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+    remote = peer.add_node(7)
+
+    peer.nmt.send_command(0x01)                     # start all
+    ours.wait_for_state(NmtState.OPERATIONAL, timeout=scaled(10))
+    wait_canopen_state(remote, "OPERATIONAL")
+    remote.nmt.state = "STOPPED"
+    ours.wait_for_state(NmtState.STOPPED, timeout=scaled(10))
+    remote.nmt.state = "PRE-OPERATIONAL"
+    ours.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+
+    resets = Recorder()
+    ours.on_reset(resets)
+    result = {}
+
+    def wait_bootup():
+        try:
+            remote.nmt.wait_for_bootup(timeout=scaled(20))
+            result["ok"] = True
+        except Exception as exc:  # noqa: BLE001
+            result["error"] = exc
+
+    waiter = threading.Thread(target=wait_bootup)
+    waiter.start()
+    time.sleep(scaled(0.3))
+    remote.nmt.state = "RESET COMMUNICATION"
+    waiter.join(scaled(30))
+    assert result == {"ok": True}
+    assert resets.wait_count(1) == [canopenfd.NmtCommand.RESET_COMMUNICATION]
+    assert remote.nmt.wait_for_heartbeat(timeout=scaled(10)) == "PRE-OPERATIONAL"
+    assert ours.state == NmtState.PRE_OPERATIONAL
+
+
+def test_python_canopen_heartbeat_loss_is_detected(peer, line):
+    theirs = canopen.LocalNode(30, heartbeat_od(40))
+    peer.add_node(theirs)
+    remote = line.add_node(30, heartbeat_timeout_ms=250)
+    started, lost = Recorder(), Recorder()
+    remote.on_heartbeat_started(started)
+    remote.on_heartbeat_lost(lost)
+    theirs.nmt.state = "PRE-OPERATIONAL"           # from INITIALISING: heartbeat starts
+    started.wait_count(1, timeout=10)
+    stopped_at = time.monotonic()
+    theirs.nmt.stop_heartbeat()
+    lost.wait_count(1, timeout=10)
+    assert lost.times[0] - stopped_at >= 0.15

@@ -1,0 +1,246 @@
+"""The stack on real kernel SocketCAN (vcan). Needs CANOPENFD_VCAN, e.g.
+"vcan0,vcan1,vcan2" with vcan0/vcan1 at MTU 72 (CAN FD) and vcan2 at MTU 16
+(classic); tests/vm/run_in_vm.sh provides them on kernels without CAN."""
+
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+from helpers import NEUTRAL_CWD, Recorder, cli_command, package_env, run_cli, scaled
+
+import canopenfd
+from canopenfd import CommEvent, InterfaceError, NmtState
+
+pytestmark = pytest.mark.vcan
+can = pytest.importorskip("can")
+
+
+
+@pytest.fixture
+def ifaces(vcan):
+    return {"fd": vcan[0], "fd2": vcan[1], "classic": vcan[2]}
+
+
+@pytest.fixture
+def networks():
+    made = []
+
+    def make():
+        made.append(canopenfd.Network())
+        return made[-1]
+
+    yield make
+    for net in made:
+        net.close()
+
+
+@pytest.fixture
+def raw_buses():
+    made = []
+
+    def make(channel, fd=True):
+        bus = can.Bus(interface="socketcan", channel=channel, fd=fd)
+        made.append(bus)
+        return bus
+
+    yield make
+    for bus in made:
+        bus.shutdown()
+
+
+def recv_until(bus, predicate, timeout=5.0):
+    """The first message on a raw python-can bus matching predicate."""
+    import time
+
+    deadline = time.monotonic() + scaled(timeout)
+    while time.monotonic() < deadline:
+        msg = bus.recv(max(0.01, deadline - time.monotonic()))
+        if msg is not None and not msg.is_error_frame and predicate(msg):
+            return msg
+    raise AssertionError(f"no matching frame within {scaled(timeout):g} s")
+
+
+cli = run_cli
+
+
+# ------------------------------------------------------------------ two networks
+def test_two_fd_lines_see_each_other(ifaces, networks):
+    manager = networks().open_line(ifaces["fd"], mode="fd")
+    device_line = networks().open_line(ifaces["fd"], mode="fd")
+    manager.create_local_node(1, heartbeat_ms=100)
+    remote = manager.add_node(5, heartbeat_timeout_ms=300)
+    bootups, started, lost = Recorder(), Recorder(), Recorder()
+    remote.on_bootup(bootups)
+    remote.on_heartbeat_started(started)
+    remote.on_heartbeat_lost(lost)
+    back = device_line.add_node(1)
+
+    device = device_line.create_local_node(5, heartbeat_ms=50)
+    bootups.wait_count(1, timeout=10)
+    started.wait_count(1, timeout=10)
+    back.wait_for_heartbeat(timeout=scaled(10))
+    assert manager.states == {1: NmtState.PRE_OPERATIONAL, 5: NmtState.PRE_OPERATIONAL}
+    assert device_line.states == {1: NmtState.PRE_OPERATIONAL, 5: NmtState.PRE_OPERATIONAL}
+
+    manager.nmt.start(5)
+    device.wait_for_state(NmtState.OPERATIONAL, timeout=scaled(10))
+    remote.wait_for_state(NmtState.OPERATIONAL, timeout=scaled(10))
+    manager.nmt.stop("all", include_self=True)
+    remote.wait_for_state(NmtState.STOPPED, timeout=scaled(10))
+    back.wait_for_state(NmtState.STOPPED, timeout=scaled(10))
+    manager.nmt.reset_node(5)
+    bootups.wait_count(2, timeout=10)
+    device.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+    started.wait_count(2, timeout=10)      # after a boot-up, monitoring restarts here
+
+    device.heartbeat_ms = 0
+    lost.wait_count(1, timeout=10)
+    assert manager.stats["rx_frames"] > 3 and device_line.stats["tx_frames"] > 3
+
+
+@pytest.mark.parametrize("brs", [True, False])
+def test_exact_bytes_on_the_wire(ifaces, networks, raw_buses, brs):
+    raw = raw_buses(ifaces["fd"])
+    line = networks().open_line(ifaces["fd"], mode="fd", brs=brs)
+    line.create_local_node(5, heartbeat_ms=100)
+    boot = recv_until(raw, lambda m: m.arbitration_id == 0x705)
+    assert (bytes(boot.data), boot.dlc, boot.is_fd, boot.bitrate_switch, boot.is_extended_id,
+            boot.is_remote_frame) == (b"\x00", 1, True, brs, False, False)
+    beat = recv_until(raw, lambda m: m.arbitration_id == 0x705)
+    assert (bytes(beat.data), beat.dlc, beat.is_fd, beat.bitrate_switch) == (b"\x7f", 1, True,
+                                                                           brs)
+    line.nmt.start("all")
+    nmt = recv_until(raw, lambda m: m.arbitration_id == 0)
+    assert (bytes(nmt.data), nmt.dlc, nmt.is_fd, nmt.bitrate_switch) == (b"\x01\x00", 2, True,
+                                                                        brs)
+    line.send_frame(0x181, bytes(range(1, 11)))
+    pdo = recv_until(raw, lambda m: m.arbitration_id == 0x181)
+    assert (bytes(pdo.data), pdo.dlc, pdo.is_fd) == (bytes(range(1, 11)) + b"\0\0", 12, True)
+
+
+# ------------------------------------------------------------------ interface errors
+def test_fd_line_on_classic_mtu_raises(ifaces, networks):
+    net = networks()
+    with pytest.raises(InterfaceError, match="MTU") as info:
+        net.open_line(ifaces["classic"], mode="fd")
+    assert ifaces["classic"] in str(info.value)
+
+
+def test_unknown_interface_raises(networks):
+    with pytest.raises(InterfaceError, match="vcan97.*no such interface"):
+        networks().open_line("vcan97", mode="fd")
+
+
+def test_classic_line_on_classic_mtu(ifaces, networks, raw_buses):
+    raw = raw_buses(ifaces["classic"], fd=False)
+    watcher = networks().open_line(ifaces["classic"], mode="classic")
+    remote = watcher.add_node(9)
+    bootups = Recorder()
+    remote.on_bootup(bootups)
+    line = networks().open_line(ifaces["classic"], mode="classic")
+    node = line.create_local_node(9, heartbeat_ms=50)
+    bootups.wait_count(1, timeout=10)
+    boot = recv_until(raw, lambda m: m.arbitration_id == 0x709)
+    assert (bytes(boot.data), boot.is_fd, boot.bitrate_switch) == (b"\x00", False, False)
+    watcher.nmt.start(9)
+    node.wait_for_state(NmtState.OPERATIONAL, timeout=scaled(10))
+    nmt = recv_until(raw, lambda m: m.arbitration_id == 0)
+    assert (bytes(nmt.data), nmt.is_fd) == (b"\x01\x09", False)
+
+
+# ------------------------------------------------------------------ CLI
+def test_cli_nmt_and_monitor(ifaces, raw_buses):
+    raw = raw_buses(ifaces["fd"])
+    monitor = subprocess.Popen(
+        cli_command("monitor", "--channel", ifaces["fd"], "--count", "2",
+                    "--duration", str(scaled(60))),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=NEUTRAL_CWD,
+        env=package_env())
+    try:
+        banner = monitor.stderr.readline()         # printed once the line is open
+        assert "monitoring" in banner, banner
+        result = cli("nmt", "start", "5", "--channel", ifaces["fd"])
+        assert result.returncode == 0, result.stderr
+        assert f"sent NMT start to node 5 on {ifaces['fd']} (fd)" in result.stdout
+        sent = recv_until(raw, lambda m: m.arbitration_id == 0)
+        assert (bytes(sent.data), sent.is_fd, sent.bitrate_switch) == (b"\x01\x05", True, True)
+        raw.send(can.Message(arbitration_id=0x705, data=b"\x05", is_extended_id=False,
+                             is_fd=True, bitrate_switch=False))
+        out, err = monitor.communicate(timeout=scaled(60))
+    finally:
+        if monitor.poll() is None:
+            monitor.kill()
+            monitor.wait()
+    assert monitor.returncode == 0, err
+    lines = out.strip().splitlines()
+    assert len(lines) == 2, out
+    assert lines[0].split()[1:] == ["RX", "0x000", "[2]", "01", "05", "NMT", "start", "node",
+                                    "5", "[FD", "BRS]"]
+    assert lines[1].split()[1:] == ["RX", "0x705", "[1]", "05", "heartbeat", "node", "5",
+                                    "OPERATIONAL", "[FD]"]
+
+
+def test_cli_errors_on_vcan(ifaces):
+    result = cli("monitor", "--channel", ifaces["classic"], "--duration", "0.1")
+    assert result.returncode == 2 and "MTU" in result.stderr and "Traceback" not in result.stderr
+    result = cli("monitor", "--channel", ifaces["classic"], "--classic", "--duration", "0.1")
+    assert result.returncode == 0, result.stderr
+
+
+# ------------------------------------------------------------------ malformed input
+def test_malformed_frames_from_outside_are_counted(ifaces, networks, raw_buses):
+    raw = raw_buses(ifaces["fd"])
+    line = networks().open_line(ifaces["fd"], mode="fd")
+    node = line.create_local_node(5)
+    sentinel = line.add_node(10)
+    node.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+    before = line.stats
+
+    def send(can_id, data, fd=True):
+        raw.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False, is_fd=fd,
+                             bitrate_switch=fd))
+
+    send(0x000, b"\x01")                 # NMT, 1 byte
+    send(0x000, b"\x01\x05\x00")         # NMT, 3 bytes
+    send(0x000, b"\x55\x05")             # unknown command
+    send(0x000, b"\x01\xc8")             # node-id 200
+    send(0x709, b"\x05\x00")             # heartbeat of 2 bytes
+    send(0x709, b"\x33")                 # invalid state byte
+    send(0x000, b"\x01\x05\x00", fd=False)   # classic frame, still 3 bytes
+    send(0x70A, b"\x05")                 # sentinel
+    sentinel.wait_for_state(NmtState.OPERATIONAL, timeout=scaled(10))
+    after = line.stats
+    delta = {k: after[k] - before[k] for k in after}
+    assert (delta["nmt_bad_length"], delta["nmt_bad_command"], delta["nmt_bad_node"],
+            delta["hb_bad_length"], delta["hb_bad_state"]) == (3, 1, 1, 1, 1)
+    assert node.state == NmtState.PRE_OPERATIONAL
+    assert 9 not in line.states
+
+
+# ------------------------------------------------------------------ interface down/up
+def test_interface_down_and_up(ifaces, networks):
+    iface = ifaces["fd2"]
+    device_line = networks().open_line(iface, mode="fd")
+    watcher = networks().open_line(iface, mode="fd")
+    events = Recorder()
+    device_line.on_comm_event(events)
+    remote = watcher.add_node(5, heartbeat_timeout_ms=300)
+    started = Recorder()
+    remote.on_heartbeat_started(started)
+    device_line.create_local_node(5, heartbeat_ms=50)
+    started.wait_count(1, timeout=10)
+
+    def ip(state):
+        subprocess.run(["ip", "link", "set", iface, state], check=True, timeout=scaled(30))
+
+    ip("down")
+    try:
+        events.wait_value(CommEvent.IFACE_DOWN, timeout=10)
+    finally:
+        ip("up")
+    up_at = events.wait_value(CommEvent.IFACE_UP, timeout=10)
+    assert up_at > events.snapshot().index(CommEvent.IFACE_DOWN)
+    assert CommEvent.IFACE_UP in device_line.comm_events
+    started.wait_count(2, timeout=10)              # heartbeats flow again
+    remote.wait_for_heartbeat(timeout=scaled(10))
