@@ -67,7 +67,7 @@ enum co_od_flags {
     CO_OD_CLASSIC_ONLY = 0x0020,    /* exists on classic lines only */
     CO_OD_HAS_MIN = 0x0040,         /* min limit checked on network writes */
     CO_OD_HAS_MAX = 0x0080          /* max limit checked on network writes */
-};
+};  /* other bits are refused by co_od_add (CO_OD_ERR_TYPE); 0x8000 is used inside */
 
 /* CiA 301 SDO abort codes; USDO maps each to its one-byte code. */
 typedef enum co_abort {
@@ -155,7 +155,8 @@ typedef struct co_od_entry {
     uint32_t value;           /* offset of the value in the pool */
     uint32_t default_value;   /* offset of the default in the pool */
     uint32_t default_length;
-    uint32_t limits;          /* offset of min[size] max[size] in the pool, or 0 */
+    uint32_t limits;          /* offset of min[size] max[size] in the pool; valid only
+                                 when flags has CO_OD_HAS_MIN or CO_OD_HAS_MAX */
 } co_od_entry_t;
 
 static inline uint16_t co_od_entry_index(const co_od_entry_t *e) { return (uint16_t)(e->key >> 8); }
@@ -251,55 +252,91 @@ typedef enum co_od_add_result {
     CO_OD_ERR_LIMITS = 6,         /* min > max */
     CO_OD_ERR_SEALED = 7
 } co_od_add_result_t;
+/* Adds may come in any order (ascending is cheapest: the table stays sorted,
+ * out-of-order adds move the entries behind). A fixed-size entry without a
+ * default (default_length 0) starts at 0. CO_OD_NODEID_RELATIVE: integer
+ * types only; the node-id is added with carry in the entry's width; such
+ * defaults are not checked against the limits (the node-id comes later).
+ * The definition is checked before the mode filter, so a bad definition is
+ * reported on both kinds of line. */
 co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def);
-/* Sort, check sub 0 of ARRAY/RECORD objects, load defaults; no adds after. */
+/* Sort, check sub 0 of ARRAY/RECORD objects, load defaults; no adds after.
+ * An index is an ARRAY/RECORD when any of its entries says so; its sub 0 must
+ * exist, be UNSIGNED8 and hold at least the highest sub-index present. False
+ * (and still unsealed) when a check fails, or when the OD is already sealed. */
 bool co_od_seal(co_od_t *od, uint8_t node_id);
 bool co_od_subscribe(co_od_t *od, uint16_t first_index, uint8_t first_sub, uint16_t last_index,
                      uint8_t last_sub, const co_od_handler_t *handler, void *user);
 
-/* ---- lookup and application access (no indications except after_write) */
+/* ---- lookup and application access (no indications except after_write)
+ * find/has_index work at any time (the table is kept sorted while adding);
+ * get/put and network access need a sealed OD, else CO_ABORT_NO_OD. */
 const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t sub);
 /* True when the index exists at all (to tell "no object" from "no sub"). */
 bool co_od_has_index(const co_od_t *od, uint16_t index);
 static inline uint8_t *co_od_value(co_od_t *od, const co_od_entry_t *e) { return od->pool + e->value; }
 /* Fixed size of a type in bytes, 0 for strings and domains. */
 uint32_t co_od_type_size(uint8_t type);
-/* Copy the value out: abort code or 0; *length = bytes. */
+/* Copy the value out: abort code or 0; *length = bytes (length may be NULL).
+ * cap too small: CO_ABORT_OUT_OF_MEMORY with *length = the bytes needed.
+ * Domains: CO_ABORT_UNSUPPORTED_ACCESS (their data lives with the application). */
 uint32_t co_od_get(const co_od_t *od, uint16_t index, uint8_t sub, uint8_t *buf, uint32_t cap,
                    uint32_t *length);
 /* Application write: type and length checked (limits too), after_write
- * handlers told with CO_ORIGIN_LOCAL. */
+ * handlers told with CO_ORIGIN_LOCAL. Access rights are not checked (the
+ * application may change ro/const entries); no check_write runs. */
 uint32_t co_od_put(co_od_t *od, uint16_t index, uint8_t sub, const uint8_t *data, uint32_t length);
 bool co_od_get_u8(const co_od_t *od, uint16_t index, uint8_t sub, uint8_t *out);
 bool co_od_get_u16(const co_od_t *od, uint16_t index, uint8_t sub, uint16_t *out);
 bool co_od_get_u32(const co_od_t *od, uint16_t index, uint8_t sub, uint32_t *out);
-/* Check a value against type, length and limits, as a network write would. */
+/* Check a value against type, length and limits, as a network write would:
+ * fixed-size types: longer = LENGTH_HIGH, shorter = LENGTH_LOW; strings
+ * longer than the size = LENGTH_HIGH; UNICODE_STRING of odd length =
+ * TYPE_MISMATCH; BOOLEAN other than 0/1 = INVALID_VALUE; limits: VALUE_LOW /
+ * VALUE_HIGH, NaN = INVALID_VALUE. Domains: 0. */
 uint32_t co_od_check_value(const co_od_t *od, const co_od_entry_t *e, const uint8_t *data,
                            uint32_t length);
-/* Load defaults of the groups in group_mask (CO_GROUP_*), after_write told
- * with CO_ORIGIN_RESTORE. */
+/* Load defaults of the groups in group_mask (CO_GROUP_*): every entry of the
+ * group, CO_OD_STORE or not. All values are loaded first, then after_write
+ * is told with CO_ORIGIN_RESTORE once per entry that changed. Indices below
+ * 0x1000 belong to no group. */
 void co_od_load_defaults(co_od_t *od, uint8_t group_mask);
 uint8_t co_od_group_of(uint16_t index);
 
-/* ---- network access (SDO/USDO servers) */
+/* ---- network access (SDO/USDO servers)
+ * A begin on a transfer still in progress aborts it first (CO_ABORT_GENERAL,
+ * a domain writer is told). scratch must hold the entry's size, else
+ * CO_ABORT_OUT_OF_MEMORY. Domain callbacks come from the first subscription
+ * covering the entry that has them: no domain_read = CO_ABORT_NO_DATA, no
+ * domain_size = size unknown, no domain_write = CO_ABORT_UNSUPPORTED_ACCESS.
+ * Domains have no check_write pass; after_write runs when a download ends.
+ * A handler that split answers through co_od_resume() after it returned. */
 void co_od_xfer_init(co_od_xfer_t *xfer, uint8_t *scratch, uint32_t scratch_size);
 /* Upload: abort code, 0, or CO_OD_SPLIT (then wait for co_od_resume). On
  * success xfer->total is the size to upload (CO_OD_SIZE_UNKNOWN for a domain
- * that does not know). */
+ * that does not know). The value is copied into scratch once every
+ * before_read agreed, so the upload is one consistent snapshot. */
 uint32_t co_od_read_begin(co_od_t *od, co_od_xfer_t *xfer, uint16_t index, uint8_t sub);
 /* Next chunk: up to cap bytes into buf; *n bytes given, *last at the end. */
 uint32_t co_od_read_chunk(co_od_xfer_t *xfer, uint8_t *buf, uint32_t cap, uint32_t *n, bool *last);
 /* Download: total = announced size or CO_OD_SIZE_UNKNOWN. Checks the entry
- * exists, is writable and the size can fit. */
+ * exists, is writable and the size can fit: announced longer than the entry
+ * = LENGTH_HIGH, a fixed-size type announced shorter = LENGTH_LOW. A chunk
+ * beyond the size (or the announced total) = LENGTH_HIGH. */
 uint32_t co_od_write_begin(co_od_t *od, co_od_xfer_t *xfer, uint16_t index, uint8_t sub,
                            uint32_t total);
 uint32_t co_od_write_chunk(co_od_xfer_t *xfer, const uint8_t *data, uint32_t n);
 /* All data given: length, limits, test-then-execute. 0, abort, or CO_OD_SPLIT. */
 uint32_t co_od_write_end(co_od_xfer_t *xfer);
 /* The application's answer to a split: abort = 0 to go on. Returns what
- * the begin/end call would have returned (and may split again). */
+ * the begin/end call would have returned (and may split again). abort =
+ * CO_OD_SPLIT leaves it waiting; CO_ABORT_GENERAL when nothing waits. */
 uint32_t co_od_resume(co_od_xfer_t *xfer, uint32_t abort);
-/* Give up (timeout, abort from the peer): a domain writer is told. */
+/* Give up (timeout, abort from the peer): a domain writer is told (abort 0
+ * is reported as CO_ABORT_GENERAL). Nothing happens on an idle transfer.
+ * Transfers that fail on their own (length, limits, a handler's abort) end
+ * in CO_XFER_DONE with xfer->abort set; a domain writer is told of those
+ * too, except when it refused the data itself. */
 void co_od_xfer_abort(co_od_xfer_t *xfer, uint32_t abort);
 
 /* CiA 301 COB-ID rule for services' check_write: the CAN-ID bits may change

@@ -1,0 +1,16 @@
+/* Checksums of the core: CRC-32 of stored parameter images (co_store). The
+ * CRC-16-CCITT of SDO block transfer belongs here too. Pure functions over
+ * const tables: no state, usable from any thread and on bare metal. */
+#ifndef CO_CRC_H
+#define CO_CRC_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320, init and xorout
+ * 0xFFFFFFFF). Chains like zlib's crc32(): start with crc = 0 and pass the
+ * previous result to go on, so co_crc32(co_crc32(0, a, n), b, m) is the CRC of
+ * a followed by b. The check value of "123456789" is 0xCBF43926. */
+uint32_t co_crc32(uint32_t crc, const uint8_t *data, size_t length);
+
+#endif
