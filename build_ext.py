@@ -24,6 +24,8 @@ CDEF_HEADERS = [
     "csrc/core/co_line.h",
     "csrc/core/co_nmt.h",
     "csrc/core/co_hb.h",
+    "csrc/core/co_od.h",
+    "csrc/core/co_store.h",
     "csrc/port/linux/co_runtime.h",
 ]
 SOURCE_DIRS = ["csrc/core", "csrc/drivers", "csrc/port/linux"]

@@ -208,8 +208,12 @@ co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
         return CO_HB_CONFIG_BAD_NODE;
     }
     co_hb_entry_t *e = entry_of(c, node_id);
-    if (!e) {
-        e = entry_of(c, 0);
+    /* A new watch takes the last free entry: the first ones mirror 0x1016
+     * sub-indices when the node serves an object dictionary. */
+    for (uint8_t i = c->capacity; !e && i > 0; i--) {
+        if (c->entries[i - 1].node_id == 0) {
+            e = &c->entries[i - 1];
+        }
     }
     if (!e) {
         return CO_HB_CONFIG_NO_ROOM;

@@ -78,7 +78,8 @@ typedef enum co_hb_config_result {
  * time for a node already monitored counts from now. */
 co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t index,
                                                uint32_t value);
-/* Watch a node in the first free entry (or update its entry). */
+/* Watch a node in the last free entry (or update its entry); the first
+ * entries are left to 0x1016. */
 co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
                                            uint16_t time_ms);
 /* Stop watching a node (its entry becomes unused); harmless if not watched. */

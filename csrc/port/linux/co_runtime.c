@@ -19,6 +19,9 @@
 #include "co_runtime.h"
 
 #include "../../core/co_node.h"
+#include "../../core/co_od.h"
+#include "../../core/co_store.h"
+#include "co_store_file.h"
 #include "../../drivers/co_membus.h"
 #include "../../drivers/co_socketcan.h"
 
@@ -49,7 +52,8 @@ enum {
     RT_EPOLL_BATCH = 32,
     RT_ERROR_SIZE = 256,
     RT_CHANNEL_SIZE = 64,
-    RT_HB_ENTRIES = 127
+    RT_HB_ENTRIES = 127,
+    RT_OD_SUBSCRIPTIONS = 8
 };
 
 #define RT_REOPEN_US 500000u       /* retry period for a vanished interface */
@@ -107,6 +111,16 @@ typedef struct rt_line {
     co_hb_consumer_t hb;
     co_hb_entry_t hb_entries[RT_HB_ENTRIES];
     co_node_t node;
+    /* The local node's object dictionary (co_rt_od_define) and its store. */
+    bool has_od;
+    co_od_t od;
+    co_od_entry_t *od_entries;
+    uint8_t *od_pool;
+    co_od_subscription_t od_subs[RT_OD_SUBSCRIPTIONS];
+    char *store_path;                /* NULL: no store */
+    co_store_file_t *store_file;
+    uint8_t *store_buffer;
+    co_store_t store;
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -348,10 +362,34 @@ static bool on_allow_operational(co_node_t *node, void *user)
     return l->allow_operational;
 }
 
+/* A parameter load that found a damaged, foreign or unreadable store is
+ * reported: the node runs on defaults then. */
+static void post_store_status(rt_line_t *l)
+{
+    co_store_status_t s = l->node.store_status;
+    if (l->store_path && s != CO_STORE_OK && s != CO_STORE_EMPTY) {
+        post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)s, l->store.records_skipped, NULL);
+    }
+}
+
 static void on_node_reset(co_node_t *node, co_nmt_command_t kind, void *user)
 {
     post(user, CO_EV_NMT_RESET, node->nmt.node_id, (uint32_t)kind, 0, NULL);
+    post_store_status(user);
 }
+
+/* Entries changed by the network or a PDO are told to Python (object
+ * changed); the application's own writes are not echoed back. */
+static void on_od_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin, void *user)
+{
+    (void)od;
+    if (origin == CO_ORIGIN_NETWORK || origin == CO_ORIGIN_PDO) {
+        rt_line_t *l = user;
+        post(l, CO_EV_OD_CHANGED, l->node.nmt.node_id, e->key, (uint32_t)origin, NULL);
+    }
+}
+
+static const co_od_handler_t od_observer = {.after_write = on_od_written};
 
 static const co_node_indications_t node_indications = {
     .state_changed = on_node_state,
@@ -442,6 +480,44 @@ static int need_node(co_rt_t *rt, const rt_line_t *l, int kind)
     return CO_RT_ERR_STATE;
 }
 
+/* Seal the defined OD with the node-id, open the store, hook the services. */
+static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
+{
+    if (l->od.sealed) {
+        set_error(rt, "line %d: object dictionary already served by a node", l->index);
+        return CO_RT_ERR_STATE;
+    }
+    if (!co_od_seal(&l->od, node_id)) {
+        set_error(rt, "line %d: object dictionary refused at seal (an ARRAY/RECORD without a "
+                  "valid sub 0?)", l->index);
+        return CO_RT_ERR_ARGUMENT;
+    }
+    co_store_t *store = NULL;
+    if (l->store_path) {
+        uint32_t need = 2 * co_store_image_need(&l->od);
+        l->store_file = calloc(1, sizeof *l->store_file);
+        l->store_buffer = malloc(need);
+        if (!l->store_file || !l->store_buffer) {
+            set_error(rt, "line %d: no memory for the parameter store", l->index);
+            return CO_RT_ERR_NO_MEMORY;
+        }
+        if (!co_store_file_init(l->store_file, l->store_path) ||
+            !co_store_init(&l->store, &l->od, co_store_file_backend(), l->store_file,
+                           l->store_buffer, need)) {
+            set_error(rt, "line %d: store %s cannot be used (path too long?)", l->index,
+                      l->store_path);
+            return CO_RT_ERR_ARGUMENT;
+        }
+        store = &l->store;
+    }
+    if (!co_node_attach_od(&l->node, &l->od, store, &l->hb) ||
+        !co_od_subscribe(&l->od, 0x0000, 0, 0xFFFF, 0xFF, &od_observer, l)) {
+        set_error(rt, "line %d: object dictionary handler table full", l->index);
+        return CO_RT_ERR_FULL;
+    }
+    return CO_RT_OK;
+}
+
 static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
     if (l->has_node) {
@@ -453,8 +529,16 @@ static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd
         set_error(rt, "line %d: node %u could not be set up", l->index, (unsigned)cmd->a);
         return CO_RT_ERR_STATE;
     }
+    if (l->has_od) {
+        int status = node_attach_od(rt, l, (uint8_t)cmd->a);
+        if (status != CO_RT_OK) {
+            co_node_deinit(&l->node);
+            return status;
+        }
+    }
     l->has_node = true;
     co_node_boot(&l->node);
+    post_store_status(l);
     return CO_RT_OK;
 }
 
@@ -864,6 +948,11 @@ static void line_free(rt_line_t *l)
     pthread_mutex_destroy(&l->host.lock);
     pthread_cond_destroy(&l->host.ready);
     free(l->host.slots);
+    free(l->od_entries);
+    free(l->od_pool);
+    free(l->store_path);
+    free(l->store_file);
+    free(l->store_buffer);
     free(l->rx_slots);
     free(l->tx_slots);
     free(l);
@@ -1481,4 +1570,135 @@ int co_rt_remote_state(co_rt_t *rt, int line, int node_id)
     int state = l->hb.last_state[node_id];
     pthread_mutex_unlock(&rt->lock);
     return state;
+}
+
+/* ================================================================ object dictionary */
+
+static const char *od_add_problem(co_od_add_result_t r)
+{
+    switch (r) {
+    case CO_OD_ERR_FULL: return "no room";
+    case CO_OD_ERR_DUPLICATE: return "defined twice";
+    case CO_OD_ERR_TYPE: return "unknown type, flags, or size that does not fit the type";
+    case CO_OD_ERR_DEFAULT: return "default longer than the entry or outside its limits";
+    case CO_OD_ERR_LIMITS: return "minimum above maximum";
+    case CO_OD_ERR_SEALED: return "dictionary already in use";
+    default: return "refused";
+    }
+}
+
+/* Under rt->lock: allocate and fill the OD (setup time, before the node). */
+static int od_fill(co_rt_t *rt, rt_line_t *l, const co_od_def_t *defs, uint32_t count)
+{
+    uint64_t pool = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        pool += co_od_pool_need(&defs[i]);
+    }
+    if (pool > UINT32_MAX) {
+        return argument_error(rt, "line %d: object dictionary too large", l->index);
+    }
+    l->od_entries = calloc(count ? count : 1, sizeof *l->od_entries);
+    l->od_pool = calloc(pool ? (size_t)pool : 1, 1);
+    if (!l->od_entries || !l->od_pool) {
+        set_error(rt, "line %d: no memory for %u OD entries", l->index, (unsigned)count);
+        return CO_RT_ERR_NO_MEMORY;
+    }
+    co_od_init(&l->od, l->line.mode, l->od_entries, count, l->od_pool, (uint32_t)pool,
+               l->od_subs, RT_OD_SUBSCRIPTIONS);
+    for (uint32_t i = 0; i < count; i++) {
+        co_od_add_result_t r = co_od_add(&l->od, &defs[i]);
+        if (r != CO_OD_ADDED && r != CO_OD_SKIPPED_MODE) {
+            return argument_error(rt, "line %d: OD entry 0x%04X:%02X: %s", l->index,
+                                  defs[i].index, defs[i].sub, od_add_problem(r));
+        }
+    }
+    return CO_RT_OK;
+}
+
+static void od_release(rt_line_t *l)
+{
+    free(l->od_entries);
+    free(l->od_pool);
+    free(l->store_path);
+    l->od_entries = NULL;
+    l->od_pool = NULL;
+    l->store_path = NULL;
+}
+
+int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count,
+                    const char *store_path)
+{
+    rt_line_t *l = checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (!defs && count > 0) {
+        return argument_error(rt, "line %d: no OD entries given", line);
+    }
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    if (l->has_node || l->has_od) {
+        set_error(rt, "line %d: the object dictionary must be defined once, before the local "
+                  "node", line);
+        status = CO_RT_ERR_STATE;
+    } else {
+        status = od_fill(rt, l, defs, count);
+        if (status == CO_RT_OK && store_path && store_path[0]) {
+            l->store_path = strdup(store_path);
+            status = l->store_path ? CO_RT_OK : CO_RT_ERR_NO_MEMORY;
+        }
+        if (status == CO_RT_OK) {
+            l->has_od = true;
+        } else {
+            od_release(l);
+        }
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return status;
+}
+
+/* Under rt->lock: the line's served OD, or NULL with the reason set. */
+static co_od_t *served_od(co_rt_t *rt, rt_line_t *l)
+{
+    if (!l->has_node || !l->has_od) {
+        set_error(rt, "line %d has no local node serving an object dictionary", l->index);
+        return NULL;
+    }
+    return &l->od;
+}
+
+int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *buf,
+                  uint32_t capacity, uint32_t *length)
+{
+    rt_line_t *l = checked_line(rt, line, false);
+    if (!l || !buf || !length) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    co_od_t *od = served_od(rt, l);
+    int result = od ? (int)co_od_get(od, index, sub, buf, capacity, length) : CO_RT_ERR_STATE;
+    pthread_mutex_unlock(&rt->lock);
+    return result;
+}
+
+int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uint8_t *data,
+                   uint32_t length)
+{
+    rt_line_t *l = checked_line(rt, line, false);
+    if (!l || (!data && length > 0)) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    co_od_t *od = served_od(rt, l);
+    int result = CO_RT_ERR_STATE;
+    if (od) {
+        /* Services re-arm timers from the line's clock (0x1017 at once). */
+        co_line_set_time(&l->line, co_rt_now_us());
+        result = (int)co_od_put(od, index, sub, data, length);
+    }
+    pthread_mutex_unlock(&rt->lock);
+    if (result == 0) {
+        wake(rt);   /* a deadline may have moved earlier */
+    }
+    return result;
 }

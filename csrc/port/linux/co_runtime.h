@@ -8,6 +8,8 @@
 #include "../../core/co_line.h"
 #include "../../core/co_nmt.h"
 #include "../../core/co_hb.h"
+#include "../../core/co_od.h"
+#include "../../core/co_store.h"
 
 /* cffi:begin */
 typedef struct co_rt co_rt_t;
@@ -69,7 +71,11 @@ typedef enum co_rt_event_kind {
     CO_EV_NMT_VETOED = 5,      /* "to operational" refused by the application */
     CO_EV_NMT_RESET = 6,       /* local node reset: a = co_nmt_command_t */
     CO_EV_EVENTS_LOST = 7,     /* a = events dropped because the queue was full */
-    CO_EV_COMMAND_FAILED = 8   /* a = co_rt_command_kind_t, b = -co_rt_status_t */
+    CO_EV_COMMAND_FAILED = 8,  /* a = co_rt_command_kind_t, b = -co_rt_status_t */
+    CO_EV_OD_CHANGED = 9,      /* local OD entry written by the network or a PDO:
+                                  a = index << 8 | sub, b = co_od_origin_t */
+    CO_EV_STORE = 10           /* saved parameters unusable, defaults used:
+                                  a = co_store_status_t, b = records skipped */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -119,6 +125,21 @@ typedef struct co_rt_driver_stats {
     uint32_t iface_down;         /* times the interface went down or away */
     uint32_t host_pending;       /* host lines: frames waiting for co_rt_host_transmit */
 } co_rt_driver_stats_t;
+
+/* Object dictionary of the line's local node, defined before
+ * CO_CMD_NODE_CREATE (which seals it with the node-id). Entries for the other
+ * kind of line are left out. store_path: file of saved parameters (0x1010),
+ * NULL or "" for none. CO_RT_ERR_ARGUMENT names the refused entry. */
+int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count,
+                    const char *store_path);
+/* Application access to the local node's OD, atomic with respect to the
+ * runtime thread. Return 0, a CiA abort code (> 0) or a co_rt_status_t (< 0).
+ * A read with a too small buffer gives CO_ABORT_OUT_OF_MEMORY and the size
+ * needed in *length. */
+int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *buf,
+                  uint32_t capacity, uint32_t *length);
+int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uint8_t *data,
+                   uint32_t length);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
