@@ -14,6 +14,7 @@ import time
 from typing import Any, Callable, List, Optional
 
 from . import __version__
+from .cli_od import add_od_parser
 from .decode import decode, describe
 from .errors import CanopenFDError
 from .frame import Frame
@@ -292,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="heartbeat producer time (default 1000, 0 = off)")
     p.add_argument("--duration", type=float, metavar="SECONDS")
     p.set_defaults(func=cmd_device)
+    add_od_parser(sub)
     return parser
 
 

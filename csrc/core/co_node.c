@@ -130,11 +130,14 @@ static const co_od_handler_t comm_handler = {
 bool co_node_attach_od(co_node_t *node, co_od_t *od, co_store_t *store,
                        co_hb_consumer_t *consumer)
 {
+    if (!co_od_subscribe(od, OD_CONSUMER_HEARTBEAT, 1, OD_PRODUCER_HEARTBEAT, 0, &comm_handler,
+                         node)) {
+        return false;
+    }
     node->od = od;
     node->store = store;
     node->consumer = consumer;
-    return co_od_subscribe(od, OD_CONSUMER_HEARTBEAT, 1, OD_PRODUCER_HEARTBEAT, 0, &comm_handler,
-                           node);
+    return true;
 }
 
 static const co_nmt_indications_t nmt_indications = {
@@ -165,6 +168,10 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
 
 void co_node_deinit(co_node_t *node)
 {
+    if (node->od) {
+        co_od_unsubscribe(node->od, &comm_handler, node);
+        node->od = NULL;
+    }
     co_hb_producer_stop(&node->heartbeat);
     co_nmt_deinit(&node->nmt);
     node->line->node_id = 0;
@@ -184,5 +191,9 @@ void co_node_boot(co_node_t *node)
 
 void co_node_set_heartbeat(co_node_t *node, uint16_t time_ms)
 {
-    co_hb_producer_set_time(&node->heartbeat, time_ms);
+    /* With an OD, 0x1017 is the one truth: its after-write handler re-arms. */
+    const uint8_t value[2] = {(uint8_t)time_ms, (uint8_t)(time_ms >> 8)};
+    if (!node->od || co_od_put(node->od, OD_PRODUCER_HEARTBEAT, 0, value, 2) != CO_ABORT_NONE) {
+        co_hb_producer_set_time(&node->heartbeat, time_ms);
+    }
 }

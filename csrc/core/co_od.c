@@ -499,6 +499,17 @@ bool co_od_subscribe(co_od_t *od, uint16_t first_index, uint8_t first_sub, uint1
     return true;
 }
 
+void co_od_unsubscribe(co_od_t *od, const co_od_handler_t *handler, void *user)
+{
+    uint8_t kept = 0;
+    for (uint8_t i = 0; i < od->sub_count; i++) {
+        if (od->subs[i].handler != handler || od->subs[i].user != user) {
+            od->subs[kept++] = od->subs[i];
+        }
+    }
+    od->sub_count = kept;
+}
+
 /* ------------------------------------------------------------ lookup */
 
 const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t sub)

@@ -267,6 +267,9 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def);
 bool co_od_seal(co_od_t *od, uint8_t node_id);
 bool co_od_subscribe(co_od_t *od, uint16_t first_index, uint8_t first_sub, uint16_t last_index,
                      uint8_t last_sub, const co_od_handler_t *handler, void *user);
+/* Remove every subscription of (handler, user); not while a transfer of the
+ * OD waits on a split answer (the chain position would shift). */
+void co_od_unsubscribe(co_od_t *od, const co_od_handler_t *handler, void *user);
 
 /* ---- lookup and application access (no indications except after_write)
  * find/has_index work at any time (the table is kept sorted while adding);

@@ -1,0 +1,45 @@
+"""The object dictionary: data model, CiA 301 data types, and the device
+description files (EDS/DCF per CiA 306, XDD/XDC per CiA 311 / CiA 1311).
+
+Pure Python, standard library only; the C object dictionary is fed from
+`ObjectDictionary.entries()` later::
+
+    from canopenfd.od import import_od, demo_od
+
+    od = import_od("drive.eds", node_id=5)
+    od[0x1017].default                    # also od["Producer heartbeat time"]
+    od["0x1018:1"].name                   # 'Vendor-ID'
+    for problem in od.validate():
+        print(problem)
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .datatypes import DataType, TimeDifference, TimeOfDay, decode, encode
+from .demo import demo_od
+from .eds import eds_from_text, export_dcf, export_eds, import_eds
+from .errors import OdError, OdFileError, OdValueError
+from .fileio import MAX_FILE_SIZE, Source, detect_format, read_source
+from .model import ODArray, ODRecord, ODVariable, ObjectDictionary, ObjectType, format_index
+from .validate import Problem
+from .xdd import import_xdd, xdd_from_text
+
+__all__ = [
+    "DataType", "TimeOfDay", "TimeDifference", "encode", "decode",
+    "ObjectDictionary", "ODVariable", "ODRecord", "ODArray", "ObjectType", "format_index",
+    "Problem", "OdError", "OdValueError", "OdFileError",
+    "import_od", "import_eds", "import_xdd", "export_eds", "export_dcf", "demo_od",
+    "MAX_FILE_SIZE",
+]
+
+
+def import_od(source: Source, node_id: Optional[int] = None,
+              mode: Optional[str] = None) -> ObjectDictionary:
+    """An ObjectDictionary from an EDS, DCF, XDD or XDC file (path or open
+    file): the reader is chosen by extension, else by content (XML or INI)."""
+    data, name = read_source(source)
+    if detect_format(name, data) == "eds":
+        return eds_from_text(data, name, node_id, mode)
+    return xdd_from_text(data, name, node_id, mode)

@@ -1,0 +1,375 @@
+"""The object dictionary: `ObjectDictionary` and the structured objects
+`ODRecord` and `ODArray` (entries are `ODVariable`, in variable.py).
+
+This is the *description* of a device's objects (what an EDS/XDD says), not
+its runtime values: those live in the node (the C core), which is fed the flat
+list `ObjectDictionary.entries()`. Lookups follow python-canopen
+(`od[0x1018][1]`, `od["Producer heartbeat time"]`, `add_object`,
+`add_member`, `get_variable`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
+
+from .datatypes import DataType
+from .errors import OdValueError
+from .variable import (ACCESS_TYPES, LINE_MODES, PDO_DIRECTIONS, ODVariable, ObjectType,
+                       _check_int, format_index)
+
+__all__ = [
+    "ObjectType", "ODVariable", "ODRecord", "ODArray", "ObjectDictionary",
+    "ACCESS_TYPES", "LINE_MODES", "PDO_DIRECTIONS", "format_index",
+]
+
+ODObject = Union[ODVariable, "ODRecord", "ODArray"]
+
+
+class _Container(Mapping):
+    """What ODRecord and ODArray share: sub-entries by sub-index and by name."""
+
+    object_type = ObjectType.RECORD
+
+    def __init__(self, name: str, index: int) -> None:
+        self.parent: Optional[ObjectDictionary] = None
+        self.index = _check_int(index, 1, 0xFFFF, "index")
+        self.name = str(name)
+        self.description = ""
+        self.subindices: Dict[int, ODVariable] = {}
+        #: Object links (CiA 306 [xxxxObjectLinks]): related object indices.
+        self.object_links: List[int] = []
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} at {self.where}>"
+
+    @property
+    def where(self) -> str:
+        return format_index(self.index)
+
+    @property
+    def names(self) -> Dict[str, ODVariable]:
+        """Sub-entries by name (the first one when names repeat)."""
+        result: Dict[str, ODVariable] = {}
+        for sub in sorted(self.subindices):
+            result.setdefault(self.subindices[sub].name, self.subindices[sub])
+        return result
+
+    def add_member(self, variable: ODVariable) -> None:
+        """Add (or replace) the entry at variable.subindex."""
+        if not isinstance(variable, ODVariable):
+            raise OdValueError(f"members must be ODVariable, got {type(variable).__name__}",
+                               self.where)
+        if variable.index != self.index:
+            raise OdValueError(f"member {variable.name!r} has index "
+                               f"{format_index(variable.index)}", f"{self.where} {self.name}")
+        variable.parent = self
+        self.subindices[variable.subindex] = variable
+
+    def __getitem__(self, key: Union[int, str]) -> ODVariable:
+        if isinstance(key, int) and not isinstance(key, bool):
+            if key in self.subindices:
+                return self.subindices[key]
+        elif isinstance(key, str):
+            found = _by_name(list(self.subindices.values()), key)
+            if found is not None:
+                return found
+            sub = _parse_sub(key)
+            if sub is not None and sub in self.subindices:
+                return self.subindices[sub]
+        raise KeyError(f"{self.where} {self.name} has no sub-entry {key!r}")
+
+    def __contains__(self, key: object) -> bool:
+        try:
+            self[key]
+        except KeyError:
+            return False
+        return True
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(sorted(self.subindices))
+
+    def __len__(self) -> int:
+        return len(self.subindices)
+
+    @property
+    def highest_subindex(self) -> Optional[int]:
+        """The default of sub 0 ("highest sub-index supported"), if an int."""
+        sub0 = self.subindices.get(0)
+        value = sub0.default if sub0 is not None else None
+        return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+    @property
+    def line_mode(self) -> Optional[str]:
+        """The line mode all sub-entries share (None when mixed or unset)."""
+        modes = {var.line_mode for var in self.subindices.values()}
+        return modes.pop() if len(modes) == 1 else None
+
+    @line_mode.setter
+    def line_mode(self, value: Optional[str]) -> None:
+        for var in self.subindices.values():
+            var.line_mode = value
+
+
+class ODRecord(_Container):
+    """A RECORD object (ObjectType 9): sub-entries of different types."""
+
+    object_type = ObjectType.RECORD
+
+
+class ODArray(_Container):
+    """An ARRAY object (ObjectType 8): sub 0 is the count, subs 1..n share one type."""
+
+    object_type = ObjectType.ARRAY
+
+    @property
+    def data_type(self) -> Optional[DataType]:
+        """The type of the elements (of the lowest sub-index >= 1)."""
+        for sub in sorted(self.subindices):
+            if sub >= 1:
+                return self.subindices[sub].data_type
+        return None
+
+
+def _by_name(items: List[Any], name: str, top_level: bool = False) -> Any:
+    """The item named `name`: exact match first, then a unique case-insensitive one."""
+    exact = [item for item in items if item.name == name]
+    if len(exact) == 1:
+        return exact[0]
+    if len(exact) > 1:
+        places = [format_index(item.index) if top_level else item.where for item in exact]
+        raise KeyError(f"name {name!r} is ambiguous: {', '.join(places)}")
+    folded = [item for item in items if item.name.casefold() == name.casefold()]
+    if len(folded) == 1:
+        return folded[0]
+    return None
+
+
+_KEY_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})(?:(?::|sub)(?:0x)?([0-9a-f]{1,2}))?$",
+                     re.IGNORECASE)
+
+
+def _parse_sub(text: str) -> Optional[int]:
+    match = re.match(r"^(?:0x)?([0-9a-f]{1,2})$", text.strip(), re.IGNORECASE)
+    return int(match.group(1), 16) if match else None
+
+
+class ObjectDictionary(Mapping):
+    """The objects of one device, by index (iteration in index order).
+
+    Lookups: ``od[0x1017]``, ``od["Producer heartbeat time"]`` (names, exact
+    or case-insensitively unique), ``od["0x1018:1"]`` / ``od["1018sub1"]``
+    (hex index and sub-index, as `od show` prints them), ``od[(0x1018, 1)]``,
+    ``od["Identity object.Vendor-ID"]``, ``od[0x1018][1]``.
+    """
+
+    def __init__(self, mode: Optional[str] = None, node_id: Optional[int] = None) -> None:
+        self.indices: Dict[int, ODObject] = {}
+        if mode is not None and mode not in LINE_MODES:
+            raise OdValueError(f"mode must be 'fd', 'classic' or None, got {mode!r}")
+        #: 'fd' or 'classic': the kind of line this dictionary describes a node
+        #: for (None: unknown). Checked by validate().
+        self.mode = mode
+        self._node_id: Optional[int] = None
+        self.node_id = node_id
+        #: Bit rate in bit/s (DCF Baudrate, XDC actualBaudRate), None if unknown.
+        self.bitrate: Optional[int] = None
+        #: [DeviceInfo] keys as in an EDS (VendorName, VendorNumber, ProductName...).
+        self.device_info: Dict[str, str] = {}
+        #: [FileInfo] keys (FileName, FileVersion, CreatedBy...).
+        self.file_info: Dict[str, str] = {}
+        #: DCF [DeviceComissioning] / XDC deviceCommissioning keys.
+        self.device_commissioning: Dict[str, str] = {}
+        #: [Comments] text.
+        self.comments = ""
+        #: Data type indices usable as dummy mapping entries ([DummyUsage]).
+        self.dummy_usage: set = set()
+        #: Problems the importer noticed but could live with (Problem objects).
+        self.load_warnings: List[Any] = []
+        #: The file this dictionary was read from ('' when built in code).
+        self.source = ""
+        #: 'EDS', 'DCF', 'XDD' or 'XDC' for imported dictionaries, else ''.
+        self.source_format = ""
+
+    @property
+    def node_id(self) -> Optional[int]:
+        """The node-id `$NODEID` expressions resolve with (None: unknown)."""
+        return self._node_id
+
+    @node_id.setter
+    def node_id(self, value: Optional[int]) -> None:
+        if value is not None:
+            _check_int(value, 1, 127, "node_id")
+        self._node_id = value
+
+    # ------------------------------------------------------------ mapping
+    def add_object(self, obj: ODObject) -> None:
+        """Add (or replace) the object at obj.index."""
+        if not isinstance(obj, (ODVariable, ODRecord, ODArray)):
+            raise OdValueError(f"objects must be ODVariable, ODRecord or ODArray, "
+                               f"got {type(obj).__name__}")
+        obj.parent = self
+        self.indices[obj.index] = obj
+
+    def __setitem__(self, key: Union[int, str], obj: ODObject) -> None:
+        if key != obj.index and key != obj.name:
+            raise OdValueError(f"key {key!r} is neither the index nor the name of {obj!r}")
+        self.add_object(obj)
+
+    def __delitem__(self, key: Union[int, str]) -> None:
+        obj = self[key]
+        if isinstance(obj, ODVariable) and obj.parent is not self:
+            raise KeyError(f"{key!r} is a sub-entry; delete from its object")
+        del self.indices[obj.index]
+        obj.parent = None
+
+    def __getitem__(self, key: Union[int, str, Tuple[int, int]]) -> Any:
+        if isinstance(key, int) and not isinstance(key, bool):
+            if key in self.indices:
+                return self.indices[key]
+            raise KeyError(f"{format_index(key) if 0 <= key <= 0xFFFF else key} "
+                           f"is not in the object dictionary")
+        if isinstance(key, tuple) and len(key) == 2:
+            var = self.get_variable(*key)
+            if var is None:
+                raise KeyError(f"{key!r} is not in the object dictionary")
+            return var
+        if isinstance(key, str):
+            found = self._lookup_text(key)
+            if found is not None:
+                return found
+        raise KeyError(f"{key!r} is not in the object dictionary")
+
+    def _lookup_text(self, text: str) -> Any:
+        found = _by_name(list(self.indices.values()), text, top_level=True)
+        if found is not None:
+            return found
+        match = _KEY_RE.match(text.strip())
+        if match:
+            index = int(match.group(1), 16)
+            if match.group(2) is None:
+                return self.indices.get(index)
+            return self.get_variable(index, int(match.group(2), 16))
+        # "Object name.Sub name", split at each '.' in turn (names may hold dots)
+        for pos in [i for i, char in enumerate(text) if char == "."]:
+            obj = _by_name(list(self.indices.values()), text[:pos], top_level=True)
+            if isinstance(obj, (ODRecord, ODArray)) and text[pos + 1:] in obj:
+                return obj[text[pos + 1:]]
+        return None
+
+    def __contains__(self, key: object) -> bool:
+        try:
+            self[key]
+        except KeyError:
+            return False
+        return True
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(sorted(self.indices))
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __repr__(self) -> str:
+        return (f"<ObjectDictionary {len(self)} objects, mode={self.mode!r}, "
+                f"node_id={self.node_id!r}>")
+
+    @property
+    def names(self) -> Dict[str, ODObject]:
+        """Objects by name (the first in index order when names repeat)."""
+        result: Dict[str, ODObject] = {}
+        for index in sorted(self.indices):
+            result.setdefault(self.indices[index].name, self.indices[index])
+        return result
+
+    def get_variable(self, index: Union[int, str], subindex: int = 0) -> Optional[ODVariable]:
+        """The entry at (index, subindex), or None (python-canopen's name)."""
+        obj = self.get(index)
+        if isinstance(obj, ODVariable):
+            return obj if subindex == 0 else None
+        if isinstance(obj, (ODRecord, ODArray)):
+            return obj.subindices.get(subindex)
+        return None
+
+    def entries(self) -> Iterator[ODVariable]:
+        """Every entry (VARs and every sub-entry) in (index, sub-index) order:
+        the flat list the C object dictionary is built from."""
+        for index in sorted(self.indices):
+            obj = self.indices[index]
+            if isinstance(obj, ODVariable):
+                yield obj
+            else:
+                for sub in sorted(obj.subindices):
+                    yield obj.subindices[sub]
+
+    # ------------------------------------------------------------ checks
+    def validate(self) -> List[Any]:
+        """Problems of this dictionary (list of `Problem`, errors and warnings);
+        see canopenfd.od.validate for the rules."""
+        from .validate import validate
+
+        return validate(self)
+
+    def diff(self, other: "ObjectDictionary") -> List[str]:
+        """What differs between two dictionaries' objects and entries (and mode);
+        [] when they describe the same device. File metadata is not compared."""
+        return _diff(self, other)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, ObjectDictionary):
+            return NotImplemented
+        return not self.diff(other)
+
+    __hash__ = None
+
+
+# ------------------------------------------------------------------ comparison
+_VAR_FIELDS = ("name", "data_type", "access_type", "default_base", "relative_to_node_id",
+               "value_base", "value_relative_to_node_id", "low_limit", "high_limit",
+               "pdo_mappable", "store", "line_mode", "max_length", "description", "unit",
+               "factor", "denotation", "obj_flags", "object_type")
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return type(a) is type(b) and a == b
+
+
+def _diff(left: ObjectDictionary, right: ObjectDictionary) -> List[str]:
+    out: List[str] = []
+    if left.mode != right.mode:
+        out.append(f"mode: {left.mode!r} != {right.mode!r}")
+    for index in sorted(set(left.indices) | set(right.indices)):
+        a, b = left.indices.get(index), right.indices.get(index)
+        where = format_index(index)
+        if a is None or b is None:
+            out.append(f"{where}: only in {'right' if a is None else 'left'}")
+            continue
+        if type(a) is not type(b):
+            out.append(f"{where}: {type(a).__name__} != {type(b).__name__}")
+            continue
+        if a.name != b.name:
+            out.append(f"{where}: name {a.name!r} != {b.name!r}")
+        if a.object_links != b.object_links:
+            out.append(f"{where}: object links {a.object_links} != {b.object_links}")
+        if isinstance(a, ODVariable):
+            pairs = [(a, b)]
+        else:
+            subs = sorted(set(a.subindices) | set(b.subindices))
+            pairs = []
+            for sub in subs:
+                va, vb = a.subindices.get(sub), b.subindices.get(sub)
+                if va is None or vb is None:
+                    out.append(f"{format_index(index, sub)}: only in "
+                               f"{'right' if va is None else 'left'}")
+                else:
+                    pairs.append((va, vb))
+        for va, vb in pairs:
+            for field in _VAR_FIELDS:
+                x, y = getattr(va, field), getattr(vb, field)
+                if not _same(x, y):
+                    out.append(f"{va.where} {field}: {x!r} != {y!r}")
+    return out
