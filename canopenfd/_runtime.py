@@ -150,6 +150,45 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
+    # ------------------------------------------------------------ object dictionary
+    def od_define(self, line: int, defs, count: int, store_path: Optional[str],
+                  what: str) -> None:
+        path = ffi.new("char[]", store_path.encode("utf-8")) if store_path else ffi.NULL
+        with self._lock:
+            rc = lib.co_rt_od_define(self._live(what), line, defs, count, path)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def od_read(self, line: int, index: int, sub: int, what: str) -> "tuple[int, bytes]":
+        """(abort code or 0, value bytes); grows the buffer when it is too small."""
+        size = 64
+        length = ffi.new("uint32_t *")
+        while True:
+            buf = ffi.new("uint8_t[]", size)
+            with self._lock:
+                rc = lib.co_rt_od_read(self._live(what), line, index, sub, buf, size, length)
+                if rc < 0:
+                    self._raise(rc, what)
+            if rc == lib.CO_ABORT_OUT_OF_MEMORY and length[0] > size:
+                size = length[0]
+                continue
+            return rc, (bytes(ffi.buffer(buf, length[0])) if rc == 0 else b"")
+
+    def od_write(self, line: int, index: int, sub: int, data: bytes, what: str) -> int:
+        with self._lock:
+            rc = lib.co_rt_od_write(self._live(what), line, index, sub, data, len(data))
+            if rc < 0:
+                self._raise(rc, what)
+        return rc
+
+    def od_store(self, line: int, group_mask: int, save: bool, what: str) -> int:
+        call = lib.co_rt_od_save if save else lib.co_rt_od_restore_defaults
+        with self._lock:
+            rc = call(self._live(what), line, group_mask)
+            if rc < 0:
+                self._raise(rc, what)
+        return rc
+
     def line_stats(self, line: int, what: str) -> dict:
         out = ffi.new("co_line_stats_t *")
         with self._lock:

@@ -28,3 +28,56 @@ class ClosedError(CanopenFDError, RuntimeError):
 class CommandError(CanopenFDError):
     """The runtime refused a command for a reason that is not a wrong
     argument (mailbox full, runtime out of memory...)."""
+
+
+#: CiA 301 SDO abort codes and their meaning (USDO uses the same meanings).
+ABORT_TEXT = {
+    0x05030000: "toggle bit not alternated",
+    0x05040000: "SDO protocol timed out",
+    0x05040001: "client/server command specifier not valid or unknown",
+    0x05040002: "invalid block size",
+    0x05040003: "invalid sequence number",
+    0x05040004: "CRC error",
+    0x05040005: "out of memory",
+    0x06010000: "unsupported access to an object",
+    0x06010001: "attempt to read a write-only object",
+    0x06010002: "attempt to write a read-only object",
+    0x06020000: "object does not exist in the object dictionary",
+    0x06040041: "object cannot be mapped to the PDO",
+    0x06040042: "number and length of mapped objects would exceed the PDO length",
+    0x06040043: "general parameter incompatibility",
+    0x06040047: "general internal incompatibility in the device",
+    0x06060000: "access failed due to a hardware error",
+    0x06070010: "data type does not match, length of service parameter does not match",
+    0x06070012: "data type does not match, length of service parameter too high",
+    0x06070013: "data type does not match, length of service parameter too low",
+    0x06090011: "sub-index does not exist",
+    0x06090030: "invalid value for parameter",
+    0x06090031: "value of parameter written too high",
+    0x06090032: "value of parameter written too low",
+    0x06090036: "maximum value is less than minimum value",
+    0x060A0023: "resource not available: SDO connection",
+    0x08000000: "general error",
+    0x08000020: "data cannot be transferred or stored to the application",
+    0x08000021: "data cannot be transferred or stored because of local control",
+    0x08000022: "data cannot be transferred or stored because of the device state",
+    0x08000023: "object dictionary dynamic generation failed or no object dictionary",
+    0x08000024: "no data available",
+}
+
+
+class AbortError(CanopenFDError):
+    """An object dictionary access was refused with a CiA 301 abort code.
+
+    `code` is the 32-bit abort code, `meaning` its text, `node` the node-id
+    and `index` / `subindex` the entry."""
+
+    def __init__(self, code: int, node: int, index: int, subindex: int, what: str = "") -> None:
+        self.code = code
+        self.meaning = ABORT_TEXT.get(code, "unknown abort code")
+        self.node = node
+        self.index = index
+        self.subindex = subindex
+        place = f"node {node} 0x{index:04X}:{subindex:02X}"
+        super().__init__(f"{what + ': ' if what else ''}{place}: abort 0x{code:08X} "
+                         f"({self.meaning})")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import enum
 import logging
 import threading
-from typing import TYPE_CHECKING, Callable, Dict, List, Optional, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Union
 
 from ._callbacks import CallbackList, Waiter
 from ._runtime import lib, now_us, status_text
@@ -77,9 +77,15 @@ class Line:
 
     # ---------------------------------------------------------------- nodes
     def create_local_node(self, node_id: int, heartbeat_ms: int = 0, *,
+                          od: Optional[Any] = None, store: Optional[str] = None,
                           boot: bool = True) -> LocalNode:
         """Create our node on this line (one per line) and boot it: boot-up
         message, PRE-OPERATIONAL, then a heartbeat every heartbeat_ms (0 = none).
+
+        od: an `ObjectDictionary` (or a path of an EDS/DCF/XDD/XDC file) the node
+        serves; its 0x1017/0x1016 drive the heartbeat (a non-zero heartbeat_ms
+        replaces the 0x1017 default). store: a file where `save_parameters()`
+        and 0x1010 keep parameters across restarts (needs od).
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
@@ -96,7 +102,9 @@ class Line:
                     f"{self._where}: node-id {node_id} is already a remote node watched by "
                     "this line; a local node needs an id of its own")
             self._rt._live(f"create_local_node({node_id}) on {self._where}")
-            node = LocalNode(self, node_id, heartbeat_ms)
+            od = _served_od(od, self.mode, node_id, store, f"create_local_node({node_id}) on "
+                            f"{self._where}")
+            node = LocalNode(self, node_id, heartbeat_ms, od, store)
             self.local_node = node
             if boot:
                 try:
@@ -220,6 +228,18 @@ class Line:
         self._rt.command(lib.CO_CMD_SEND_FRAME, self.index, frame=frame, what=where)
 
     # ---------------------------------------------------------------- for nodes
+    def _define_od(self, defs: Any, count: int, store: Optional[str], where: str) -> None:
+        self._rt.od_define(self.index, defs, count, store, f"object dictionary of {where}")
+
+    def _od_read(self, index: int, sub: int, what: str) -> "tuple[int, bytes]":
+        return self._rt.od_read(self.index, index, sub, f"{what} on {self._where}")
+
+    def _od_write(self, index: int, sub: int, data: bytes, what: str) -> int:
+        return self._rt.od_write(self.index, index, sub, data, f"{what} on {self._where}")
+
+    def _od_store(self, group_mask: int, save: bool, what: str) -> int:
+        return self._rt.od_store(self.index, group_mask, save, what)
+
     def _create_node(self, node_id: int, heartbeat_ms: int, where: str) -> None:
         self._rt.command(lib.CO_CMD_NODE_CREATE, self.index, node_id, heartbeat_ms,
                          what=f"boot of {where}")
@@ -286,6 +306,9 @@ class Line:
             elif kind == lib.CO_EV_NMT_RESET:
                 if self.local_node is not None:
                     run = self.local_node._event_reset(a)
+            elif kind == lib.CO_EV_STORE:
+                if self.local_node is not None:
+                    run = self.local_node._event_store(a, b)
             elif kind == lib.CO_EV_COMMAND_FAILED:
                 log.warning("%s: command %d failed in the runtime: %s", self._where, a,
                             self._status_text(-b))
@@ -300,3 +323,19 @@ class Line:
     @staticmethod
     def _status_text(status: int) -> str:
         return status_text(status)
+
+
+def _served_od(od: Any, mode: str, node_id: int, store: Optional[str], where: str) -> Any:
+    """The ObjectDictionary a local node serves: given, or imported from a file."""
+    from .od import ObjectDictionary, import_od
+    if od is None:
+        if store is not None:
+            raise ConfigurationError(f"{where}: a parameter store needs an object dictionary "
+                                     "(od=...)")
+        return None
+    if isinstance(od, (str, bytes)) or hasattr(od, "__fspath__"):
+        od = import_od(od, node_id=node_id)
+    if not isinstance(od, ObjectDictionary):
+        raise ConfigurationError(f"{where}: od must be an ObjectDictionary or a file path, "
+                                 f"got {type(od).__name__}")
+    return od

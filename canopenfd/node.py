@@ -3,12 +3,27 @@
 from __future__ import annotations
 
 import collections
-from typing import TYPE_CHECKING, Callable, Deque, Optional, Tuple, Union
+import logging
+from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, Optional, Tuple, Union
 
 from ._callbacks import CallbackList
 from ._runtime import lib
-from .errors import ConfigurationError
+from .errors import AbortError, ConfigurationError
 from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
+from .od import ObjectDictionary, ODVariable
+
+log = logging.getLogger(__name__)
+
+#: 0x1010 / 0x1011 parameter groups by name (CiA 301 sub-indices 1..4).
+PARAMETER_GROUPS = {
+    "all": lib.CO_GROUP_ALL,
+    "communication": lib.CO_GROUP_COMMUNICATION,
+    "application": lib.CO_GROUP_APPLICATION,
+    "manufacturer": lib.CO_GROUP_MANUFACTURER,
+}
+
+#: What a parameter load found (co_store_status_t).
+STORE_STATUS = {0: "ok", 1: "empty", 2: "damaged", 3: "foreign", 4: "io-error", 5: "too-big"}
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
@@ -62,9 +77,17 @@ class LocalNode:
     the very first transition.
     """
 
-    def __init__(self, line: "Line", node_id: int, heartbeat_ms: int) -> None:
+    def __init__(self, line: "Line", node_id: int, heartbeat_ms: int,
+                 od: Optional[ObjectDictionary] = None, store: Optional[str] = None) -> None:
         self.line = line
         self.node_id = node_id
+        #: The object dictionary this node serves (None: NMT and heartbeat only).
+        self.od = od
+        #: File of saved parameters (0x1010), or None.
+        self.store = store
+        #: What the last parameter load found: 'ok', 'empty', 'damaged', ...
+        self.store_status = "empty"
+        self._store_problems = CallbackList(f"node {node_id} store problem")
         self._booted = False
         self.nmt = LocalNmt(self)
         self._heartbeat_default_ms = heartbeat_ms
@@ -94,8 +117,73 @@ class LocalNode:
             if self._booted:
                 raise ConfigurationError(
                     f"{self._where} is already booted (restart it with apply('reset-node'))")
+            if self.od is not None:
+                self._define_od()
             self.line._create_node(self.node_id, self._heartbeat_ms, self._where)
             self._booted = True
+
+    def _define_od(self) -> None:
+        from ._od_c import definitions  # needs the compiled core
+        overrides: Dict[Tuple[int, int], Any] = {}
+        if self._heartbeat_ms and self._has_1017:
+            overrides[(0x1017, 0)] = self._heartbeat_ms
+        defs, count, _keep = definitions(self.od, self.node_id, overrides)
+        self.line._define_od(defs, count, self.store, self._where)
+
+    @property
+    def _has_1017(self) -> bool:
+        return self.od is not None and isinstance(self.od.get_variable(0x1017, 0), ODVariable)
+
+    # ---------------------------------------------------------------- values
+    def __getitem__(self, key: Any) -> "LocalValue":
+        """The value of an entry of the served OD, by index, "index:sub",
+        (index, sub), name or "Object.Sub": `node["Producer heartbeat time"].raw`."""
+        if self.od is None:
+            raise ConfigurationError(f"{self._where} serves no object dictionary "
+                                     "(create it with od=...)")
+        var = self.od[key]
+        if not isinstance(var, ODVariable):
+            raise ConfigurationError(
+                f"{self._where}: {key!r} is {type(var).__name__} 0x{var.index:04X}; "
+                "give a sub-index, e.g. node[0x%04X][1] or node['0x%04X:1']"
+                % (var.index, var.index))
+        return LocalValue(self, var)
+
+    def save_parameters(self, group: str = "all") -> None:
+        """What writing "save" to 0x1010 does: the stored entries of `group`
+        ('all', 'communication', 'application', 'manufacturer') go to the store
+        file, atomically; they come back at the next boot or reset."""
+        self._store_call(group, True)
+
+    def restore_defaults(self, group: str = "all") -> None:
+        """What writing "load" to 0x1011 does: forget the saved values of
+        `group`, so the next reset loads the defaults."""
+        self._store_call(group, False)
+
+    def _store_call(self, group: str, save: bool) -> None:
+        what = f"{'save_parameters' if save else 'restore_defaults'}({group!r}) on {self._where}"
+        if group not in PARAMETER_GROUPS:
+            raise ConfigurationError(f"{what}: group must be one of {', '.join(PARAMETER_GROUPS)}")
+        if not self._booted:
+            raise ConfigurationError(f"{what}: the node is not booted yet")
+        code = self.line._od_store(PARAMETER_GROUPS[group], save, what)
+        if code:
+            raise AbortError(code, self.node_id, 0x1010 if save else 0x1011,
+                             {"all": 1, "communication": 2, "application": 3,
+                              "manufacturer": 4}[group], what)
+
+    def on_store_problem(self, callback: Callable[[str, int], None]):
+        """callback(status, records_skipped) when saved parameters could not be
+        used at boot or reset ('damaged', 'foreign', 'io-error', 'too-big'):
+        the node then runs on its defaults."""
+        return self._store_problems.add(callback)
+
+    def _event_store(self, status: int, skipped: int) -> Callable[[], None]:
+        text = STORE_STATUS.get(status, str(status))
+        self.store_status = text
+        log.warning("%s: saved parameters in %s are %s; running on defaults",
+                    self._where, self.store, text)
+        return lambda: self._store_problems.fire(text, skipped)
 
     # ---------------------------------------------------------------- state
     @property
@@ -128,12 +216,17 @@ class LocalNode:
 
         Setting it takes effect at once: the next heartbeat goes out one new
         period from now. A reset (node or communication) restores the value
-        given to create_local_node()."""
+        given to create_local_node() (with an OD: its default or saved value)."""
+        if self._booted and self._has_1017:
+            return self[0x1017].raw
         return self._heartbeat_ms
 
     @heartbeat_ms.setter
     def heartbeat_ms(self, value: int) -> None:
         value = check_ms(value, "heartbeat_ms", self._where)
+        if self._booted and self._has_1017:
+            self[0x1017].raw = value   # the OD's after-write re-arms at once
+            return
         with self.line._cond:
             if self._booted:
                 self.line._set_heartbeat(value, self._where)
@@ -177,13 +270,55 @@ class LocalNode:
 
     def _event_reset(self, kind: int) -> Callable[[], None]:
         # The runtime restored 0x1017 to its default (CiA 301 reset of the
-        # communication parameters); mirror it.
+        # communication parameters); mirror it (with an OD it is read there).
         self._heartbeat_ms = self._heartbeat_default_ms
         try:
             command = NmtCommand(kind)
         except ValueError:
             command = kind  # type: ignore[assignment]
         return lambda: self._reset.fire(command)
+
+
+class LocalValue:
+    """One entry of a local node's object dictionary: `.raw` is the typed value
+    (checked against type, length and limits), `.data` the wire bytes.
+
+    Reads and writes are atomic with respect to the stack's thread. A refused
+    write raises AbortError with the CiA abort code, or OdValueError when the
+    value cannot even be encoded; either way nothing changes."""
+
+    def __init__(self, node: LocalNode, variable: ODVariable) -> None:
+        self.node = node
+        self.variable = variable
+
+    def __repr__(self) -> str:
+        return f"<LocalValue {self.variable.where} {self.variable.qualname!r} of {self.node!r}>"
+
+    def _what(self, verb: str) -> str:
+        return f"{verb} {self.variable.where} {self.variable.qualname!r}"
+
+    @property
+    def data(self) -> bytes:
+        var = self.variable
+        code, data = self.node.line._od_read(var.index, var.subindex, self._what("read"))
+        if code:
+            raise AbortError(code, self.node.node_id, var.index, var.subindex, self._what("read"))
+        return data
+
+    @data.setter
+    def data(self, data: bytes) -> None:
+        var = self.variable
+        code = self.node.line._od_write(var.index, var.subindex, bytes(data), self._what("write"))
+        if code:
+            raise AbortError(code, self.node.node_id, var.index, var.subindex, self._what("write"))
+
+    @property
+    def raw(self) -> Any:
+        return self.variable.decode_raw(self.data)
+
+    @raw.setter
+    def raw(self, value: Any) -> None:
+        self.data = self.variable.encode_raw(value)
 
 
 class RemoteNode:

@@ -1400,6 +1400,25 @@ static int validate_command(co_rt_t *rt, const co_rt_command_t *cmd)
     return check_command_args(rt, rt->lines[cmd->line], cmd);
 }
 
+/* Creating the local node runs at once under the lock (the thread is not
+ * processing then): the caller learns of a refused OD or store right away,
+ * and the node exists for OD access as soon as the call returns. */
+static int node_create_now(co_rt_t *rt, const co_rt_command_t *cmd)
+{
+    rt_line_t *l = rt->lines[cmd->line];
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_ERR_CLOSED;
+    if (!rt->stopping) {
+        line_step(l, co_rt_now_us());
+        status = cmd_node_create(rt, l, cmd);
+    }
+    pthread_mutex_unlock(&rt->lock);
+    if (status == CO_RT_OK) {
+        wake(rt);
+    }
+    return status;
+}
+
 int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
 {
     if (!rt || !command) {
@@ -1408,6 +1427,9 @@ int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
     int status = validate_command(rt, command);
     if (status != CO_RT_OK) {
         return status;
+    }
+    if (command->kind == CO_CMD_NODE_CREATE) {
+        return node_create_now(rt, command);
     }
     rt_mailbox_t *m = &rt->mail;
     pthread_mutex_lock(&m->lock);
@@ -1701,4 +1723,49 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
         wake(rt);   /* a deadline may have moved earlier */
     }
     return result;
+}
+
+/* Under rt->lock: the store of the line's node, or NULL with the reason set. */
+static co_store_t *served_store(co_rt_t *rt, rt_line_t *l)
+{
+    if (!served_od(rt, l)) {
+        return NULL;
+    }
+    if (!l->store_path) {
+        set_error(rt, "line %d: the local node has no parameter store (give a store file)",
+                  l->index);
+        return NULL;
+    }
+    return &l->store;
+}
+
+static int store_call(co_rt_t *rt, int line, int group_mask, bool save)
+{
+    rt_line_t *l = checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (group_mask <= 0 || group_mask > CO_GROUP_ALL) {
+        return argument_error(rt, "parameter group mask %d outside 1..%d", group_mask,
+                              CO_GROUP_ALL);
+    }
+    pthread_mutex_lock(&rt->lock);
+    co_store_t *store = served_store(rt, l);
+    int result = CO_RT_ERR_STATE;
+    if (store) {
+        result = (int)(save ? co_store_save(store, (uint8_t)group_mask)
+                            : co_store_restore_defaults(store, (uint8_t)group_mask));
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return result;
+}
+
+int co_rt_od_save(co_rt_t *rt, int line, int group_mask)
+{
+    return store_call(rt, line, group_mask, true);
+}
+
+int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask)
+{
+    return store_call(rt, line, group_mask, false);
 }

@@ -102,7 +102,8 @@ int co_rt_add_line(co_rt_t *rt, const co_rt_line_config_t *config);
 void co_rt_last_error(co_rt_t *rt, char *buf, size_t size);
 const char *co_rt_status_text(int status);
 
-/* Post a command to the mailbox (validated here first). */
+/* Post a command to the mailbox (validated here first). CO_CMD_NODE_CREATE
+ * is carried out before the call returns, so its errors come back at once. */
 int co_rt_command(co_rt_t *rt, const co_rt_command_t *command);
 /* Wait up to timeout_ms (-1 = forever) for events; copies up to max into
  * events. Returns the count (0 on timeout) or CO_RT_ERR_CLOSED. */
@@ -140,6 +141,10 @@ int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *b
                   uint32_t capacity, uint32_t *length);
 int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uint8_t *data,
                    uint32_t length);
+/* What a "save" to 0x1010 / "load" to 0x1011 does, for the application:
+ * group_mask of CO_GROUP_*. 0, an abort code, or a co_rt_status_t. */
+int co_rt_od_save(co_rt_t *rt, int line, int group_mask);
+int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
