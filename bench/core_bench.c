@@ -15,6 +15,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_util.h"
 #include "co_frame.h"
 #include "co_hb.h"
 #include "co_line.h"
@@ -23,40 +24,6 @@
 
 #define QUEUE 512
 #define TIMERS 10000
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
-
-static uint64_t rng_next(uint64_t *s)
-{
-    uint64_t x = *s;
-    x ^= x >> 12;
-    x ^= x << 25;
-    x ^= x >> 27;
-    *s = x;
-    return x * 0x2545F4914F6CDD1Dull;
-}
-
-static void row(const char *what, double count, double seconds, const char *unit)
-{
-    double rate = count / seconds;
-    const char *scale = "";
-    double shown = rate;
-    if (rate >= 1e6) {
-        shown = rate / 1e6;
-        scale = "M";
-    } else if (rate >= 1e3) {
-        shown = rate / 1e3;
-        scale = "k";
-    }
-    printf("%-48s %11.0f %9.3f %9.2f %1s%-13s %8.1f\n", what, count, seconds, shown, scale,
-           unit, seconds * 1e9 / count);
-    fflush(stdout);
-}
 
 /* ------------------------------------------------------------------ lines */
 
@@ -340,9 +307,7 @@ static void bench_timers(void)
 
 int main(void)
 {
-    printf("canopenfd core benchmark: csrc/core + membus, one thread\n\n");
-    printf("%-48s %11s %9s %24s %8s\n", "figure", "count", "time s", "rate", "ns/op");
-    printf("%-48s %11s %9s %24s %8s\n", "------", "-----", "------", "----", "-----");
+    table_header("canopenfd core benchmark: csrc/core + membus, one thread");
     bench_line("(a) line: classic, 8-byte frames", CO_MODE_CLASSIC, false, 8, 4000000);
     bench_line("(a) line: fd + BRS, 64-byte frames", CO_MODE_FD, true, 64, 4000000);
     bench_line("(a) line: fd + BRS, 13 -> 16-byte frames", CO_MODE_FD, true, 13, 4000000);

@@ -16,44 +16,11 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_util.h"
 #include "co_od.h"
 
 #define ENTRIES 10000
 #define KEYS 4096          /* random keys per batch (fits in cache like a real OD) */
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
-
-static uint64_t rng_next(uint64_t *s)
-{
-    uint64_t x = *s;
-    x ^= x >> 12;
-    x ^= x << 25;
-    x ^= x >> 27;
-    *s = x;
-    return x * 0x2545F4914F6CDD1Dull;
-}
-
-static void row(const char *what, double count, double seconds, const char *unit)
-{
-    double rate = count / seconds;
-    const char *scale = "";
-    double shown = rate;
-    if (rate >= 1e6) {
-        shown = rate / 1e6;
-        scale = "M";
-    } else if (rate >= 1e3) {
-        shown = rate / 1e3;
-        scale = "k";
-    }
-    printf("%-48s %11.0f %9.3f %9.2f %1s%-13s %8.1f\n", what, count, seconds, shown, scale,
-           unit, seconds * 1e9 / count);
-    fflush(stdout);
-}
 
 static void die(const char *what)
 {
@@ -123,9 +90,7 @@ int main(void)
     uint32_t i, found;
     int rep;
 
-    printf("canopenfd object dictionary benchmark: csrc/core/co_od, one thread\n\n");
-    printf("%-48s %11s %9s %24s %8s\n", "figure", "count", "time s", "rate", "ns/op");
-    printf("%-48s %11s %9s %24s %8s\n", "------", "-----", "------", "----", "-----");
+    table_header("canopenfd object dictionary benchmark: csrc/core/co_od, one thread");
 
     for (i = 0; i < ENTRIES; i++)
         ascending[i] = shuffled[i] = i;

@@ -9,10 +9,7 @@
  *
  * Lines: a (node A, id 5, with the OD, the store and its heartbeat consumer),
  * b (node B, id 6, a plain co_node without OD: the heartbeat peer). */
-#include "test_util.h"
-
-#include "co_od.h"
-#include "co_store.h"
+#include "test_od_util.h"
 
 #define ID_A 5
 #define ID_B 6
@@ -35,43 +32,6 @@
 #define CHANGED_1017 300u
 #define CHANGED_2000 0xB2B2B2B2u
 
-/* ---------------------------------------------------- in-memory backend */
-
-typedef struct mem_backend {
-    uint8_t data[STORE_BUF];
-    uint32_t length;
-    bool has;
-    unsigned saves;
-    unsigned loads;
-} mem_backend_t;
-
-static co_store_status_t mem_save(void *user, const uint8_t *image, uint32_t length)
-{
-    mem_backend_t *m = user;
-    m->saves++;
-    if (length > sizeof m->data)
-        return CO_STORE_IO;
-    memcpy(m->data, image, length);
-    m->length = length;
-    m->has = true;
-    return CO_STORE_OK;
-}
-
-static co_store_status_t mem_load(void *user, uint8_t *image, uint32_t capacity, uint32_t *length)
-{
-    mem_backend_t *m = user;
-    m->loads++;
-    if (!m->has)
-        return CO_STORE_EMPTY;
-    if (m->length > capacity)
-        return CO_STORE_TOO_BIG;
-    memcpy(image, m->data, m->length);
-    *length = m->length;
-    return CO_STORE_OK;
-}
-
-static const co_store_backend_t mem_ops = { mem_save, mem_load };
-
 /* ------------------------------------------------------------- fixture */
 
 typedef struct ev {
@@ -90,7 +50,7 @@ typedef struct fx {
     co_od_subscription_t subs[SUBS];
     co_store_t store;
     uint8_t store_buf[STORE_BUF];
-    mem_backend_t mem;
+    tu_mem_backend_t mem;
     co_node_t na, nb;
     co_hb_consumer_t cons;
     co_hb_entry_t hb_entries[HB_ENTRIES];
@@ -133,41 +93,16 @@ static uint64_t ev_time(const fx_t *fx, uint8_t node, co_hb_event_t event)
 
 /* ----------------------------------------------------------- the OD */
 
-static void le_put(uint8_t *p, uint64_t v, uint32_t n)
-{
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
 static void add(fx_t *fx, uint16_t index, uint8_t sub, uint8_t object_code, uint8_t type,
                 uint8_t access, uint16_t flags, uint32_t value)
 {
-    co_od_def_t d;
+    co_od_def_t d = tu_od_def(index, sub, object_code, type, access, flags, co_od_type_size(type));
     uint8_t v[4];
-    memset(&d, 0, sizeof d);
-    d.index = index;
-    d.sub = sub;
-    d.object_code = object_code;
-    d.type = type;
-    d.access = access;
-    d.flags = flags;
-    d.size = co_od_type_size(type);
-    le_put(v, value, d.size);
+    tu_le_put(v, value, d.size);
     d.default_value = v;
     d.default_length = d.size;
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
 }
-
-#define VAR CO_OBJECT_VAR
-#define ARR CO_OBJECT_ARRAY
-#define REC CO_OBJECT_RECORD
-#define U8 CO_TYPE_UNSIGNED8
-#define U16 CO_TYPE_UNSIGNED16
-#define U32 CO_TYPE_UNSIGNED32
-#define RO CO_ACCESS_RO
-#define RW CO_ACCESS_RW
-#define ST CO_OD_STORE
 
 /* cons_sub1: default of 0x1016 sub 1. */
 static void build_od(fx_t *fx, uint32_t cons_sub1)
@@ -194,7 +129,7 @@ static void build_od(fx_t *fx, uint32_t cons_sub1)
     add(fx, 0x2000, 0, VAR, U32, RW, ST, DEF_2000);
     add(fx, 0x6000, 0, VAR, U16, RW, 0, DEF_6000);
     assert_true(co_od_seal(&fx->od, ID_A));
-    assert_true(co_store_init(&fx->store, &fx->od, &mem_ops, &fx->mem, fx->store_buf,
+    assert_true(co_store_init(&fx->store, &fx->od, &tu_mem_ops, &fx->mem, fx->store_buf,
                               sizeof fx->store_buf));
 }
 
@@ -289,28 +224,28 @@ static uint32_t net_write(fx_t *fx, uint16_t index, uint8_t sub, const uint8_t *
 static uint32_t net_write_u32(fx_t *fx, uint16_t index, uint8_t sub, uint32_t value)
 {
     uint8_t b[4];
-    le_put(b, value, 4);
+    tu_le_put(b, value, 4);
     return net_write(fx, index, sub, b, 4);
 }
 
 static uint32_t net_write_u16(fx_t *fx, uint16_t index, uint8_t sub, uint16_t value)
 {
     uint8_t b[2];
-    le_put(b, value, 2);
+    tu_le_put(b, value, 2);
     return net_write(fx, index, sub, b, 2);
 }
 
 static uint32_t put_u16(fx_t *fx, uint16_t index, uint8_t sub, uint16_t value)
 {
     uint8_t b[2];
-    le_put(b, value, 2);
+    tu_le_put(b, value, 2);
     return co_od_put(&fx->od, index, sub, b, 2);
 }
 
 static uint32_t put_u32(fx_t *fx, uint16_t index, uint8_t sub, uint32_t value)
 {
     uint8_t b[4];
-    le_put(b, value, 4);
+    tu_le_put(b, value, 4);
     return co_od_put(&fx->od, index, sub, b, 4);
 }
 

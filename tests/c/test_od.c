@@ -1,8 +1,6 @@
 /* co_od: object dictionary building, lookup, application access, network
  * transfers (read/write/domains/split), handlers and defaults. */
-#include "test_util.h"
-
-#include "co_od.h"
+#include "test_od_util.h"
 
 #define MAX_ENTRIES 12000
 #define POOL_SIZE (512u * 1024u)
@@ -102,34 +100,18 @@ static fx_t *fx_new(void **state, co_mode_t mode)
 
 /* ------------------------------------------------------------ bytes */
 
-static void le_put(uint8_t *p, uint64_t v, uint32_t n)
-{
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static uint64_t le_get(const uint8_t *p, uint32_t n)
-{
-    uint64_t v = 0;
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        v |= (uint64_t)p[i] << (8 * i);
-    return v;
-}
-
 static void f32_put(uint8_t *p, float f)
 {
     uint32_t bits;
     memcpy(&bits, &f, 4);
-    le_put(p, bits, 4);
+    tu_le_put(p, bits, 4);
 }
 
 static void f64_put(uint8_t *p, double d)
 {
     uint64_t bits;
     memcpy(&bits, &d, 8);
-    le_put(p, bits, 8);
+    tu_le_put(p, bits, 8);
 }
 
 /* Next float away from zero (one unit in the last place). */
@@ -174,14 +156,7 @@ static double f64_toward(double d)
 static co_od_def_t var(uint16_t index, uint8_t sub, uint8_t type, uint8_t access,
                        const uint8_t *dflt, uint32_t dlen)
 {
-    co_od_def_t d;
-    memset(&d, 0, sizeof d);
-    d.index = index;
-    d.sub = sub;
-    d.object_code = CO_OBJECT_VAR;
-    d.type = type;
-    d.access = access;
-    d.size = co_od_type_size(type);
+    co_od_def_t d = tu_od_def(index, sub, CO_OBJECT_VAR, type, access, 0, co_od_type_size(type));
     d.default_value = dflt;
     d.default_length = dlen;
     return d;
@@ -190,7 +165,7 @@ static co_od_def_t var(uint16_t index, uint8_t sub, uint8_t type, uint8_t access
 static co_od_def_t u32_var(uint16_t index, uint8_t sub, uint8_t access, uint32_t dflt,
                            uint8_t *buf4)
 {
-    le_put(buf4, dflt, 4);
+    tu_le_put(buf4, dflt, 4);
     return var(index, sub, CO_TYPE_UNSIGNED32, access, buf4, 4);
 }
 
@@ -249,7 +224,7 @@ static uint32_t get32(fx_t *fx, uint16_t index, uint8_t sub)
 static uint32_t put32(fx_t *fx, uint16_t index, uint8_t sub, uint32_t v)
 {
     uint8_t b[4];
-    le_put(b, v, 4);
+    tu_le_put(b, v, 4);
     return co_od_put(&fx->od, index, sub, b, 4);
 }
 
@@ -283,7 +258,7 @@ static uint32_t net_write(fx_t *fx, uint16_t index, uint8_t sub, const uint8_t *
 static uint32_t net_write32(fx_t *fx, uint16_t index, uint8_t sub, uint32_t v)
 {
     uint8_t b[4];
-    le_put(b, v, 4);
+    tu_le_put(b, v, 4);
     return net_write(fx, index, sub, b, 4);
 }
 
@@ -719,8 +694,8 @@ static void test_add_refuses_min_above_max_in_the_types_signedness(void **state)
     uint8_t lo[8], hi[8];
     co_od_def_t d;
     /* I16 min -1 (0xFFFF) max 1: fine as signed, would be wrong as unsigned */
-    le_put(lo, 0xFFFF, 2);
-    le_put(hi, 1, 2);
+    tu_le_put(lo, 0xFFFF, 2);
+    tu_le_put(hi, 1, 2);
     d = with_limits(var(0x2000, 0, CO_TYPE_INTEGER16, CO_ACCESS_RW, NULL, 0), lo, hi);
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
     /* U16 min 0xFFFF max 1: min > max */
@@ -761,18 +736,18 @@ static void test_add_refuses_default_outside_limits(void **state)
     fx_t *fx = fx_new(state, CO_MODE_FD);
     uint8_t lo[8], hi[8], dv[8];
     co_od_def_t d;
-    le_put(lo, 10, 1);
-    le_put(hi, 20, 1);
-    le_put(dv, 21, 1);
+    tu_le_put(lo, 10, 1);
+    tu_le_put(hi, 20, 1);
+    tu_le_put(dv, 21, 1);
     d = with_limits(var(0x2000, 0, CO_TYPE_UNSIGNED8, CO_ACCESS_RW, dv, 1), lo, hi);
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ERR_DEFAULT);
-    le_put(dv, 9, 1);
+    tu_le_put(dv, 9, 1);
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ERR_DEFAULT);
     /* no default = 0, also below the minimum */
     d.default_value = NULL;
     d.default_length = 0;
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ERR_DEFAULT);
-    le_put(dv, 10, 1);
+    tu_le_put(dv, 10, 1);
     d.default_value = dv;
     d.default_length = 1;
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
@@ -1002,7 +977,7 @@ static void test_nodeid_relative_defaults_add_the_node_id(void **state)
     d = u32_var(0x1800, 1, CO_ACCESS_RW, 0xC0000180u, b2);
     d.flags = CO_OD_NODEID_RELATIVE;
     add(fx, d);
-    le_put(b3, 0x00FF, 2);      /* carry into the high byte */
+    tu_le_put(b3, 0x00FF, 2);      /* carry into the high byte */
     d = var(0x2000, 0, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, b3, 2);
     d.flags = CO_OD_NODEID_RELATIVE;
     add(fx, d);
@@ -1110,7 +1085,7 @@ static void test_get_reports_buffer_too_small(void **state)
     assert_int_equal(co_od_get(&fx->od, 0x2000, 0, buf, 3, &len), CO_ABORT_OUT_OF_MEMORY);
     assert_int_equal(len, 4);
     assert_int_equal(co_od_get(&fx->od, 0x2000, 0, buf, 4, NULL), 0);
-    assert_int_equal(le_get(buf, 4), 0x11223344);
+    assert_int_equal(tu_le_get(buf, 4), 0x11223344);
 }
 
 static void test_get_put_report_missing_object_and_sub(void **state)
@@ -1164,7 +1139,7 @@ static void test_put_notifies_after_write_local_without_check(void **state)
     assert_int_equal(fx->ncalls, 1);
     assert_int_equal(fx->calls[0].what, CALL_AFTER);
     assert_int_equal(fx->calls[0].origin, CO_ORIGIN_LOCAL);
-    assert_int_equal(le_get(fx->calls[0].stored, 4), 0xCAFE);
+    assert_int_equal(tu_le_get(fx->calls[0].stored, 4), 0xCAFE);
 }
 
 static void test_put_may_write_read_only_and_const_entries(void **state)
@@ -1324,7 +1299,7 @@ static void expect_write(fx_t *fx, uint16_t index, const uint8_t *v, uint32_t n,
 static void expect_int(fx_t *fx, uint16_t index, uint32_t size, int64_t value, uint32_t abort)
 {
     uint8_t b[8];
-    le_put(b, (uint64_t)value, size);
+    tu_le_put(b, (uint64_t)value, size);
     expect_write(fx, index, b, size, abort);
 }
 
@@ -1332,8 +1307,8 @@ static void add_int_limited(fx_t *fx, uint16_t index, uint8_t type, int64_t min,
 {
     uint8_t lo[8], hi[8];
     uint32_t size = co_od_type_size(type);
-    le_put(lo, (uint64_t)min, size);
-    le_put(hi, (uint64_t)max, size);
+    tu_le_put(lo, (uint64_t)min, size);
+    tu_le_put(hi, (uint64_t)max, size);
     add(fx, with_limits(var(index, 0, type, CO_ACCESS_RW, lo, size), lo, hi));
 }
 
@@ -1432,19 +1407,19 @@ static void test_limits_unsigned64_extremes(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD);
     uint8_t lo[8], hi[8], v[8];
-    le_put(lo, 1, 8);
-    le_put(hi, UINT64_MAX - 1, 8);
+    tu_le_put(lo, 1, 8);
+    tu_le_put(hi, UINT64_MAX - 1, 8);
     add(fx, with_limits(var(0x2000, 0, CO_TYPE_UNSIGNED64, CO_ACCESS_RW, lo, 8), lo, hi));
     seal(fx);
-    le_put(v, 0, 8);
+    tu_le_put(v, 0, 8);
     expect_write(fx, 0x2000, v, 8, CO_ABORT_VALUE_LOW);
-    le_put(v, 1, 8);
+    tu_le_put(v, 1, 8);
     expect_write(fx, 0x2000, v, 8, 0);
-    le_put(v, 0x8000000000000000ull, 8);     /* large, not negative */
+    tu_le_put(v, 0x8000000000000000ull, 8);     /* large, not negative */
     expect_write(fx, 0x2000, v, 8, 0);
-    le_put(v, UINT64_MAX - 1, 8);
+    tu_le_put(v, UINT64_MAX - 1, 8);
     expect_write(fx, 0x2000, v, 8, 0);
-    le_put(v, UINT64_MAX, 8);
+    tu_le_put(v, UINT64_MAX, 8);
     expect_write(fx, 0x2000, v, 8, CO_ABORT_VALUE_HIGH);
 }
 
@@ -1471,13 +1446,13 @@ static void test_limits_real32(void **state)
     expect_write(fx, 0x2000, v, 4, 0);
     f32_put(v, f32_away(max));           /* just above 2.5 */
     expect_write(fx, 0x2000, v, 4, CO_ABORT_VALUE_HIGH);
-    le_put(v, 0x7F800000u, 4);           /* +inf */
+    tu_le_put(v, 0x7F800000u, 4);           /* +inf */
     expect_write(fx, 0x2000, v, 4, CO_ABORT_VALUE_HIGH);
-    le_put(v, 0xFF800000u, 4);           /* -inf */
+    tu_le_put(v, 0xFF800000u, 4);           /* -inf */
     expect_write(fx, 0x2000, v, 4, CO_ABORT_VALUE_LOW);
-    le_put(v, 0x7FC00000u, 4);           /* NaN */
+    tu_le_put(v, 0x7FC00000u, 4);           /* NaN */
     expect_write(fx, 0x2000, v, 4, CO_ABORT_INVALID_VALUE);
-    le_put(v, 0xFFC00001u, 4);           /* another NaN */
+    tu_le_put(v, 0xFFC00001u, 4);           /* another NaN */
     expect_write(fx, 0x2000, v, 4, CO_ABORT_INVALID_VALUE);
 }
 
@@ -1502,7 +1477,7 @@ static void test_limits_real64(void **state)
     expect_write(fx, 0x2000, v, 8, 0);
     f64_put(v, f64_away(max));
     expect_write(fx, 0x2000, v, 8, CO_ABORT_VALUE_HIGH);
-    le_put(v, 0x7FF8000000000000ull, 8);
+    tu_le_put(v, 0x7FF8000000000000ull, 8);
     expect_write(fx, 0x2000, v, 8, CO_ABORT_INVALID_VALUE);
 }
 
@@ -1512,7 +1487,7 @@ static void test_real_without_limits_accepts_nan(void **state)
     uint8_t v[4];
     add(fx, var(0x2000, 0, CO_TYPE_REAL32, CO_ACCESS_RW, NULL, 0));
     seal(fx);
-    le_put(v, 0x7FC00000u, 4);
+    tu_le_put(v, 0x7FC00000u, 4);
     expect_write(fx, 0x2000, v, 4, 0);
 }
 
@@ -1520,10 +1495,10 @@ static void test_limits_only_min_or_only_max(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD);
     uint8_t lim[2], d[2];
-    le_put(lim, 100, 2);
-    le_put(d, 1000, 2);
+    tu_le_put(lim, 100, 2);
+    tu_le_put(d, 1000, 2);
     add(fx, with_limits(var(0x2000, 0, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, d, 2), lim, NULL));
-    le_put(d, 0, 2);
+    tu_le_put(d, 0, 2);
     add(fx, with_limits(var(0x2001, 0, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, d, 2), NULL, lim));
     seal(fx);
     expect_int(fx, 0x2000, 2, 99, CO_ABORT_VALUE_LOW);
@@ -1580,7 +1555,7 @@ static void test_read_allowed_for_ro_rw_rwr_rww_const(void **state)
     for (i = 0; i < sizeof access; i++) {
         assert_int_equal(net_read(fx, (uint16_t)(0x2000 + i), 0, buf, sizeof buf, &len), 0);
         assert_int_equal(len, 4);
-        assert_int_equal(le_get(buf, 4), 0xA0B0C0D0u + i);
+        assert_int_equal(tu_le_get(buf, 4), 0xA0B0C0D0u + i);
     }
 }
 
@@ -1763,11 +1738,11 @@ static void test_write_notifies_after_write_network(void **state)
     assert_int_equal(fx->ncalls, 2);
     assert_int_equal(fx->calls[0].what, CALL_CHECK);
     assert_int_equal(fx->calls[0].length, 4);
-    assert_int_equal(le_get(fx->calls[0].value, 4), 0xDEADBEEF);
-    assert_int_equal(le_get(fx->calls[0].stored, 4), 0);         /* not yet changed */
+    assert_int_equal(tu_le_get(fx->calls[0].value, 4), 0xDEADBEEF);
+    assert_int_equal(tu_le_get(fx->calls[0].stored, 4), 0);         /* not yet changed */
     assert_int_equal(fx->calls[1].what, CALL_AFTER);
     assert_int_equal(fx->calls[1].origin, CO_ORIGIN_NETWORK);
-    assert_int_equal(le_get(fx->calls[1].stored, 4), 0xDEADBEEF); /* changed */
+    assert_int_equal(tu_le_get(fx->calls[1].stored, 4), 0xDEADBEEF); /* changed */
     assert_int_equal(fx->xfer.state, CO_XFER_DONE);
     assert_int_equal(fx->xfer.abort, 0);
 }
@@ -1777,8 +1752,8 @@ static void test_refused_writes_change_nothing(void **state)
     fx_t *fx = fx_new(state, CO_MODE_FD);
     uint8_t lo[4], hi[4], b[16];
     memset(b, 0x99, sizeof b);
-    le_put(lo, 10, 4);
-    le_put(hi, 20, 4);
+    tu_le_put(lo, 10, 4);
+    tu_le_put(hi, 20, 4);
     add(fx, with_limits(var(0x2000, 0, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, lo, 4), lo, hi));
     add_u32(fx, 0x2001, 0, CO_ACCESS_RO, 1);
     add(fx, string_var(0x2002, 0, CO_TYPE_VISIBLE_STRING, 6, "abc"));
@@ -1788,10 +1763,10 @@ static void test_refused_writes_change_nothing(void **state)
     subscribe(fx, 0x2003, 0, 0x2003, 0, 0);
     fx->h[0].check_answer = CO_ABORT_DATA_STATE;
     snapshot(fx);
-    le_put(b, 21, 4);
+    tu_le_put(b, 21, 4);
     assert_int_equal(net_write(fx, 0x2000, 0, b, 4), CO_ABORT_VALUE_HIGH);
     assert_unchanged(fx);
-    le_put(b, 9, 4);
+    tu_le_put(b, 9, 4);
     assert_int_equal(net_write(fx, 0x2000, 0, b, 4), CO_ABORT_VALUE_LOW);
     assert_unchanged(fx);
     assert_int_equal(net_write(fx, 0x2000, 0, b, 5), CO_ABORT_LENGTH_HIGH);
@@ -1936,7 +1911,7 @@ static void test_before_read_may_refresh_the_value(void **state)
     subscribe(fx, 0x2000, 0, 0x2000, 0, 0);
     fx->h[0].refresh = 0x12345678;
     assert_int_equal(net_read(fx, 0x2000, 0, buf, sizeof buf, &len), 0);
-    assert_int_equal(le_get(buf, 4), 0x12345678);
+    assert_int_equal(tu_le_get(buf, 4), 0x12345678);
 }
 
 static void test_split_read_resume_ok(void **state)
@@ -1965,7 +1940,7 @@ static void test_split_read_resume_ok(void **state)
     assert_int_equal(co_od_read_chunk(&fx->xfer, buf, 8, &n, &last), 0);
     assert_int_equal(n, 4);
     assert_true(last);
-    assert_int_equal(le_get(buf, 4), 0x22);
+    assert_int_equal(tu_le_get(buf, 4), 0x22);
 }
 
 static void test_split_read_resume_with_abort(void **state)
@@ -2092,10 +2067,10 @@ static void test_all_check_writes_run_before_any_after_write(void **state)
     assert_int_equal(fx->calls[0].what, CALL_CHECK);
     assert_int_equal(fx->calls[1].what, CALL_CHECK);
     assert_int_equal(fx->calls[2].what, CALL_CHECK);
-    assert_int_equal(le_get(fx->calls[2].stored, 4), 0x11);   /* old value during the test */
+    assert_int_equal(tu_le_get(fx->calls[2].stored, 4), 0x11);   /* old value during the test */
     assert_int_equal(fx->calls[3].what, CALL_AFTER);
     assert_int_equal(fx->calls[3].tag, 0);
-    assert_int_equal(le_get(fx->calls[3].stored, 4), 0x99);   /* new value when told */
+    assert_int_equal(tu_le_get(fx->calls[3].stored, 4), 0x99);   /* new value when told */
     assert_int_equal(fx->calls[5].tag, 2);
 }
 
@@ -2546,8 +2521,8 @@ static void test_random_writes_match_a_reference_model(void **state)
         }
         if (m[i].has_limits) {
             uint8_t lo[8], hi[8];
-            le_put(lo, (uint64_t)m[i].min, m[i].size);
-            le_put(hi, (uint64_t)m[i].max, m[i].size);
+            tu_le_put(lo, (uint64_t)m[i].min, m[i].size);
+            tu_le_put(hi, (uint64_t)m[i].max, m[i].size);
             d = with_limits(d, lo, hi);
         }
         add(fx, d);

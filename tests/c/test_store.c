@@ -1,113 +1,15 @@
 /* co_store: store and restore of parameters (0x1010 / 0x1011) over an
  * in-memory backend, the image format, damaged / foreign / other-layout
  * images, and a fuzz of the image decoder. */
-#include "test_util.h"
+#include "test_od_util.h"
 
 #include "co_crc.h"
-#include "co_od.h"
-#include "co_store.h"
-
-/* ------------------------------------------------------------ helpers */
-
-static void le_put(uint8_t *p, uint64_t v, uint32_t n)
-{
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static uint64_t le_get(const uint8_t *p, uint32_t n)
-{
-    uint64_t v = 0;
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        v |= (uint64_t)p[i] << (8 * i);
-    return v;
-}
-
-/* ---------------------------------------------------- in-memory backend */
-
-typedef struct mem_backend {
-    uint8_t data[8192];
-    uint32_t length;
-    bool has;
-    bool fail_save;               /* save answers CO_STORE_IO */
-    bool force_load;              /* load answers load_status */
-    co_store_status_t load_status;
-    bool lie_length;              /* load claims more than the capacity */
-    unsigned saves;
-    unsigned loads;
-} mem_backend_t;
-
-static co_store_status_t mem_save(void *user, const uint8_t *image, uint32_t length)
-{
-    mem_backend_t *m = user;
-    m->saves++;
-    if (m->fail_save || length > sizeof m->data)
-        return CO_STORE_IO;
-    memcpy(m->data, image, length);
-    m->length = length;
-    m->has = true;
-    return CO_STORE_OK;
-}
-
-static co_store_status_t mem_load(void *user, uint8_t *image, uint32_t capacity, uint32_t *length)
-{
-    mem_backend_t *m = user;
-    m->loads++;
-    if (m->force_load)
-        return m->load_status;
-    if (!m->has)
-        return CO_STORE_EMPTY;
-    if (m->length > capacity)
-        return CO_STORE_TOO_BIG;
-    memcpy(image, m->data, m->length);
-    *length = m->lie_length ? capacity + 1 : m->length;
-    return CO_STORE_OK;
-}
-
-static const co_store_backend_t mem_ops = { mem_save, mem_load };
-
-static void mem_set(mem_backend_t *m, const uint8_t *image, uint32_t length)
-{
-    assert_true(length <= sizeof m->data);
-    memcpy(m->data, image, length);
-    m->length = length;
-    m->has = true;
-}
 
 /* ----------------------------------------------------------- test OD */
 
-typedef struct tdef {
-    uint16_t index;
-    uint8_t sub;
-    uint8_t object_code;
-    uint8_t type;
-    uint8_t access;
-    uint16_t flags;
-    uint32_t size;
-    int64_t value;                /* numeric default */
-    const char *text;             /* string default */
-    int64_t min, max;
-} tdef_t;
-
-#define ST CO_OD_STORE
-#define MINMAX (CO_OD_HAS_MIN | CO_OD_HAS_MAX)
-#define VAR CO_OBJECT_VAR
-#define ARR CO_OBJECT_ARRAY
-#define REC CO_OBJECT_RECORD
-#define U8 CO_TYPE_UNSIGNED8
-#define U16 CO_TYPE_UNSIGNED16
-#define U32 CO_TYPE_UNSIGNED32
-#define I64 CO_TYPE_INTEGER64
-#define VS CO_TYPE_VISIBLE_STRING
-#define RW CO_ACCESS_RW
-#define RO CO_ACCESS_RO
-#define AC_CONST CO_ACCESS_CONST
-
 /* Layout A: stored entries in all three groups, entries without CO_OD_STORE,
  * limits, a string, and 0x1010 / 0x1011 with sub 0..4. */
-static const tdef_t layout_a[] = {
+static const tu_od_row_t layout_a[] = {
     { 0x1008, 0, VAR, VS, AC_CONST, 0, 16, 0, "canopenfd", 0, 0 },
     { 0x1010, 0, ARR, U8, RO, 0, 1, 4, NULL, 0, 0 },
     { 0x1010, 1, ARR, U32, RW, 0, 4, 1, NULL, 0, 0 },
@@ -136,7 +38,7 @@ static const tdef_t layout_a[] = {
  * meaning), 0x2001 shrank to
  * 4 bytes, 0x2002 is gone, 0x6000 got a narrower range, 0x6002 is no longer
  * stored, 0x2005 is new, no 0x1010 / 0x1011. */
-static const tdef_t layout_b[] = {
+static const tu_od_row_t layout_b[] = {
     { 0x1017, 0, VAR, U16, RW, ST, 2, 1000, NULL, 0, 0 },
     { 0x1800, 0, REC, U8, RO, 0, 1, 2, NULL, 0, 0 },
     { 0x1800, 1, REC, U32, RW, ST, 4, 0x181, NULL, 0, 0 },
@@ -160,43 +62,15 @@ typedef struct fixture {
     co_od_subscription_t subs[SUBS];
     co_store_t store;
     uint8_t buf[BUF];
-    mem_backend_t mem;
+    tu_mem_backend_t mem;
     unsigned restored;            /* after_write with CO_ORIGIN_RESTORE on 0x2000..0x6FFF */
     unsigned other_origin;
 } fixture_t;
 
-static void def_from(co_od_def_t *d, const tdef_t *t, uint8_t *store8)
+static void od_build(fixture_t *fx, const tu_od_row_t *defs, size_t n)
 {
-    memset(d, 0, sizeof *d);
-    d->index = t->index;
-    d->sub = t->sub;
-    d->object_code = t->object_code;
-    d->type = t->type;
-    d->access = t->access;
-    d->flags = t->flags;
-    d->size = t->size;
-    if (t->type == VS) {
-        d->default_value = (const uint8_t *)t->text;
-        d->default_length = (uint32_t)strlen(t->text);
-    } else {
-        le_put(store8, (uint64_t)t->value, t->size);
-        d->default_value = store8;
-        d->default_length = t->size;
-        le_put(d->min, (uint64_t)t->min, t->size);
-        le_put(d->max, (uint64_t)t->max, t->size);
-    }
-}
-
-static void od_build(fixture_t *fx, const tdef_t *defs, size_t n)
-{
-    size_t i;
     co_od_init(&fx->od, CO_MODE_FD, fx->entries, N_ENTRIES, fx->pool, POOL, fx->subs, SUBS);
-    for (i = 0; i < n; i++) {
-        co_od_def_t d;
-        uint8_t v[8];
-        def_from(&d, &defs[i], v);
-        assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
-    }
+    tu_od_add_rows(&fx->od, defs, n);
     assert_true(co_od_seal(&fx->od, 1));
 }
 
@@ -213,13 +87,13 @@ static void on_observe(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origi
 
 static const co_od_handler_t observer = { NULL, NULL, on_observe, NULL, NULL, NULL };
 
-static fixture_t *fixture_new(const tdef_t *defs, size_t n)
+static fixture_t *fixture_new(const tu_od_row_t *defs, size_t n)
 {
     fixture_t *fx = calloc(1, sizeof *fx);
     assert_non_null(fx);
     od_build(fx, defs, n);
     assert_true(co_od_subscribe(&fx->od, 0x2000, 0, 0x6FFF, 0xFF, &observer, fx));
-    assert_true(co_store_init(&fx->store, &fx->od, &mem_ops, &fx->mem, fx->buf, BUF));
+    assert_true(co_store_init(&fx->store, &fx->od, &tu_mem_ops, &fx->mem, fx->buf, BUF));
     return fx;
 }
 
@@ -240,7 +114,7 @@ static void put_num(fixture_t *fx, uint16_t index, uint8_t sub, int64_t v)
     const co_od_entry_t *e = co_od_find(&fx->od, index, sub);
     uint8_t b[8];
     assert_non_null(e);
-    le_put(b, (uint64_t)v, e->size);
+    tu_le_put(b, (uint64_t)v, e->size);
     assert_int_equal(co_od_put(&fx->od, index, sub, b, e->size), 0);
 }
 
@@ -251,7 +125,7 @@ static int64_t get_num(fixture_t *fx, uint16_t index, uint8_t sub)
     uint64_t v;
     assert_int_equal(co_od_get(&fx->od, index, sub, b, sizeof b, &n), 0);
     assert_true(n >= 1 && n <= 8);
-    v = le_get(b, n);
+    v = tu_le_get(b, n);
     return (int64_t)v;
 }
 
@@ -332,7 +206,7 @@ static uint32_t net_write_u32(fixture_t *fx, uint16_t index, uint8_t sub, uint32
     uint8_t scratch[64], b[4];
     uint32_t r;
     co_od_xfer_init(&x, scratch, sizeof scratch);
-    le_put(b, v, 4);
+    tu_le_put(b, v, 4);
     r = co_od_write_begin(&fx->od, &x, index, sub, 4);
     if (r != 0)
         return r;
@@ -357,7 +231,7 @@ static uint32_t net_read_u32(fixture_t *fx, uint16_t index, uint8_t sub, uint32_
         return r;
     assert_true(last);
     assert_int_equal(n, 4);
-    *out = (uint32_t)le_get(b, 4);
+    *out = (uint32_t)tu_le_get(b, 4);
     return 0;
 }
 
@@ -367,7 +241,7 @@ static uint32_t net_read_u32(fixture_t *fx, uint16_t index, uint8_t sub, uint32_
 
 static uint32_t img_u32(const uint8_t *img, uint32_t off)
 {
-    return (uint32_t)le_get(img + off, 4);
+    return (uint32_t)tu_le_get(img + off, 4);
 }
 
 /* Recompute the CRC of an image edited on purpose (so that the edit, not the
@@ -378,7 +252,7 @@ static void img_fix_crc(uint8_t *img, uint32_t length)
     assert_true(length >= HDR);
     crc = co_crc32(0, img, 24);
     crc = co_crc32(crc, img + HDR, length - HDR);
-    le_put(img + 24, crc, 4);
+    tu_le_put(img + 24, crc, 4);
 }
 
 /* Offset of the record with this key in a valid image, or 0. */
@@ -395,7 +269,7 @@ static uint32_t img_find(const uint8_t *img, uint32_t length, uint32_t key)
 
 static co_store_status_t load_image(fixture_t *fx, const uint8_t *img, uint32_t length)
 {
-    mem_set(&fx->mem, img, length);
+    tu_mem_set(&fx->mem, img, length);
     return co_store_load(&fx->store, CO_GROUP_ALL);
 }
 
@@ -422,12 +296,12 @@ static void test_init_arguments(void **state)
     fixture_t *fx = *state;
     co_store_t s;
     uint32_t need = co_store_image_need(&fx->od);
-    co_store_backend_t half = { mem_save, NULL };
-    assert_false(co_store_init(&s, &fx->od, &mem_ops, &fx->mem, fx->buf, 2 * need - 1));
+    co_store_backend_t half = { tu_mem_save, NULL };
+    assert_false(co_store_init(&s, &fx->od, &tu_mem_ops, &fx->mem, fx->buf, 2 * need - 1));
     assert_false(co_store_init(&s, &fx->od, NULL, &fx->mem, fx->buf, BUF));
     assert_false(co_store_init(&s, &fx->od, &half, &fx->mem, fx->buf, BUF));
-    assert_false(co_store_init(&s, &fx->od, &mem_ops, &fx->mem, NULL, BUF));
-    assert_false(co_store_init(NULL, &fx->od, &mem_ops, &fx->mem, fx->buf, BUF));
+    assert_false(co_store_init(&s, &fx->od, &tu_mem_ops, &fx->mem, NULL, BUF));
+    assert_false(co_store_init(NULL, &fx->od, &tu_mem_ops, &fx->mem, fx->buf, BUF));
     assert_int_equal(fx->store.last_load, CO_STORE_EMPTY);
     assert_int_equal(fx->store.image_capacity, BUF / 2);
 }
@@ -435,21 +309,15 @@ static void test_init_arguments(void **state)
 static void test_init_unsealed_or_full(void **state)
 {
     fixture_t *fx = calloc(1, sizeof *fx);
-    size_t i;
     (void)state;
     assert_non_null(fx);
     co_od_init(&fx->od, CO_MODE_FD, fx->entries, N_ENTRIES, fx->pool, POOL, fx->subs, 1);
-    for (i = 0; i < sizeof layout_a / sizeof layout_a[0]; i++) {
-        co_od_def_t d;
-        uint8_t v[8];
-        def_from(&d, &layout_a[i], v);
-        assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
-    }
-    assert_false(co_store_init(&fx->store, &fx->od, &mem_ops, &fx->mem, fx->buf, BUF));
+    tu_od_add_rows(&fx->od, layout_a, sizeof layout_a / sizeof layout_a[0]);
+    assert_false(co_store_init(&fx->store, &fx->od, &tu_mem_ops, &fx->mem, fx->buf, BUF));
     assert_true(co_od_seal(&fx->od, 1));
     /* 0x1010 and 0x1011 need two subscriptions, the table has one: nothing
      * is hooked at all. */
-    assert_false(co_store_init(&fx->store, &fx->od, &mem_ops, &fx->mem, fx->buf, BUF));
+    assert_false(co_store_init(&fx->store, &fx->od, &tu_mem_ops, &fx->mem, fx->buf, BUF));
     assert_int_equal(fx->od.sub_count, 0);
     free(fx);
 }
@@ -509,15 +377,15 @@ static void test_image_format(void **state)
     set_values(fx, &VA);
     assert_int_equal(co_store_save(&fx->store, CO_GROUP_ALL), 0);
     assert_memory_equal(img, "CoFDpar\0", 8);
-    assert_int_equal(le_get(img + 8, 2), 1);
-    assert_int_equal(le_get(img + 10, 2), HDR);
+    assert_int_equal(tu_le_get(img + 8, 2), 1);
+    assert_int_equal(tu_le_get(img + 10, 2), HDR);
     for (i = 0; i < fx->od.count; i++) {
         const co_od_entry_t *e = &fx->od.entries[i];
         if (!(e->flags & CO_OD_STORE))
             continue;
-        le_put(b, e->key, 4);
+        tu_le_put(b, e->key, 4);
         b[4] = e->type;
-        le_put(b + 5, e->size, 4);
+        tu_le_put(b + 5, e->size, 4);
         sig = co_crc32(sig, b, 9);
     }
     assert_int_equal(img_u32(img, 12), sig);
@@ -788,7 +656,7 @@ static void test_foreign(void **state)
     assert_int_equal(load_image(fx, img, len), CO_STORE_FOREIGN);
     expect_all(fx, &DEF);
     memcpy(img, fx->mem.data, len);
-    le_put(img + 8, 2, 2);   /* version 2 */
+    tu_le_put(img + 8, 2, 2);   /* version 2 */
     img_fix_crc(img, len);
     assert_int_equal(load_image(fx, img, len), CO_STORE_FOREIGN);
     assert_int_equal(fx->store.last_load, CO_STORE_FOREIGN);
@@ -812,60 +680,60 @@ static void edit_swap_records(uint8_t *img, uint32_t *len)
 static void edit_duplicate_key(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + HDR + 11, 0x101700, 4);
+    tu_le_put(img + HDR + 11, 0x101700, 4);
 }
 
 static void edit_count_plus(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + 16, img_u32(img, 16) + 1, 4);
+    tu_le_put(img + 16, img_u32(img, 16) + 1, 4);
 }
 
 static void edit_count_minus(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + 16, img_u32(img, 16) - 1, 4);
+    tu_le_put(img + 16, img_u32(img, 16) - 1, 4);
 }
 
 static void edit_count_huge(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + 16, 0xFFFFFFFFu, 4);
+    tu_le_put(img + 16, 0xFFFFFFFFu, 4);
 }
 
 static void edit_trailing(uint8_t *img, uint32_t *len)
 {
     img[*len] = 0;
     *len += 1;
-    le_put(img + 20, *len - HDR, 4);
+    tu_le_put(img + 20, *len - HDR, 4);
 }
 
 static void edit_record_too_long(uint8_t *img, uint32_t *len)
 {
-    le_put(img + HDR + 5, *len, 4);
+    tu_le_put(img + HDR + 5, *len, 4);
 }
 
 static void edit_record_huge(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + HDR + 5, 0xFFFFFFF7u, 4);
+    tu_le_put(img + HDR + 5, 0xFFFFFFF7u, 4);
 }
 
 static void edit_payload_length(uint8_t *img, uint32_t *len)
 {
-    le_put(img + 20, *len - HDR - 1, 4);
+    tu_le_put(img + 20, *len - HDR - 1, 4);
 }
 
 static void edit_header_short(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + 10, 27, 2);
+    tu_le_put(img + 10, 27, 2);
 }
 
 static void edit_header_huge(uint8_t *img, uint32_t *len)
 {
     (void)len;
-    le_put(img + 10, 0xFFFF, 2);
+    tu_le_put(img + 10, 0xFFFF, 2);
 }
 
 static void edit_key_wide(uint8_t *img, uint32_t *len)
@@ -873,7 +741,7 @@ static void edit_key_wide(uint8_t *img, uint32_t *len)
     /* the last record's key gets bits above 24: still ascending */
     uint32_t pos = img_find(img, *len, 0x600200);
     assert_int_not_equal(pos, 0);
-    le_put(img + pos, 0x01600200, 4);
+    tu_le_put(img + pos, 0x01600200, 4);
 }
 
 /* Malformed images with a valid CRC: the structure checks catch them. */
@@ -921,7 +789,7 @@ static void test_longer_header(void **state)
     memcpy(img, fx->mem.data, HDR);
     memset(img + HDR, 0xEE, 4);
     memcpy(img + HDR + 4, fx->mem.data + HDR, len - HDR);
-    le_put(img + 10, HDR + 4, 2);
+    tu_le_put(img + 10, HDR + 4, 2);
     img_fix_crc(img, len + 4);
     set_values(fx, &VB);
     assert_int_equal(load_image(fx, img, len + 4), CO_STORE_OK);
@@ -939,7 +807,7 @@ static void test_other_od_layout(void **state)
     assert_true(fa->mem.length <= fb->store.image_capacity);
     put_num(fb, 0x2005, 0, 1);
     put_num(fb, 0x1017, 0, 1);
-    mem_set(&fb->mem, fa->mem.data, fa->mem.length);
+    tu_mem_set(&fb->mem, fa->mem.data, fa->mem.length);
     assert_int_equal(co_store_load(&fb->store, CO_GROUP_ALL), CO_STORE_OK);
     /* applied: 0x1017, 0x1800:1, 0x1800:2 */
     assert_int_equal(get_num(fb, 0x1017, 0), VA.hb);
@@ -1032,7 +900,7 @@ static void fuzz_mutate(uint8_t *img, uint32_t *len, uint32_t cap, uint64_t *rng
             static const uint32_t vals[] = { 0, 1, 0x7F, 0xFF, 0xFFFF, 0x7FFFFFFF, 0x80000000u,
                                              0xFFFFFFFFu, 0xFFFFFFF7u, 9 };
             if (n >= 4)
-                le_put(img + (at > n - 4 ? n - 4 : at), vals[tu_rand(rng) % 10], 4);
+                tu_le_put(img + (at > n - 4 ? n - 4 : at), vals[tu_rand(rng) % 10], 4);
             break;
         }
         case 5:   /* a record's type byte */
@@ -1083,10 +951,10 @@ static void test_fuzz_load(void **state)
         fuzz_mutate(img, &len, sizeof img, &rng);
         if ((tu_rand(&rng) & 1) && len >= HDR) {
             if (tu_rand(&rng) & 1)
-                le_put(img + 20, len - (uint32_t)le_get(img + 10, 2), 4);
+                tu_le_put(img + 20, len - (uint32_t)tu_le_get(img + 10, 2), 4);
             img_fix_crc(img, len);
         }
-        mem_set(&fx->mem, img, len);
+        tu_mem_set(&fx->mem, img, len);
         st = co_store_load(&fx->store, CO_GROUP_ALL);
         assert_true(st == CO_STORE_OK || st == CO_STORE_DAMAGED || st == CO_STORE_FOREIGN);
         count[st]++;

@@ -19,29 +19,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "test_util.h"
+#include "test_od_util.h"
 
-#include "co_od.h"
-#include "co_store.h"
 #include "co_store_file.h"
-
-/* ------------------------------------------------------------ helpers */
-
-static void le_put(uint8_t *p, uint64_t v, uint32_t n)
-{
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static uint64_t le_get(const uint8_t *p, uint32_t n)
-{
-    uint64_t v = 0;
-    uint32_t i;
-    for (i = 0; i < n; i++)
-        v |= (uint64_t)p[i] << (8 * i);
-    return v;
-}
 
 /* ------------------------------------------------------ fake file system */
 
@@ -447,45 +427,34 @@ static bool fs_quiet(const fake_fs_t *fs)
 
 /* ----------------------------------------------------------- test OD */
 
-typedef struct tdef {
-    uint16_t index;
-    uint8_t sub;
-    uint8_t object_code;
-    uint8_t type;
-    uint8_t access;
-    uint16_t flags;
-    uint32_t size;
-    int64_t value;
-    const char *text;
-    int64_t max;
-} tdef_t;
-
-static const tdef_t layout_a[] = {
-    { 0x1010, 0, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED8, CO_ACCESS_RO, 0, 1, 4, NULL, 0 },
-    { 0x1010, 1, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1010, 2, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1010, 3, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1010, 4, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1011, 0, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED8, CO_ACCESS_RO, 0, 1, 4, NULL, 0 },
-    { 0x1011, 1, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1011, 2, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1011, 3, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1011, 4, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0 },
-    { 0x1017, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, CO_OD_STORE, 2, 1000, NULL, 0 },
+static const tu_od_row_t layout_a[] = {
+    { 0x1010, 0, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED8, CO_ACCESS_RO, 0, 1, 4, NULL, 0, 0 },
+    { 0x1010, 1, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1010, 2, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1010, 3, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1010, 4, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1011, 0, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED8, CO_ACCESS_RO, 0, 1, 4, NULL, 0, 0 },
+    { 0x1011, 1, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1011, 2, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1011, 3, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1011, 4, CO_OBJECT_ARRAY, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 1, NULL, 0, 0 },
+    { 0x1017, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, CO_OD_STORE, 2, 1000, NULL,
+      0, 0 },
     { 0x2000, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED8, CO_ACCESS_RW, CO_OD_STORE | CO_OD_HAS_MAX, 1,
-      5, NULL, 200 },
+      5, NULL, 0, 200 },
     { 0x2001, 0, CO_OBJECT_VAR, CO_TYPE_VISIBLE_STRING, CO_ACCESS_RW, CO_OD_STORE, 16, 0, "abc",
-      0 },
-    { 0x2002, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 7, NULL, 0 },
-    { 0x6000, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, CO_OD_STORE, 4, 100, NULL, 0 },
+      0, 0 },
+    { 0x2002, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, 0, 4, 7, NULL, 0, 0 },
+    { 0x6000, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, CO_OD_STORE, 4, 100, NULL, 0, 0 },
 };
 
 /* Next firmware: 0x2000 became INTEGER8, 0x2001 is gone, 0x6001 is new. */
-static const tdef_t layout_b[] = {
-    { 0x1017, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, CO_OD_STORE, 2, 1000, NULL, 0 },
-    { 0x2000, 0, CO_OBJECT_VAR, CO_TYPE_INTEGER8, CO_ACCESS_RW, CO_OD_STORE, 1, 6, NULL, 0 },
-    { 0x6000, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, CO_OD_STORE, 4, 100, NULL, 0 },
-    { 0x6001, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, CO_OD_STORE, 4, 55, NULL, 0 },
+static const tu_od_row_t layout_b[] = {
+    { 0x1017, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED16, CO_ACCESS_RW, CO_OD_STORE, 2, 1000, NULL,
+      0, 0 },
+    { 0x2000, 0, CO_OBJECT_VAR, CO_TYPE_INTEGER8, CO_ACCESS_RW, CO_OD_STORE, 1, 6, NULL, 0, 0 },
+    { 0x6000, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, CO_OD_STORE, 4, 100, NULL, 0, 0 },
+    { 0x6001, 0, CO_OBJECT_VAR, CO_TYPE_UNSIGNED32, CO_ACCESS_RW, CO_OD_STORE, 4, 55, NULL, 0, 0 },
 };
 
 #define N_ENTRIES 32
@@ -504,35 +473,12 @@ typedef struct fixture {
     char path[128];
 } fixture_t;
 
-static fixture_t *fixture_new(const tdef_t *defs, size_t n, const char *path)
+static fixture_t *fixture_new(const tu_od_row_t *defs, size_t n, const char *path)
 {
     fixture_t *fx = calloc(1, sizeof *fx);
-    size_t i;
     assert_non_null(fx);
     co_od_init(&fx->od, CO_MODE_CLASSIC, fx->entries, N_ENTRIES, fx->pool, POOL, fx->subs, 4);
-    for (i = 0; i < n; i++) {
-        const tdef_t *t = &defs[i];
-        co_od_def_t d;
-        uint8_t v[8];
-        memset(&d, 0, sizeof d);
-        d.index = t->index;
-        d.sub = t->sub;
-        d.object_code = t->object_code;
-        d.type = t->type;
-        d.access = t->access;
-        d.flags = t->flags;
-        d.size = t->size;
-        if (t->text != NULL) {
-            d.default_value = (const uint8_t *)t->text;
-            d.default_length = (uint32_t)strlen(t->text);
-        } else {
-            le_put(v, (uint64_t)t->value, t->size);
-            d.default_value = v;
-            d.default_length = t->size;
-            le_put(d.max, (uint64_t)t->max, t->size);
-        }
-        assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
-    }
+    tu_od_add_rows(&fx->od, defs, n);
     assert_true(co_od_seal(&fx->od, 1));
     assert_true(co_store_file_init(&fx->file, path));
     assert_true(co_store_init(&fx->store, &fx->od, co_store_file_backend(), &fx->file, fx->buf,
@@ -563,7 +509,7 @@ static void put_num(fixture_t *fx, uint16_t index, int64_t v)
     const co_od_entry_t *e = co_od_find(&fx->od, index, 0);
     uint8_t b[8];
     assert_non_null(e);
-    le_put(b, (uint64_t)v, e->size);
+    tu_le_put(b, (uint64_t)v, e->size);
     assert_int_equal(co_od_put(&fx->od, index, 0, b, e->size), 0);
 }
 
@@ -572,7 +518,7 @@ static int64_t get_num(fixture_t *fx, uint16_t index)
     uint8_t b[8];
     uint32_t n = 0;
     assert_int_equal(co_od_get(&fx->od, index, 0, b, sizeof b, &n), 0);
-    return (int64_t)le_get(b, n);
+    return (int64_t)tu_le_get(b, n);
 }
 
 static void set_values(fixture_t *fx, const vset_t *v)
