@@ -15,16 +15,19 @@ facade over it::
 __version__ = "0.1.0"
 
 from .decode import decode
-from .errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
+from .errors import (AbortError, CanopenFDError, ClosedError, CommandError, ConfigurationError,
+                     InterfaceError)
 from .frame import Frame
 from .line import CommEvent, Line
 from .network import Network
 from .nmt import NmtCommand, NmtState
-from .node import LocalNode, RemoteNode
+from .node import LocalNode, LocalValue, RemoteNode
+from .od import ObjectDictionary, OdFileError, OdValueError, import_od
 
 __all__ = [
     "__version__",
-    "CanopenFDError", "ClosedError", "CommandError", "ConfigurationError", "InterfaceError",
+    "AbortError", "CanopenFDError", "ClosedError", "CommandError", "ConfigurationError",
+    "InterfaceError", "OdFileError", "OdValueError", "ObjectDictionary", "import_od", "LocalValue",
     "Frame", "NmtCommand", "NmtState", "decode",
     "Network", "Line", "CommEvent", "LocalNode", "RemoteNode",
 ]

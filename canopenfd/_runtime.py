@@ -189,6 +189,13 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
+    def store_status(self, line: int, what: str) -> int:
+        with self._lock:
+            rc = lib.co_rt_store_status(self._live(what), line)
+            if rc < 0:
+                self._raise(rc, what)
+        return rc
+
     def line_stats(self, line: int, what: str) -> dict:
         out = ffi.new("co_line_stats_t *")
         with self._lock:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import threading
 import time
@@ -163,12 +164,58 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         _shutdown(net, owned)
 
 
+def _device_od(spec: Optional[str], mode: str, node_id: int) -> Any:
+    """The ObjectDictionary `device --od` serves: the built-in demo one for the
+    line's mode by default, builtin:fd / builtin:classic, or an EDS/DCF/XDD/XDC
+    file (a file that cannot be read is a usage error naming file and line)."""
+    from .od import OdFileError, demo_od, import_od
+
+    if spec is None:
+        return demo_od(mode)
+    if spec.startswith("builtin:"):
+        kind = spec[len("builtin:"):]
+        if kind not in ("fd", "classic"):
+            raise UsageError(f"--od {spec}: the built-in dictionaries are builtin:fd and "
+                             "builtin:classic")
+        return demo_od(kind)
+    try:
+        return import_od(spec, node_id=node_id)
+    except OdFileError as exc:
+        raise UsageError(f"--od {exc}") from None
+
+
+def _check_store_path(path: Optional[str]) -> None:
+    """--store FILE: its directory must exist (the file is created at the first save)."""
+    if path is None:
+        return
+    if not path or os.path.isdir(path):
+        raise UsageError(f"--store {path!r}: give a file name, not a directory")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise UsageError(f"--store {path}: directory {folder} does not exist")
+
+
 def cmd_device(args: argparse.Namespace) -> int:
+    mode = "classic" if args.classic else "fd"
     try:
         node_id = check_node_id(args.node_id, "--node-id")
-        heartbeat = check_ms(args.heartbeat, "--heartbeat", "device")
+        if args.heartbeat is not None:
+            check_ms(args.heartbeat, "--heartbeat", "device")
     except CanopenFDError as exc:
         raise UsageError(str(exc)) from None
+    _check_store_path(args.store)
+    od = _device_od(args.od, mode, node_id)
+    # An explicit --heartbeat replaces 0x1017's start value (0 = off), so resets
+    # come back to it; a value saved in --store is overwritten once after boot
+    # (later resets load the saved one, as 0x1010 promises). Without it the
+    # OD's value, or the saved one, rules.
+    producer = od.get_variable(0x1017, 0)
+    has_1017 = producer is not None
+    if args.heartbeat is not None and has_1017:
+        try:
+            producer.value = args.heartbeat
+        except CanopenFDError as exc:
+            raise UsageError(f"--heartbeat {args.heartbeat}: {exc}") from None
     owned: List[Any] = []
     net = Network()
     try:
@@ -176,14 +223,24 @@ def cmd_device(args: argparse.Namespace) -> int:
         printer = Printer()
         done = threading.Event()
         line.on_comm_event(lambda ev: printer.line(f"line {ev.name.lower().replace('_', ' ')}"))
-        node = line.create_local_node(node_id, heartbeat_ms=heartbeat, boot=False)
+        heartbeat = args.heartbeat if args.heartbeat is not None and not has_1017 else 0
+        node = line.create_local_node(node_id, heartbeat_ms=heartbeat, od=od,
+                                      store=args.store, boot=False)
         node.on_state_change(lambda old, new: printer.line(
             f"node {node_id}: {old.label} -> {new.label}"))
         node.on_reset(lambda kind: printer.line(f"node {node_id}: {kind.label}"))
         node.on_veto(lambda: printer.line(f"node {node_id}: start refused"))
-        print(f"node {node_id} running on {args.channel} ({line.mode}), heartbeat "
-              f"{heartbeat} ms; Ctrl-C to stop", file=sys.stderr)
+        node.on_store_problem(lambda status, skipped: printer.line(
+            f"node {node_id}: saved parameters in {args.store} are {status}; "
+            "running on defaults"))
         node.boot()
+        if args.heartbeat is not None and has_1017 and node.heartbeat_ms != args.heartbeat:
+            node.heartbeat_ms = args.heartbeat   # a saved 0x1017 loaded at boot: override it
+        source = args.od or f"builtin:{mode}"
+        store = f", parameters in {args.store}" if args.store else ""
+        print(f"node {node_id} running on {args.channel} ({line.mode}), heartbeat "
+              f"{node.heartbeat_ms} ms, object dictionary {source}{store}; Ctrl-C to stop",
+              file=sys.stderr)
         try:
             _wait(done, printer, args.duration)
         except KeyboardInterrupt:
@@ -289,8 +346,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("device", help="run a local node until interrupted")
     line_options(p)
     p.add_argument("--node-id", type=int, required=True)
-    p.add_argument("--heartbeat", type=int, default=1000, metavar="MS",
-                   help="heartbeat producer time (default 1000, 0 = off)")
+    p.add_argument("--od", metavar="FILE",
+                   help="object dictionary to serve: an EDS, DCF, XDD or XDC file, or "
+                        "builtin:fd / builtin:classic (default: the built-in demo dictionary "
+                        "of the line's mode)")
+    p.add_argument("--store", metavar="FILE",
+                   help="parameter store: values saved with 0x1010 load at boot and at "
+                        "resets (the device saves nothing by itself)")
+    p.add_argument("--heartbeat", type=int, default=None, metavar="MS",
+                   help="heartbeat producer time, replacing the dictionary's 0x1017 "
+                        "(0 = off; default: 0x1017 of the dictionary or the store)")
     p.add_argument("--duration", type=float, metavar="SECONDS")
     p.set_defaults(func=cmd_device)
     add_od_parser(sub)

@@ -85,8 +85,6 @@ class LocalNode:
         self.od = od
         #: File of saved parameters (0x1010), or None.
         self.store = store
-        #: What the last parameter load found: 'ok', 'empty', 'damaged', ...
-        self.store_status = "empty"
         self._store_problems = CallbackList(f"node {node_id} store problem")
         self._booted = False
         self.nmt = LocalNmt(self)
@@ -135,19 +133,17 @@ class LocalNode:
         return self.od is not None and isinstance(self.od.get_variable(0x1017, 0), ODVariable)
 
     # ---------------------------------------------------------------- values
-    def __getitem__(self, key: Any) -> "LocalValue":
+    def __getitem__(self, key: Any) -> Union["LocalValue", "LocalObject"]:
         """The value of an entry of the served OD, by index, "index:sub",
-        (index, sub), name or "Object.Sub": `node["Producer heartbeat time"].raw`."""
+        (index, sub), name or "Object.Sub": `node["Producer heartbeat time"].raw`;
+        an ARRAY/RECORD gives a LocalObject: `node[0x1018][1].raw`."""
         if self.od is None:
             raise ConfigurationError(f"{self._where} serves no object dictionary "
                                      "(create it with od=...)")
-        var = self.od[key]
-        if not isinstance(var, ODVariable):
-            raise ConfigurationError(
-                f"{self._where}: {key!r} is {type(var).__name__} 0x{var.index:04X}; "
-                "give a sub-index, e.g. node[0x%04X][1] or node['0x%04X:1']"
-                % (var.index, var.index))
-        return LocalValue(self, var)
+        entry = self.od[key]
+        if isinstance(entry, ODVariable):
+            return LocalValue(self, entry)
+        return LocalObject(self, entry)
 
     def save_parameters(self, group: str = "all") -> None:
         """What writing "save" to 0x1010 does: the stored entries of `group`
@@ -178,9 +174,20 @@ class LocalNode:
         the node then runs on its defaults."""
         return self._store_problems.add(callback)
 
-    def _event_store(self, status: int, skipped: int) -> Callable[[], None]:
+    @property
+    def store_status(self) -> Optional[str]:
+        """What the last parameter load (boot or reset) found in the store:
+        'ok', 'empty', 'damaged', 'foreign', 'io-error', 'too-big'; None
+        without a store or before boot."""
+        if self.store is None or not self._booted:
+            return None
+        code = self.line._rt.store_status(self.line.index, f"store status of {self._where}")
+        return STORE_STATUS.get(code, str(code))
+
+    def _event_store(self, status: int, skipped: int) -> Optional[Callable[[], None]]:
         text = STORE_STATUS.get(status, str(status))
-        self.store_status = text
+        if text in ("ok", "empty"):
+            return None
         log.warning("%s: saved parameters in %s are %s; running on defaults",
                     self._where, self.store, text)
         return lambda: self._store_problems.fire(text, skipped)
@@ -277,6 +284,27 @@ class LocalNode:
         except ValueError:
             command = kind  # type: ignore[assignment]
         return lambda: self._reset.fire(command)
+
+
+class LocalObject:
+    """An ARRAY or RECORD of a local node's OD: index it by sub-index or name."""
+
+    def __init__(self, node: LocalNode, obj: Any) -> None:
+        self.node = node
+        self.object = obj
+
+    def __repr__(self) -> str:
+        return f"<LocalObject 0x{self.object.index:04X} {self.object.name!r} of {self.node!r}>"
+
+    def __getitem__(self, sub: Union[int, str]) -> "LocalValue":
+        return LocalValue(self.node, self.object[sub])
+
+    @property
+    def raw(self) -> Any:
+        raise ConfigurationError(
+            f"{self.node._where}: 0x{self.object.index:04X} {self.object.name!r} is an "
+            f"{type(self.object).__name__[2:].upper()}; give a sub-index, e.g. "
+            f"node[0x{self.object.index:04X}][1].raw")
 
 
 class LocalValue:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 
 import pytest
 from helpers import NEUTRAL_CWD, package_env, run_cli, scaled
@@ -94,3 +95,121 @@ def test_example_nmt_heartbeat_runs():
     for text in ("manager: node 2 booted", "device:  PRE-OPERATIONAL -> OPERATIONAL",
                  "manager: node 2 is STOPPED", "manager: node 2 heartbeat lost"):
         assert text in result.stdout, result.stdout
+
+
+# ------------------------------------------------------------------ device --od / --store
+DATA = os.path.join(ROOT, "tests", "data", "od")
+
+
+def device(*args: str, duration: str = "0.5") -> subprocess.CompletedProcess:
+    return run("device", "--channel", "mem:x", "--node-id", "5", "--duration", duration, *args)
+
+
+def started_line(result: subprocess.CompletedProcess) -> str:
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = [line for line in result.stderr.splitlines() if line.startswith("node 5 running on ")]
+    assert len(lines) == 1, result.stderr
+    assert "node 5: INITIALISING -> PRE-OPERATIONAL" in result.stdout
+    return lines[0]
+
+
+@pytest.mark.parametrize("args, mode, od", [
+    ((), "fd", "builtin:fd"),
+    (("--classic",), "classic", "builtin:classic"),
+    (("--od", "builtin:classic", "--classic"), "classic", "builtin:classic"),
+    (("--od", "builtin:fd"), "fd", "builtin:fd"),
+])
+def test_device_serves_the_builtin_od(args, mode, od):
+    line = started_line(device(*args))
+    assert f"({mode}), heartbeat 0 ms, object dictionary {od};" in line
+
+
+def test_device_serves_an_od_file_and_its_heartbeat():
+    for name, heartbeat in (("commissioned.dcf", 250), ("classic_node.xdc", 500)):
+        path = os.path.join(DATA, name)
+        line = started_line(device("--classic", "--od", path))
+        assert f"heartbeat {heartbeat} ms, object dictionary {path};" in line
+
+
+@pytest.mark.parametrize("value", ["0", "40"])
+def test_device_heartbeat_overrides_0x1017(value):
+    path = os.path.join(DATA, "commissioned.dcf")                     # 0x1017 = 250
+    line = started_line(device("--classic", "--od", path, "--heartbeat", value))
+    assert f"heartbeat {value} ms" in line
+
+
+def test_device_heartbeat_on_the_bus_from_the_od():
+    """The device's heartbeat comes from the DCF's 0x1017 (250 ms): another
+    bus on the same python-can virtual channel sees its frames."""
+    can = pytest.importorskip("can")
+    channel = f"cli-od-{os.getpid()}"
+    path = os.path.join(DATA, "commissioned.dcf")
+    command = ["device", "--channel", channel, "--interface", "virtual", "--classic",
+               "--node-id", "5", "--od", path]
+    from canopenfd.cli import main
+
+    duration = scaled(1.2)
+    bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        seen = []
+        stop = threading.Event()
+
+        def listen():
+            while not stop.is_set():
+                msg = bus.recv(0.05)
+                if msg is not None:
+                    seen.append(msg)
+        listener = threading.Thread(target=listen)
+        listener.start()
+        try:
+            assert main(command + ["--duration", str(duration)]) == 0
+        finally:
+            stop.set()
+            listener.join()
+    finally:
+        bus.shutdown()
+    beats = [m for m in seen if m.arbitration_id == 0x705 and bytes(m.data) == b"\x7f"]
+    expected = duration / 0.25
+    assert 2 <= len(beats) <= expected + 3, f"{len(beats)} heartbeats in {duration:g} s at 250 ms"
+    assert all(not m.is_fd for m in beats)
+
+
+def test_device_store_keeps_saved_parameters(tmp_path):
+    """The device saves nothing by itself; values saved in the store (here by
+    a node of this process) come back when the device boots with --store."""
+    import canopenfd
+    from canopenfd.od import demo_od
+
+    store = str(tmp_path / "params.bin")
+    line = started_line(device("--store", store))
+    assert f"parameters in {store};" in line
+    assert not os.path.exists(store)
+    with canopenfd.Network() as net:
+        node = net.open_line("mem:save").create_local_node(5, od=demo_od("fd"), store=store)
+        node[0x1017].raw = 30
+        node.save_parameters()
+    assert "heartbeat 30 ms" in started_line(device("--store", store))
+    assert "heartbeat 70 ms" in started_line(device("--store", store, "--heartbeat", "70"))
+
+
+def test_device_damaged_store_is_reported(tmp_path):
+    store = tmp_path / "params.bin"
+    store.write_bytes(b"\x55" * 64)
+    result = device("--store", str(store))
+    assert "heartbeat 0 ms" in started_line(result)
+    assert f"saved parameters in {store} are" in result.stdout
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--od", os.path.join(DATA, "hostile", "bad_datatype.eds")),
+     ("--od bad_datatype.eds:27 [1018sub2]", "DataType 0x0099")),
+    (("--od", os.path.join(DATA, "hostile", "truncated.xdd")), ("--od truncated.xdd",)),
+    (("--od", "no-such-file.eds"), ("--od no-such-file.eds: no such file",)),
+    (("--od", "builtin:can"), ("builtin:fd and builtin:classic",)),
+    (("--store", os.path.join(ROOT, "no-such-dir", "p.bin")), ("--store", "no-such-dir",
+                                                                "does not exist")),
+    (("--heartbeat", "-5"), ("--heartbeat -5 ms outside 0..65535",)),
+])
+def test_device_bad_od_or_store_exits_2(args, words):
+    assert_clean_error(device(*args), *words)

@@ -180,7 +180,12 @@ co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t inde
     if (node_id != 0) {
         co_hb_entry_t *other = entry_of(c, node_id);
         if (other && other != e) {
-            return CO_HB_CONFIG_DUPLICATE;
+            if (other->time_ms != 0) {
+                return CO_HB_CONFIG_DUPLICATE;
+            }
+            /* An entry with time 0 only watches states: it gives way. */
+            co_timer_cancel(&c->line->timers, &other->timer);
+            *other = (co_hb_entry_t){.owner = c, .timer = other->timer};
         }
     }
     uint16_t time_ms = node_id ? (uint16_t)(value & 0xFFFFu) : 0;
@@ -208,6 +213,9 @@ co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
         return CO_HB_CONFIG_BAD_NODE;
     }
     co_hb_entry_t *e = entry_of(c, node_id);
+    if (e && time_ms == 0) {
+        return CO_HB_CONFIG_OK;   /* already watched: keep its consumer time */
+    }
     /* A new watch takes the last free entry: the first ones mirror 0x1016
      * sub-indices when the node serves an object dictionary. */
     for (uint8_t i = c->capacity; !e && i > 0; i--) {

@@ -72,14 +72,17 @@ typedef enum co_hb_config_result {
     CO_HB_CONFIG_NO_ROOM = 3,      /* index outside the table */
 } co_hb_config_result_t;
 
-/* Set entry `index` the way a write to 0x1016 sub index+1 does: value bits
+/* An entry with time 0 elsewhere for the same node gives way (it only
+ * watched states); one with a time makes this a CO_HB_CONFIG_DUPLICATE.
+ * Set entry `index` the way a write to 0x1016 sub index+1 does: value bits
  * 23..16 node-id (0 or > 127 leaves the entry unused, per CiA 301), bits 15..0
  * time in ms. A new node's monitoring starts at its next heartbeat; a new
  * time for a node already monitored counts from now. */
 co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t index,
                                                uint32_t value);
 /* Watch a node in the last free entry (or update its entry); the first
- * entries are left to 0x1016. */
+ * entries are left to 0x1016. time_ms 0 only watches states: it leaves an
+ * existing entry as it is, and gives way when 0x1016 later names the node. */
 co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
                                            uint16_t time_ms);
 /* Stop watching a node (its entry becomes unused); harmless if not watched. */

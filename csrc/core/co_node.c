@@ -97,7 +97,8 @@ static uint32_t check_comm_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_en
         return CO_ABORT_NONE;
     }
     for (uint8_t i = 0; i < node->consumer->capacity; i++) {
-        if (i != index && node->consumer->entries[i].node_id == node_id) {
+        if (i != index && node->consumer->entries[i].node_id == node_id &&
+            node->consumer->entries[i].time_ms != 0) {
             return CO_ABORT_PARAM_INCOMPATIBLE;
         }
     }

@@ -462,7 +462,10 @@ bool co_od_seal(co_od_t *od, uint8_t node_id)
     for (i = 0; i < od->count; i++) {
         (void)load_default(od, &od->entries[i]);
     }
-    /* ARRAY / RECORD objects: sub 0 (UNSIGNED8) holds the highest sub-index. */
+    /* ARRAY / RECORD objects need sub 0 as UNSIGNED8. Its value is not
+     * checked against the sub-indices present: 0x1003 counts the errors
+     * logged, a PDO mapping counts the mapped entries, both below the subs
+     * that exist. */
     for (i = 0; i < od->count; i = j) {
         uint16_t index = co_od_entry_index(&od->entries[i]);
         bool structured = false;
@@ -474,8 +477,8 @@ bool co_od_seal(co_od_t *od, uint8_t node_id)
             continue;
         }
         const co_od_entry_t *sub0 = &od->entries[i];
-        if (co_od_entry_sub(sub0) != 0 || sub0->type != CO_TYPE_UNSIGNED8 ||
-            od->pool[sub0->value] < co_od_entry_sub(&od->entries[j - 1u])) {
+        if (co_od_entry_sub(sub0) != 0 || sub0->type != CO_TYPE_UNSIGNED8) {
+            od->refused_index = index;
             return false;
         }
     }

@@ -200,6 +200,7 @@ struct co_od {
     co_mode_t mode;               /* entries of the other mode are not added */
     uint8_t node_id;              /* for $NODEID-relative defaults */
     bool sealed;                  /* no more adds: sorted and checked */
+    uint16_t refused_index;       /* the object co_od_seal() refused */
     co_od_entry_t *entries;
     uint32_t count;
     uint32_t capacity;
@@ -260,10 +261,11 @@ typedef enum co_od_add_result {
  * The definition is checked before the mode filter, so a bad definition is
  * reported on both kinds of line. */
 co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def);
-/* Sort, check sub 0 of ARRAY/RECORD objects, load defaults; no adds after.
- * An index is an ARRAY/RECORD when any of its entries says so; its sub 0 must
- * exist, be UNSIGNED8 and hold at least the highest sub-index present. False
- * (and still unsealed) when a check fails, or when the OD is already sealed. */
+/* Sort, check that every ARRAY/RECORD has sub 0 as UNSIGNED8 (its value is
+ * the application's: a count or the highest sub-index), load defaults; no adds
+ * after. An index is an ARRAY/RECORD when any of its entries says so. False
+ * (still unsealed, refused_index set) when a check fails, or when the OD is
+ * already sealed. */
 bool co_od_seal(co_od_t *od, uint8_t node_id);
 bool co_od_subscribe(co_od_t *od, uint16_t first_index, uint8_t first_sub, uint16_t last_index,
                      uint8_t last_sub, const co_od_handler_t *handler, void *user);

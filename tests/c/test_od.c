@@ -908,14 +908,17 @@ static void test_seal_refuses_record_without_sub0(void **state)
     add_record(fx, 0x2000, 2, subs, 2, false);
     assert_false(co_od_seal(&fx->od, 1));
     assert_false(fx->od.sealed);
+    assert_int_equal(fx->od.refused_index, 0x2000);
 }
 
-static void test_seal_refuses_sub0_below_highest_sub(void **state)
+static void test_seal_accepts_sub0_below_highest_sub(void **state)
 {
+    /* sub 0 counts what is in use (0x1003 errors logged, PDO entries
+     * mapped): it may be below the highest sub-index that exists */
     fx_t *fx = fx_new(state, CO_MODE_FD);
     static const uint8_t subs[] = {1, 2, 4};
-    add_record(fx, 0x2000, 3, subs, 3, true);
-    assert_false(co_od_seal(&fx->od, 1));
+    add_record(fx, 0x2000, 0, subs, 3, true);
+    assert_true(co_od_seal(&fx->od, 1));
 }
 
 static void test_seal_refuses_sub0_not_unsigned8(void **state)
@@ -957,13 +960,13 @@ static void test_seal_checks_sub0_of_record_defined_by_var_subs(void **state)
     /* EDS files give sub-entries of records the object code VAR: one entry
      * saying RECORD makes the index a record */
     fx_t *fx = fx_new(state, CO_MODE_FD);
-    uint8_t two = 2, b[4];
-    co_od_def_t d = var(0x2000, 0, CO_TYPE_UNSIGNED8, CO_ACCESS_RO, &two, 1);
+    uint8_t b[4];
+    add(fx, u32_var(0x2000, 1, CO_ACCESS_RW, 0, b));
+    co_od_def_t d = u32_var(0x2000, 3, CO_ACCESS_RW, 0, b);
     d.object_code = CO_OBJECT_RECORD;
     add(fx, d);
-    add(fx, u32_var(0x2000, 1, CO_ACCESS_RW, 0, b));
-    add(fx, u32_var(0x2000, 3, CO_ACCESS_RW, 0, b));
-    assert_false(co_od_seal(&fx->od, 1));
+    assert_false(co_od_seal(&fx->od, 1));   /* a record, and it has no sub 0 */
+    assert_int_equal(fx->od.refused_index, 0x2000);
 }
 
 static void test_nodeid_relative_defaults_add_the_node_id(void **state)
@@ -2588,7 +2591,7 @@ int main(void)
         T(test_mode_filter_on_classic_od),
         T(test_mode_filter_on_fd_od),
         T(test_seal_refuses_record_without_sub0),
-        T(test_seal_refuses_sub0_below_highest_sub),
+        T(test_seal_accepts_sub0_below_highest_sub),
         T(test_seal_refuses_sub0_not_unsigned8),
         T(test_seal_accepts_records_with_gaps_and_vars),
         T(test_seal_twice_is_refused),

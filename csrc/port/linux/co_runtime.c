@@ -362,13 +362,13 @@ static bool on_allow_operational(co_node_t *node, void *user)
     return l->allow_operational;
 }
 
-/* A parameter load that found a damaged, foreign or unreadable store is
- * reported: the node runs on defaults then. */
+/* What each parameter load found is told to Python (a damaged, foreign or
+ * unreadable store means the node runs on defaults). */
 static void post_store_status(rt_line_t *l)
 {
-    co_store_status_t s = l->node.store_status;
-    if (l->store_path && s != CO_STORE_OK && s != CO_STORE_EMPTY) {
-        post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)s, l->store.records_skipped, NULL);
+    if (l->store_path) {
+        post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)l->node.store_status,
+             l->store.records_skipped, NULL);
     }
 }
 
@@ -480,6 +480,19 @@ static int need_node(co_rt_t *rt, const rt_line_t *l, int kind)
     return CO_RT_ERR_STATE;
 }
 
+static void od_release(rt_line_t *l);
+
+/* Drop a defined OD and its store (the node did not come up with it). */
+static void od_forget(rt_line_t *l)
+{
+    od_release(l);
+    free(l->store_file);
+    free(l->store_buffer);
+    l->store_file = NULL;
+    l->store_buffer = NULL;
+    l->has_od = false;
+}
+
 /* Seal the defined OD with the node-id, open the store, hook the services. */
 static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
 {
@@ -488,8 +501,8 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
         return CO_RT_ERR_STATE;
     }
     if (!co_od_seal(&l->od, node_id)) {
-        set_error(rt, "line %d: object dictionary refused at seal (an ARRAY/RECORD without a "
-                  "valid sub 0?)", l->index);
+        set_error(rt, "line %d: OD entry 0x%04X:00 refused: an ARRAY/RECORD needs sub 0 "
+                  "(UNSIGNED8)", l->index, l->od.refused_index);
         return CO_RT_ERR_ARGUMENT;
     }
     co_store_t *store = NULL;
@@ -532,7 +545,9 @@ static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd
     if (l->has_od) {
         int status = node_attach_od(rt, l, (uint8_t)cmd->a);
         if (status != CO_RT_OK) {
+            /* Leave the line as it was before the OD: usable for a new try. */
             co_node_deinit(&l->node);
+            od_forget(l);
             return status;
         }
     }
@@ -1768,4 +1783,16 @@ int co_rt_od_save(co_rt_t *rt, int line, int group_mask)
 int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask)
 {
     return store_call(rt, line, group_mask, false);
+}
+
+int co_rt_store_status(co_rt_t *rt, int line)
+{
+    rt_line_t *l = checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    int result = served_store(rt, l) ? (int)l->node.store_status : CO_RT_ERR_STATE;
+    pthread_mutex_unlock(&rt->lock);
+    return result;
 }

@@ -74,7 +74,7 @@ typedef enum co_rt_event_kind {
     CO_EV_COMMAND_FAILED = 8,  /* a = co_rt_command_kind_t, b = -co_rt_status_t */
     CO_EV_OD_CHANGED = 9,      /* local OD entry written by the network or a PDO:
                                   a = index << 8 | sub, b = co_od_origin_t */
-    CO_EV_STORE = 10           /* saved parameters unusable, defaults used:
+    CO_EV_STORE = 10           /* parameters loaded at boot or reset from a store:
                                   a = co_store_status_t, b = records skipped */
 } co_rt_event_kind_t;
 
@@ -145,6 +145,9 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
  * group_mask of CO_GROUP_*. 0, an abort code, or a co_rt_status_t. */
 int co_rt_od_save(co_rt_t *rt, int line, int group_mask);
 int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask);
+/* What the local node's last parameter load found (co_store_status_t), or a
+ * co_rt_status_t when the line has no node with a store. */
+int co_rt_store_status(co_rt_t *rt, int line);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
