@@ -1015,6 +1015,26 @@ static void test_consumer_follows_real_producer_then_lost(void **state)
     assert_int_equal(e->t, MS(1000) + MS(120));
 }
 
+static void test_consumer_state_only_watch_gives_way_to_an_entry_with_time(void **state)
+{
+    fx_t *fx = *state;
+    consumer_on_a(fx);
+    /* a watch with time 0 (states only) takes the last entry ... */
+    assert_int_equal(co_hb_consumer_watch(&fx->cons, ID_X, 0), CO_HB_CONFIG_OK);
+    assert_int_equal(co_hb_consumer_get_entry(&fx->cons, (uint8_t)(fx->cons.capacity - 1)),
+                     (uint32_t)ID_X << 16);
+    /* ... and gives way when an entry with a time names the node */
+    assert_int_equal(co_hb_consumer_set_entry(&fx->cons, 0, ((uint32_t)ID_X << 16) | 100),
+                     CO_HB_CONFIG_OK);
+    assert_int_equal(co_hb_consumer_get_entry(&fx->cons, (uint8_t)(fx->cons.capacity - 1)), 0);
+    /* a later state-only watch leaves the timed entry as it is */
+    assert_int_equal(co_hb_consumer_watch(&fx->cons, ID_X, 0), CO_HB_CONFIG_OK);
+    assert_int_equal(co_hb_consumer_get_entry(&fx->cons, 0), ((uint32_t)ID_X << 16) | 100);
+    inject_hb(fx, ID_X, 0x05);
+    run_until(fx, MS(150));
+    assert_int_equal(count_ev(fx, EV_HB, ID_X, CO_HB_LOST, -1), 1);
+}
+
 static void test_consumer_duplicate_node_refused(void **state)
 {
     fx_t *fx = *state;
@@ -1304,6 +1324,7 @@ int main(void)
         BOTH(test_consumer_state_of_unwatched_node_reported),
         BOTH(test_consumer_follows_real_producer_then_lost),
         BOTH(test_consumer_duplicate_node_refused),
+        BOTH(test_consumer_state_only_watch_gives_way_to_an_entry_with_time),
         BOTH(test_consumer_watch_updates_existing_entry),
         BOTH(test_consumer_watch_bad_node_refused),
         BOTH(test_consumer_entry_node_above_127_means_unused),
