@@ -1,0 +1,124 @@
+/* USDO server (CiA 1301, fd lines only): expedited and segmented download
+ * and upload of the local object dictionary, several sessions at once.
+ *
+ * Requests arrive on 0x601..0x67F (0x600 + client node-id) with byte 0 =
+ * our node-id or 0 (broadcast, answered individually); answers go out on
+ * 0x580 + our node-id with byte 0 = the client's node-id and the session-ID
+ * echoed. A transfer is identified by (client node-id, session-ID).
+ *
+ * Sessions come from a caller-provided table; each owns a co_od_xfer_t with
+ * its own slice of a caller-provided scratch buffer (at least the OD's
+ * largest entry size: co_usdo_server_scratch_need). Session states:
+ *
+ *   FREE -> (request) -> an answer at once, back to FREE          expedited
+ *                     -> DOWNLOAD / UPLOAD (segments follow)      segmented
+ *                     -> PENDING (a handler split; waits for co_usdo_server_resume)
+ *   DOWNLOAD/UPLOAD/PENDING -> idle timeout -> timeout abort sent -> FREE
+ *                              (PENDING -> ABANDONED: the slot stays taken
+ *                              until the application's resume, which then
+ *                              only frees it; nothing is written or sent)
+ *
+ * Every non-free session has its own timer, re-armed by each frame of its
+ * transfer. Wire choices and their evidence: docs/protocol-notes.md. */
+#ifndef CO_USDO_SERVER_H
+#define CO_USDO_SERVER_H
+
+#include "co_line.h"
+#include "co_od.h"
+#include "co_usdo.h"
+
+enum { CO_USDO_SERVER_DEFAULT_TIMEOUT_MS = 1000 };
+
+typedef enum co_usdo_session_state {
+    CO_USDO_SESSION_FREE = 0,
+    CO_USDO_SESSION_ACTIVE,      /* inside a co_od call (not resumable yet) */
+    CO_USDO_SESSION_DOWNLOAD,    /* segmented download: waiting for the next segment */
+    CO_USDO_SESSION_UPLOAD,      /* segmented upload: waiting for the next segment request */
+    CO_USDO_SESSION_PENDING,     /* a handler split: waiting for co_usdo_server_resume */
+    CO_USDO_SESSION_ABANDONED    /* was PENDING, then timed out / aborted: freed by the resume */
+} co_usdo_session_state_t;
+
+typedef struct co_usdo_server co_usdo_server_t;
+
+typedef struct co_usdo_session {
+    co_usdo_server_t *server;
+    co_timer_t timer;
+    co_od_xfer_t xfer;
+    uint8_t state;              /* co_usdo_session_state_t */
+    uint8_t answer;             /* PENDING: which answer the resume sends */
+    uint8_t client;             /* node-id of the client */
+    uint8_t session_id;
+    uint8_t sub;
+    uint16_t index;
+    uint8_t counter;            /* next segment counter expected */
+    uint32_t total;             /* download: announced size */
+    uint32_t received;          /* download: data bytes received */
+} co_usdo_session_t;
+
+/* Everything refused or ignored is counted here (never silent). */
+typedef struct co_usdo_server_stats {
+    uint32_t rx_frames;          /* frames on 0x601..0x67F given to the server */
+    uint32_t rx_not_fd;          /* classic frames: ignored */
+    uint32_t rx_no_node;         /* the line has no node-id yet: ignored */
+    uint32_t rx_empty;           /* fewer than 3 bytes: ignored */
+    uint32_t rx_other_dest;      /* byte 0 names another node: ignored */
+    uint32_t rx_remote_abort;    /* 0xFF (remote USDO abort): ignored */
+    uint32_t rx_malformed;       /* too short / bad length for its layout: abort 0x1E */
+    uint32_t rx_unknown_command; /* unknown or unexpected command specifier: abort 0x13 */
+    uint32_t rx_no_session;      /* segment for no open transfer: abort 0x21 */
+    uint32_t rx_bad_counter;     /* abort 0x14 */
+    uint32_t rx_size_mismatch;   /* abort 0x15 */
+    uint32_t rx_client_abort;    /* a client aborted an open transfer */
+    uint32_t rx_stray_abort;     /* a client abort for no open transfer: ignored */
+    uint32_t restarts;           /* a new request on an open (client, session-ID) */
+    uint32_t busy;               /* abort 0x70: no free session */
+    uint32_t parallel;           /* abort 0x20: index:sub in use by another session */
+    uint32_t timeouts;           /* abort 0x12 */
+    uint32_t od_aborts;          /* transfers refused by the object dictionary */
+    uint32_t downloads;          /* completed */
+    uint32_t uploads;            /* completed */
+    uint32_t aborts_sent;
+    uint32_t tx_failed;          /* co_line_send refused (queue full) */
+} co_usdo_server_stats_t;
+
+struct co_usdo_server {
+    co_line_t *line;
+    co_od_t *od;
+    co_usdo_session_t *sessions;
+    uint8_t session_count;
+    uint64_t timeout_us;
+    co_usdo_server_stats_t stats;
+};
+
+typedef struct co_usdo_server_config {
+    co_usdo_session_t *sessions;  /* session table (session_count entries) */
+    uint8_t session_count;        /* 1..255 */
+    uint8_t *scratch;             /* session_count * scratch_size bytes */
+    uint32_t scratch_size;        /* per session: >= co_usdo_server_scratch_need(od) */
+    uint32_t timeout_ms;          /* idle timeout of a session; 0 = default (1000) */
+} co_usdo_server_config_t;
+
+/* Scratch bytes one session needs: the largest entry size of the OD. */
+uint32_t co_usdo_server_scratch_need(const co_od_t *od);
+
+/* Serve `od` on `line` (an fd line; the node-id is read from line->node_id
+ * at every request, so requests before a node exists are ignored). False on
+ * a classic line, a bad configuration or when 0x601..0x67F is taken. */
+bool co_usdo_server_init(co_usdo_server_t *server, co_line_t *line, co_od_t *od,
+                         const co_usdo_server_config_t *config);
+/* Unsubscribe; open transfers are aborted (a domain writer is told),
+ * nothing is sent. */
+void co_usdo_server_deinit(co_usdo_server_t *server);
+
+/* The application's answer to a split (a before_read / check_write handler
+ * returned CO_OD_SPLIT for this xfer): abort = 0 goes on, an abort code
+ * refuses, CO_OD_SPLIT keeps waiting. The answer frame is sent from here
+ * (the line's time is that of its last process call). Returns false when
+ * no session waits on xfer (unknown xfer, called from inside the handler,
+ * or the session was abandoned: then it is freed here, nothing is sent). */
+bool co_usdo_server_resume(co_usdo_server_t *server, co_od_xfer_t *xfer, uint32_t abort);
+
+/* Sessions not FREE. */
+uint8_t co_usdo_server_active(const co_usdo_server_t *server);
+
+#endif
