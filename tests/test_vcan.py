@@ -119,6 +119,26 @@ def test_exact_bytes_on_the_wire(ifaces, networks, raw_buses, brs):
     assert (bytes(pdo.data), pdo.dlc, pdo.is_fd) == (bytes(range(1, 11)) + b"\0\0", 12, True)
 
 
+def test_usdo_expedited_upload_and_download_on_the_wire(ifaces, networks, raw_buses):
+    """A raw python-can socket plays the USDO client (node 2) of our node 5."""
+    from canopenfd.od import demo_od
+    raw = raw_buses(ifaces["fd"])
+    node = networks().open_line(ifaces["fd"], mode="fd").create_local_node(5, od=demo_od("fd"))
+    node[0x1017].raw = 0x1234
+    request = can.Message(arbitration_id=0x602, is_extended_id=False, is_fd=True,
+                          bitrate_switch=True, data=bytes([5, 0x11, 7, 0x00, 0x17, 0x10]))
+    raw.send(request)
+    answer = recv_until(raw, lambda m: m.arbitration_id == 0x585)
+    assert (answer.is_fd, answer.bitrate_switch, answer.dlc) == (True, True, 12)
+    assert bytes(answer.data) == bytes([2, 0x31, 7, 0x00, 0x17, 0x10, 0x06, 2, 0x34, 0x12, 0, 0])
+    write = bytes([5, 0x01, 8, 0x00, 0x17, 0x10, 0x06, 2, 0x2C, 0x01])
+    raw.send(can.Message(arbitration_id=0x602, is_extended_id=False, is_fd=True,
+                         bitrate_switch=True, data=write + b"\0\0"))
+    answer = recv_until(raw, lambda m: m.arbitration_id == 0x585)
+    assert bytes(answer.data) == bytes([2, 0x21, 8, 0x00, 0x17, 0x10])
+    assert node.heartbeat_ms == 300
+
+
 # ------------------------------------------------------------------ interface errors
 def test_fd_line_on_classic_mtu_raises(ifaces, networks):
     net = networks()

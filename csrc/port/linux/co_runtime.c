@@ -21,6 +21,7 @@
 #include "../../core/co_node.h"
 #include "../../core/co_od.h"
 #include "../../core/co_store.h"
+#include "../../core/co_usdo_server.h"
 #include "co_store_file.h"
 #include "../../drivers/co_membus.h"
 #include "../../drivers/co_socketcan.h"
@@ -53,7 +54,8 @@ enum {
     RT_ERROR_SIZE = 256,
     RT_CHANNEL_SIZE = 64,
     RT_HB_ENTRIES = 127,
-    RT_OD_SUBSCRIPTIONS = 8
+    RT_OD_SUBSCRIPTIONS = 8,
+    RT_USDO_SESSIONS = 8
 };
 
 #define RT_REOPEN_US 500000u       /* retry period for a vanished interface */
@@ -121,6 +123,11 @@ typedef struct rt_line {
     co_store_file_t *store_file;
     uint8_t *store_buffer;
     co_store_t store;
+    /* fd lines: the node's OD served over USDO. */
+    bool has_usdo;
+    co_usdo_server_t usdo;
+    co_usdo_session_t usdo_sessions[RT_USDO_SESSIONS];
+    uint8_t *usdo_scratch;
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -485,12 +492,40 @@ static void od_release(rt_line_t *l);
 /* Drop a defined OD and its store (the node did not come up with it). */
 static void od_forget(rt_line_t *l)
 {
+    if (l->has_usdo) {
+        co_usdo_server_deinit(&l->usdo);
+        l->has_usdo = false;
+    }
+    free(l->usdo_scratch);
+    l->usdo_scratch = NULL;
     od_release(l);
     free(l->store_file);
     free(l->store_buffer);
     l->store_file = NULL;
     l->store_buffer = NULL;
     l->has_od = false;
+}
+
+/* fd lines: serve the OD over USDO (classic SDO comes with its own issue). */
+static int usdo_serve(co_rt_t *rt, rt_line_t *l)
+{
+    uint32_t need = co_usdo_server_scratch_need(&l->od);
+    l->usdo_scratch = malloc((size_t)need * RT_USDO_SESSIONS + 1u);
+    if (!l->usdo_scratch) {
+        set_error(rt, "line %d: no memory for the USDO server", l->index);
+        return CO_RT_ERR_NO_MEMORY;
+    }
+    co_usdo_server_config_t config = {.sessions = l->usdo_sessions,
+                                      .session_count = RT_USDO_SESSIONS,
+                                      .scratch = l->usdo_scratch,
+                                      .scratch_size = need};
+    if (!co_usdo_server_init(&l->usdo, &l->line, &l->od, &config)) {
+        set_error(rt, "line %d: USDO server could not start (CAN-IDs 0x601..0x67F taken?)",
+                  l->index);
+        return CO_RT_ERR_STATE;
+    }
+    l->has_usdo = true;
+    return CO_RT_OK;
 }
 
 /* Seal the defined OD with the node-id, open the store, hook the services. */
@@ -528,7 +563,7 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
         set_error(rt, "line %d: object dictionary handler table full", l->index);
         return CO_RT_ERR_FULL;
     }
-    return CO_RT_OK;
+    return l->line.mode == CO_MODE_FD ? usdo_serve(rt, l) : CO_RT_OK;
 }
 
 static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
@@ -968,6 +1003,7 @@ static void line_free(rt_line_t *l)
     free(l->store_path);
     free(l->store_file);
     free(l->store_buffer);
+    free(l->usdo_scratch);
     free(l->rx_slots);
     free(l->tx_slots);
     free(l);

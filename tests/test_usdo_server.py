@@ -1,0 +1,87 @@
+"""The local node's object dictionary served over USDO on fd lines, checked
+byte for byte on the bus. The requests are raw frames (our USDO client comes
+with its own issue); the layouts are those of docs/protocol-notes.md."""
+
+import os
+
+import pytest
+
+from canopenfd.od import demo_od
+from helpers import Recorder
+
+SERVER, CLIENT = 5, 2
+REQUEST, RESPONSE = 0x600 + CLIENT, 0x580 + SERVER
+
+
+@pytest.fixture
+def rig(net, bus_name, tmp_path):
+    """A server node with the demo OD and a store, and a client line that
+    monitors the bus and sends raw USDO requests."""
+    store = str(tmp_path / "params.bin")
+    node = net.open_line(bus_name, mode="fd").create_local_node(SERVER, od=demo_od("fd"),
+                                                                store=store)
+    client = net.open_line(bus_name, mode="fd", monitor=True)
+    answers = Recorder()
+    client.on_frame(lambda f: answers(f) if f.id == RESPONSE else None)
+    return node, client, answers, store
+
+
+def ask(client, answers, data: bytes):
+    """Send one request and return the server's answer frame."""
+    before = len(answers)
+    client.send_frame(REQUEST, data)
+    return answers.wait_count(before + 1)[before]
+
+
+def test_expedited_upload_answers_with_the_exact_bytes(rig):
+    node, client, answers, _ = rig
+    node[0x1017].raw = 0x1234
+    # [server, 0x11 upload, session 7, sub 0, index 0x1017 LE]
+    frame = ask(client, answers, bytes([SERVER, 0x11, 7, 0x00, 0x17, 0x10]))
+    # [client, 0x31, session, sub, index, type UNSIGNED16, size 2, value LE] padded to 12
+    assert frame.fd and frame.brs
+    assert frame.data == bytes([CLIENT, 0x31, 7, 0x00, 0x17, 0x10, 0x06, 2, 0x34, 0x12,
+                                0, 0])
+
+
+def test_expedited_download_writes_the_entry_and_rearms_the_heartbeat(rig):
+    node, client, answers, _ = rig
+    frame = ask(client, answers, bytes([SERVER, 0x01, 3, 0x00, 0x17, 0x10, 0x06, 2, 0x2C, 0x01]))
+    assert frame.data == bytes([CLIENT, 0x21, 3, 0x00, 0x17, 0x10])
+    assert node[0x1017].raw == 300
+    assert node.heartbeat_ms == 300
+
+
+def test_write_to_a_read_only_entry_is_aborted_and_changes_nothing(rig):
+    node, client, answers, _ = rig
+    before = node["0x1018:1"].raw
+    frame = ask(client, answers, bytes([SERVER, 0x01, 4, 0x01, 0x18, 0x10, 0x07, 4, 1, 2, 3, 4]))
+    # abort: [client, 0x7F, session, sub, index, code 0x32 "read only"]
+    assert frame.data[:7] == bytes([CLIENT, 0x7F, 4, 0x01, 0x18, 0x10, 0x32])
+    assert node["0x1018:1"].raw == before
+
+
+def test_missing_object_is_aborted(rig):
+    _, client, answers, _ = rig
+    frame = ask(client, answers, bytes([SERVER, 0x11, 9, 0x00, 0x00, 0x5F]))
+    assert frame.data[:7] == bytes([CLIENT, 0x7F, 9, 0x00, 0x00, 0x5F, 0x33])   # no object
+
+
+def test_save_over_the_network_writes_the_store_file(rig):
+    node, client, answers, store = rig
+    node[0x1017].raw = 250
+    # "save" (0x65766173) to 0x1010 sub 1: store every parameter group
+    frame = ask(client, answers, bytes([SERVER, 0x01, 5, 0x01, 0x10, 0x10, 0x07, 4])
+                + (0x65766173).to_bytes(4, "little"))
+    assert frame.data == bytes([CLIENT, 0x21, 5, 0x01, 0x10, 0x10])
+    assert os.path.getsize(store) > 0
+    node.apply("reset-communication")
+    node.wait_for_state("PRE-OPERATIONAL")
+    assert node[0x1017].raw == 250
+
+
+def test_requests_for_another_node_are_not_answered(rig):
+    node, client, answers, _ = rig
+    client.send_frame(REQUEST, bytes([SERVER + 1, 0x11, 1, 0x00, 0x17, 0x10]))
+    frame = ask(client, answers, bytes([SERVER, 0x11, 2, 0x00, 0x17, 0x10]))
+    assert frame.data[2] == 2                       # only the request for us was answered
