@@ -86,6 +86,7 @@ class LocalNode:
         #: File of saved parameters (0x1010), or None.
         self.store = store
         self._store_problems = CallbackList(f"node {node_id} store problem")
+        self._changed = CallbackList(f"node {node_id} object changed")
         self._booted = False
         self.nmt = LocalNmt(self)
         self._heartbeat_default_ms = heartbeat_ms
@@ -167,6 +168,21 @@ class LocalNode:
             raise AbortError(code, self.node_id, 0x1010 if save else 0x1011,
                              {"all": 1, "communication": 2, "application": 3,
                               "manufacturer": 4}[group], what)
+
+    def on_object_changed(self, callback: Callable[["LocalValue", str], None]):
+        """callback(value, origin) after an entry was written by the network
+        (USDO/SDO download: origin 'network') or a received PDO ('pdo'); the
+        application's own writes are not echoed. `value.raw` reads the new
+        value."""
+        return self._changed.add(callback)
+
+    def _event_changed(self, key: int, origin: int) -> Optional[Callable[[], None]]:
+        var = self.od.get_variable(key >> 8, key & 0xFF) if self.od is not None else None
+        if var is None:
+            return None
+        value = LocalValue(self, var)
+        name = {1: "network", 2: "pdo"}.get(origin, str(origin))
+        return lambda: self._changed.fire(value, name)
 
     def on_store_problem(self, callback: Callable[[str, int], None]):
         """callback(status, records_skipped) when saved parameters could not be

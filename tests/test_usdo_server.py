@@ -85,3 +85,13 @@ def test_requests_for_another_node_are_not_answered(rig):
     client.send_frame(REQUEST, bytes([SERVER + 1, 0x11, 1, 0x00, 0x17, 0x10]))
     frame = ask(client, answers, bytes([SERVER, 0x11, 2, 0x00, 0x17, 0x10]))
     assert frame.data[2] == 2                       # only the request for us was answered
+
+
+def test_object_changed_callback_sees_network_writes_only(rig):
+    node, client, answers, _ = rig
+    changes = Recorder()
+    node.on_object_changed(lambda value, origin: changes((value.variable.index, origin,
+                                                          value.raw)))
+    node[0x1017].raw = 20                             # the application's own write: not told
+    ask(client, answers, bytes([SERVER, 0x01, 3, 0x00, 0x17, 0x10, 0x06, 2, 0x2C, 0x01]))
+    assert changes.wait_count(1) == [(0x1017, "network", 300)]
