@@ -312,10 +312,9 @@ def _consumer_od(mode: str, watched: int, timeout_ms: int) -> ObjectDictionary:
 
 
 # The consumer entries of 0x1016 and those of add_node() share one table in
-# the line (co_hb_consumer): add_node(id) with timeout 0 is how a RemoteNode
-# gets the events, and the tests below show that it then overrides or blocks
-# what 0x1016 says. add_node(id, heartbeat_timeout_ms=...) itself works (see
-# test_membus.py).
+# the line (co_hb_consumer). add_node(id) with timeout 0 only watches states:
+# it leaves an entry 0x1016 configured as it is (and gives way to one written
+# later), and remove_node() never clears an entry that mirrors 0x1016.
 def _watch_and_lose(net, bus: str, remote) -> None:
     started, lost = Recorder(), Recorder()
     remote.on_heartbeat_started(started)
@@ -347,6 +346,14 @@ def test_heartbeat_consumer_time_written_to_0x1016_after_add_node(net, bus_name)
     node["0x1016:1"].raw = (7 << 16) | 150
     assert node["0x1016:1"].raw == (7 << 16) | 150
     _watch_and_lose(net, bus_name, remote)
+
+
+def test_remove_node_leaves_the_consumer_entry_of_0x1016(net, bus_name):
+    line = net.open_line(bus_name, mode="fd")
+    line.create_local_node(NODE, od=_consumer_od("fd", 7, 150))
+    line.remove_node(line.add_node(7).node_id)
+    # the OD's 0x1016:1 still watches node 7: a new RemoteNode hears it lost
+    _watch_and_lose(net, bus_name, line.add_node(7))
 
 
 # ------------------------------------------------------------------ store

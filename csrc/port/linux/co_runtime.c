@@ -612,9 +612,21 @@ static int cmd_hb_watch(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     return r == CO_HB_CONFIG_NO_ROOM ? CO_RT_ERR_FULL : CO_RT_ERR_ARGUMENT;
 }
 
+/* Consumer entries that mirror 0x1016 sub 1.. of the local node's OD. */
+static uint8_t od_consumer_entries(const rt_line_t *l)
+{
+    uint8_t count = 0;
+    if (l->has_node && l->has_od) {
+        co_od_get_u8(&l->od, 0x1016, 0, &count);
+    }
+    return count;
+}
+
+/* Python stops watching: entries that mirror 0x1016 belong to the OD and
+ * keep monitoring (the line just stops telling Python). */
 static void hb_unwatch(rt_line_t *l, uint8_t node_id)
 {
-    for (uint8_t i = 0; i < l->hb.capacity; i++) {
+    for (uint8_t i = od_consumer_entries(l); i < l->hb.capacity; i++) {
         if (l->hb.entries[i].node_id == node_id) {
             co_hb_consumer_set_entry(&l->hb, i, 0);
         }
