@@ -14,12 +14,12 @@ from .od import ObjectDictionary, ODVariable
 
 log = logging.getLogger(__name__)
 
-#: 0x1010 / 0x1011 parameter groups by name (CiA 301 sub-indices 1..4).
+#: 0x1010 / 0x1011 parameter groups by name: (group mask, CiA 301 sub-index).
 PARAMETER_GROUPS = {
-    "all": lib.CO_GROUP_ALL,
-    "communication": lib.CO_GROUP_COMMUNICATION,
-    "application": lib.CO_GROUP_APPLICATION,
-    "manufacturer": lib.CO_GROUP_MANUFACTURER,
+    "all": (lib.CO_GROUP_ALL, 1),
+    "communication": (lib.CO_GROUP_COMMUNICATION, 2),
+    "application": (lib.CO_GROUP_APPLICATION, 3),
+    "manufacturer": (lib.CO_GROUP_MANUFACTURER, 4),
 }
 
 #: What a parameter load found (co_store_status_t).
@@ -163,11 +163,10 @@ class LocalNode:
             raise ConfigurationError(f"{what}: group must be one of {', '.join(PARAMETER_GROUPS)}")
         if not self._booted:
             raise ConfigurationError(f"{what}: the node is not booted yet")
-        code = self.line._od_store(PARAMETER_GROUPS[group], save, what)
+        mask, sub = PARAMETER_GROUPS[group]
+        code = self.line._od_store(mask, save, what)
         if code:
-            raise AbortError(code, self.node_id, 0x1010 if save else 0x1011,
-                             {"all": 1, "communication": 2, "application": 3,
-                              "manufacturer": 4}[group], what)
+            raise AbortError(code, self.node_id, 0x1010 if save else 0x1011, sub, what)
 
     def on_object_changed(self, callback: Callable[["LocalValue", str], None]):
         """callback(value, origin) after an entry was written by the network
