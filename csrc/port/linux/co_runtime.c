@@ -16,15 +16,7 @@
  * No Python is ever called from the thread, so it runs without the GIL. */
 #define _GNU_SOURCE
 
-#include "co_runtime.h"
-
-#include "../../core/co_node.h"
-#include "../../core/co_od.h"
-#include "../../core/co_store.h"
-#include "../../core/co_usdo_server.h"
-#include "co_store_file.h"
-#include "../../drivers/co_membus.h"
-#include "../../drivers/co_socketcan.h"
+#include "co_rt_internal.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -40,141 +32,6 @@
 #include <time.h>
 #include <unistd.h>
 
-enum {
-    RT_MAX_LINES = 64,
-    RT_MAX_BUSES = 64,
-    RT_DEFAULT_QUEUE = 1024,
-    RT_MAX_QUEUE = 1 << 20,
-    RT_DEFAULT_EVENTS = 4096,
-    RT_MAX_EVENT_CAPACITY = 1 << 22,
-    RT_MAILBOX_SIZE = 1024,
-    RT_MAIL_CHUNK = 64,
-    RT_TRANSFER_ROUNDS = 16,
-    RT_EPOLL_BATCH = 32,
-    RT_ERROR_SIZE = 256,
-    RT_CHANNEL_SIZE = 64,
-    RT_HB_ENTRIES = 127,
-    RT_OD_SUBSCRIPTIONS = 8,
-    RT_USDO_SESSIONS = 8
-};
-
-#define RT_REOPEN_US 500000u       /* retry period for a vanished interface */
-#define RT_NOBUFS_RETRY_US 1000u   /* ENOBUFS does not wake EPOLLOUT: poll instead */
-
-enum { TAG_WAKE = 1, TAG_TIMER = 2, TAG_SOCKET = 3 };
-
-struct rt_line;
-
-/* What an epoll event points at. */
-typedef struct rt_tag {
-    int kind;
-    struct rt_line *line;
-} rt_tag_t;
-
-typedef struct rt_bus {
-    char name[RT_CHANNEL_SIZE];
-    co_mode_t mode;
-    co_membus_t bus;
-} rt_bus_t;
-
-typedef struct rt_socket {
-    co_socketcan_t sock;
-    rt_tag_t tag;
-    bool down;             /* closed after the interface went away */
-    bool want_out;         /* EAGAIN: waiting for EPOLLOUT */
-    uint64_t reopen_at;
-    uint64_t retry_at;     /* ENOBUFS: send again at this time */
-    uint32_t tx_refused;   /* frames the kernel refused (reported as TX_OVERFLOW) */
-    uint32_t down_count;
-} rt_socket_t;
-
-typedef struct rt_host {
-    pthread_mutex_t lock;
-    pthread_cond_t ready;
-    co_frame_queue_t out;  /* frames for co_rt_host_transmit */
-    co_frame_t *slots;
-    uint32_t waiters;
-    bool stalled;          /* the line holds frames the full out-queue refused */
-    bool closed;
-} rt_host_t;
-
-typedef struct rt_line {
-    co_rt_t *rt;
-    int index;
-    int driver;
-    bool monitor;
-    bool allow_operational;
-    bool has_node;
-    char channel[RT_CHANNEL_SIZE];
-    co_line_t line;
-    co_frame_t *rx_slots;
-    co_frame_t *tx_slots;
-    uint32_t rx_seen;      /* rx frames already posted as CO_EV_FRAME */
-    co_hb_consumer_t hb;
-    co_hb_entry_t hb_entries[RT_HB_ENTRIES];
-    co_node_t node;
-    /* The local node's object dictionary (co_rt_od_define) and its store. */
-    bool has_od;
-    co_od_t od;
-    co_od_entry_t *od_entries;
-    uint8_t *od_pool;
-    co_od_subscription_t od_subs[RT_OD_SUBSCRIPTIONS];
-    char *store_path;                /* NULL: no store */
-    co_store_file_t *store_file;
-    uint8_t *store_buffer;
-    co_store_t store;
-    /* fd lines: the node's OD served over USDO. */
-    bool has_usdo;
-    co_usdo_server_t usdo;
-    co_usdo_session_t usdo_sessions[RT_USDO_SESSIONS];
-    uint8_t *usdo_scratch;
-    rt_socket_t sc;
-    rt_host_t host;
-} rt_line_t;
-
-typedef struct rt_events {
-    pthread_mutex_t lock;
-    pthread_cond_t ready;
-    co_rt_event_t *ring;
-    uint32_t capacity;
-    uint32_t head;
-    uint32_t count;
-    uint32_t lost;         /* dropped since the last CO_EV_EVENTS_LOST */
-    uint32_t waiters;
-    bool closed;
-} rt_events_t;
-
-typedef struct rt_mailbox {
-    pthread_mutex_t lock;
-    co_rt_command_t ring[RT_MAILBOX_SIZE];
-    uint32_t head;
-    uint32_t count;
-    bool closed;
-} rt_mailbox_t;
-
-struct co_rt {
-    pthread_mutex_t life_lock;
-    pthread_mutex_t lock;
-    pthread_mutex_t error_lock;
-    pthread_t thread;
-    bool started;
-    bool closed;           /* stopped for good (under life_lock) */
-    bool stopping;         /* under lock: refuse host calls, leave the loop */
-    int epfd;
-    int wakefd;
-    int timerfd;
-    rt_tag_t wake_tag;
-    rt_tag_t timer_tag;
-    uint64_t armed_us;     /* deadline the timerfd holds */
-    int line_count;        /* published with release ordering after lines[] */
-    rt_line_t *lines[RT_MAX_LINES];
-    int bus_count;
-    rt_bus_t *buses[RT_MAX_BUSES];
-    rt_mailbox_t mail;
-    rt_events_t events;
-    char error[RT_ERROR_SIZE];
-};
-
 static uint64_t min_u64(uint64_t a, uint64_t b) { return a < b ? a : b; }
 
 uint64_t co_rt_now_us(void)
@@ -187,7 +44,7 @@ uint64_t co_rt_now_us(void)
 /* ================================================================ errors */
 
 __attribute__((format(printf, 2, 3)))
-static void set_error(co_rt_t *rt, const char *fmt, ...)
+void rt_set_error(co_rt_t *rt, const char *fmt, ...)
 {
     va_list args;
     va_start(args, fmt);
@@ -297,7 +154,7 @@ static void events_post(rt_events_t *q, const co_rt_event_t *ev)
     pthread_mutex_unlock(&q->lock);
 }
 
-static void post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
+void rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
                  const co_frame_t *frame)
 {
     co_rt_event_t ev = {.kind = kind, .line = l->index, .node = node, .a = a, .b = b,
@@ -343,20 +200,20 @@ static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
 {
     (void)line;
     rt_line_t *l = user;
-    post(l, CO_EV_COMM, 0, (uint32_t)event, 0, NULL);
+    rt_post(l, CO_EV_COMM, 0, (uint32_t)event, 0, NULL);
 }
 
 static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t event,
                          co_nmt_state_t state, void *user)
 {
     (void)c;
-    post(user, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
+    rt_post(user, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
 }
 
 static void on_node_state(co_node_t *node, co_nmt_state_t old_state, co_nmt_state_t new_state,
                           void *user)
 {
-    post(user, CO_EV_NMT_STATE, node->nmt.node_id, (uint32_t)old_state, (uint32_t)new_state,
+    rt_post(user, CO_EV_NMT_STATE, node->nmt.node_id, (uint32_t)old_state, (uint32_t)new_state,
          NULL);
 }
 
@@ -364,7 +221,7 @@ static bool on_allow_operational(co_node_t *node, void *user)
 {
     rt_line_t *l = user;
     if (!l->allow_operational) {
-        post(l, CO_EV_NMT_VETOED, node->nmt.node_id, 0, 0, NULL);
+        rt_post(l, CO_EV_NMT_VETOED, node->nmt.node_id, 0, 0, NULL);
     }
     return l->allow_operational;
 }
@@ -374,14 +231,14 @@ static bool on_allow_operational(co_node_t *node, void *user)
 static void post_store_status(rt_line_t *l)
 {
     if (l->store_path) {
-        post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)l->node.store_status,
+        rt_post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)l->node.store_status,
              l->store.records_skipped, NULL);
     }
 }
 
 static void on_node_reset(co_node_t *node, co_nmt_command_t kind, void *user)
 {
-    post(user, CO_EV_NMT_RESET, node->nmt.node_id, (uint32_t)kind, 0, NULL);
+    rt_post(user, CO_EV_NMT_RESET, node->nmt.node_id, (uint32_t)kind, 0, NULL);
     post_store_status(user);
 }
 
@@ -392,7 +249,7 @@ static void on_od_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t or
     (void)od;
     if (origin == CO_ORIGIN_NETWORK || origin == CO_ORIGIN_PDO) {
         rt_line_t *l = user;
-        post(l, CO_EV_OD_CHANGED, l->node.nmt.node_id, e->key, (uint32_t)origin, NULL);
+        rt_post(l, CO_EV_OD_CHANGED, l->node.nmt.node_id, e->key, (uint32_t)origin, NULL);
     }
 }
 
@@ -409,13 +266,13 @@ static void on_membus_sent(co_line_t *from, const co_frame_t *frame, void *user)
     (void)user;
     rt_line_t *l = line_of(from);
     if (l->monitor) {
-        post(l, CO_EV_FRAME, 0, 1, 0, frame);
+        rt_post(l, CO_EV_FRAME, 0, 1, 0, frame);
     }
 }
 
 /* ================================================================ thread: lines */
 
-static void wake(co_rt_t *rt)
+void rt_wake(co_rt_t *rt)
 {
     const uint64_t one = 1;
     /* EAGAIN only when the counter is saturated: the thread wakes anyway. */
@@ -428,7 +285,7 @@ static void post_new_rx(rt_line_t *l)
 {
     const co_frame_queue_t *rx = &l->line.rx;
     for (uint32_t i = l->rx_seen; i < rx->count; i++) {
-        post(l, CO_EV_FRAME, 0, 0, 0, &rx->slots[(rx->head + i) % rx->capacity]);
+        rt_post(l, CO_EV_FRAME, 0, 0, 0, &rx->slots[(rx->head + i) % rx->capacity]);
     }
 }
 
@@ -483,11 +340,10 @@ static int need_node(co_rt_t *rt, const rt_line_t *l, int kind)
     if (l->has_node) {
         return CO_RT_OK;
     }
-    set_error(rt, "line %d has no local node (%s needs one)", l->index, command_name(kind));
+    rt_set_error(rt, "line %d has no local node (%s needs one)", l->index, command_name(kind));
     return CO_RT_ERR_STATE;
 }
 
-static void od_release(rt_line_t *l);
 
 /* Drop a defined OD and its store (the node did not come up with it). */
 static void od_forget(rt_line_t *l)
@@ -498,7 +354,7 @@ static void od_forget(rt_line_t *l)
     }
     free(l->usdo_scratch);
     l->usdo_scratch = NULL;
-    od_release(l);
+    rt_od_release(l);
     free(l->store_file);
     free(l->store_buffer);
     l->store_file = NULL;
@@ -512,7 +368,7 @@ static int usdo_serve(co_rt_t *rt, rt_line_t *l)
     uint32_t need = co_usdo_server_scratch_need(&l->od);
     l->usdo_scratch = malloc((size_t)need * RT_USDO_SESSIONS + 1u);
     if (!l->usdo_scratch) {
-        set_error(rt, "line %d: no memory for the USDO server", l->index);
+        rt_set_error(rt, "line %d: no memory for the USDO server", l->index);
         return CO_RT_ERR_NO_MEMORY;
     }
     co_usdo_server_config_t config = {.sessions = l->usdo_sessions,
@@ -520,7 +376,7 @@ static int usdo_serve(co_rt_t *rt, rt_line_t *l)
                                       .scratch = l->usdo_scratch,
                                       .scratch_size = need};
     if (!co_usdo_server_init(&l->usdo, &l->line, &l->od, &config)) {
-        set_error(rt, "line %d: USDO server could not start (CAN-IDs 0x601..0x67F taken?)",
+        rt_set_error(rt, "line %d: USDO server could not start (CAN-IDs 0x601..0x67F taken?)",
                   l->index);
         return CO_RT_ERR_STATE;
     }
@@ -532,11 +388,11 @@ static int usdo_serve(co_rt_t *rt, rt_line_t *l)
 static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
 {
     if (l->od.sealed) {
-        set_error(rt, "line %d: object dictionary already served by a node", l->index);
+        rt_set_error(rt, "line %d: object dictionary already served by a node", l->index);
         return CO_RT_ERR_STATE;
     }
     if (!co_od_seal(&l->od, node_id)) {
-        set_error(rt, "line %d: OD entry 0x%04X:00 refused: an ARRAY/RECORD needs sub 0 "
+        rt_set_error(rt, "line %d: OD entry 0x%04X:00 refused: an ARRAY/RECORD needs sub 0 "
                   "(UNSIGNED8)", l->index, l->od.refused_index);
         return CO_RT_ERR_ARGUMENT;
     }
@@ -546,13 +402,13 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
         l->store_file = calloc(1, sizeof *l->store_file);
         l->store_buffer = malloc(need);
         if (!l->store_file || !l->store_buffer) {
-            set_error(rt, "line %d: no memory for the parameter store", l->index);
+            rt_set_error(rt, "line %d: no memory for the parameter store", l->index);
             return CO_RT_ERR_NO_MEMORY;
         }
         if (!co_store_file_init(l->store_file, l->store_path) ||
             !co_store_init(&l->store, &l->od, co_store_file_backend(), l->store_file,
                            l->store_buffer, need)) {
-            set_error(rt, "line %d: store %s cannot be used (path too long?)", l->index,
+            rt_set_error(rt, "line %d: store %s cannot be used (path too long?)", l->index,
                       l->store_path);
             return CO_RT_ERR_ARGUMENT;
         }
@@ -560,7 +416,7 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
     }
     if (!co_node_attach_od(&l->node, &l->od, store, &l->hb) ||
         !co_od_subscribe(&l->od, 0x0000, 0, 0xFFFF, 0xFF, &od_observer, l)) {
-        set_error(rt, "line %d: object dictionary handler table full", l->index);
+        rt_set_error(rt, "line %d: object dictionary handler table full", l->index);
         return CO_RT_ERR_FULL;
     }
     return l->line.mode == CO_MODE_FD ? usdo_serve(rt, l) : CO_RT_OK;
@@ -569,12 +425,12 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
 static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
     if (l->has_node) {
-        set_error(rt, "line %d already has local node %u", l->index, l->node.nmt.node_id);
+        rt_set_error(rt, "line %d already has local node %u", l->index, l->node.nmt.node_id);
         return CO_RT_ERR_STATE;
     }
     if (!co_node_init(&l->node, &l->line, (uint8_t)cmd->a, (uint16_t)cmd->b,
                       &node_indications, l)) {
-        set_error(rt, "line %d: node %u could not be set up", l->index, (unsigned)cmd->a);
+        rt_set_error(rt, "line %d: node %u could not be set up", l->index, (unsigned)cmd->a);
         return CO_RT_ERR_STATE;
     }
     if (l->has_od) {
@@ -597,7 +453,7 @@ static int cmd_queued(co_rt_t *rt, const rt_line_t *l, bool queued)
     if (queued) {
         return CO_RT_OK;
     }
-    set_error(rt, "line %d: tx queue full, frame not sent", l->index);
+    rt_set_error(rt, "line %d: tx queue full, frame not sent", l->index);
     return CO_RT_ERR_FULL;
 }
 
@@ -607,7 +463,7 @@ static int cmd_hb_watch(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     if (r == CO_HB_CONFIG_OK) {
         return CO_RT_OK;
     }
-    set_error(rt, "line %d: cannot watch node %u (heartbeat config result %d)", l->index,
+    rt_set_error(rt, "line %d: cannot watch node %u (heartbeat config result %d)", l->index,
               (unsigned)cmd->a, (int)r);
     return r == CO_HB_CONFIG_NO_ROOM ? CO_RT_ERR_FULL : CO_RT_ERR_ARGUMENT;
 }
@@ -674,7 +530,7 @@ static void apply_command(co_rt_t *rt, const co_rt_command_t *cmd, uint64_t now)
     line_step(l, now);
     int status = apply_to_line(rt, l, cmd);
     if (status != CO_RT_OK) {
-        post(l, CO_EV_COMMAND_FAILED, 0, (uint32_t)cmd->kind, (uint32_t)-status, NULL);
+        rt_post(l, CO_EV_COMMAND_FAILED, 0, (uint32_t)cmd->kind, (uint32_t)-status, NULL);
     }
 }
 
@@ -813,7 +669,7 @@ static void take_sent(rt_line_t *l, unsigned sent)
     co_frame_t frame;
     for (unsigned i = 0; i < sent && co_line_tx_pop(&l->line, &frame); i++) {
         if (l->monitor) {
-            post(l, CO_EV_FRAME, 0, 1, 0, &frame);
+            rt_post(l, CO_EV_FRAME, 0, 1, 0, &frame);
         }
     }
 }
@@ -890,7 +746,7 @@ static void flush_host(rt_line_t *l)
         co_queue_push(&h->out, &frame);
         moved++;
         if (l->monitor) {
-            post(l, CO_EV_FRAME, 0, 1, 0, &frame);
+            rt_post(l, CO_EV_FRAME, 0, 1, 0, &frame);
         }
     }
     h->stalled = !co_queue_is_empty(&l->line.tx);
@@ -1096,7 +952,7 @@ int co_rt_start(co_rt_t *rt)
         int err = pthread_create(&rt->thread, NULL, thread_main, rt);
         pthread_sigmask(SIG_SETMASK, &previous, NULL);
         if (err != 0) {
-            set_error(rt, "cannot start the runtime thread: %s", strerror(err));
+            rt_set_error(rt, "cannot start the runtime thread: %s", strerror(err));
             status = CO_RT_ERR_NO_MEMORY;
         }
         rt->started = err == 0;
@@ -1136,7 +992,7 @@ void co_rt_stop(co_rt_t *rt)
         rt->stopping = true;
         pthread_mutex_unlock(&rt->lock);
         if (rt->started) {
-            wake(rt);
+            rt_wake(rt);
             pthread_join(rt->thread, NULL);
         }
         close_waiters(rt);
@@ -1176,17 +1032,17 @@ void co_rt_free(co_rt_t *rt)
 static int check_line_config(co_rt_t *rt, const co_rt_line_config_t *c)
 {
     if (!c) {
-        set_error(rt, "no line configuration given");
+        rt_set_error(rt, "no line configuration given");
     } else if (c->driver < CO_DRIVER_SOCKETCAN || c->driver > CO_DRIVER_HOST) {
-        set_error(rt, "driver %d unknown (1 socketcan, 2 membus, 3 host)", c->driver);
+        rt_set_error(rt, "driver %d unknown (1 socketcan, 2 membus, 3 host)", c->driver);
     } else if (c->mode != CO_MODE_CLASSIC && c->mode != CO_MODE_FD) {
-        set_error(rt, "mode %d unknown (0 classic, 1 fd)", c->mode);
+        rt_set_error(rt, "mode %d unknown (0 classic, 1 fd)", c->mode);
     } else if (!c->channel || c->channel[0] == '\0') {
-        set_error(rt, "a line needs a channel name");
+        rt_set_error(rt, "a line needs a channel name");
     } else if (strlen(c->channel) >= RT_CHANNEL_SIZE) {
-        set_error(rt, "channel name longer than %d characters", RT_CHANNEL_SIZE - 1);
+        rt_set_error(rt, "channel name longer than %d characters", RT_CHANNEL_SIZE - 1);
     } else if (c->rx_queue > RT_MAX_QUEUE || c->tx_queue > RT_MAX_QUEUE) {
-        set_error(rt, "%s: queue of %u frames above the limit of %d", c->channel,
+        rt_set_error(rt, "%s: queue of %u frames above the limit of %d", c->channel,
                   (unsigned)(c->rx_queue > RT_MAX_QUEUE ? c->rx_queue : c->tx_queue),
                   RT_MAX_QUEUE);
     } else {
@@ -1248,19 +1104,19 @@ static int open_socketcan(co_rt_t *rt, rt_line_t *l)
     case CO_SC_OPEN_OK:
         return CO_RT_OK;
     case CO_SC_OPEN_NO_INTERFACE:
-        set_error(rt, "%s", err);
+        rt_set_error(rt, "%s", err);
         return CO_RT_ERR_NO_INTERFACE;
     case CO_SC_OPEN_MTU:
-        set_error(rt, "%s", err);
+        rt_set_error(rt, "%s", err);
         return CO_RT_ERR_MTU;
     case CO_SC_OPEN_DOWN:
-        set_error(rt, "%s", err);
+        rt_set_error(rt, "%s", err);
         return CO_RT_ERR_STATE;
     case CO_SC_OPEN_SOCKET:
-        set_error(rt, "%s", err);
+        rt_set_error(rt, "%s", err);
         return CO_RT_ERR_SOCKET;
     default:
-        set_error(rt, "%s", err);
+        rt_set_error(rt, "%s", err);
         return CO_RT_ERR_ARGUMENT;
     }
 }
@@ -1278,7 +1134,7 @@ static rt_bus_t *find_bus(co_rt_t *rt, const char *name)
 static int new_bus(co_rt_t *rt, const rt_line_t *l, rt_bus_t **out)
 {
     if (rt->bus_count == RT_MAX_BUSES) {
-        set_error(rt, "membus %s: already %d buses in this runtime", l->channel, RT_MAX_BUSES);
+        rt_set_error(rt, "membus %s: already %d buses in this runtime", l->channel, RT_MAX_BUSES);
         return CO_RT_ERR_FULL;
     }
     rt_bus_t *bus = calloc(1, sizeof *bus);
@@ -1303,12 +1159,12 @@ static int join_membus(co_rt_t *rt, rt_line_t *l)
         return status;
     }
     if (bus->mode != l->line.mode) {
-        set_error(rt, "membus %s: open in %s mode, a %s line cannot join it", bus->name,
+        rt_set_error(rt, "membus %s: open in %s mode, a %s line cannot join it", bus->name,
                   mode_names[bus->mode], mode_names[l->line.mode]);
         return CO_RT_ERR_MODE;
     }
     if (!co_membus_attach(&bus->bus, &l->line)) {
-        set_error(rt, "membus %s: already %d lines", bus->name, CO_MEMBUS_MAX_LINES);
+        rt_set_error(rt, "membus %s: already %d lines", bus->name, CO_MEMBUS_MAX_LINES);
         return CO_RT_ERR_FULL;
     }
     return CO_RT_OK;
@@ -1318,14 +1174,14 @@ static int join_membus(co_rt_t *rt, rt_line_t *l)
 static int register_line(co_rt_t *rt, rt_line_t *l)
 {
     if (rt->line_count == RT_MAX_LINES) {
-        set_error(rt, "%s: already %d lines in this runtime", l->channel, RT_MAX_LINES);
+        rt_set_error(rt, "%s: already %d lines in this runtime", l->channel, RT_MAX_LINES);
         return CO_RT_ERR_FULL;
     }
     int status = CO_RT_OK;
     if (l->driver == CO_DRIVER_MEMBUS) {
         status = join_membus(rt, l);
     } else if (l->driver == CO_DRIVER_SOCKETCAN && !socket_watch(rt, l, EPOLL_CTL_ADD, false)) {
-        set_error(rt, "%s: epoll_ctl failed: %s", l->channel, strerror(errno));
+        rt_set_error(rt, "%s: epoll_ctl failed: %s", l->channel, strerror(errno));
         status = CO_RT_ERR_SOCKET;
     }
     if (status != CO_RT_OK) {
@@ -1348,7 +1204,7 @@ int co_rt_add_line(co_rt_t *rt, const co_rt_line_config_t *config)
     }
     rt_line_t *l = line_new(rt, config);
     if (!l) {
-        set_error(rt, "%s: out of memory for the line's queues", config->channel);
+        rt_set_error(rt, "%s: out of memory for the line's queues", config->channel);
         return CO_RT_ERR_NO_MEMORY;
     }
     pthread_mutex_lock(&rt->life_lock);
@@ -1366,21 +1222,21 @@ int co_rt_add_line(co_rt_t *rt, const co_rt_line_config_t *config)
         line_free(l);
         return status;
     }
-    wake(rt);
+    rt_wake(rt);
     return l->index;
 }
 
 /* ================================================================ commands */
 
 __attribute__((format(printf, 2, 3)))
-static int argument_error(co_rt_t *rt, const char *fmt, ...)
+int rt_argument_error(co_rt_t *rt, const char *fmt, ...)
 {
     char text[RT_ERROR_SIZE];
     va_list args;
     va_start(args, fmt);
     vsnprintf(text, sizeof text, fmt, args);
     va_end(args);
-    set_error(rt, "%s", text);
+    rt_set_error(rt, "%s", text);
     return CO_RT_ERR_ARGUMENT;
 }
 
@@ -1390,7 +1246,7 @@ static int check_node_id(co_rt_t *rt, uint32_t node_id, bool all_allowed)
     if (node_id >= lowest && node_id <= 127) {
         return CO_RT_OK;
     }
-    return argument_error(rt, "node-id %u outside %u..127%s", (unsigned)node_id,
+    return rt_argument_error(rt, "node-id %u outside %u..127%s", (unsigned)node_id,
                           (unsigned)lowest, all_allowed ? " (0 = all nodes)" : "");
 }
 
@@ -1399,7 +1255,7 @@ static int check_ms(co_rt_t *rt, const char *what, uint32_t ms)
     if (ms <= 65535u) {
         return CO_RT_OK;
     }
-    return argument_error(rt, "%s %u ms above 65535", what, (unsigned)ms);
+    return rt_argument_error(rt, "%s %u ms above 65535", what, (unsigned)ms);
 }
 
 static int check_nmt_command(co_rt_t *rt, uint32_t command)
@@ -1407,7 +1263,7 @@ static int check_nmt_command(co_rt_t *rt, uint32_t command)
     if (command <= 0xFFu && co_nmt_command_is_valid((uint8_t)command)) {
         return CO_RT_OK;
     }
-    return argument_error(rt, "NMT command 0x%02X unknown (0x01 start, 0x02 stop, "
+    return rt_argument_error(rt, "NMT command 0x%02X unknown (0x01 start, 0x02 stop, "
                               "0x80 pre-operational, 0x81 reset node, 0x82 reset communication)",
                           (unsigned)command);
 }
@@ -1415,11 +1271,11 @@ static int check_nmt_command(co_rt_t *rt, uint32_t command)
 static int check_frame(co_rt_t *rt, const rt_line_t *l, const co_frame_t *f)
 {
     if (!co_frame_is_valid(f)) {
-        return argument_error(rt, "malformed frame (id 0x%X, len %u, flags 0x%02X)",
+        return rt_argument_error(rt, "malformed frame (id 0x%X, len %u, flags 0x%02X)",
                               (unsigned)f->id, f->len, f->flags);
     }
     if ((f->flags & CO_FRAME_FD) && l->line.mode == CO_MODE_CLASSIC) {
-        return argument_error(rt, "line %d is classic: it cannot send FD frames", l->index);
+        return rt_argument_error(rt, "line %d is classic: it cannot send FD frames", l->index);
     }
     return CO_RT_OK;
 }
@@ -1445,12 +1301,12 @@ static int check_command_args(co_rt_t *rt, const rt_line_t *l, const co_rt_comma
         return check_node_id(rt, cmd->a, false);
     case CO_CMD_ALLOW_OPERATIONAL:
         return cmd->a <= 1 ? CO_RT_OK
-                           : argument_error(rt, "allow-operational flag %u is not 0 or 1",
+                           : rt_argument_error(rt, "allow-operational flag %u is not 0 or 1",
                                             (unsigned)cmd->a);
     case CO_CMD_SEND_FRAME:
         return check_frame(rt, l, &cmd->frame);
     default:
-        return argument_error(rt, "command kind %d unknown", cmd->kind);
+        return rt_argument_error(rt, "command kind %d unknown", cmd->kind);
     }
 }
 
@@ -1458,7 +1314,7 @@ static int validate_command(co_rt_t *rt, const co_rt_command_t *cmd)
 {
     int count = __atomic_load_n(&rt->line_count, __ATOMIC_ACQUIRE);
     if (cmd->line < 0 || cmd->line >= count) {
-        return argument_error(rt, "line %d does not exist (%d open)", cmd->line, count);
+        return rt_argument_error(rt, "line %d does not exist (%d open)", cmd->line, count);
     }
     return check_command_args(rt, rt->lines[cmd->line], cmd);
 }
@@ -1477,7 +1333,7 @@ static int node_create_now(co_rt_t *rt, const co_rt_command_t *cmd)
     }
     pthread_mutex_unlock(&rt->lock);
     if (status == CO_RT_OK) {
-        wake(rt);
+        rt_wake(rt);
     }
     return status;
 }
@@ -1506,26 +1362,26 @@ int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
     }
     pthread_mutex_unlock(&m->lock);
     if (status == CO_RT_ERR_FULL) {
-        set_error(rt, "command mailbox full (%d commands pending)", RT_MAILBOX_SIZE);
+        rt_set_error(rt, "command mailbox full (%d commands pending)", RT_MAILBOX_SIZE);
     }
     if (status == CO_RT_OK) {
-        wake(rt);
+        rt_wake(rt);
     }
     return status;
 }
 
 /* ================================================================ host driver */
 
-static rt_line_t *checked_line(co_rt_t *rt, int line, bool host_only)
+rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only)
 {
     int count = __atomic_load_n(&rt->line_count, __ATOMIC_ACQUIRE);
     if (line < 0 || line >= count) {
-        argument_error(rt, "line %d does not exist (%d open)", line, count);
+        rt_argument_error(rt, "line %d does not exist (%d open)", line, count);
         return NULL;
     }
     rt_line_t *l = rt->lines[line];
     if (host_only && l->driver != CO_DRIVER_HOST) {
-        argument_error(rt, "line %d (%s) is not a host-driver line", line, l->channel);
+        rt_argument_error(rt, "line %d (%s) is not a host-driver line", line, l->channel);
         return NULL;
     }
     return l;
@@ -1533,7 +1389,7 @@ static rt_line_t *checked_line(co_rt_t *rt, int line, bool host_only)
 
 int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, true) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, true) : NULL;
     if (!l || !frame) {
         return CO_RT_ERR_ARGUMENT;
     }
@@ -1547,13 +1403,13 @@ int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame)
     if (!queued) {
         return CO_RT_ERR_FULL;   /* counted as rx overflow by the line */
     }
-    wake(rt);
+    rt_wake(rt);
     return CO_RT_OK;
 }
 
 int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int timeout_ms)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, true) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, true) : NULL;
     if (!l || !frames || max <= 0) {
         return CO_RT_ERR_ARGUMENT;
     }
@@ -1573,19 +1429,19 @@ int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int 
     h->waiters--;
     pthread_mutex_unlock(&h->lock);
     if (refill) {
-        wake(rt);   /* the line has more frames waiting for room */
+        rt_wake(rt);   /* the line has more frames waiting for room */
     }
     return result;
 }
 
 int co_rt_host_comm_event(co_rt_t *rt, int line, int event)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, true) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, true) : NULL;
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
     if (event < CO_COMM_BUS_OFF || event > CO_COMM_BUS_OFF_RECOVERED) {
-        return argument_error(rt, "communication event %d unknown", event);
+        return rt_argument_error(rt, "communication event %d unknown", event);
     }
     pthread_mutex_lock(&rt->lock);
     bool closed = rt->stopping;
@@ -1600,7 +1456,7 @@ int co_rt_host_comm_event(co_rt_t *rt, int line, int event)
 
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, false) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
     if (!l || !out) {
         return CO_RT_ERR_ARGUMENT;
     }
@@ -1612,7 +1468,7 @@ int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out)
 
 int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, false) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
     if (!l || !out) {
         return CO_RT_ERR_ARGUMENT;
     }
@@ -1632,7 +1488,7 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
 
 int co_rt_local_state(co_rt_t *rt, int line)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, false) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
@@ -1644,203 +1500,15 @@ int co_rt_local_state(co_rt_t *rt, int line)
 
 int co_rt_remote_state(co_rt_t *rt, int line, int node_id)
 {
-    rt_line_t *l = rt ? checked_line(rt, line, false) : NULL;
+    rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
     if (node_id < 1 || node_id > 127) {
-        return argument_error(rt, "node-id %d outside 1..127", node_id);
+        return rt_argument_error(rt, "node-id %d outside 1..127", node_id);
     }
     pthread_mutex_lock(&rt->lock);
     int state = l->hb.last_state[node_id];
     pthread_mutex_unlock(&rt->lock);
     return state;
-}
-
-/* ================================================================ object dictionary */
-
-static const char *od_add_problem(co_od_add_result_t r)
-{
-    switch (r) {
-    case CO_OD_ERR_FULL: return "no room";
-    case CO_OD_ERR_DUPLICATE: return "defined twice";
-    case CO_OD_ERR_TYPE: return "unknown type, flags, or size that does not fit the type";
-    case CO_OD_ERR_DEFAULT: return "default longer than the entry or outside its limits";
-    case CO_OD_ERR_LIMITS: return "minimum above maximum";
-    case CO_OD_ERR_SEALED: return "dictionary already in use";
-    default: return "refused";
-    }
-}
-
-/* Under rt->lock: allocate and fill the OD (setup time, before the node). */
-static int od_fill(co_rt_t *rt, rt_line_t *l, const co_od_def_t *defs, uint32_t count)
-{
-    uint64_t pool = 0;
-    for (uint32_t i = 0; i < count; i++) {
-        pool += co_od_pool_need(&defs[i]);
-    }
-    if (pool > UINT32_MAX) {
-        return argument_error(rt, "line %d: object dictionary too large", l->index);
-    }
-    l->od_entries = calloc(count ? count : 1, sizeof *l->od_entries);
-    l->od_pool = calloc(pool ? (size_t)pool : 1, 1);
-    if (!l->od_entries || !l->od_pool) {
-        set_error(rt, "line %d: no memory for %u OD entries", l->index, (unsigned)count);
-        return CO_RT_ERR_NO_MEMORY;
-    }
-    co_od_init(&l->od, l->line.mode, l->od_entries, count, l->od_pool, (uint32_t)pool,
-               l->od_subs, RT_OD_SUBSCRIPTIONS);
-    for (uint32_t i = 0; i < count; i++) {
-        co_od_add_result_t r = co_od_add(&l->od, &defs[i]);
-        if (r != CO_OD_ADDED && r != CO_OD_SKIPPED_MODE) {
-            return argument_error(rt, "line %d: OD entry 0x%04X:%02X: %s", l->index,
-                                  defs[i].index, defs[i].sub, od_add_problem(r));
-        }
-    }
-    return CO_RT_OK;
-}
-
-static void od_release(rt_line_t *l)
-{
-    free(l->od_entries);
-    free(l->od_pool);
-    free(l->store_path);
-    l->od_entries = NULL;
-    l->od_pool = NULL;
-    l->store_path = NULL;
-}
-
-int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count,
-                    const char *store_path)
-{
-    rt_line_t *l = checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    if (!defs && count > 0) {
-        return argument_error(rt, "line %d: no OD entries given", line);
-    }
-    pthread_mutex_lock(&rt->lock);
-    int status = CO_RT_OK;
-    if (l->has_node || l->has_od) {
-        set_error(rt, "line %d: the object dictionary must be defined once, before the local "
-                  "node", line);
-        status = CO_RT_ERR_STATE;
-    } else {
-        status = od_fill(rt, l, defs, count);
-        if (status == CO_RT_OK && store_path && store_path[0]) {
-            l->store_path = strdup(store_path);
-            status = l->store_path ? CO_RT_OK : CO_RT_ERR_NO_MEMORY;
-        }
-        if (status == CO_RT_OK) {
-            l->has_od = true;
-        } else {
-            od_release(l);
-        }
-    }
-    pthread_mutex_unlock(&rt->lock);
-    return status;
-}
-
-/* Under rt->lock: the line's served OD, or NULL with the reason set. */
-static co_od_t *served_od(co_rt_t *rt, rt_line_t *l)
-{
-    if (!l->has_node || !l->has_od) {
-        set_error(rt, "line %d has no local node serving an object dictionary", l->index);
-        return NULL;
-    }
-    return &l->od;
-}
-
-int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *buf,
-                  uint32_t capacity, uint32_t *length)
-{
-    rt_line_t *l = checked_line(rt, line, false);
-    if (!l || !buf || !length) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    pthread_mutex_lock(&rt->lock);
-    co_od_t *od = served_od(rt, l);
-    int result = od ? (int)co_od_get(od, index, sub, buf, capacity, length) : CO_RT_ERR_STATE;
-    pthread_mutex_unlock(&rt->lock);
-    return result;
-}
-
-int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uint8_t *data,
-                   uint32_t length)
-{
-    rt_line_t *l = checked_line(rt, line, false);
-    if (!l || (!data && length > 0)) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    pthread_mutex_lock(&rt->lock);
-    co_od_t *od = served_od(rt, l);
-    int result = CO_RT_ERR_STATE;
-    if (od) {
-        /* Services re-arm timers from the line's clock (0x1017 at once). */
-        co_line_set_time(&l->line, co_rt_now_us());
-        result = (int)co_od_put(od, index, sub, data, length);
-    }
-    pthread_mutex_unlock(&rt->lock);
-    if (result == 0) {
-        wake(rt);   /* a deadline may have moved earlier */
-    }
-    return result;
-}
-
-/* Under rt->lock: the store of the line's node, or NULL with the reason set. */
-static co_store_t *served_store(co_rt_t *rt, rt_line_t *l)
-{
-    if (!served_od(rt, l)) {
-        return NULL;
-    }
-    if (!l->store_path) {
-        set_error(rt, "line %d: the local node has no parameter store (give a store file)",
-                  l->index);
-        return NULL;
-    }
-    return &l->store;
-}
-
-static int store_call(co_rt_t *rt, int line, int group_mask, bool save)
-{
-    rt_line_t *l = checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    if (group_mask <= 0 || group_mask > CO_GROUP_ALL) {
-        return argument_error(rt, "parameter group mask %d outside 1..%d", group_mask,
-                              CO_GROUP_ALL);
-    }
-    pthread_mutex_lock(&rt->lock);
-    co_store_t *store = served_store(rt, l);
-    int result = CO_RT_ERR_STATE;
-    if (store) {
-        result = (int)(save ? co_store_save(store, (uint8_t)group_mask)
-                            : co_store_restore_defaults(store, (uint8_t)group_mask));
-    }
-    pthread_mutex_unlock(&rt->lock);
-    return result;
-}
-
-int co_rt_od_save(co_rt_t *rt, int line, int group_mask)
-{
-    return store_call(rt, line, group_mask, true);
-}
-
-int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask)
-{
-    return store_call(rt, line, group_mask, false);
-}
-
-int co_rt_store_status(co_rt_t *rt, int line)
-{
-    rt_line_t *l = checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    pthread_mutex_lock(&rt->lock);
-    int result = served_store(rt, l) ? (int)l->node.store_status : CO_RT_ERR_STATE;
-    pthread_mutex_unlock(&rt->lock);
-    return result;
 }

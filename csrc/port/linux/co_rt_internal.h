@@ -1,0 +1,173 @@
+/* Linux runtime internals shared by its source files (co_runtime.c: thread,
+ * lines, drivers, commands; co_rt_od.c: the local node's object dictionary
+ * and its Python indications). Not part of the Python API. */
+#ifndef CO_RT_INTERNAL_H
+#define CO_RT_INTERNAL_H
+
+#include "co_runtime.h"
+
+#include "../../core/co_node.h"
+#include "../../core/co_od.h"
+#include "../../core/co_store.h"
+#include "../../core/co_usdo_server.h"
+#include "co_store_file.h"
+#include "../../drivers/co_membus.h"
+#include "../../drivers/co_socketcan.h"
+
+#include <pthread.h>
+#include <stdbool.h>
+#include <stdint.h>
+
+enum {
+    RT_MAX_LINES = 64,
+    RT_MAX_BUSES = 64,
+    RT_DEFAULT_QUEUE = 1024,
+    RT_MAX_QUEUE = 1 << 20,
+    RT_DEFAULT_EVENTS = 4096,
+    RT_MAX_EVENT_CAPACITY = 1 << 22,
+    RT_MAILBOX_SIZE = 1024,
+    RT_MAIL_CHUNK = 64,
+    RT_TRANSFER_ROUNDS = 16,
+    RT_EPOLL_BATCH = 32,
+    RT_ERROR_SIZE = 256,
+    RT_CHANNEL_SIZE = 64,
+    RT_HB_ENTRIES = 127,
+    RT_OD_SUBSCRIPTIONS = 8,
+    RT_USDO_SESSIONS = 8
+};
+
+#define RT_REOPEN_US 500000u       /* retry period for a vanished interface */
+#define RT_NOBUFS_RETRY_US 1000u   /* ENOBUFS does not wake EPOLLOUT: poll instead */
+
+enum { TAG_WAKE = 1, TAG_TIMER = 2, TAG_SOCKET = 3 };
+
+struct rt_line;
+
+/* What an epoll event points at. */
+typedef struct rt_tag {
+    int kind;
+    struct rt_line *line;
+} rt_tag_t;
+
+typedef struct rt_bus {
+    char name[RT_CHANNEL_SIZE];
+    co_mode_t mode;
+    co_membus_t bus;
+} rt_bus_t;
+
+typedef struct rt_socket {
+    co_socketcan_t sock;
+    rt_tag_t tag;
+    bool down;             /* closed after the interface went away */
+    bool want_out;         /* EAGAIN: waiting for EPOLLOUT */
+    uint64_t reopen_at;
+    uint64_t retry_at;     /* ENOBUFS: send again at this time */
+    uint32_t tx_refused;   /* frames the kernel refused (reported as TX_OVERFLOW) */
+    uint32_t down_count;
+} rt_socket_t;
+
+typedef struct rt_host {
+    pthread_mutex_t lock;
+    pthread_cond_t ready;
+    co_frame_queue_t out;  /* frames for co_rt_host_transmit */
+    co_frame_t *slots;
+    uint32_t waiters;
+    bool stalled;          /* the line holds frames the full out-queue refused */
+    bool closed;
+} rt_host_t;
+
+typedef struct rt_line {
+    co_rt_t *rt;
+    int index;
+    int driver;
+    bool monitor;
+    bool allow_operational;
+    bool has_node;
+    char channel[RT_CHANNEL_SIZE];
+    co_line_t line;
+    co_frame_t *rx_slots;
+    co_frame_t *tx_slots;
+    uint32_t rx_seen;      /* rx frames already posted as CO_EV_FRAME */
+    co_hb_consumer_t hb;
+    co_hb_entry_t hb_entries[RT_HB_ENTRIES];
+    co_node_t node;
+    /* The local node's object dictionary (co_rt_od_define) and its store. */
+    bool has_od;
+    co_od_t od;
+    co_od_entry_t *od_entries;
+    uint8_t *od_pool;
+    co_od_subscription_t od_subs[RT_OD_SUBSCRIPTIONS];
+    char *store_path;                /* NULL: no store */
+    co_store_file_t *store_file;
+    uint8_t *store_buffer;
+    co_store_t store;
+    /* fd lines: the node's OD served over USDO. */
+    bool has_usdo;
+    co_usdo_server_t usdo;
+    co_usdo_session_t usdo_sessions[RT_USDO_SESSIONS];
+    uint8_t *usdo_scratch;
+    rt_socket_t sc;
+    rt_host_t host;
+} rt_line_t;
+
+typedef struct rt_events {
+    pthread_mutex_t lock;
+    pthread_cond_t ready;
+    co_rt_event_t *ring;
+    uint32_t capacity;
+    uint32_t head;
+    uint32_t count;
+    uint32_t lost;         /* dropped since the last CO_EV_EVENTS_LOST */
+    uint32_t waiters;
+    bool closed;
+} rt_events_t;
+
+typedef struct rt_mailbox {
+    pthread_mutex_t lock;
+    co_rt_command_t ring[RT_MAILBOX_SIZE];
+    uint32_t head;
+    uint32_t count;
+    bool closed;
+} rt_mailbox_t;
+
+struct co_rt {
+    pthread_mutex_t life_lock;
+    pthread_mutex_t lock;
+    pthread_mutex_t error_lock;
+    pthread_t thread;
+    bool started;
+    bool closed;           /* stopped for good (under life_lock) */
+    bool stopping;         /* under lock: refuse host calls, leave the loop */
+    int epfd;
+    int wakefd;
+    int timerfd;
+    rt_tag_t wake_tag;
+    rt_tag_t timer_tag;
+    uint64_t armed_us;     /* deadline the timerfd holds */
+    int line_count;        /* published with release ordering after lines[] */
+    rt_line_t *lines[RT_MAX_LINES];
+    int bus_count;
+    rt_bus_t *buses[RT_MAX_BUSES];
+    rt_mailbox_t mail;
+    rt_events_t events;
+    char error[RT_ERROR_SIZE];
+};
+
+/* Shared helpers (co_runtime.c). */
+__attribute__((format(printf, 2, 3)))
+void rt_set_error(co_rt_t *rt, const char *fmt, ...);
+/* Sets the error text and returns CO_RT_ERR_ARGUMENT. */
+__attribute__((format(printf, 2, 3)))
+int rt_argument_error(co_rt_t *rt, const char *fmt, ...);
+/* The line, or NULL with the error set (host_only: host-driver lines only). */
+rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only);
+/* Wake the thread (a deadline or the tx queue changed). */
+void rt_wake(co_rt_t *rt);
+/* Post an event of line l (dropped and counted when the queue is full). */
+void rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
+             const co_frame_t *frame);
+
+/* co_rt_od.c */
+void rt_od_release(rt_line_t *l);
+
+#endif
