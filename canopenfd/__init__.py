@@ -15,6 +15,7 @@ facade over it::
 __version__ = "0.1.0"
 
 from .decode import decode
+from .indications import ODRequest
 from .errors import (AbortError, CanopenFDError, ClosedError, CommandError, ConfigurationError,
                      InterfaceError)
 from .frame import Frame

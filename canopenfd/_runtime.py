@@ -181,6 +181,36 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
+    def od_indicate(self, line: int, first: int, last: int, kinds: int, what: str) -> None:
+        """Network reads/writes of keys first..last (index << 8 | sub) wait on
+        the application (CO_EV_OD_REQUEST) until od_answer."""
+        with self._lock:
+            rc = lib.co_rt_od_indicate(self._live(what), line, first >> 8, first & 0xFF,
+                                       last >> 8, last & 0xFF, kinds)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def od_request_value(self, line: int, token: int, what: str) -> bytes:
+        """The value a waiting check-write would write."""
+        size = 64
+        length = ffi.new("uint32_t *")
+        while True:
+            buf = ffi.new("uint8_t[]", size)
+            with self._lock:
+                rc = lib.co_rt_od_request_value(self._live(what), line, token, buf, size, length)
+                grow = rc == lib.CO_RT_ERR_ARGUMENT and length[0] > size
+                if rc < 0 and not grow:
+                    self._raise(rc, what)
+            if not grow:
+                return bytes(ffi.buffer(buf, length[0]))
+            size = length[0]
+
+    def od_answer(self, line: int, token: int, abort: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_od_answer(self._live(what), line, token, abort)
+            if rc < 0:
+                self._raise(rc, what)
+
     def od_store(self, line: int, group_mask: int, save: bool, what: str) -> int:
         call = lib.co_rt_od_save if save else lib.co_rt_od_restore_defaults
         with self._lock:

@@ -309,6 +309,9 @@ class Line:
             elif kind == lib.CO_EV_OD_CHANGED:
                 if self.local_node is not None:
                     run = self.local_node._event_changed(a, b)
+            elif kind == lib.CO_EV_OD_REQUEST:
+                if self.local_node is not None:
+                    run = self.local_node._event_request(a, b)
             elif kind == lib.CO_EV_STORE:
                 if self.local_node is not None:
                     run = self.local_node._event_store(a, b)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, Optional, Tuple, U
 
 from ._callbacks import CallbackList
 from ._runtime import lib
+from .indications import READ, WRITE, Indications, ODRequest
 from .errors import AbortError, ConfigurationError
 from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
 from .od import ObjectDictionary, ODVariable
@@ -87,6 +88,7 @@ class LocalNode:
         self.store = store
         self._store_problems = CallbackList(f"node {node_id} store problem")
         self._changed = CallbackList(f"node {node_id} object changed")
+        self._indications = Indications(self)
         self._booted = False
         self.nmt = LocalNmt(self)
         self._heartbeat_default_ms = heartbeat_ms
@@ -118,6 +120,7 @@ class LocalNode:
                     f"{self._where} is already booted (restart it with apply('reset-node'))")
             if self.od is not None:
                 self._define_od()
+                self._indications.register_all()
             self.line._create_node(self.node_id, self._heartbeat_ms, self._where)
             self._booted = True
 
@@ -138,13 +141,39 @@ class LocalNode:
         """The value of an entry of the served OD, by index, "index:sub",
         (index, sub), name or "Object.Sub": `node["Producer heartbeat time"].raw`;
         an ARRAY/RECORD gives a LocalObject: `node[0x1018][1].raw`."""
-        if self.od is None:
-            raise ConfigurationError(f"{self._where} serves no object dictionary "
-                                     "(create it with od=...)")
-        entry = self.od[key]
+        entry = self._entry(key)
         if isinstance(entry, ODVariable):
             return LocalValue(self, entry)
         return LocalObject(self, entry)
+
+    def _entry(self, key: Any) -> Any:
+        if self.od is None:
+            raise ConfigurationError(f"{self._where} serves no object dictionary "
+                                     "(create it with od=...)")
+        return self.od[key]
+
+    # ---------------------------------------------------------------- indications
+    def on_read(self, key: Any, callback: Optional[Callable[[ODRequest], Any]] = None):
+        """callback(request) before the network (SDO/USDO upload) reads the
+        entry `key` (an ARRAY/RECORD: any of its sub-indices). It may refresh
+        the value (`node[key].raw = ...`), refuse the read (return an abort
+        code or raise AbortError) or `request.defer()` and answer later."""
+        return self._indications.add(key, READ, callback)
+
+    def on_write(self, key: Any, callback: Optional[Callable[[ODRequest], Any]] = None):
+        """callback(request) before a network write of `key` changes anything:
+        `request.value` is the new value (type, length and limits already
+        checked). Return None to accept, an abort code (or raise AbortError)
+        to refuse, or `request.defer()` and answer later. Without callback: a
+        decorator."""
+        return self._indications.add(key, WRITE, callback)
+
+    def remove_indication(self, callback: Callable[[ODRequest], Any]) -> None:
+        """Forget an on_read/on_write callback."""
+        self._indications.remove(callback)
+
+    def _event_request(self, key: int, token: int) -> Optional[Callable[[], None]]:
+        return self._indications.event(key, token)
 
     def save_parameters(self, group: str = "all") -> None:
         """What writing "save" to 0x1010 does: the stored entries of `group`

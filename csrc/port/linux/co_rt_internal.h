@@ -32,7 +32,9 @@ enum {
     RT_ERROR_SIZE = 256,
     RT_CHANNEL_SIZE = 64,
     RT_HB_ENTRIES = 127,
-    RT_OD_SUBSCRIPTIONS = 8,
+    RT_INDICATIONS = 16,          /* key ranges with Python indications */
+    RT_OD_SUBSCRIPTIONS = 8 + RT_INDICATIONS,
+    RT_REQUESTS = 32,             /* network accesses waiting on Python at once */
     RT_USDO_SESSIONS = 8
 };
 
@@ -76,6 +78,20 @@ typedef struct rt_host {
     bool closed;
 } rt_host_t;
 
+/* A key range whose network reads and/or writes wait on Python. */
+typedef struct rt_indication {
+    struct rt_line *line;
+    uint8_t kinds;           /* CO_RT_INDICATE_READ | CO_RT_INDICATE_WRITE */
+} rt_indication_t;
+
+/* A network access parked (CO_OD_SPLIT) until Python answers it. */
+typedef struct rt_request {
+    co_od_xfer_t *xfer;      /* NULL: slot free */
+    const uint8_t *value;    /* check-write: the new value (the server's scratch) */
+    uint32_t length;
+    uint16_t generation;     /* a stale token does not match a reused slot */
+} rt_request_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -97,6 +113,9 @@ typedef struct rt_line {
     co_od_entry_t *od_entries;
     uint8_t *od_pool;
     co_od_subscription_t od_subs[RT_OD_SUBSCRIPTIONS];
+    rt_indication_t indications[RT_INDICATIONS];
+    uint8_t indication_count;
+    rt_request_t requests[RT_REQUESTS];
     char *store_path;                /* NULL: no store */
     co_store_file_t *store_file;
     uint8_t *store_buffer;
@@ -163,11 +182,13 @@ int rt_argument_error(co_rt_t *rt, const char *fmt, ...);
 rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only);
 /* Wake the thread (a deadline or the tx queue changed). */
 void rt_wake(co_rt_t *rt);
-/* Post an event of line l (dropped and counted when the queue is full). */
-void rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
+/* Post an event of line l; false when the queue was full (dropped, counted). */
+bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
              const co_frame_t *frame);
 
 /* co_rt_od.c */
 void rt_od_release(rt_line_t *l);
+/* Forget every access waiting on Python (the servers holding them are gone). */
+void rt_od_drop_requests(rt_line_t *l);
 
 #endif

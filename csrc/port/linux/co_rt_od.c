@@ -192,3 +192,174 @@ int co_rt_store_status(co_rt_t *rt, int line)
     pthread_mutex_unlock(&rt->lock);
     return result;
 }
+
+/* ================================================================ Python indications
+ * A network access to a range the application watches is parked with
+ * CO_OD_SPLIT (the runtime thread never calls Python), posted as
+ * CO_EV_OD_REQUEST and resumed by co_rt_od_answer from any thread. */
+
+enum { TOKEN_SLOT_BITS = 8, TOKEN_KIND_SHIFT = 24 };
+
+static uint32_t token_of(const rt_line_t *l, uint32_t slot, uint8_t kind)
+{
+    return (uint32_t)kind << TOKEN_KIND_SHIFT |
+           (uint32_t)l->requests[slot].generation << TOKEN_SLOT_BITS | slot;
+}
+
+/* Runtime thread, under rt->lock: park the access and tell Python. */
+static uint32_t park(rt_indication_t *ind, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                     const uint8_t *value, uint32_t length, uint8_t kind)
+{
+    rt_line_t *l = ind->line;
+    if (!(ind->kinds & kind)) {
+        return 0;
+    }
+    for (uint32_t i = 0; i < RT_REQUESTS; i++) {
+        rt_request_t *r = &l->requests[i];
+        if (r->xfer) {
+            continue;
+        }
+        r->xfer = xfer;
+        r->value = value;
+        r->length = length;
+        r->generation = (uint16_t)(r->generation + 1u);
+        if (!rt_post(l, CO_EV_OD_REQUEST, l->node.nmt.node_id, e->key, token_of(l, i, kind),
+                     NULL)) {
+            r->xfer = NULL;   /* nobody would ever answer it */
+            return CO_ABORT_NO_RESOURCE;
+        }
+        return CO_OD_SPLIT;
+    }
+    return CO_ABORT_NO_RESOURCE;   /* more accesses wait than the table holds */
+}
+
+static uint32_t on_before_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                               void *user)
+{
+    (void)od;
+    return park(user, xfer, e, NULL, 0, CO_RT_INDICATE_READ);
+}
+
+static uint32_t on_check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                               const uint8_t *value, uint32_t length, void *user)
+{
+    (void)od;
+    return park(user, xfer, e, value, length, CO_RT_INDICATE_WRITE);
+}
+
+static const co_od_handler_t indication_handler = {.before_read = on_before_read,
+                                                   .check_write = on_check_write};
+
+void rt_od_drop_requests(rt_line_t *l)
+{
+    for (uint32_t i = 0; i < RT_REQUESTS; i++) {
+        l->requests[i].xfer = NULL;
+    }
+}
+
+int co_rt_od_indicate(co_rt_t *rt, int line, uint16_t first_index, uint8_t first_sub,
+                      uint16_t last_index, uint8_t last_sub, int kinds)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (kinds <= 0 || kinds > (CO_RT_INDICATE_READ | CO_RT_INDICATE_WRITE)) {
+        return rt_argument_error(rt, "line %d: indication kinds %d (1 read, 2 write, 3 both)",
+                                 line, kinds);
+    }
+    if (((uint32_t)first_index << 8 | first_sub) > ((uint32_t)last_index << 8 | last_sub)) {
+        return rt_argument_error(rt, "line %d: indication range 0x%04X:%02X..0x%04X:%02X is "
+                                 "empty", line, first_index, first_sub, last_index, last_sub);
+    }
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    if (!l->has_od) {
+        rt_set_error(rt, "line %d: define the object dictionary before its indications", line);
+        status = CO_RT_ERR_STATE;
+    } else if (l->indication_count == RT_INDICATIONS) {
+        rt_set_error(rt, "line %d: no room for more than %d indication ranges", line,
+                     RT_INDICATIONS);
+        status = CO_RT_ERR_FULL;
+    } else {
+        rt_indication_t *ind = &l->indications[l->indication_count];
+        ind->line = l;
+        ind->kinds = (uint8_t)kinds;
+        if (co_od_subscribe(&l->od, first_index, first_sub, last_index, last_sub,
+                            &indication_handler, ind)) {
+            l->indication_count++;
+        } else {
+            rt_set_error(rt, "line %d: object dictionary handler table full", line);
+            status = CO_RT_ERR_FULL;
+        }
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return status;
+}
+
+/* Under rt->lock: the waiting request of token, or NULL with the reason set. */
+static rt_request_t *waiting_request(co_rt_t *rt, rt_line_t *l, uint32_t token)
+{
+    uint32_t slot = token & ((1u << TOKEN_SLOT_BITS) - 1u);
+    rt_request_t *r = slot < RT_REQUESTS ? &l->requests[slot] : NULL;
+    if (!r || !r->xfer || token != token_of(l, slot, (uint8_t)(token >> TOKEN_KIND_SHIFT))) {
+        rt_set_error(rt, "line %d: no access waits on token 0x%08X (answered already?)",
+                     l->index, (unsigned)token);
+        return NULL;
+    }
+    return r;
+}
+
+int co_rt_od_request_value(co_rt_t *rt, int line, uint32_t token, uint8_t *buf,
+                           uint32_t capacity, uint32_t *length)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l || !length || (!buf && capacity > 0)) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_ERR_STATE;
+    rt_request_t *r = waiting_request(rt, l, token);
+    if (r) {
+        *length = r->length;
+        if (r->length > capacity) {
+            rt_set_error(rt, "line %d: value of %u bytes, buffer of %u", line,
+                         (unsigned)r->length, (unsigned)capacity);
+            status = CO_RT_ERR_ARGUMENT;
+        } else {
+            if (r->length > 0) {
+                memcpy(buf, r->value, r->length);
+            }
+            status = CO_RT_OK;
+        }
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return status;
+}
+
+int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (abort == CO_OD_SPLIT) {
+        return rt_argument_error(rt, "line %d: 0x%08X is not an abort code", line,
+                                 (unsigned)abort);
+    }
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_ERR_STATE;
+    rt_request_t *r = waiting_request(rt, l, token);
+    if (r) {
+        co_od_xfer_t *xfer = r->xfer;
+        r->xfer = NULL;   /* free before resuming: the rest of the chain may park again */
+        co_line_set_time(&l->line, co_rt_now_us());
+        if (l->has_usdo) {
+            co_usdo_server_resume(&l->usdo, xfer, abort);
+        }
+        status = CO_RT_OK;
+    }
+    pthread_mutex_unlock(&rt->lock);
+    rt_wake(rt);   /* the answer frame waits in the tx queue */
+    return status;
+}

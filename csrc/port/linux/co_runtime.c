@@ -139,30 +139,32 @@ static void push_lost_marker(rt_events_t *q)
     q->lost = 0;
 }
 
-static void events_post(rt_events_t *q, const co_rt_event_t *ev)
+static bool events_post(rt_events_t *q, const co_rt_event_t *ev)
 {
     pthread_mutex_lock(&q->lock);
     push_lost_marker(q);
-    if (q->count == q->capacity) {
-        q->lost++;
-    } else {
+    bool queued = q->count < q->capacity;
+    if (queued) {
         ring_push(q, ev);
+    } else {
+        q->lost++;
     }
     if (q->waiters > 0) {
         pthread_cond_signal(&q->ready);
     }
     pthread_mutex_unlock(&q->lock);
+    return queued;
 }
 
-void rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
-                 const co_frame_t *frame)
+bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
+             const co_frame_t *frame)
 {
     co_rt_event_t ev = {.kind = kind, .line = l->index, .node = node, .a = a, .b = b,
                         .time_us = co_rt_now_us()};
     if (frame) {
         ev.frame = *frame;
     }
-    events_post(&l->rt->events, &ev);
+    return events_post(&l->rt->events, &ev);
 }
 
 int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_ms)
@@ -348,6 +350,7 @@ static int need_node(co_rt_t *rt, const rt_line_t *l, int kind)
 /* Drop a defined OD and its store (the node did not come up with it). */
 static void od_forget(rt_line_t *l)
 {
+    rt_od_drop_requests(l);
     if (l->has_usdo) {
         co_usdo_server_deinit(&l->usdo);
         l->has_usdo = false;

@@ -74,8 +74,12 @@ typedef enum co_rt_event_kind {
     CO_EV_COMMAND_FAILED = 8,  /* a = co_rt_command_kind_t, b = -co_rt_status_t */
     CO_EV_OD_CHANGED = 9,      /* local OD entry written by the network or a PDO:
                                   a = index << 8 | sub, b = co_od_origin_t */
-    CO_EV_STORE = 10           /* parameters loaded at boot or reset from a store:
+    CO_EV_STORE = 10,          /* parameters loaded at boot or reset from a store:
                                   a = co_store_status_t, b = records skipped */
+    CO_EV_OD_REQUEST = 11      /* a network read/write waits on the application
+                                  (co_rt_od_indicate): a = index << 8 | sub,
+                                  b = token for co_rt_od_answer; b >> 24 is
+                                  CO_RT_INDICATE_READ or CO_RT_INDICATE_WRITE */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -148,6 +152,24 @@ int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask);
 /* What the local node's last parameter load found (co_store_status_t), or a
  * co_rt_status_t when the line has no node with a store. */
 int co_rt_store_status(co_rt_t *rt, int line);
+
+/* Indications answered by the application (Python): network reads
+ * (before-read) and/or writes (check-write) of the entries first..last
+ * (index << 8 | sub keys, inclusive) wait until co_rt_od_answer. Each one is
+ * posted as CO_EV_OD_REQUEST; the answer runs the rest of the access (the
+ * SDO/USDO answer goes out then). A before-read answer sees application
+ * writes made before it (the value is read after the answer). Ranges stay
+ * for the life of the node; the OD must be defined. */
+enum { CO_RT_INDICATE_READ = 1, CO_RT_INDICATE_WRITE = 2 };
+int co_rt_od_indicate(co_rt_t *rt, int line, uint16_t first_index, uint8_t first_sub,
+                      uint16_t last_index, uint8_t last_sub, int kinds);
+/* The value a waiting check-write would write (length in *length; a too
+ * small buffer gives CO_RT_ERR_ARGUMENT with the size in *length). */
+int co_rt_od_request_value(co_rt_t *rt, int line, uint32_t token, uint8_t *buf,
+                           uint32_t capacity, uint32_t *length);
+/* Answer a waiting access: 0 goes on, a CiA abort code refuses it.
+ * CO_RT_ERR_STATE when the token waits no more (answered already). */
+int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
