@@ -659,7 +659,7 @@ bool co_od_get_u32(const co_od_t *od, uint16_t index, uint8_t sub, uint32_t *out
 
 uint8_t co_od_group_of(uint16_t index)
 {
-    if (index >= 0x6000u) {
+    if (index >= 0x6000u && index <= 0x9FFFu) {   /* the standardized profile area */
         return CO_GROUP_APPLICATION;
     }
     if (index >= 0x2000u) {

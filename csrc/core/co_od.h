@@ -108,8 +108,8 @@ typedef enum co_abort {
 /* Parameter groups of 0x1010 / 0x1011 (bit masks). */
 enum co_od_group {
     CO_GROUP_COMMUNICATION = 0x1,   /* 0x1000..0x1FFF */
-    CO_GROUP_APPLICATION = 0x2,     /* 0x6000..0xFFFF */
-    CO_GROUP_MANUFACTURER = 0x4,    /* 0x2000..0x5FFF */
+    CO_GROUP_APPLICATION = 0x2,     /* 0x6000..0x9FFF (CiA 301: 0x1010 sub 3) */
+    CO_GROUP_MANUFACTURER = 0x4,    /* 0x2000..0x5FFF and 0xA000..0xFFFF (sub 4) */
     CO_GROUP_ALL = 0x7
 };
 

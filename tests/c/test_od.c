@@ -2338,7 +2338,10 @@ static void test_group_of(void **state)
     assert_int_equal(co_od_group_of(0x2000), CO_GROUP_MANUFACTURER);
     assert_int_equal(co_od_group_of(0x5FFF), CO_GROUP_MANUFACTURER);
     assert_int_equal(co_od_group_of(0x6000), CO_GROUP_APPLICATION);
-    assert_int_equal(co_od_group_of(0xFFFF), CO_GROUP_APPLICATION);
+    assert_int_equal(co_od_group_of(0x9FFF), CO_GROUP_APPLICATION);
+    /* same split as the Python model (ODVariable.store_group) */
+    assert_int_equal(co_od_group_of(0xA000), CO_GROUP_MANUFACTURER);
+    assert_int_equal(co_od_group_of(0xFFFF), CO_GROUP_MANUFACTURER);
 }
 
 static void groups_od(fx_t *fx)
