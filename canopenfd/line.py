@@ -130,6 +130,7 @@ class Line:
         if existing is not None:
             existing.heartbeat_timeout_ms = heartbeat_timeout_ms
             return existing
+        self._check_consumer_owner(node_id, heartbeat_timeout_ms, f"add_node({node_id})")
         node = RemoteNode(self, node_id, heartbeat_timeout_ms)
         with self._cond:
             self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, heartbeat_timeout_ms,
@@ -261,7 +262,23 @@ class Line:
         self._rt.command(lib.CO_CMD_ALLOW_OPERATIONAL, self.index, int(allowed),
                          what=f"allow_operational = {allowed} on {where}")
 
+    def _check_consumer_owner(self, node_id: int, ms: int, what: str) -> None:
+        """A consumer time for a node that the local OD's 0x1016 already
+        monitors belongs to that entry: refuse instead of changing it behind
+        the OD's back (a state-only watch, ms = 0, is fine)."""
+        local = self.local_node
+        if ms == 0 or local is None or not local.booted:
+            return
+        owner = local._consumer_entry(node_id)
+        if owner is not None:
+            sub, time_ms = owner
+            raise ConfigurationError(
+                f"{what} on {self._where}: node {node_id} is monitored by the local node's "
+                f"0x1016:{sub:02X} ({time_ms} ms); change that entry "
+                f"(node[0x1016][{sub}].raw) or add the node with heartbeat_timeout_ms=0")
+
     def _watch(self, node_id: int, ms: int, where: str) -> None:
+        self._check_consumer_owner(node_id, ms, f"heartbeat_timeout_ms = {ms}")
         self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, ms,
                          what=f"heartbeat_timeout_ms = {ms} on {where}")
 

@@ -197,6 +197,19 @@ class LocalNode:
         if code:
             raise AbortError(code, self.node_id, 0x1010 if save else 0x1011, sub, what)
 
+    def _consumer_entry(self, node_id: int) -> Optional[Tuple[int, int]]:
+        """(sub-index, ms) of the 0x1016 entry that monitors node_id, if any."""
+        if self.od is None or 0x1016 not in self.od:
+            return None
+        consumers = self[0x1016]
+        for variable in self.od[0x1016].values():
+            if variable.subindex == 0:
+                continue
+            value = consumers[variable.subindex].raw
+            if (value >> 16) & 0x7F == node_id and value & 0xFFFF:
+                return variable.subindex, value & 0xFFFF
+        return None
+
     def on_object_changed(self, callback: Callable[["LocalValue", str], None]):
         """callback(value, origin) after an entry was written by the network
         (USDO/SDO download: origin 'network') or a received PDO ('pdo'); the

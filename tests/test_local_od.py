@@ -356,6 +356,20 @@ def test_remove_node_leaves_the_consumer_entry_of_0x1016(net, bus_name):
     _watch_and_lose(net, bus_name, line.add_node(7))
 
 
+def test_consumer_time_of_a_node_that_0x1016_monitors_is_refused_at_once(net, bus_name):
+    line = net.open_line(bus_name, mode="fd")
+    node = line.create_local_node(NODE, od=_consumer_od("fd", 7, 150))
+    with pytest.raises(ConfigurationError, match=r"0x1016:01 \(150 ms\)"):
+        line.add_node(7, heartbeat_timeout_ms=500)
+    remote = line.add_node(7)                       # states only: fine
+    with pytest.raises(ConfigurationError, match="node 7 is monitored by"):
+        remote.heartbeat_timeout_ms = 500
+    assert remote.heartbeat_timeout_ms == 0
+    assert node["0x1016:1"].raw == (7 << 16) | 150   # untouched
+    line.add_node(8, heartbeat_timeout_ms=500)      # a node 0x1016 does not name
+    _watch_and_lose(net, bus_name, remote)          # 0x1016's 150 ms still rules
+
+
 # ------------------------------------------------------------------ store
 def _stored_node(net: canopenfd.Network, bus: str, mode: str, store: str,
                  problems: Recorder = None) -> canopenfd.LocalNode:
