@@ -211,6 +211,35 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
+    def store_application(self, line: int, image: bytes, status: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_store_application(self._live(what), line, image, len(image), status)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def store_staged(self, line: int, what: str) -> Optional[bytes]:
+        """The image waiting to be persisted, None when none waits."""
+        size = 256
+        length = ffi.new("uint32_t *")
+        while True:
+            buf = ffi.new("uint8_t[]", size)
+            with self._lock:
+                rc = lib.co_rt_store_staged(self._live(what), line, buf, size, length)
+                grow = rc == lib.CO_RT_ERR_ARGUMENT and length[0] > size
+                if rc == lib.CO_RT_ERR_STATE:
+                    return None
+                if rc < 0 and not grow:
+                    self._raise(rc, what)
+            if not grow:
+                return bytes(ffi.buffer(buf, length[0]))
+            size = length[0]
+
+    def store_finish(self, line: int, ok: bool, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_store_finish(self._live(what), line, int(ok))
+            if rc < 0:
+                self._raise(rc, what)
+
     def od_store(self, line: int, group_mask: int, save: bool, what: str) -> int:
         call = lib.co_rt_od_save if save else lib.co_rt_od_restore_defaults
         with self._lock:

@@ -210,6 +210,8 @@ class Indications:
         """CO_EV_OD_REQUEST: the access to answer (dispatcher thread)."""
         node = self._node
         index, sub, kind = key >> 8, key & 0xFF, token >> 24
+        if kind == lib.CO_RT_INDICATE_STORE:
+            return node._event_persist(token)
         variable = node.od.get_variable(index, sub) if node.od is not None else None
         with self._lock:
             callbacks = (list(self._callbacks.get((index, sub, kind), [])) +

@@ -15,6 +15,7 @@ from .errors import ConfigurationError
 from .frame import Frame, fd_len_round
 from .nmt import NmtCommand, NmtMaster, NmtState
 from .node import LocalNode, RemoteNode, _remote_state, check_ms, check_node_id
+from .store import check_store
 
 if TYPE_CHECKING:  # pragma: no cover
     from .network import Network
@@ -77,7 +78,7 @@ class Line:
 
     # ---------------------------------------------------------------- nodes
     def create_local_node(self, node_id: int, heartbeat_ms: int = 0, *,
-                          od: Optional[Any] = None, store: Optional[str] = None,
+                          od: Optional[Any] = None, store: Optional[Any] = None,
                           boot: bool = True) -> LocalNode:
         """Create our node on this line (one per line) and boot it: boot-up
         message, PRE-OPERATIONAL, then a heartbeat every heartbeat_ms (0 = none).
@@ -85,7 +86,8 @@ class Line:
         od: an `ObjectDictionary` (or a path of an EDS/DCF/XDD/XDC file) the node
         serves; its 0x1017/0x1016 drive the heartbeat (a non-zero heartbeat_ms
         replaces the 0x1017 default). store: a file where `save_parameters()`
-        and 0x1010 keep parameters across restarts (needs od).
+        and 0x1010 keep parameters across restarts, or an object with load()
+        and save(image) for other media (see canopenfd.store; needs od).
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
@@ -104,6 +106,7 @@ class Line:
             self._rt._live(f"create_local_node({node_id}) on {self._where}")
             od = _served_od(od, self.mode, node_id, store, f"create_local_node({node_id}) on "
                             f"{self._where}")
+            store = check_store(store, f"create_local_node({node_id}) on {self._where}")
             node = LocalNode(self, node_id, heartbeat_ms, od, store)
             self.local_node = node
             if boot:

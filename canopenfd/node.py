@@ -84,7 +84,8 @@ class LocalNode:
         self.node_id = node_id
         #: The object dictionary this node serves (None: NMT and heartbeat only).
         self.od = od
-        #: File of saved parameters (0x1010), or None.
+        #: Where saved parameters (0x1010) live: a file path, an object with
+        #: load()/save() (see canopenfd.store), or None.
         self.store = store
         self._store_problems = CallbackList(f"node {node_id} store problem")
         self._changed = CallbackList(f"node {node_id} object changed")
@@ -130,7 +131,45 @@ class LocalNode:
         if self._heartbeat_ms and self._has_1017:
             overrides[(0x1017, 0)] = self._heartbeat_ms
         defs, count, _keep = definitions(self.od, self.node_id, overrides)
-        self.line._define_od(defs, count, self.store, self._where)
+        path = self.store if isinstance(self.store, str) else None
+        self.line._define_od(defs, count, path, self._where)
+        if self.store is not None and path is None:
+            self._open_application_store()
+
+    def _open_application_store(self) -> None:
+        what = f"parameter store {self.store!r} of {self._where}"
+        try:
+            image = self.store.load()
+            status = lib.CO_STORE_OK if image else lib.CO_STORE_EMPTY
+            image = bytes(image or b"")
+        except Exception:  # noqa: BLE001 - an unreadable medium: run on defaults, say so
+            log.exception("%s: load() failed; the node starts from defaults", what)
+            image, status = b"", lib.CO_STORE_IO
+        self.line._rt.store_application(self.line.index, image, status, what)
+
+    def _persist(self, what: str) -> Optional[int]:
+        """Give the staged image to the application store: 0, the CiA abort
+        0x08000020 (data cannot be stored) when its save() raised, None when
+        no image was staged."""
+        rt = self.line._rt
+        image = rt.store_staged(self.line.index, what)
+        if image is None:
+            return None
+        try:
+            self.store.save(image)
+        except Exception:  # noqa: BLE001 - reported as the CiA abort, logged with the cause
+            log.exception("%s: the parameter store's save() failed", what)
+            return 0x08000020
+        return 0
+
+    def _event_persist(self, token: int) -> Callable[[], None]:
+        """A network save/restore waits until the image is on the medium."""
+        what = f"0x1010/0x1011 over the network on {self._where}"
+
+        def persist() -> None:
+            code = self._persist(what)
+            self.line._rt.od_answer(self.line.index, token, code or 0, what)
+        return persist
 
     @property
     def _has_1017(self) -> bool:
@@ -194,6 +233,11 @@ class LocalNode:
             raise ConfigurationError(f"{what}: the node is not booted yet")
         mask, sub = PARAMETER_GROUPS[group]
         code = self.line._od_store(mask, save, what)
+        if code == 0 and self.store is not None and not isinstance(self.store, str):
+            persisted = self._persist(what)
+            if persisted is not None:
+                self.line._rt.store_finish(self.line.index, persisted == 0, what)
+                code = persisted
         if code:
             raise AbortError(code, self.node_id, 0x1010 if save else 0x1011, sub, what)
 

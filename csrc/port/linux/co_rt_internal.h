@@ -92,6 +92,20 @@ typedef struct rt_request {
     uint16_t generation;     /* a stale token does not match a reused slot */
 } rt_request_t;
 
+/* A parameter store kept by the application (Python): the runtime loads
+ * from a RAM copy of the saved image and stages each new image until the
+ * application reports it persisted (then it becomes the RAM copy). */
+typedef struct rt_app_store {
+    bool enabled;
+    co_store_status_t status;    /* what the application's load found */
+    uint8_t *committed;          /* the image the application has (status OK) */
+    uint32_t committed_length;
+    uint8_t *staged;             /* a saved image not yet persisted */
+    uint32_t staged_length;
+    uint32_t staged_capacity;
+    bool staged_pending;
+} rt_app_store_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -116,7 +130,8 @@ typedef struct rt_line {
     rt_indication_t indications[RT_INDICATIONS];
     uint8_t indication_count;
     rt_request_t requests[RT_REQUESTS];
-    char *store_path;                /* NULL: no store */
+    char *store_path;                /* file store, or NULL */
+    rt_app_store_t app_store;        /* application store (instead of a file) */
     co_store_file_t *store_file;
     uint8_t *store_buffer;
     co_store_t store;
@@ -186,9 +201,28 @@ void rt_wake(co_rt_t *rt);
 bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
              const co_frame_t *frame);
 
+static inline bool rt_has_store(const rt_line_t *l)
+{
+    return l->store_path != NULL || l->app_store.enabled;
+}
+
 /* co_rt_od.c */
 void rt_od_release(rt_line_t *l);
+/* Park a network access until the application answers (CO_EV_OD_REQUEST
+ * with this kind): CO_OD_SPLIT, or an abort code when it cannot wait. */
+uint32_t rt_od_park(rt_line_t *l, co_od_xfer_t *xfer, uint32_t key, const uint8_t *value,
+                    uint32_t length, uint8_t kind);
 /* Forget every access waiting on Python (the servers holding them are gone). */
 void rt_od_drop_requests(rt_line_t *l);
+
+/* co_rt_store.c: the application store. */
+/* Open the store over the sealed OD and hook 0x1010/0x1011 (node attach). */
+int rt_app_store_open(co_rt_t *rt, rt_line_t *l, co_store_t **store);
+/* Subscribed after the node: network saves wait until the image persisted. */
+bool rt_app_store_hook(rt_line_t *l);
+/* The application's answer to a persist request: commit or drop the image;
+ * returns the abort to resume the access with. */
+uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort);
+void rt_app_store_free(rt_line_t *l);
 
 #endif

@@ -142,7 +142,7 @@ static co_store_t *served_store(co_rt_t *rt, rt_line_t *l)
     if (!served_od(rt, l)) {
         return NULL;
     }
-    if (!l->store_path) {
+    if (!rt_has_store(l)) {
         rt_set_error(rt, "line %d: the local node has no parameter store (give a store file)",
                   l->index);
         return NULL;
@@ -207,13 +207,9 @@ static uint32_t token_of(const rt_line_t *l, uint32_t slot, uint8_t kind)
 }
 
 /* Runtime thread, under rt->lock: park the access and tell Python. */
-static uint32_t park(rt_indication_t *ind, co_od_xfer_t *xfer, const co_od_entry_t *e,
-                     const uint8_t *value, uint32_t length, uint8_t kind)
+uint32_t rt_od_park(rt_line_t *l, co_od_xfer_t *xfer, uint32_t key, const uint8_t *value,
+                    uint32_t length, uint8_t kind)
 {
-    rt_line_t *l = ind->line;
-    if (!(ind->kinds & kind)) {
-        return 0;
-    }
     for (uint32_t i = 0; i < RT_REQUESTS; i++) {
         rt_request_t *r = &l->requests[i];
         if (r->xfer) {
@@ -223,7 +219,7 @@ static uint32_t park(rt_indication_t *ind, co_od_xfer_t *xfer, const co_od_entry
         r->value = value;
         r->length = length;
         r->generation = (uint16_t)(r->generation + 1u);
-        if (!rt_post(l, CO_EV_OD_REQUEST, l->node.nmt.node_id, e->key, token_of(l, i, kind),
+        if (!rt_post(l, CO_EV_OD_REQUEST, l->node.nmt.node_id, key, token_of(l, i, kind),
                      NULL)) {
             r->xfer = NULL;   /* nobody would ever answer it */
             return CO_ABORT_NO_RESOURCE;
@@ -231,6 +227,12 @@ static uint32_t park(rt_indication_t *ind, co_od_xfer_t *xfer, const co_od_entry
         return CO_OD_SPLIT;
     }
     return CO_ABORT_NO_RESOURCE;   /* more accesses wait than the table holds */
+}
+
+static uint32_t park(rt_indication_t *ind, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                     const uint8_t *value, uint32_t length, uint8_t kind)
+{
+    return (ind->kinds & kind) ? rt_od_park(ind->line, xfer, e->key, value, length, kind) : 0;
 }
 
 static uint32_t on_before_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
@@ -353,6 +355,9 @@ int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort)
     if (r) {
         co_od_xfer_t *xfer = r->xfer;
         r->xfer = NULL;   /* free before resuming: the rest of the chain may park again */
+        if (token >> TOKEN_KIND_SHIFT == CO_RT_INDICATE_STORE) {
+            abort = rt_app_store_persisted(l, abort);
+        }
         co_line_set_time(&l->line, co_rt_now_us());
         if (l->has_usdo) {
             co_usdo_server_resume(&l->usdo, xfer, abort);

@@ -232,7 +232,7 @@ static bool on_allow_operational(co_node_t *node, void *user)
  * unreadable store means the node runs on defaults). */
 static void post_store_status(rt_line_t *l)
 {
-    if (l->store_path) {
+    if (rt_has_store(l)) {
         rt_post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)l->node.store_status,
              l->store.records_skipped, NULL);
     }
@@ -362,6 +362,7 @@ static void od_forget(rt_line_t *l)
     free(l->store_buffer);
     l->store_file = NULL;
     l->store_buffer = NULL;
+    rt_app_store_free(l);
     l->has_od = false;
 }
 
@@ -416,9 +417,15 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
             return CO_RT_ERR_ARGUMENT;
         }
         store = &l->store;
+    } else if (l->app_store.enabled) {
+        int status = rt_app_store_open(rt, l, &store);
+        if (status != CO_RT_OK) {
+            return status;
+        }
     }
     if (!co_node_attach_od(&l->node, &l->od, store, &l->hb) ||
-        !co_od_subscribe(&l->od, 0x0000, 0, 0xFFFF, 0xFF, &od_observer, l)) {
+        !co_od_subscribe(&l->od, 0x0000, 0, 0xFFFF, 0xFF, &od_observer, l) ||
+        (l->app_store.enabled && !rt_app_store_hook(l))) {
         rt_set_error(rt, "line %d: object dictionary handler table full", l->index);
         return CO_RT_ERR_FULL;
     }
@@ -874,6 +881,7 @@ static void line_free(rt_line_t *l)
     free(l->store_path);
     free(l->store_file);
     free(l->store_buffer);
+    rt_app_store_free(l);
     free(l->usdo_scratch);
     free(l->rx_slots);
     free(l->tx_slots);

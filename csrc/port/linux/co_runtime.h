@@ -160,7 +160,10 @@ int co_rt_store_status(co_rt_t *rt, int line);
  * SDO/USDO answer goes out then). A before-read answer sees application
  * writes made before it (the value is read after the answer). Ranges stay
  * for the life of the node; the OD must be defined. */
-enum { CO_RT_INDICATE_READ = 1, CO_RT_INDICATE_WRITE = 2 };
+enum { CO_RT_INDICATE_READ = 1, CO_RT_INDICATE_WRITE = 2,
+       CO_RT_INDICATE_STORE = 4 /* kind of a request only: persist the staged
+                                   image of an application store (co_rt_store_staged),
+                                   answer 0 when it is safe, else an abort code */ };
 int co_rt_od_indicate(co_rt_t *rt, int line, uint16_t first_index, uint8_t first_sub,
                       uint16_t last_index, uint8_t last_sub, int kinds);
 /* The value a waiting check-write would write (length in *length; a too
@@ -170,6 +173,26 @@ int co_rt_od_request_value(co_rt_t *rt, int line, uint32_t token, uint8_t *buf,
 /* Answer a waiting access: 0 goes on, a CiA abort code refuses it.
  * CO_RT_ERR_STATE when the token waits no more (answered already). */
 int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort);
+
+/* Parameter store kept by the application instead of a file (before
+ * CO_CMD_NODE_CREATE, after co_rt_od_define without a store path): image is
+ * what the application's medium holds (copied), status what reading it
+ * found (CO_STORE_OK, CO_STORE_EMPTY or CO_STORE_IO). Loads at boot and
+ * resets use this image; every save or restore-defaults (0x1010/0x1011 over
+ * the network, or co_rt_od_save / co_rt_od_restore_defaults) stages a new
+ * image that the application writes to its medium: for network accesses a
+ * CO_EV_OD_REQUEST of kind CO_RT_INDICATE_STORE (answer with co_rt_od_answer:
+ * 0 = persisted, else the abort for the client), for the application's own
+ * calls co_rt_store_finish. Until then the next save is refused. */
+int co_rt_store_application(co_rt_t *rt, int line, const uint8_t *image, uint32_t length,
+                            int status);
+/* The staged image (length in *length; a small buffer gives
+ * CO_RT_ERR_ARGUMENT with the size in *length); CO_RT_ERR_STATE if none. */
+int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
+                       uint32_t *length);
+/* After co_rt_od_save / co_rt_od_restore_defaults: persisted (ok = 1: the
+ * staged image becomes the one loads use) or not (ok = 0: dropped). */
+int co_rt_store_finish(co_rt_t *rt, int line, int ok);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
