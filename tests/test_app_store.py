@@ -27,7 +27,11 @@ def make_node(net, bus, store, problems=None):
 
 
 def reset(node):
+    """Reset the communication and wait until it ran (parameters loaded)."""
+    resets = Recorder()
+    node.on_reset(resets)
     node.apply("reset-communication")
+    resets.wait_count(1)
     node.wait_for_state("PRE-OPERATIONAL")
 
 

@@ -75,8 +75,10 @@ def test_save_over_the_network_writes_the_store_file(rig):
                 + (0x65766173).to_bytes(4, "little"))
     assert frame.data == bytes([CLIENT, 0x21, 5, 0x01, 0x10, 0x10])
     assert os.path.getsize(store) > 0
+    resets = Recorder()
+    node.on_reset(resets)
     node.apply("reset-communication")
-    node.wait_for_state("PRE-OPERATIONAL")
+    resets.wait_count(1)            # the reset ran: parameters are loaded
     assert node[0x1017].raw == 250
 
 
