@@ -22,13 +22,15 @@ enum {
     P_COUNTER = 3,   /* SEGMENT, COUNTER; LAST: n */
     P_SEG_DATA = 4,  /* SEGMENT, LAST data */
     P_CODE = 6,      /* ABORT */
+    P_PACING = 6,    /* BULK_ACCEPT: 2 bytes, little-endian */
     HEAD_LEN = 3,    /* dest, cs, session */
     MUX_LEN = 6,
     EXP_HEAD_LEN = 8,
     INITIATE_LEN = 12,
     SEG_HEAD_LEN = 4,
     SEGMENT_LEN = 64,
-    ABORT_LEN = 7
+    ABORT_LEN = 7,
+    BULK_ACCEPT_LEN = 8
 };
 
 co_usdo_layout_t co_usdo_layout_of(uint8_t cs)
@@ -43,17 +45,23 @@ co_usdo_layout_t co_usdo_layout_of(uint8_t cs)
         return CO_USDO_LAYOUT_EXPEDITED;
     case CO_USDO_CS_DOWNLOAD_INITIATE:
     case CO_USDO_CS_UPLOAD_INITIATE_RSP:
+    case CO_USDO_CS_BULK_INITIATE:
         return CO_USDO_LAYOUT_INITIATE;
     case CO_USDO_CS_DOWNLOAD_SEGMENT:
     case CO_USDO_CS_UPLOAD_SEGMENT_RSP:
+    case CO_USDO_CS_BULK_SEGMENT:
         return CO_USDO_LAYOUT_SEGMENT;
     case CO_USDO_CS_DOWNLOAD_LAST:
     case CO_USDO_CS_UPLOAD_LAST_RSP:
+    case CO_USDO_CS_BULK_LAST:
         return CO_USDO_LAYOUT_LAST;
+    case CO_USDO_CS_BULK_INITIATE_RSP:
+        return CO_USDO_LAYOUT_BULK_ACCEPT;
     case CO_USDO_CS_UPLOAD_SEGMENT:
     case CO_USDO_CS_DOWNLOAD_SEGMENT_RSP:
         return CO_USDO_LAYOUT_COUNTER;
     case CO_USDO_CS_DOWNLOAD_LAST_RSP:
+    case CO_USDO_CS_BULK_LAST_RSP:
         return CO_USDO_LAYOUT_END;
     case CO_USDO_CS_ABORT:
         return CO_USDO_LAYOUT_ABORT;
@@ -65,7 +73,8 @@ co_usdo_layout_t co_usdo_layout_of(uint8_t cs)
 bool co_usdo_layout_has_mux(co_usdo_layout_t layout)
 {
     return layout == CO_USDO_LAYOUT_MUX || layout == CO_USDO_LAYOUT_EXPEDITED ||
-           layout == CO_USDO_LAYOUT_INITIATE || layout == CO_USDO_LAYOUT_ABORT;
+           layout == CO_USDO_LAYOUT_INITIATE || layout == CO_USDO_LAYOUT_ABORT ||
+           layout == CO_USDO_LAYOUT_BULK_ACCEPT;
 }
 
 /* ------------------------------------------------------------ helpers */
@@ -256,6 +265,23 @@ static co_usdo_decode_result_t decode_abort(const uint8_t *in, size_t len, co_us
     return CO_USDO_DECODE_OK;
 }
 
+static size_t encode_bulk_accept(const co_usdo_msg_t *m, uint8_t *out)
+{
+    put_mux(out, m);
+    out[P_PACING] = (uint8_t)(m->pacing & 0xFFu);
+    out[P_PACING + 1] = (uint8_t)(m->pacing >> 8);
+    return BULK_ACCEPT_LEN;
+}
+
+static co_usdo_decode_result_t decode_bulk_accept(const uint8_t *in, size_t len, co_usdo_msg_t *m)
+{
+    if (len < BULK_ACCEPT_LEN) {
+        return CO_USDO_DECODE_SHORT;
+    }
+    m->pacing = (uint16_t)(in[P_PACING] | (in[P_PACING + 1] << 8));
+    return CO_USDO_DECODE_OK;
+}
+
 /* ------------------------------------------------------------ dispatch */
 
 co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_msg_t *out)
@@ -300,6 +326,8 @@ co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_
         return decode_end(data, len, out);
     case CO_USDO_LAYOUT_ABORT:
         return decode_abort(data, len, out);
+    case CO_USDO_LAYOUT_BULK_ACCEPT:
+        return decode_bulk_accept(data, len, out);
     default:
         return CO_USDO_DECODE_UNKNOWN_CS;
     }
@@ -336,6 +364,9 @@ size_t co_usdo_encode(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX])
         break;
     case CO_USDO_LAYOUT_ABORT:
         n = encode_abort(msg, out);
+        break;
+    case CO_USDO_LAYOUT_BULK_ACCEPT:
+        n = encode_bulk_accept(msg, out);
         break;
     default:
         n = 0;

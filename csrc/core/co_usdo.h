@@ -31,12 +31,17 @@ typedef enum co_usdo_cs {
     CO_USDO_CS_DOWNLOAD_INITIATE = 0x02,       /* request, segmented: total size */
     CO_USDO_CS_DOWNLOAD_SEGMENT = 0x03,        /* request, 60 data bytes */
     CO_USDO_CS_DOWNLOAD_LAST = 0x04,           /* request, last 0..60 bytes */
+    CO_USDO_CS_BULK_INITIATE = 0x06,           /* request, bulk download: total size */
+    CO_USDO_CS_BULK_SEGMENT = 0x07,            /* request, 60 data bytes, not confirmed */
+    CO_USDO_CS_BULK_LAST = 0x08,               /* request, last 0..60 bytes */
     CO_USDO_CS_UPLOAD = 0x11,                  /* request (expedited or segmented) */
     CO_USDO_CS_UPLOAD_SEGMENT = 0x13,          /* request for the next segment */
     CO_USDO_CS_DOWNLOAD_EXPEDITED_RSP = 0x21,
     CO_USDO_CS_DOWNLOAD_INITIATE_RSP = 0x22,
     CO_USDO_CS_DOWNLOAD_SEGMENT_RSP = 0x23,
     CO_USDO_CS_DOWNLOAD_LAST_RSP = 0x24,
+    CO_USDO_CS_BULK_INITIATE_RSP = 0x26,       /* carries the server's pacing */
+    CO_USDO_CS_BULK_LAST_RSP = 0x28,
     CO_USDO_CS_UPLOAD_EXPEDITED_RSP = 0x31,
     CO_USDO_CS_UPLOAD_INITIATE_RSP = 0x32,
     CO_USDO_CS_UPLOAD_SEGMENT_RSP = 0x33,
@@ -101,12 +106,13 @@ typedef enum co_usdo_layout {
     CO_USDO_LAYOUT_UNKNOWN = 0,   /* command specifier without a known layout */
     CO_USDO_LAYOUT_MUX,           /* 6: dest cs sid sub index(2)                 0x11 0x21 0x22 */
     CO_USDO_LAYOUT_EXPEDITED,     /* 8+N: mux type N data[N], N 0..56            0x01 0x31 */
-    CO_USDO_LAYOUT_INITIATE,      /* 12: mux type 0 size(4)                      0x02 0x32 */
-    CO_USDO_LAYOUT_SEGMENT,       /* 64: dest cs sid counter data[60]            0x03 0x33 */
-    CO_USDO_LAYOUT_LAST,          /* 4+n: dest cs sid n data[n], n 0..60         0x04 0x34 */
+    CO_USDO_LAYOUT_INITIATE,      /* 12: mux type 0 size(4)                      0x02 0x32 0x06 */
+    CO_USDO_LAYOUT_SEGMENT,       /* 64: dest cs sid counter data[60]            0x03 0x33 0x07 */
+    CO_USDO_LAYOUT_LAST,          /* 4+n: dest cs sid n data[n], n 0..60         0x04 0x34 0x08 */
     CO_USDO_LAYOUT_COUNTER,       /* 4: dest cs sid counter                      0x13 0x23 */
-    CO_USDO_LAYOUT_END,           /* 3: dest cs sid                              0x24 */
-    CO_USDO_LAYOUT_ABORT          /* 7: mux code                                 0x7F */
+    CO_USDO_LAYOUT_END,           /* 3: dest cs sid                              0x24 0x28 */
+    CO_USDO_LAYOUT_ABORT,         /* 7: mux code                                 0x7F */
+    CO_USDO_LAYOUT_BULK_ACCEPT    /* 8: mux pacing(2), 100 us units, 0 = none    0x26 (UNCONFIRMED) */
 } co_usdo_layout_t;
 
 /* A decoded (or to-be-encoded) frame. Fields a layout does not have are 0. */
@@ -120,6 +126,7 @@ typedef struct co_usdo_msg {
     uint8_t counter;       /* SEGMENT, COUNTER: 8-bit segment counter */
     uint8_t abort_code;    /* ABORT: co_usdo_abort_t */
     uint32_t size;         /* INITIATE: total size of the transfer */
+    uint16_t pacing;       /* BULK_ACCEPT: minimum gap between bulk segments, 100 us units */
     uint8_t length;        /* EXPEDITED: N, SEGMENT: 60, LAST: n */
     const uint8_t *data;   /* decode: points into the decoded buffer; encode: source */
 } co_usdo_msg_t;

@@ -6,22 +6,32 @@
  *    ignored and counted.
  *  - A frame naming another node in byte 0 is ignored; frames shorter than
  *    3 bytes (no session-ID) are ignored; both counted.
- *  - An unknown command specifier (incl. bulk, multiple sub-indices and the
+ *  - An unknown command specifier (incl. multiple sub-indices and the
  *    remote variants) is answered with 0x13, a frame too short for its
  *    layout with 0x1E; if the (client, session-ID) has an open transfer,
  *    that transfer ends with the same abort.
- *  - A new request (0x01, 0x02, 0x11) on an open (client, session-ID) ends
- *    the old transfer silently and starts the new one.
- *  - A segment for no open transfer: 0x21; a segment of the wrong kind for
- *    the open transfer (or while it waits on the application): 0x13.
+ *  - A new request (0x01, 0x02, 0x06, 0x11) on an open (client, session-ID)
+ *    ends the old transfer silently and starts the new one.
+ *  - A segment for no open transfer: 0x21, except a bulk segment (0x07),
+ *    which is ignored and counted: after an abort the client may still have
+ *    many bulk segments in flight, and answering each would flood the bus.
+ *    A segment of the wrong kind for the open transfer (0x03/0x04 in a bulk
+ *    download, 0x07/0x08 in a segmented one, a download segment in an
+ *    upload, or any segment while the transfer waits on the application):
+ *    0x13.
  *  - The data type byte of a download must be the entry's type or DOMAIN
  *    (0x0F, "raw bytes"), else 0x36 (checked after the entry, access and
  *    length checks of co_od_write_begin).
  *  - Uploads of 1..56 bytes are expedited; anything else (0 bytes, more than
  *    56, a domain of unknown size) is segmented. A domain of unknown size
  *    announces 0xFFFFFFFF as its size.
- *  - The size announced in a segmented download is checked on every segment
- *    and at the end: more or fewer bytes = 0x15.
+ *  - The size announced in a segmented or bulk download is checked on every
+ *    segment and at the end: more or fewer bytes = 0x15.
+ *  - A bulk download (0x06) is a segmented download whose segments (0x07)
+ *    are not answered: same initiate checks, same counter (0 first, +1 per
+ *    segment, wrapping), 0x26 carries the configured pacing, only the last
+ *    segment (0x08) is answered (0x28). A wrong counter (lost, repeated or
+ *    reordered segment) aborts with 0x14 once.
  *  - An abort is never answered with an abort. */
 #include "co_usdo_server.h"
 
@@ -31,7 +41,8 @@ enum answer {
     ANSWER_NONE = 0,
     ANSWER_UPLOAD,                /* 0x31, or 0x32 and then segments */
     ANSWER_DOWNLOAD_EXPEDITED,    /* 0x21 */
-    ANSWER_DOWNLOAD_LAST          /* 0x24 */
+    ANSWER_DOWNLOAD_LAST,         /* 0x24 */
+    ANSWER_BULK_LAST              /* 0x28 */
 };
 
 /* ------------------------------------------------------------ sending */
@@ -60,19 +71,34 @@ static void send_abort(co_usdo_server_t *s, uint8_t client, uint8_t session_id, 
     send_msg(s, &m);
 }
 
-/* A frame of session `ses` without data: header (and mux where the layout
- * has one). */
+/* The header (and mux where the layout has one) of a frame to the client of
+ * session `ses`. */
+static void session_msg(const co_usdo_session_t *ses, uint8_t cs, co_usdo_msg_t *m)
+{
+    memset(m, 0, sizeof *m);
+    m->dest = ses->client;
+    m->cs = cs;
+    m->session = ses->session_id;
+    m->index = ses->index;
+    m->sub = ses->sub;
+}
+
+/* A frame of session `ses` without data. */
 static void send_simple(co_usdo_server_t *s, const co_usdo_session_t *ses, uint8_t cs,
                         uint8_t counter)
 {
     co_usdo_msg_t m;
-    memset(&m, 0, sizeof m);
-    m.dest = ses->client;
-    m.cs = cs;
-    m.session = ses->session_id;
-    m.index = ses->index;
-    m.sub = ses->sub;
+    session_msg(ses, cs, &m);
     m.counter = counter;
+    send_msg(s, &m);
+}
+
+/* 0x26: the bulk download is accepted; carries the pacing asked of the client. */
+static void send_bulk_accept(co_usdo_server_t *s, const co_usdo_session_t *ses)
+{
+    co_usdo_msg_t m;
+    session_msg(ses, CO_USDO_CS_BULK_INITIATE_RSP, &m);
+    m.pacing = s->bulk_pacing;
     send_msg(s, &m);
 }
 
@@ -81,7 +107,8 @@ static void send_simple(co_usdo_server_t *s, const co_usdo_session_t *ses, uint8
 static bool is_open(const co_usdo_session_t *ses)
 {
     return ses->state == CO_USDO_SESSION_ACTIVE || ses->state == CO_USDO_SESSION_DOWNLOAD ||
-           ses->state == CO_USDO_SESSION_UPLOAD || ses->state == CO_USDO_SESSION_PENDING;
+           ses->state == CO_USDO_SESSION_UPLOAD || ses->state == CO_USDO_SESSION_BULK ||
+           ses->state == CO_USDO_SESSION_PENDING;
 }
 
 static co_usdo_session_t *find(co_usdo_server_t *s, uint8_t client, uint8_t session_id)
@@ -256,7 +283,11 @@ static void after_od(co_usdo_session_t *ses, uint32_t r, uint8_t answer)
         release(ses);
         break;
     case ANSWER_DOWNLOAD_LAST:
-        send_simple(s, ses, CO_USDO_CS_DOWNLOAD_LAST_RSP, 0);
+    case ANSWER_BULK_LAST:
+        send_simple(s, ses,
+                    answer == ANSWER_BULK_LAST ? CO_USDO_CS_BULK_LAST_RSP
+                                               : CO_USDO_CS_DOWNLOAD_LAST_RSP,
+                    0);
         s->stats.downloads++;
         release(ses);
         break;
@@ -285,7 +316,7 @@ static uint32_t begin_download(co_usdo_server_t *s, co_usdo_session_t *ses, uint
     return r;
 }
 
-/* 0x01, 0x02, 0x11: a new transfer. */
+/* 0x01, 0x02, 0x06, 0x11: a new transfer. */
 static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t client,
                         const co_usdo_msg_t *m)
 {
@@ -327,14 +358,20 @@ static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t cli
         after_od(ses, r, ANSWER_DOWNLOAD_EXPEDITED);
         break;
     case CO_USDO_CS_DOWNLOAD_INITIATE:
+    case CO_USDO_CS_BULK_INITIATE:
         r = begin_download(s, ses, m->size, m->type);
         if (r != 0) {
             od_fail(ses, r);
             break;
         }
         ses->total = m->size;
-        ses->state = CO_USDO_SESSION_DOWNLOAD;
-        send_simple(s, ses, CO_USDO_CS_DOWNLOAD_INITIATE_RSP, 0);
+        if (m->cs == CO_USDO_CS_BULK_INITIATE) {
+            ses->state = CO_USDO_SESSION_BULK;
+            send_bulk_accept(s, ses);
+        } else {
+            ses->state = CO_USDO_SESSION_DOWNLOAD;
+            send_simple(s, ses, CO_USDO_CS_DOWNLOAD_INITIATE_RSP, 0);
+        }
         break;
     default: /* CO_USDO_CS_UPLOAD */
         r = co_od_read_begin(s->od, &ses->xfer, ses->index, ses->sub);
@@ -343,11 +380,17 @@ static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t cli
     }
 }
 
-/* A segment frame needs an open transfer of the right kind. */
+/* A segment frame needs an open transfer of the right kind. A bulk segment
+ * (0x07) for no open transfer is ignored: after an abort the client may
+ * still have many of them in flight, and one abort each would flood the bus. */
 static bool segment_session_ok(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t client,
                                const co_usdo_msg_t *m, uint8_t state)
 {
     if (ses == NULL) {
+        if (m->cs == CO_USDO_CS_BULK_SEGMENT) {
+            s->stats.rx_stray_bulk++;
+            return false;
+        }
         s->stats.rx_no_session++;
         send_abort(s, client, m->session, 0, 0, CO_USDO_ABORT_SESSION);
         return false;
@@ -361,16 +404,19 @@ static bool segment_session_ok(co_usdo_server_t *s, co_usdo_session_t *ses, uint
     return true;
 }
 
-/* 0x03, 0x04 */
+/* 0x03, 0x04 (segmented) and 0x07, 0x08 (bulk): the same path; a bulk
+ * segment is not answered and the end is answered with 0x28, not 0x24. */
 static void on_download_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t client,
                                 const co_usdo_msg_t *m)
 {
     uint32_t r;
-    if (!segment_session_ok(s, ses, client, m, CO_USDO_SESSION_DOWNLOAD)) {
+    bool bulk = m->cs == CO_USDO_CS_BULK_SEGMENT || m->cs == CO_USDO_CS_BULK_LAST;
+    if (!segment_session_ok(s, ses, client, m,
+                            bulk ? CO_USDO_SESSION_BULK : CO_USDO_SESSION_DOWNLOAD)) {
         return;
     }
     uint32_t room = ses->total - ses->received;   /* received <= total always */
-    if (m->cs == CO_USDO_CS_DOWNLOAD_SEGMENT) {
+    if (m->cs == CO_USDO_CS_DOWNLOAD_SEGMENT || m->cs == CO_USDO_CS_BULK_SEGMENT) {
         if (m->counter != ses->counter) {
             s->stats.rx_bad_counter++;
             close_session(ses, CO_USDO_ABORT_COUNTER, true);
@@ -387,7 +433,9 @@ static void on_download_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uin
             return;
         }
         ses->received += m->length;
-        send_simple(s, ses, CO_USDO_CS_DOWNLOAD_SEGMENT_RSP, m->counter);
+        if (!bulk) {
+            send_simple(s, ses, CO_USDO_CS_DOWNLOAD_SEGMENT_RSP, m->counter);
+        }
         ses->counter = co_usdo_next_counter(ses->counter);
         return;
     }
@@ -404,7 +452,7 @@ static void on_download_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uin
     ses->received += m->length;
     ses->state = CO_USDO_SESSION_ACTIVE;
     r = co_od_write_end(&ses->xfer);
-    after_od(ses, r, ANSWER_DOWNLOAD_LAST);
+    after_od(ses, r, bulk ? ANSWER_BULK_LAST : ANSWER_DOWNLOAD_LAST);
 }
 
 /* 0x13 */
@@ -507,11 +555,14 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
     switch (m.cs) {
     case CO_USDO_CS_DOWNLOAD_EXPEDITED:
     case CO_USDO_CS_DOWNLOAD_INITIATE:
+    case CO_USDO_CS_BULK_INITIATE:
     case CO_USDO_CS_UPLOAD:
         on_initiate(s, ses, client, &m);
         break;
     case CO_USDO_CS_DOWNLOAD_SEGMENT:
     case CO_USDO_CS_DOWNLOAD_LAST:
+    case CO_USDO_CS_BULK_SEGMENT:
+    case CO_USDO_CS_BULK_LAST:
         on_download_segment(s, ses, client, &m);
         break;
     case CO_USDO_CS_UPLOAD_SEGMENT:
@@ -559,6 +610,7 @@ bool co_usdo_server_init(co_usdo_server_t *server, co_line_t *line, co_od_t *od,
     server->timeout_us = (uint64_t)(config->timeout_ms != 0 ? config->timeout_ms
                                                             : CO_USDO_SERVER_DEFAULT_TIMEOUT_MS) *
                          1000u;
+    server->bulk_pacing = config->bulk_pacing;
     for (i = 0; i < config->session_count; i++) {
         co_usdo_session_t *ses = &config->sessions[i];
         memset(ses, 0, sizeof *ses);

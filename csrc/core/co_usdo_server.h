@@ -1,5 +1,6 @@
-/* USDO server (CiA 1301, fd lines only): expedited and segmented download
- * and upload of the local object dictionary, several sessions at once.
+/* USDO server (CiA 1301, fd lines only): expedited, segmented and bulk
+ * download, expedited and segmented upload of the local object dictionary,
+ * several sessions at once.
  *
  * Requests arrive on 0x601..0x67F (0x600 + client node-id) with byte 0 =
  * our node-id or 0 (broadcast, answered individually); answers go out on
@@ -12,8 +13,11 @@
  *
  *   FREE -> (request) -> an answer at once, back to FREE          expedited
  *                     -> DOWNLOAD / UPLOAD (segments follow)      segmented
+ *                     -> BULK (segments follow, none answered     bulk download
+ *                        until the last one)
  *                     -> PENDING (a handler split; waits for co_usdo_server_resume)
- *   DOWNLOAD/UPLOAD/PENDING -> idle timeout -> timeout abort sent -> FREE
+ *   DOWNLOAD / BULK -> (last segment) -> answer, FREE, or PENDING (split)
+ *   DOWNLOAD/UPLOAD/BULK/PENDING -> idle timeout -> timeout abort sent -> FREE
  *                              (PENDING -> ABANDONED: the slot stays taken
  *                              until the application's resume, which then
  *                              only frees it; nothing is written or sent)
@@ -35,7 +39,8 @@ typedef enum co_usdo_session_state {
     CO_USDO_SESSION_DOWNLOAD,    /* segmented download: waiting for the next segment */
     CO_USDO_SESSION_UPLOAD,      /* segmented upload: waiting for the next segment request */
     CO_USDO_SESSION_PENDING,     /* a handler split: waiting for co_usdo_server_resume */
-    CO_USDO_SESSION_ABANDONED    /* was PENDING, then timed out / aborted: freed by the resume */
+    CO_USDO_SESSION_ABANDONED,   /* was PENDING, then timed out / aborted: freed by the resume */
+    CO_USDO_SESSION_BULK         /* bulk download: waiting for the next (unanswered) segment */
 } co_usdo_session_state_t;
 
 typedef struct co_usdo_server co_usdo_server_t;
@@ -66,6 +71,7 @@ typedef struct co_usdo_server_stats {
     uint32_t rx_malformed;       /* too short / bad length for its layout: abort 0x1E */
     uint32_t rx_unknown_command; /* unknown or unexpected command specifier: abort 0x13 */
     uint32_t rx_no_session;      /* segment for no open transfer: abort 0x21 */
+    uint32_t rx_stray_bulk;      /* bulk segment (0x07) for no open transfer: ignored */
     uint32_t rx_bad_counter;     /* abort 0x14 */
     uint32_t rx_size_mismatch;   /* abort 0x15 */
     uint32_t rx_client_abort;    /* a client aborted an open transfer */
@@ -87,6 +93,7 @@ struct co_usdo_server {
     co_usdo_session_t *sessions;
     uint8_t session_count;
     uint64_t timeout_us;
+    uint16_t bulk_pacing;        /* sent in 0x26: 100 us units, 0 = none */
     co_usdo_server_stats_t stats;
 };
 
@@ -96,6 +103,8 @@ typedef struct co_usdo_server_config {
     uint8_t *scratch;             /* session_count * scratch_size bytes */
     uint32_t scratch_size;        /* per session: >= co_usdo_server_scratch_need(od) */
     uint32_t timeout_ms;          /* idle timeout of a session; 0 = default (1000) */
+    uint16_t bulk_pacing;         /* minimum gap between bulk segments asked of a client,
+                                     sent in 0x26: units of 100 us, 0 = none */
 } co_usdo_server_config_t;
 
 /* Scratch bytes one session needs: the largest entry size of the OD. */

@@ -27,6 +27,7 @@
 #define NSES 3
 #define SCRATCH 1000
 #define DOM_CAP 102400u
+#define BIG_CAP (1048576u + 37u)   /* 0x200D: 17476 bulk segments + 37 bytes */
 #define FDF (CO_FRAME_FD | CO_FRAME_BRS)
 
 #define OS CO_TYPE_OCTET_STRING
@@ -42,6 +43,9 @@
 #define DL_LAST 0x04
 #define UL 0x11
 #define UL_SEG 0x13
+#define BULK_INIT 0x06
+#define BULK_SEG 0x07
+#define BULK_LAST 0x08
 #define ABORT 0x7F
 
 /* ------------------------------------------------------------- fixture */
@@ -69,6 +73,11 @@ typedef struct fx {
     unsigned dom_commits;
     unsigned dom_aborts;
     uint32_t dom_last_abort;
+    /* the write-only 1 MiB domain 0x200D */
+    uint8_t big[BIG_CAP];
+    uint32_t big_len;
+    unsigned big_commits;
+    unsigned big_aborts;
     /* split handler of 0x200B */
     bool split_read, split_write;
     co_od_xfer_t *held;
@@ -141,6 +150,33 @@ static uint32_t dom_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
 }
 
 static const co_od_handler_t dom_handler = { NULL, NULL, NULL, dom_size, dom_read, dom_write };
+
+/* 0x200D: written straight into fx->big, in order; the length is known at
+ * the end. */
+static uint32_t big_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
+                          const uint8_t *data, uint32_t n, uint32_t total, bool last,
+                          uint32_t abort, void *user)
+{
+    fx_t *fx = user;
+    (void)od;
+    (void)e;
+    if (abort != 0) {
+        fx->big_aborts++;
+        return 0;
+    }
+    if ((total != CO_OD_SIZE_UNKNOWN && total > BIG_CAP) || offset > BIG_CAP ||
+        n > BIG_CAP - offset)
+        return CO_ABORT_LENGTH_HIGH;
+    if (n > 0)
+        memcpy(fx->big + offset, data, n);
+    if (last) {
+        fx->big_len = offset + n;
+        fx->big_commits++;
+    }
+    return 0;
+}
+
+static const co_od_handler_t big_handler = { NULL, NULL, NULL, NULL, NULL, big_write };
 /* 0x200C: the same data, without a size (upload size unknown) and without a
  * writer. */
 static const co_od_handler_t dom_nosize_handler = { NULL, NULL, NULL, NULL, dom_read, NULL };
@@ -198,13 +234,17 @@ static void build_od(fx_t *fx)
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
     d = tu_od_def(0x200C, 0, VAR, DOM, RW, 0, 0);
     assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
+    d = tu_od_def(0x200D, 0, VAR, DOM, WO, 0, 0);
+    assert_int_equal(co_od_add(&fx->od, &d), CO_OD_ADDED);
     assert_true(co_od_seal(&fx->od, ID_S));
     assert_true(co_od_subscribe(&fx->od, 0x2009, 0, 0x2009, 0, &dom_handler, fx));
     assert_true(co_od_subscribe(&fx->od, 0x200C, 0, 0x200C, 0, &dom_nosize_handler, fx));
     assert_true(co_od_subscribe(&fx->od, 0x200B, 0, 0x200B, 0, &split_handler, fx));
+    assert_true(co_od_subscribe(&fx->od, 0x200D, 0, 0x200D, 0, &big_handler, fx));
 }
 
-static void server_init(fx_t *fx, uint8_t sessions, uint32_t timeout_ms)
+static void server_init_paced(fx_t *fx, uint8_t sessions, uint32_t timeout_ms,
+                              uint16_t bulk_pacing)
 {
     co_usdo_server_config_t cfg;
     memset(&cfg, 0, sizeof cfg);
@@ -213,7 +253,13 @@ static void server_init(fx_t *fx, uint8_t sessions, uint32_t timeout_ms)
     cfg.scratch = fx->scratch;
     cfg.scratch_size = SCRATCH;
     cfg.timeout_ms = timeout_ms;
+    cfg.bulk_pacing = bulk_pacing;
     assert_true(co_usdo_server_init(&fx->srv, fx->a, &fx->od, &cfg));
+}
+
+static void server_init(fx_t *fx, uint8_t sessions, uint32_t timeout_ms)
+{
+    server_init_paced(fx, sessions, timeout_ms, 0);
 }
 
 static int setup(void **state)
@@ -484,6 +530,97 @@ static void seg_read_ok(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index, u
     expect_none(fx);
 }
 
+/* ---- bulk download (0x06 / 0x07 / 0x08; answers 0x26, 0x28) */
+
+static void send_bulk_init(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index, uint8_t sub,
+                           uint8_t type, uint32_t total)
+{
+    uint8_t b[12];
+    mux(b, ID_S, BULK_INIT, sid, index, sub);
+    b[6] = type;
+    b[7] = 0;
+    le_put32(b + 8, total);
+    req(fx, client, b, 12);
+}
+
+static void send_bulk_seg(fx_t *fx, uint8_t client, uint8_t sid, uint8_t counter,
+                          const uint8_t *data)
+{
+    uint8_t b[64];
+    b[0] = ID_S;
+    b[1] = BULK_SEG;
+    b[2] = sid;
+    b[3] = counter;
+    memcpy(b + 4, data, 60);
+    req(fx, client, b, 64);
+}
+
+static void send_bulk_last(fx_t *fx, uint8_t client, uint8_t sid, const uint8_t *data,
+                           uint8_t n)
+{
+    uint8_t b[64];
+    b[0] = ID_S;
+    b[1] = BULK_LAST;
+    b[2] = sid;
+    b[3] = n;
+    if (n > 0)
+        memcpy(b + 4, data, n);
+    req(fx, client, b, 4u + n);
+}
+
+/* 0x26: mux, then the pacing (100 us units) little-endian in bytes 6-7. */
+static void expect_bulk_accept(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index,
+                               uint8_t sub, uint16_t pacing)
+{
+    uint8_t e[8];
+    mux(e, client, 0x26, sid, index, sub);
+    e[6] = (uint8_t)(pacing & 0xFF);
+    e[7] = (uint8_t)(pacing >> 8);
+    expect(fx, e, 8);
+}
+
+static void expect_bulk_end(fx_t *fx, uint8_t client, uint8_t sid)
+{
+    uint8_t e[3] = { client, 0x28, sid };
+    expect(fx, e, 3);
+}
+
+/* n / 60 bulk segments of `data`, counters from `counter` on (wrapping),
+ * none of them answered. Returns the counter after the last one. */
+static uint8_t bulk_segs(fx_t *fx, uint8_t client, uint8_t sid, uint8_t counter,
+                         const uint8_t *data, uint32_t n)
+{
+    uint32_t off;
+    for (off = 0; off + 60 <= n; off += 60) {
+        send_bulk_seg(fx, client, sid, counter, data + off);
+        expect_none(fx);
+        counter = (uint8_t)(counter + 1u);
+    }
+    return counter;
+}
+
+/* Bytes a bulk download of `total` bytes sends in full segments: the last
+ * segment carries 1..60 bytes (0 only for an empty value). */
+static uint32_t bulk_full_part(uint32_t total)
+{
+    return total == 0 ? 0 : (total - 1u) / 60u * 60u;
+}
+
+/* Bulk download of `total` bytes, every frame checked: 0x26 with `pacing`,
+ * no answer to any segment, 0x28 at the end. */
+static void bulk_write_ok(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index, uint8_t sub,
+                          uint8_t type, const uint8_t *data, uint32_t total, uint16_t pacing)
+{
+    uint32_t full = bulk_full_part(total);
+    send_bulk_init(fx, client, sid, index, sub, type, total);
+    expect_bulk_accept(fx, client, sid, index, sub, pacing);
+    expect_none(fx);
+    (void)bulk_segs(fx, client, sid, 0, data, full);
+    send_bulk_last(fx, client, sid, data + full, (uint8_t)(total - full));
+    expect_bulk_end(fx, client, sid);
+    expect_none(fx);
+}
+
 static void fill_pattern(uint8_t *p, uint32_t n, uint8_t seed)
 {
     uint32_t i;
@@ -639,11 +776,12 @@ static void test_codec_layout_of_every_command(void **state)
         switch (cs) {
         case 0x11: case 0x21: case 0x22: want = CO_USDO_LAYOUT_MUX; break;
         case 0x01: case 0x31: want = CO_USDO_LAYOUT_EXPEDITED; break;
-        case 0x02: case 0x32: want = CO_USDO_LAYOUT_INITIATE; break;
-        case 0x03: case 0x33: want = CO_USDO_LAYOUT_SEGMENT; break;
-        case 0x04: case 0x34: want = CO_USDO_LAYOUT_LAST; break;
+        case 0x02: case 0x32: case 0x06: want = CO_USDO_LAYOUT_INITIATE; break;
+        case 0x03: case 0x33: case 0x07: want = CO_USDO_LAYOUT_SEGMENT; break;
+        case 0x04: case 0x34: case 0x08: want = CO_USDO_LAYOUT_LAST; break;
         case 0x13: case 0x23: want = CO_USDO_LAYOUT_COUNTER; break;
-        case 0x24: want = CO_USDO_LAYOUT_END; break;
+        case 0x24: case 0x28: want = CO_USDO_LAYOUT_END; break;
+        case 0x26: want = CO_USDO_LAYOUT_BULK_ACCEPT; break;
         case 0x7F: want = CO_USDO_LAYOUT_ABORT; break;
         default: break;
         }
@@ -736,8 +874,18 @@ static void test_codec_encode_refuses_what_does_not_fit(void **state)
     assert_int_equal(enc(0x34, 1, 1, 0, 0, 0, 0, 0, data, 61, 0, out), 0);
     assert_int_equal(enc(0x34, 1, 1, 0, 0, 0, 0, 0, NULL, 1, 0, out), 0);
     assert_int_equal(enc(0x31, 1, 1, 0, 0, 0, 0, 0, NULL, 1, 0, out), 0);
-    assert_int_equal(enc(0x06, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    /* bulk segments: exactly 60 bytes, last 0..60 with data */
+    assert_int_equal(enc(0x07, 1, 1, 0, 0, 0, 0, 0, data, 59, 0, out), 0);
+    assert_int_equal(enc(0x07, 1, 1, 0, 0, 0, 0, 0, NULL, 60, 0, out), 0);
+    assert_int_equal(enc(0x08, 1, 1, 0, 0, 0, 0, 0, data, 61, 0, out), 0);
+    assert_int_equal(enc(0x08, 1, 1, 0, 0, 0, 0, 0, NULL, 1, 0, out), 0);
+    /* no layout: multiple sub-indices, remote, reserved */
+    assert_int_equal(enc(0x05, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    assert_int_equal(enc(0x15, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
     assert_int_equal(enc(0x81, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    assert_int_equal(enc(0x91, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    assert_int_equal(enc(0x86, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    assert_int_equal(enc(0x16, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
     assert_int_equal(enc(0xFF, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
     assert_memory_equal(out, zero, 64);
 }
@@ -768,14 +916,24 @@ static void test_codec_decode_refuses_bad_lengths_and_commands(void **state)
     /* a segment must be 64 bytes */
     b[1] = 0x03;
     assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_SHORT);
-    /* unknown commands: bulk, multiple sub-indices, remote, anything else */
-    b[1] = 0x06;
+    /* bulk: a bulk segment must be 64 bytes, a bulk last n <= 60 */
+    b[1] = 0x07;
+    assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_SHORT);
+    b[1] = 0x08;
+    b[3] = 61;
+    assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_BAD_LENGTH);
+    /* unknown commands: multiple sub-indices, remote, anything else */
+    mux(b, 5, 0x05, 1, 0x2000, 0);
     assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_UNKNOWN_CS);
     assert_int_equal(m.dest, 5);
-    assert_int_equal(m.cs, 0x06);
+    assert_int_equal(m.cs, 0x05);
     assert_int_equal(m.session, 1);
     assert_int_equal(m.index, 0);   /* no layout: the mux is not read */
-    b[1] = 0x05;
+    b[1] = 0x15;
+    assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_UNKNOWN_CS);
+    b[1] = 0x91;
+    assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_UNKNOWN_CS);
+    b[1] = 0x86;   /* a remote bulk initiate */
     assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_UNKNOWN_CS);
     b[1] = 0x81;
     assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_UNKNOWN_CS);
@@ -788,16 +946,150 @@ static void test_codec_decode_refuses_bad_lengths_and_commands(void **state)
 
 /* Every proper prefix of every valid frame is refused, and read only within
  * its length. */
+/* The bulk frames: exact bytes both ways, and every truncation refused. */
+static void test_codec_bulk_frames(void **state)
+{
+    co_usdo_msg_t m;
+    uint8_t out[64], seg[64], last[64];
+    /* 0x06: as 0x02 (12 bytes), size 0x0010002D */
+    const uint8_t init[] = { 0x05, 0x06, 0x09, 0x00, 0x0D, 0x20, 0x0F, 0x00,
+                             0x2D, 0x00, 0x10, 0x00 };
+    /* 0x26: mux, pacing 0x1234 little-endian (8 bytes) */
+    const uint8_t acc[] = { 0x01, 0x26, 0x09, 0x02, 0x0A, 0x20, 0x34, 0x12 };
+    const uint8_t end[] = { 0x01, 0x28, 0x09 };
+    struct {
+        const uint8_t *b;
+        size_t n;
+    } frames[5];
+    size_t i, len;
+    (void)state;
+
+    assert_int_equal(decode_exact(init, sizeof init, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.dest, 5);
+    assert_int_equal(m.cs, 0x06);
+    assert_int_equal(m.session, 9);
+    assert_int_equal(m.sub, 0);
+    assert_int_equal(m.index, 0x200D);
+    assert_int_equal(m.type, 0x0F);
+    assert_int_equal(m.size, 0x0010002Du);
+    assert_int_equal(m.length, 0);
+    assert_int_equal(m.pacing, 0);
+    assert_encoded(out, co_usdo_encode(&m, out), init, sizeof init);
+
+    assert_int_equal(decode_exact(acc, sizeof acc, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.dest, 1);
+    assert_int_equal(m.cs, 0x26);
+    assert_int_equal(m.session, 9);
+    assert_int_equal(m.sub, 2);
+    assert_int_equal(m.index, 0x200A);
+    assert_int_equal(m.pacing, 0x1234);
+    assert_int_equal(m.size, 0);
+    memset(&m, 0, sizeof m);
+    m.dest = 1;
+    m.cs = 0x26;
+    m.session = 9;
+    m.sub = 2;
+    m.index = 0x200A;
+    m.pacing = 0x1234;
+    assert_encoded(out, co_usdo_encode(&m, out), acc, sizeof acc);
+    m.pacing = 0xFFFF;
+    assert_int_equal(co_usdo_encode(&m, out), 8);
+    assert_int_equal(out[6], 0xFF);
+    assert_int_equal(out[7], 0xFF);
+    m.pacing = 0;
+    assert_int_equal(co_usdo_encode(&m, out), 8);
+    assert_int_equal(out[6], 0);
+    assert_int_equal(out[7], 0);
+
+    /* 0x07: as 0x03 (64 bytes), counter 0xFF */
+    seg[0] = 5;
+    seg[1] = 0x07;
+    seg[2] = 9;
+    seg[3] = 0xFF;
+    fill_pattern(seg + 4, 60, 0x31);
+    assert_int_equal(decode_exact(seg, 64, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.cs, 0x07);
+    assert_int_equal(m.session, 9);
+    assert_int_equal(m.counter, 0xFF);
+    assert_int_equal(m.length, 60);
+    assert_memory_equal(m.data, seg + 4, 60);
+    assert_int_equal(m.index, 0);
+    assert_encoded(out, co_usdo_encode(&m, out), seg, 64);
+
+    /* 0x08: as 0x04 (4 + n bytes), n = 17, 0 and 60 */
+    memset(last, 0, sizeof last);
+    last[0] = 5;
+    last[1] = 0x08;
+    last[2] = 9;
+    last[3] = 17;
+    fill_pattern(last + 4, 60, 0x52);
+    assert_int_equal(decode_exact(last, 21, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.cs, 0x08);
+    assert_int_equal(m.length, 17);
+    assert_memory_equal(m.data, last + 4, 17);
+    assert_encoded(out, co_usdo_encode(&m, out), last, 21);
+    last[3] = 60;
+    assert_int_equal(decode_exact(last, 64, &m), CO_USDO_DECODE_OK);
+    assert_encoded(out, co_usdo_encode(&m, out), last, 64);
+    last[3] = 0;
+    assert_int_equal(decode_exact(last, 4, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.length, 0);
+    assert_int_equal(co_usdo_encode(&m, out), 4);
+    /* n > 60, n beyond the frame */
+    last[3] = 61;
+    assert_int_equal(decode_exact(last, 64, &m), CO_USDO_DECODE_BAD_LENGTH);
+    last[3] = 40;
+    assert_int_equal(decode_exact(last, 32, &m), CO_USDO_DECODE_SHORT);
+    last[3] = 17;
+
+    /* 0x28: as 0x24 (3 bytes) */
+    assert_int_equal(decode_exact(end, sizeof end, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.dest, 1);
+    assert_int_equal(m.cs, 0x28);
+    assert_int_equal(m.session, 9);
+    assert_encoded(out, co_usdo_encode(&m, out), end, sizeof end);
+
+    /* every short frame of each: no session-ID below 3 bytes, else too short */
+    frames[0].b = init;
+    frames[0].n = sizeof init;
+    frames[1].b = acc;
+    frames[1].n = sizeof acc;
+    frames[2].b = seg;
+    frames[2].n = 64;
+    frames[3].b = last;
+    frames[3].n = 21;
+    frames[4].b = end;
+    frames[4].n = sizeof end;
+    for (i = 0; i < 5; i++) {
+        for (len = 0; len < frames[i].n; len++) {
+            co_usdo_decode_result_t r = decode_exact(frames[i].b, len, &m);
+            assert_int_equal(r, len < 3 ? CO_USDO_DECODE_EMPTY : CO_USDO_DECODE_SHORT);
+            if (len >= 3)
+                assert_int_equal(m.cs, frames[i].b[1]);
+        }
+    }
+    /* the mux is read where the layout has one, even from a short frame */
+    assert_int_equal(decode_exact(acc, 7, &m), CO_USDO_DECODE_SHORT);
+    assert_int_equal(m.index, 0x200A);
+    assert_int_equal(m.sub, 2);
+    assert_true(co_usdo_layout_has_mux(co_usdo_layout_of(0x06)));
+    assert_true(co_usdo_layout_has_mux(co_usdo_layout_of(0x26)));
+    assert_false(co_usdo_layout_has_mux(co_usdo_layout_of(0x07)));
+    assert_false(co_usdo_layout_has_mux(co_usdo_layout_of(0x08)));
+    assert_false(co_usdo_layout_has_mux(co_usdo_layout_of(0x28)));
+}
+
 static void test_codec_every_truncation_refused(void **state)
 {
-    static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x11, 0x13, 0x21, 0x22,
-                                    0x23, 0x24, 0x31, 0x32, 0x33, 0x34, 0x7F };
+    static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x06, 0x07, 0x08, 0x11,
+                                    0x13, 0x21, 0x22, 0x23, 0x24, 0x26, 0x28, 0x31,
+                                    0x32, 0x33, 0x34, 0x7F };
     uint8_t data[60], buf[64];
     size_t i, len;
     (void)state;
     fill_pattern(data, 60, 0x11);
     for (i = 0; i < sizeof cmds; i++) {
-        uint8_t dlen = (uint8_t)((cmds[i] & 0x0F) == 3 ? 60 : 23);
+        uint8_t dlen = (uint8_t)((cmds[i] & 0x0F) == 3 || cmds[i] == 0x07 ? 60 : 23);
         size_t n = enc(cmds[i], 5, 1, 0x2004, 2, 9, 3, 1000, data, dlen, 0x33, buf);
         co_usdo_msg_t m;
         assert_true(n >= 3);
@@ -814,8 +1106,9 @@ static void test_codec_every_truncation_refused(void **state)
 static void test_codec_random_input(void **state)
 {
     uint64_t seed = 0xC0DEC0DE12345ull;
-    static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x11, 0x13, 0x21, 0x22,
-                                    0x23, 0x24, 0x31, 0x32, 0x33, 0x34, 0x7F };
+    static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x06, 0x07, 0x08, 0x11,
+                                    0x13, 0x21, 0x22, 0x23, 0x24, 0x26, 0x28, 0x31,
+                                    0x32, 0x33, 0x34, 0x7F };
     unsigned i, ok = 0;
     (void)state;
     for (i = 0; i < 200000; i++) {
@@ -828,13 +1121,13 @@ static void test_codec_random_input(void **state)
             b[1] = cmds[tu_rand(&seed) % sizeof cmds];
         if (len > 7 && b[1] == 0x01 && (tu_rand(&seed) & 1))
             b[7] = (uint8_t)(tu_rand(&seed) % 60);
-        if (len > 3 && b[1] == 0x04 && (tu_rand(&seed) & 1))
+        if (len > 3 && (b[1] == 0x04 || b[1] == 0x08) && (tu_rand(&seed) & 1))
             b[3] = (uint8_t)(tu_rand(&seed) % 64);
         if (decode_exact(b, len, &m) == CO_USDO_DECODE_OK) {
             size_t n = co_usdo_encode(&m, out);
             ok++;
             assert_true(n >= 3 && n <= len);
-            if (m.cs == 0x02 || m.cs == 0x32) {
+            if (m.cs == 0x02 || m.cs == 0x32 || m.cs == 0x06) {
                 assert_int_equal(out[7], 0);
                 out[7] = b[7];
             }
@@ -1258,8 +1551,8 @@ static void test_abort_unknown_command(void **state)
     uint8_t b[64];
     memset(b, 0, sizeof b);
     snap(fx);
-    /* multiple sub-indices (TBD), bulk (not supported), remote, garbage */
-    static const uint8_t cmds[] = { 0x05, 0x06, 0x07, 0x08, 0x15, 0x81, 0x91, 0x00, 0x40 };
+    /* multiple sub-indices (TBD), remote (incl. remote bulk), garbage */
+    static const uint8_t cmds[] = { 0x05, 0x15, 0x81, 0x86, 0x87, 0x91, 0x00, 0x09, 0x40 };
     size_t i;
     for (i = 0; i < sizeof cmds; i++) {
         mux(b, ID_S, cmds[i], (uint8_t)(30 + i), 0x2002, 0);
@@ -1273,9 +1566,16 @@ static void test_abort_unknown_command(void **state)
     mux(b, ID_S, 0x23, 41, 0x2002, 0);
     req(fx, C1, b, 4);
     expect_abort(fx, C1, 41, 0, 0, 0x13);
+    /* the bulk responses as requests */
+    mux(b, ID_S, 0x26, 42, 0x2002, 0);
+    req(fx, C1, b, 8);
+    expect_abort(fx, C1, 42, 0x2002, 0, 0x13);
+    mux(b, ID_S, 0x28, 43, 0x2002, 0);
+    req(fx, C1, b, 3);
+    expect_abort(fx, C1, 43, 0, 0, 0x13);
     expect_none(fx);
     assert_unchanged(fx);
-    assert_int_equal(fx->srv.stats.rx_unknown_command, sizeof cmds + 2);
+    assert_int_equal(fx->srv.stats.rx_unknown_command, sizeof cmds + 4);
 }
 
 static void test_abort_unknown_command_ends_open_transfer(void **state)
@@ -1284,7 +1584,7 @@ static void test_abort_unknown_command_ends_open_transfer(void **state)
     uint8_t b[12];
     send_dl_init(fx, C1, 3, 0x2004, 0, VS, 100);
     expect_mux(fx, C1, 0x22, 3, 0x2004, 0);
-    mux(b, ID_S, 0x06, 3, 0, 0);
+    mux(b, ID_S, 0x05, 3, 0, 0);
     req(fx, C1, b, 12);
     expect_abort(fx, C1, 3, 0x2004, 0, 0x13);
     assert_int_equal(co_usdo_server_active(&fx->srv), 0);
@@ -1787,6 +2087,667 @@ static void test_deinit_aborts_open_transfers(void **state)
     exp_read_ok(fx, C1, 1, 0x2000, 0, U8, (const uint8_t *)"\x11", 1);
 }
 
+/* ================================================= bulk download */
+
+/* 0x26 byte for byte: the mux, then the configured pacing (100 us units)
+ * little-endian; 0 = none by default. */
+static void test_bulk_accept_frame_carries_pacing(void **state)
+{
+    fx_t *fx = *state;
+    const uint8_t init7[] = { 0x05, 0x06, 0x07, 0x01, 0x0A, 0x20, 0x07, 0x00,
+                              0x04, 0x00, 0x00, 0x00 };
+    const uint8_t acc7[] = { 0x01, 0x26, 0x07, 0x01, 0x0A, 0x20, 0x00, 0x00 };
+    const uint8_t init8[] = { 0x05, 0x06, 0x08, 0x01, 0x0A, 0x20, 0x07, 0x00,
+                              0x04, 0x00, 0x00, 0x00 };
+    const uint8_t acc8[] = { 0x01, 0x26, 0x08, 0x01, 0x0A, 0x20, 0x34, 0x12 };
+    const uint8_t last8[] = { 0x05, 0x08, 0x08, 0x04, 0x44, 0x33, 0x22, 0x11 };
+    const uint8_t end8[] = { 0x01, 0x28, 0x08 };
+    req(fx, C1, init7, sizeof init7);
+    expect(fx, acc7, sizeof acc7);
+    assert_int_equal(fx->tb.log[fx->cursor - 1].frame.len, 8);
+    send_bulk_last(fx, C1, 7, (const uint8_t *)"\x01\x02\x03\x04", 4);
+    expect_bulk_end(fx, C1, 7);
+    assert_int_equal(od_u32(fx, 0x200A, 1), 0x04030201u);
+
+    co_usdo_server_deinit(&fx->srv);
+    server_init_paced(fx, NSES, 0, 0x1234);   /* 0x1234 * 100 us = 466 ms */
+    assert_int_equal(fx->srv.bulk_pacing, 0x1234);
+    req(fx, C1, init8, sizeof init8);
+    expect(fx, acc8, sizeof acc8);
+    assert_int_equal(fx->tb.log[fx->cursor - 1].frame.len, 8);
+    req(fx, C1, last8, sizeof last8);
+    expect(fx, end8, sizeof end8);
+    assert_int_equal(fx->tb.log[fx->cursor - 1].frame.len, 3);
+    expect_none(fx);
+    assert_int_equal(od_u32(fx, 0x200A, 1), 0x11223344u);
+    assert_int_equal(fx->srv.stats.downloads, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* 1 MiB + 37 bytes into a domain: 17476 unanswered segments (the counter
+ * wraps 68 times) and a last one of 37, compared byte for byte; then
+ * 100 KiB into the readable domain, read back segmented. */
+static void test_bulk_domain_1mib_counter_wraps(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[BIG_CAP];
+    uint64_t seed = 0xB01CB01C5EEDull;
+    uint32_t i;
+    for (i = 0; i < BIG_CAP; i++)
+        data[i] = (uint8_t)tu_rand(&seed);
+    assert_int_equal(bulk_full_part(BIG_CAP), 17476u * 60u);
+    bulk_write_ok(fx, C1, 0x42, 0x200D, 0, DOM, data, BIG_CAP, 0);
+    assert_int_equal(fx->big_len, BIG_CAP);
+    assert_memory_equal(fx->big, data, BIG_CAP);
+    assert_int_equal(fx->big_commits, 1);
+    assert_int_equal(fx->big_aborts, 0);
+
+    for (i = 0; i < DOM_CAP; i++)
+        data[i] = (uint8_t)tu_rand(&seed);
+    bulk_write_ok(fx, C2, 0x43, 0x2009, 0, DOM, data, DOM_CAP, 0);
+    assert_int_equal(fx->dom_len, DOM_CAP);
+    assert_memory_equal(fx->domain, data, DOM_CAP);
+    assert_int_equal(fx->dom_commits, 1);
+    seg_read_ok(fx, C1, 0x44, 0x2009, 0, DOM, data, DOM_CAP, DOM_CAP);
+
+    assert_int_equal(fx->srv.stats.downloads, 2);
+    assert_int_equal(fx->srv.stats.aborts_sent, 0);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 0);
+    assert_int_equal(fx->srv.stats.tx_failed, 0);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* Bulk into ordinary entries: U32 (only a last segment), strings at the
+ * segment boundaries, an empty string, 1000 octets, broadcast. */
+static void test_bulk_into_u32_and_strings(void **state)
+{
+    fx_t *fx = *state;
+    static const uint32_t sizes[] = { 1, 59, 60, 61, 119, 120, 121, 200 };
+    static uint8_t data[1000];
+    uint8_t b[12];
+    size_t i;
+    bulk_write_ok(fx, C1, 1, 0x2002, 0, U32, (const uint8_t *)"\x78\x56\x34\x12", 4, 0);
+    assert_int_equal(od_u32(fx, 0x2002, 0), 0x12345678u);
+    /* raw bytes (DOMAIN as the type byte) */
+    bulk_write_ok(fx, C1, 2, 0x2002, 0, DOM, (const uint8_t *)"\x01\x00\x00\x80", 4, 0);
+    assert_int_equal(od_u32(fx, 0x2002, 0), 0x80000001u);
+    for (i = 0; i < sizeof sizes / sizeof sizes[0]; i++) {
+        uint8_t sid = (uint8_t)(10 + i);
+        fill_pattern(data, sizes[i], (uint8_t)(0x30 + i));
+        bulk_write_ok(fx, C2, sid, 0x2004, 0, VS, data, sizes[i], 0);
+        assert_od_bytes(fx, 0x2004, 0, data, sizes[i]);
+    }
+    seg_read_ok(fx, C1, 3, 0x2004, 0, VS, data, 200, 200);
+    /* an empty value: 0x06 with size 0, 0x08 with n = 0 */
+    bulk_write_ok(fx, C1, 4, 0x2004, 0, VS, NULL, 0, 0);
+    assert_od_bytes(fx, 0x2004, 0, NULL, 0);
+    fill_pattern(data, 1000, 0x99);
+    bulk_write_ok(fx, C1, 5, 0x2005, 0, OS, data, 1000, 0);
+    assert_od_bytes(fx, 0x2005, 0, data, 1000);
+    /* broadcast initiate: answered by us, the segments carry our node-id */
+    mux(b, 0, BULK_INIT, 6, 0x2001, 0);
+    b[6] = U16;
+    b[7] = 0;
+    le_put32(b + 8, 2);
+    req(fx, C2, b, 12);
+    expect_bulk_accept(fx, C2, 6, 0x2001, 0, 0);
+    send_bulk_last(fx, C2, 6, (const uint8_t *)"\xCD\xAB", 2);
+    expect_bulk_end(fx, C2, 6);
+    assert_od_bytes(fx, 0x2001, 0, (const uint8_t *)"\xCD\xAB", 2);
+    expect_none(fx);
+    assert_int_equal(fx->srv.stats.downloads, 13);
+    assert_int_equal(fx->srv.stats.aborts_sent, 0);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* The initiate is checked like 0x02: entry, access, length, type byte. */
+static void test_bulk_initiate_refusals(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[120];
+    fill_pattern(data, sizeof data, 5);
+    snap(fx);
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 201);       /* longer than the entry */
+    expect_abort(fx, C1, 1, 0x2004, 0, 0x37);
+    send_bulk_init(fx, C1, 2, 0x2006, 0, U32, 4);        /* read-only */
+    expect_abort(fx, C1, 2, 0x2006, 0, 0x32);
+    send_bulk_init(fx, C1, 3, 0x2002, 0, VS, 4);         /* type byte wrong */
+    expect_abort(fx, C1, 3, 0x2002, 0, 0x36);
+    send_bulk_init(fx, C1, 4, 0x2100, 0, U32, 4);        /* no object */
+    expect_abort(fx, C1, 4, 0x2100, 0, 0x33);
+    send_bulk_init(fx, C1, 5, 0x200A, 2, U32, 4);        /* no sub-index */
+    expect_abort(fx, C1, 5, 0x200A, 2, 0x34);
+    send_bulk_init(fx, C1, 6, 0x200C, 0, DOM, 100);      /* domain without a writer */
+    expect_abort(fx, C1, 6, 0x200C, 0, 0x30);
+    /* the domain refuses more than it holds at the first segment; the
+     * segments still in flight are ignored */
+    send_bulk_init(fx, C1, 7, 0x2009, 0, DOM, DOM_CAP + 1);
+    expect_bulk_accept(fx, C1, 7, 0x2009, 0, 0);
+    send_bulk_seg(fx, C1, 7, 0, data);
+    expect_abort(fx, C1, 7, 0x2009, 0, 0x37);
+    send_bulk_seg(fx, C1, 7, 1, data + 60);
+    expect_none(fx);
+    /* limits are checked at the end */
+    send_bulk_init(fx, C1, 8, 0x2008, 0, U16, 2);
+    expect_bulk_accept(fx, C1, 8, 0x2008, 0, 0);
+    send_bulk_last(fx, C1, 8, (const uint8_t *)"\xF4\x01", 2);
+    expect_abort(fx, C1, 8, 0x2008, 0, 0x41);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.od_aborts, 8);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* A lost segment: 0x14 once, the session is freed, the domain writer is
+ * told, nothing is committed; the rest of the burst is ignored, the last
+ * segment finds no transfer (0x21). */
+static void test_bulk_lost_segment(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[600];
+    uint8_t k;
+    fill_pattern(data, sizeof data, 0x11);
+    snap(fx);
+    send_bulk_init(fx, C1, 1, 0x2009, 0, DOM, 600);
+    expect_bulk_accept(fx, C1, 1, 0x2009, 0, 0);
+    assert_int_equal(bulk_segs(fx, C1, 1, 0, data, 120), 2);
+    send_bulk_seg(fx, C1, 1, 3, data + 180);             /* 2 was lost */
+    expect_abort(fx, C1, 1, 0x2009, 0, 0x14);
+    expect_none(fx);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+    assert_int_equal(fx->dom_aborts, 1);
+    assert_int_equal(fx->dom_last_abort, co_usdo_abort_to_co(0x14));
+    assert_int_equal(fx->dom_commits, 0);
+    for (k = 4; k < 9; k++) {
+        send_bulk_seg(fx, C1, 1, k, data + 60u * (k - 1u));
+        expect_none(fx);
+    }
+    send_bulk_last(fx, C1, 1, data + 540, 60);
+    expect_abort(fx, C1, 1, 0, 0, 0x21);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_bad_counter, 1);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 5);
+    assert_int_equal(fx->srv.stats.rx_no_session, 1);
+    assert_int_equal(fx->srv.stats.aborts_sent, 2);
+    assert_int_equal(fx->srv.stats.downloads, 0);
+    /* the same (client, session-ID) can start again */
+    fill_pattern(data, sizeof data, 0x12);
+    bulk_write_ok(fx, C1, 1, 0x2009, 0, DOM, data, 600, 0);
+    assert_int_equal(fx->dom_len, 600);
+    assert_memory_equal(fx->domain, data, 600);
+}
+
+static void test_bulk_duplicated_segment(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[200];
+    fill_pattern(data, sizeof data, 0x21);
+    snap(fx);
+    send_bulk_init(fx, C1, 2, 0x2004, 0, VS, 200);
+    expect_bulk_accept(fx, C1, 2, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 2, 0, data);
+    expect_none(fx);
+    send_bulk_seg(fx, C1, 2, 0, data);
+    expect_abort(fx, C1, 2, 0x2004, 0, 0x14);
+    send_bulk_seg(fx, C1, 2, 1, data + 60);
+    expect_none(fx);
+    assert_unchanged(fx);
+    /* a repeat right after a wrap: 0xFF twice */
+    send_bulk_init(fx, C1, 3, 0x2009, 0, DOM, 60u * 300u);
+    expect_bulk_accept(fx, C1, 3, 0x2009, 0, 0);
+    {
+        static uint8_t big[60u * 300u];
+        fill_pattern(big, sizeof big, 0x22);
+        assert_int_equal(bulk_segs(fx, C1, 3, 0, big, 60u * 256u), 0);
+        send_bulk_seg(fx, C1, 3, 0xFF, big);
+        expect_abort(fx, C1, 3, 0x2009, 0, 0x14);
+    }
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->dom_aborts, 1);
+    assert_int_equal(fx->srv.stats.rx_bad_counter, 2);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+static void test_bulk_reordered_segments(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[300];
+    fill_pattern(data, sizeof data, 0x31);
+    snap(fx);
+    send_bulk_init(fx, C2, 4, 0x2005, 0, OS, 300);
+    expect_bulk_accept(fx, C2, 4, 0x2005, 0, 0);
+    send_bulk_seg(fx, C2, 4, 0, data);
+    expect_none(fx);
+    send_bulk_seg(fx, C2, 4, 2, data + 120);
+    expect_abort(fx, C2, 4, 0x2005, 0, 0x14);
+    send_bulk_seg(fx, C2, 4, 1, data + 60);
+    expect_none(fx);
+    send_bulk_seg(fx, C2, 4, 3, data + 180);
+    expect_none(fx);
+    send_bulk_last(fx, C2, 4, data + 240, 60);
+    expect_abort(fx, C2, 4, 0, 0, 0x21);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_bad_counter, 1);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 2);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* The announced size: more bytes than announced in a segment = 0x15 at
+ * once; fewer or more at the last segment = 0x15. */
+static void test_bulk_size_mismatch(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[200];
+    fill_pattern(data, sizeof data, 0x41);
+    snap(fx);
+    /* too big, mid-stream */
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 1, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 1, 0, data);
+    expect_none(fx);
+    send_bulk_seg(fx, C1, 1, 1, data + 60);
+    expect_abort(fx, C1, 1, 0x2004, 0, 0x15);
+    send_bulk_seg(fx, C1, 1, 2, data + 120);
+    expect_none(fx);
+    /* too small at the end */
+    send_bulk_init(fx, C1, 2, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 2, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 2, 0, data);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 2, data + 60, 39);
+    expect_abort(fx, C1, 2, 0x2004, 0, 0x15);
+    /* too big at the end */
+    send_bulk_init(fx, C1, 3, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 3, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 3, 0, data);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 3, data + 60, 41);
+    expect_abort(fx, C1, 3, 0x2004, 0, 0x15);
+    /* a size of 0 and a segment */
+    send_bulk_init(fx, C1, 4, 0x2004, 0, VS, 0);
+    expect_bulk_accept(fx, C1, 4, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 4, 0, data);
+    expect_abort(fx, C1, 4, 0x2004, 0, 0x15);
+    /* the domain: its writer is told, nothing committed */
+    send_bulk_init(fx, C1, 5, 0x2009, 0, DOM, 70);
+    expect_bulk_accept(fx, C1, 5, 0x2009, 0, 0);
+    send_bulk_seg(fx, C1, 5, 0, data);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 5, data, 5);
+    expect_abort(fx, C1, 5, 0x2009, 0, 0x15);
+    assert_int_equal(fx->dom_aborts, 1);
+    assert_int_equal(fx->dom_last_abort, CO_ABORT_TYPE_MISMATCH);
+    assert_int_equal(fx->dom_commits, 0);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_size_mismatch, 5);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 1);
+    assert_int_equal(fx->srv.stats.downloads, 0);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* A bulk segment for no open transfer is ignored and counted, nothing is
+ * sent; a bulk last segment for none is answered 0x21 as other segments. */
+static void test_bulk_stray_segment_ignored(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[100];
+    uint8_t b[64];
+    fill_pattern(data, sizeof data, 0x51);
+    snap(fx);
+    send_bulk_seg(fx, C1, 9, 0, data);
+    expect_none(fx);
+    send_bulk_seg(fx, C1, 9, 7, data);
+    expect_none(fx);
+    /* broadcast, too */
+    b[0] = 0;
+    b[1] = BULK_SEG;
+    b[2] = 9;
+    b[3] = 8;
+    memcpy(b + 4, data, 60);
+    req(fx, C1, b, 64);
+    expect_none(fx);
+    /* the same session-ID of another client is not its transfer */
+    send_bulk_init(fx, C1, 10, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 10, 0x2004, 0, 0);
+    send_bulk_seg(fx, C2, 10, 0, data);
+    expect_none(fx);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 1);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 4);
+    assert_int_equal(fx->srv.stats.rx_no_session, 0);
+    assert_int_equal(fx->srv.stats.aborts_sent, 0);
+    /* which goes on undisturbed */
+    send_bulk_seg(fx, C1, 10, 0, data);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 10, data + 60, 40);
+    expect_bulk_end(fx, C1, 10);
+    assert_od_bytes(fx, 0x2004, 0, data, 100);
+    snap(fx);
+    /* 0x08 for no transfer: 0x21 */
+    send_bulk_last(fx, C1, 9, data, 3);
+    expect_abort(fx, C1, 9, 0, 0, 0x21);
+    /* a bulk segment too short for its layout is malformed, not stray */
+    b[0] = ID_S;
+    req_raw(fx, 0x601, FDF, b, 48);
+    expect_abort(fx, C1, 9, 0, 0, 0x1E);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 4);
+    assert_int_equal(fx->srv.stats.rx_no_session, 1);
+    assert_int_equal(fx->srv.stats.rx_malformed, 1);
+    assert_int_equal(fx->srv.stats.aborts_sent, 2);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* Segmented frames in a bulk download and bulk frames in a segmented
+ * download or an upload: 0x13, the transfer ends. */
+static void test_bulk_wrong_kind(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[120];
+    fill_pattern(data, sizeof data, 0x61);
+    snap(fx);
+    /* 0x03 in a bulk download */
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 1, 0x2004, 0, 0);
+    send_dl_seg(fx, C1, 1, 0, data);
+    expect_abort(fx, C1, 1, 0x2004, 0, 0x13);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+    /* 0x04 in a bulk download */
+    send_bulk_init(fx, C1, 2, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 2, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 2, 0, data);
+    expect_none(fx);
+    send_dl_last(fx, C1, 2, data + 60, 40);
+    expect_abort(fx, C1, 2, 0x2004, 0, 0x13);
+    /* 0x07 in a segmented download */
+    send_dl_init(fx, C1, 3, 0x2004, 0, VS, 100);
+    expect_mux(fx, C1, 0x22, 3, 0x2004, 0);
+    send_bulk_seg(fx, C1, 3, 0, data);
+    expect_abort(fx, C1, 3, 0x2004, 0, 0x13);
+    /* 0x08 in a segmented download */
+    send_dl_init(fx, C1, 4, 0x2004, 0, VS, 100);
+    expect_mux(fx, C1, 0x22, 4, 0x2004, 0);
+    send_dl_seg(fx, C1, 4, 0, data);
+    expect_seg_ack(fx, C1, 4, 0);
+    send_bulk_last(fx, C1, 4, data + 60, 40);
+    expect_abort(fx, C1, 4, 0x2004, 0, 0x13);
+    /* 0x07 in an upload, and 0x13 in a bulk download */
+    send_upload(fx, C2, ID_S, 5, 0x2005, 0);
+    next_rsp(fx);
+    send_bulk_seg(fx, C2, 5, 0, data);
+    expect_abort(fx, C2, 5, 0x2005, 0, 0x13);
+    send_bulk_init(fx, C2, 6, 0x2009, 0, DOM, 100);
+    expect_bulk_accept(fx, C2, 6, 0x2009, 0, 0);
+    send_ul_seg(fx, C2, 6, 0);
+    expect_abort(fx, C2, 6, 0x2009, 0, 0x13);
+    assert_int_equal(fx->dom_aborts, 1);
+    /* what is still in flight afterwards is ignored */
+    send_bulk_seg(fx, C1, 1, 1, data);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_unknown_command, 6);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* Frames too short for their layout in a bulk download: 0x1E. */
+static void test_bulk_malformed_frames(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t b[64];
+    memset(b, 0, sizeof b);
+    snap(fx);
+    /* an initiate of 8 bytes: the mux is echoed */
+    mux(b, ID_S, BULK_INIT, 1, 0x2004, 0);
+    req_raw(fx, 0x601, FDF, b, 8);
+    expect_abort(fx, C1, 1, 0x2004, 0, 0x1E);
+    /* a bulk segment of 48 bytes ends the open transfer */
+    send_bulk_init(fx, C1, 2, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 2, 0x2004, 0, 0);
+    b[0] = ID_S;
+    b[1] = BULK_SEG;
+    b[2] = 2;
+    b[3] = 0;
+    req_raw(fx, 0x601, FDF, b, 48);
+    expect_abort(fx, C1, 2, 0x2004, 0, 0x1E);
+    /* a bulk last segment claiming more than the frame holds, and n > 60 */
+    send_bulk_init(fx, C1, 3, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 3, 0x2004, 0, 0);
+    b[1] = BULK_LAST;
+    b[2] = 3;
+    b[3] = 40;
+    req_raw(fx, 0x601, FDF, b, 32);
+    expect_abort(fx, C1, 3, 0x2004, 0, 0x1E);
+    send_bulk_init(fx, C1, 4, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 4, 0x2004, 0, 0);
+    b[2] = 4;
+    b[3] = 61;
+    req_raw(fx, 0x601, FDF, b, 64);
+    expect_abort(fx, C1, 4, 0x2004, 0, 0x1E);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_malformed, 4);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* Idle timeout: re-armed by every (unanswered) segment; the domain writer
+ * is told; what comes later is stray. */
+static void test_bulk_timeout(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[600];
+    uint64_t t0;
+    fill_pattern(data, sizeof data, 0x71);
+    snap(fx);
+    t0 = fx->tb.now;
+    send_bulk_init(fx, C1, 1, 0x2009, 0, DOM, 600);
+    expect_bulk_accept(fx, C1, 1, 0x2009, 0, 0);
+    tu_run_until(&fx->tb, t0 + MS(600));
+    send_bulk_seg(fx, C1, 1, 0, data);
+    expect_none(fx);
+    tu_run_until(&fx->tb, t0 + MS(1300));
+    send_bulk_seg(fx, C1, 1, 1, data + 60);
+    expect_none(fx);
+    tu_run_until(&fx->tb, t0 + MS(2299));
+    expect_none(fx);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 1);
+    tu_run_until(&fx->tb, t0 + MS(2300));
+    expect_abort(fx, C1, 1, 0x2009, 0, 0x12);
+    assert_int_equal(fx->tb.log[fx->cursor - 1].t_us, t0 + MS(2300));
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+    assert_int_equal(fx->dom_aborts, 1);
+    assert_int_equal(fx->dom_last_abort, CO_ABORT_TIMEOUT);
+    send_bulk_seg(fx, C1, 1, 2, data + 120);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 1, data + 180, 60);
+    expect_abort(fx, C1, 1, 0, 0, 0x21);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.timeouts, 1);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 1);
+    assert_int_equal(co_timer_list_next(co_line_timers(fx->a)), CO_TIME_NEVER);
+}
+
+/* A check_write handler that splits at the end: 0x28 waits for the
+ * application's answer. */
+static void test_bulk_split_at_end_defers_0x28(void **state)
+{
+    fx_t *fx = *state;
+    co_od_xfer_t *held;
+    fx->split_write = true;
+    send_bulk_init(fx, C1, 1, 0x200B, 0, U32, 4);
+    expect_bulk_accept(fx, C1, 1, 0x200B, 0, 0);
+    send_bulk_last(fx, C1, 1, (const uint8_t *)"\x44\x33\x22\x11", 4);
+    expect_none(fx);
+    assert_non_null(fx->held);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 1);
+    assert_int_equal(od_u32(fx, 0x200B, 0), 0xB0B0B0B0u);
+    held = fx->held;
+    fx->held = NULL;
+    assert_true(co_usdo_server_resume(&fx->srv, held, CO_OD_SPLIT));
+    tu_step(&fx->tb, fx->tb.now);
+    expect_none(fx);
+    assert_true(co_usdo_server_resume(&fx->srv, held, 0));
+    tu_step(&fx->tb, fx->tb.now);
+    expect_bulk_end(fx, C1, 1);
+    expect_none(fx);
+    assert_int_equal(od_u32(fx, 0x200B, 0), 0x11223344u);
+    assert_int_equal(fx->srv.stats.downloads, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+    assert_false(co_usdo_server_resume(&fx->srv, held, 0));
+    /* refused by the application: its code instead of 0x28 */
+    send_bulk_init(fx, C1, 2, 0x200B, 0, U32, 4);
+    expect_bulk_accept(fx, C1, 2, 0x200B, 0, 0);
+    send_bulk_last(fx, C1, 2, (const uint8_t *)"\0\0\0\0", 4);
+    expect_none(fx);
+    assert_true(co_usdo_server_resume(&fx->srv, fx->held, CO_ABORT_DATA_STATE));
+    tu_step(&fx->tb, fx->tb.now);
+    expect_abort(fx, C1, 2, 0x200B, 0, 0x62);
+    assert_int_equal(od_u32(fx, 0x200B, 0), 0x11223344u);
+    /* a bulk segment while it waits: unexpected (0x13); the late answer
+     * then only frees the slot */
+    send_bulk_init(fx, C1, 3, 0x200B, 0, U32, 4);
+    expect_bulk_accept(fx, C1, 3, 0x200B, 0, 0);
+    send_bulk_last(fx, C1, 3, (const uint8_t *)"\1\2\3\4", 4);
+    expect_none(fx);
+    send_bulk_seg(fx, C1, 3, 0, fx->domain);
+    expect_abort(fx, C1, 3, 0x200B, 0, 0x13);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 1);
+    assert_false(co_usdo_server_resume(&fx->srv, fx->held, 0));
+    tu_step(&fx->tb, fx->tb.now);
+    expect_none(fx);
+    assert_int_equal(od_u32(fx, 0x200B, 0), 0x11223344u);
+    assert_int_equal(fx->srv.stats.downloads, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+static void test_bulk_busy(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[100];
+    fill_pattern(data, sizeof data, 0x81);
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 1, 0x2004, 0, 0);
+    send_dl_init(fx, C1, 2, 0x2005, 0, OS, 100);
+    expect_mux(fx, C1, 0x22, 2, 0x2005, 0);
+    send_bulk_init(fx, C2, 1, 0x2009, 0, DOM, 100);
+    expect_bulk_accept(fx, C2, 1, 0x2009, 0, 0);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 3);
+    snap(fx);
+    send_bulk_init(fx, C2, 2, 0x2002, 0, U32, 4);
+    expect_abort(fx, C2, 2, 0x2002, 0, 0x70);
+    send_exp_write(fx, C2, ID_S, 3, 0x2000, 0, U8, data, 1);
+    expect_abort(fx, C2, 3, 0x2000, 0, 0x70);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.busy, 2);
+    /* one bulk transfer ends: room again */
+    send_bulk_seg(fx, C1, 1, 0, data);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 1, data + 60, 40);
+    expect_bulk_end(fx, C1, 1);
+    assert_od_bytes(fx, 0x2004, 0, data, 100);
+    bulk_write_ok(fx, C2, 2, 0x2002, 0, U32, (const uint8_t *)"\x04\x03\x02\x01", 4, 0);
+    assert_int_equal(od_u32(fx, 0x2002, 0), 0x01020304u);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 2);
+}
+
+static void test_bulk_parallel_access(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[100];
+    fill_pattern(data, sizeof data, 0x91);
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 100);
+    expect_bulk_accept(fx, C1, 1, 0x2004, 0, 0);
+    snap(fx);
+    /* another client's bulk, its read, the same client's other session */
+    send_bulk_init(fx, C2, 7, 0x2004, 0, VS, 10);
+    expect_abort(fx, C2, 7, 0x2004, 0, 0x20);
+    send_upload(fx, C2, ID_S, 8, 0x2004, 0);
+    expect_abort(fx, C2, 8, 0x2004, 0, 0x20);
+    send_dl_init(fx, C1, 2, 0x2004, 0, VS, 10);
+    expect_abort(fx, C1, 2, 0x2004, 0, 0x20);
+    /* and a bulk on an entry in a segmented download */
+    send_dl_init(fx, C2, 9, 0x2005, 0, OS, 100);
+    expect_mux(fx, C2, 0x22, 9, 0x2005, 0);
+    send_bulk_init(fx, C1, 3, 0x2005, 0, OS, 10);
+    expect_abort(fx, C1, 3, 0x2005, 0, 0x20);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.parallel, 4);
+    /* the first transfer goes on undisturbed */
+    send_bulk_seg(fx, C1, 1, 0, data);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 1, data + 60, 40);
+    expect_bulk_end(fx, C1, 1);
+    assert_od_bytes(fx, 0x2004, 0, data, 100);
+}
+
+/* A new request on an open (client, session-ID) restarts it, bulk or not;
+ * a client abort ends a bulk download, its segments in flight are stray. */
+static void test_bulk_restart_and_client_abort(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[200];
+    uint8_t b[7];
+    fill_pattern(data, sizeof data, 0xA1);
+    snap(fx);
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 200);
+    expect_bulk_accept(fx, C1, 1, 0x2004, 0, 0);
+    send_bulk_seg(fx, C1, 1, 0, data);
+    expect_none(fx);
+    /* the same entry again: a restart, not parallel; the counter starts over */
+    send_bulk_init(fx, C1, 1, 0x2004, 0, VS, 200);
+    expect_bulk_accept(fx, C1, 1, 0x2004, 0, 0);
+    assert_int_equal(fx->srv.stats.restarts, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 1);
+    /* a segmented download restarted as bulk, and the other way round */
+    send_dl_init(fx, C1, 2, 0x2005, 0, OS, 100);
+    expect_mux(fx, C1, 0x22, 2, 0x2005, 0);
+    send_bulk_init(fx, C1, 2, 0x2005, 0, OS, 100);
+    expect_bulk_accept(fx, C1, 2, 0x2005, 0, 0);
+    send_dl_init(fx, C1, 2, 0x2005, 0, OS, 100);
+    expect_mux(fx, C1, 0x22, 2, 0x2005, 0);
+    assert_int_equal(fx->srv.stats.restarts, 3);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 2);
+    mux(b, ID_S, ABORT, 2, 0x2005, 0);
+    b[6] = 0x10;
+    req(fx, C1, b, 7);
+    expect_none(fx);
+    /* the restarted bulk from counter 0 */
+    assert_int_equal(bulk_segs(fx, C1, 1, 0, data, 180), 3);
+    send_bulk_last(fx, C1, 1, data + 180, 20);
+    expect_bulk_end(fx, C1, 1);
+    assert_od_bytes(fx, 0x2004, 0, data, 200);
+    snap(fx);
+    /* client abort of a bulk download into the domain */
+    send_bulk_init(fx, C2, 3, 0x2009, 0, DOM, 200);
+    expect_bulk_accept(fx, C2, 3, 0x2009, 0, 0);
+    send_bulk_seg(fx, C2, 3, 0, data);
+    expect_none(fx);
+    mux(b, ID_S, ABORT, 3, 0x2009, 0);
+    b[6] = 0x62;
+    req(fx, C2, b, 7);
+    expect_none(fx);
+    assert_int_equal(fx->dom_aborts, 1);
+    assert_int_equal(fx->dom_last_abort, CO_ABORT_DATA_STATE);
+    send_bulk_seg(fx, C2, 3, 1, data + 60);
+    expect_none(fx);
+    send_bulk_seg(fx, C2, 3, 2, data + 120);
+    expect_none(fx);
+    assert_unchanged(fx);
+    assert_int_equal(fx->srv.stats.rx_client_abort, 2);
+    assert_int_equal(fx->srv.stats.rx_stray_bulk, 2);
+    assert_int_equal(fx->srv.stats.aborts_sent, 0);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
 /* ================================================= garbage */
 
 static void test_random_garbage_never_wedges(void **state)
@@ -1794,7 +2755,7 @@ static void test_random_garbage_never_wedges(void **state)
     fx_t *fx = *state;
     static const uint8_t fd_lens[] = { 0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64 };
     static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x11, 0x13, 0x7F, 0x21, 0x05,
-                                    0x06, 0xFF };
+                                    0x06, 0x07, 0x08, 0x26, 0xFF };
     uint64_t seed = 0x6A7BA6E5EEDull;
     uint64_t now = fx->tb.now;
     unsigned i, responses = 0;
@@ -1831,13 +2792,13 @@ static void test_random_garbage_never_wedges(void **state)
         }
         if (f.len > 7 && f.data[1] == 0x01 && ((r >> 30) & 1u))
             f.data[7] = (uint8_t)((r >> 32) % 57u);
-        if (f.len > 11 && f.data[1] == 0x02 && ((r >> 38) & 1u)) {
+        if (f.len > 11 && (f.data[1] == 0x02 || f.data[1] == 0x06) && ((r >> 38) & 1u)) {
             f.data[8] = (uint8_t)((r >> 40) % 250u);
             f.data[9] = (uint8_t)((r >> 48) % 2u);
             f.data[10] = 0;
             f.data[11] = 0;
         }
-        if (f.len > 3 && f.data[1] == 0x04 && ((r >> 50) & 1u))
+        if (f.len > 3 && (f.data[1] == 0x04 || f.data[1] == 0x08) && ((r >> 50) & 1u))
             f.data[3] = (uint8_t)((r >> 52) % 61u);
         assert_true(co_line_send_raw(fx->b, &f));
         r = tu_rand(&seed);
@@ -1853,7 +2814,8 @@ static void test_random_garbage_never_wedges(void **state)
             assert_true(co_fd_len_valid(g->len));
             assert_true(g->data[1] == 0x21 || g->data[1] == 0x22 || g->data[1] == 0x23 ||
                         g->data[1] == 0x24 || g->data[1] == 0x31 || g->data[1] == 0x32 ||
-                        g->data[1] == 0x33 || g->data[1] == 0x34 || g->data[1] == 0x7F);
+                        g->data[1] == 0x33 || g->data[1] == 0x34 || g->data[1] == 0x26 ||
+                        g->data[1] == 0x28 || g->data[1] == 0x7F);
             assert_true(g->data[0] >= 1 && g->data[0] <= 127);
         }
         tu_log_clear(&fx->tb);
@@ -1864,7 +2826,7 @@ static void test_random_garbage_never_wedges(void **state)
             if (s->state == CO_USDO_SESSION_FREE)
                 continue;
             assert_true(s->state == CO_USDO_SESSION_DOWNLOAD ||
-                        s->state == CO_USDO_SESSION_UPLOAD);
+                        s->state == CO_USDO_SESSION_UPLOAD || s->state == CO_USDO_SESSION_BULK);
             assert_true(co_timer_is_armed(&s->timer));
             assert_true(s->timer.deadline_us > now);
             assert_true(s->timer.deadline_us <= now + MS(1000));
@@ -1881,6 +2843,7 @@ static void test_random_garbage_never_wedges(void **state)
     assert_true(fx->srv.stats.rx_malformed > 0);
     assert_true(fx->srv.stats.rx_unknown_command > 0);
     assert_true(fx->srv.stats.rx_no_session > 0);
+    assert_true(fx->srv.stats.rx_stray_bulk > 0);
     assert_true(fx->srv.stats.rx_stray_abort > 0);
     assert_true(fx->srv.stats.rx_remote_abort > 0);
     assert_true(fx->srv.stats.od_aborts > 0);
@@ -1903,6 +2866,7 @@ int main(void)
         cmocka_unit_test(test_codec_encode_each_response),
         cmocka_unit_test(test_codec_encode_refuses_what_does_not_fit),
         cmocka_unit_test(test_codec_decode_refuses_bad_lengths_and_commands),
+        cmocka_unit_test(test_codec_bulk_frames),
         cmocka_unit_test(test_codec_every_truncation_refused),
         cmocka_unit_test(test_codec_random_input),
         cmocka_unit_test(test_codec_abort_mapping),
@@ -1936,6 +2900,22 @@ int main(void)
         T(test_split_while_waiting_other_sessions_work),
         T(test_split_timeout_then_late_answer),
         T(test_deinit_aborts_open_transfers),
+        T(test_bulk_accept_frame_carries_pacing),
+        T(test_bulk_domain_1mib_counter_wraps),
+        T(test_bulk_into_u32_and_strings),
+        T(test_bulk_initiate_refusals),
+        T(test_bulk_lost_segment),
+        T(test_bulk_duplicated_segment),
+        T(test_bulk_reordered_segments),
+        T(test_bulk_size_mismatch),
+        T(test_bulk_stray_segment_ignored),
+        T(test_bulk_wrong_kind),
+        T(test_bulk_malformed_frames),
+        T(test_bulk_timeout),
+        T(test_bulk_split_at_end_defers_0x28),
+        T(test_bulk_busy),
+        T(test_bulk_parallel_access),
+        T(test_bulk_restart_and_client_abort),
         T(test_random_garbage_never_wedges),
     };
     return cmocka_run_group_tests_name("usdo", tests, NULL, NULL);
