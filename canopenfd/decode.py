@@ -1,12 +1,15 @@
-"""One-line, human-readable text for a CAN frame: NMT, boot-up and heartbeat
-decoded (malformed ones marked), anything else shown raw. Used by the CLI
-monitor and the demo; pure Python, no runtime needed."""
+"""One-line, human-readable text for a CAN frame: NMT, boot-up, heartbeat and
+USDO (CAN FD frames on 0x601..0x67F and 0x581..0x5FF) decoded, malformed ones
+marked; anything else shown raw. Used by the CLI monitor and the demo; pure
+Python, no runtime needed."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Dict, Optional, Tuple
 
+from .errors import USDO_ABORT_TEXT
 from .nmt import NmtCommand, NmtState
+from .od.datatypes import DataType
 
 _FD = 0x01
 _BRS = 0x02
@@ -33,14 +36,17 @@ def hex_bytes(data: bytes) -> str:
     return " ".join(f"{b:02X}" for b in data)
 
 
-def format_raw(frame: Any) -> str:
-    """'0x181 [8] 01 02 03 04 05 06 07 08' (29-bit ids with 8 digits, RTR marked)."""
+def format_raw(frame: Any, max_bytes: Optional[int] = None) -> str:
+    """'0x181 [8] 01 02 03 04 05 06 07 08' (29-bit ids with 8 digits, RTR marked);
+    with max_bytes, longer data is cut there and ends with '...'."""
     can_id, data, flags = _fields(frame)
     ident = f"0x{can_id:08X}" if flags & _EXT else f"0x{can_id:03X}"
     if flags & _RTR:
         length = getattr(frame, "length", len(data))
         return f"{ident} [{length}] RTR"
     text = f"{ident} [{len(data)}]"
+    if max_bytes is not None and len(data) > max_bytes:
+        return f"{text} {hex_bytes(data[:max_bytes])} ..."
     return f"{text} {hex_bytes(data)}" if data else text
 
 
@@ -54,7 +60,8 @@ def format_flags(frame: Any) -> str:
 
 
 def meaning(frame: Any) -> str:
-    """What the frame means in CANopen terms, '' when it is no NMT/boot-up/heartbeat."""
+    """What the frame means in CANopen terms, '' when it is no NMT/boot-up/heartbeat/USDO
+    frame (a classic frame on a USDO CAN-ID is no USDO frame: USDO is CAN FD only)."""
     can_id, data, flags = _fields(frame)
     if flags & (_EXT | _RTR):
         if flags & _RTR and 0x701 <= can_id <= 0x77F and not flags & _EXT:
@@ -64,6 +71,9 @@ def meaning(frame: Any) -> str:
         return _nmt(data)
     if 0x700 <= can_id <= 0x77F:
         return _heartbeat(can_id - 0x700, data)
+    if flags & _FD and (_USDO_REQUEST + 1 <= can_id <= _USDO_REQUEST + 127
+                        or _USDO_RESPONSE + 1 <= can_id <= _USDO_RESPONSE + 127):
+        return _usdo(can_id, data)
     return ""
 
 
@@ -75,10 +85,15 @@ def decode(frame: Any) -> str:
     return f"{text} {marker}" if marker else text
 
 
+#: describe() shows at most this many raw bytes of a frame it decodes (a USDO
+#: segment's 60 data bytes would drown the line); undecoded frames show all.
+DESCRIBE_RAW_BYTES = 12
+
+
 def describe(frame: Any, width: int = 30) -> str:
     """Raw frame, then its meaning: the CLI monitor's line."""
-    raw = format_raw(frame)
     text = meaning(frame)
+    raw = format_raw(frame, DESCRIBE_RAW_BYTES if text else None)
     marker = format_flags(frame)
     line = f"{raw:<{width}} {text}".rstrip() if text else raw
     return f"{line} {marker}" if marker else line
@@ -119,3 +134,138 @@ def _heartbeat(node_id: int, data: bytes) -> str:
     if state is None or state is NmtState.UNKNOWN:
         return f"heartbeat node {node_id} malformed: state 0x{code:02X}"
     return f"heartbeat node {node_id} {state.label}"
+
+
+# ------------------------------------------------------------------ USDO
+# Wire format: csrc/core/co_usdo.h (the codec, source of truth) and
+# docs/protocol-notes.md. The CAN-ID's low 7 bits name the sender, byte 0 the
+# addressee (0 = broadcast), byte 1 is the command specifier, byte 2 the
+# session-ID; sub-index (byte 3) comes before the index (bytes 4-5, LE).
+
+_USDO_REQUEST = 0x600    # + client node-id
+_USDO_RESPONSE = 0x580   # + server node-id
+_USDO_EXPEDITED_MAX = 56
+_USDO_SEGMENT_DATA = 60
+
+# Layouts (co_usdo_layout_t): bytes the frame needs before any data.
+_MUX = "mux"                  # dest cs sid sub index(2)                 6
+_EXPEDITED = "expedited"      # mux type N data[N]                       8 + N
+_INITIATE = "initiate"        # mux type reserved size(4)                12
+_SEGMENT = "segment"          # dest cs sid counter data[60]             64
+_LAST = "last"                # dest cs sid n data[n]                    4 + n
+_COUNTER = "counter"          # dest cs sid counter                      4
+_END = "end"                  # dest cs sid                              3
+_ABORT = "abort"              # mux code                                 7
+_BULK_ACCEPT = "bulk accept"  # mux pacing(2), 100 us units, 0 = none    8
+
+_HEAD_LEN = {_MUX: 6, _EXPEDITED: 8, _INITIATE: 12, _SEGMENT: 64, _LAST: 4, _COUNTER: 4,
+             _END: 3, _ABORT: 7, _BULK_ACCEPT: 8}
+_HAS_MUX = (_MUX, _EXPEDITED, _INITIATE, _ABORT, _BULK_ACCEPT)
+
+#: Command specifier -> (text, layout), as co_usdo_cs_t / co_usdo_layout_of.
+#: Data-carrying frames are named after the data ("upload segment" is the
+#: server's 0x33), confirmations "... response".
+USDO_COMMANDS: Dict[int, Tuple[str, str]] = {
+    0x01: ("download expedited", _EXPEDITED),
+    0x02: ("download initiate", _INITIATE),
+    0x03: ("download segment", _SEGMENT),
+    0x04: ("download last segment", _LAST),
+    0x06: ("bulk download initiate", _INITIATE),
+    0x07: ("bulk segment", _SEGMENT),
+    0x08: ("bulk last segment", _LAST),
+    0x11: ("upload request", _MUX),
+    0x13: ("upload segment request", _COUNTER),
+    0x21: ("download expedited response", _MUX),
+    0x22: ("download initiate response", _MUX),
+    0x23: ("download segment response", _COUNTER),
+    0x24: ("download last segment response", _END),
+    0x26: ("bulk accept", _BULK_ACCEPT),
+    0x28: ("bulk last segment response", _END),
+    0x31: ("upload expedited", _EXPEDITED),
+    0x32: ("upload initiate", _INITIATE),
+    0x33: ("upload segment", _SEGMENT),
+    0x34: ("upload last segment", _LAST),
+    0x7F: ("ABORT", _ABORT),
+}
+
+_SHORT_TYPE_PREFIXES = (("UNSIGNED", "U"), ("INTEGER", "I"), ("REAL", "R"))
+
+
+def usdo_type_name(code: int) -> str:
+    """Name of a USDO data-type byte (CiA 301 type index): 'U32', 'I16', 'R64',
+    'BOOLEAN', 'VISIBLE_STRING', 'DOMAIN'...; 'type 0xNN' when it is none."""
+    try:
+        name = DataType(code).name
+    except ValueError:
+        return f"type 0x{code:02X}"
+    for long, short in _SHORT_TYPE_PREFIXES:
+        if name.startswith(long) and name[len(long):].isdigit():
+            return short + name[len(long):]
+    return name
+
+
+def usdo_abort_text(code: int) -> str:
+    """'0x33 object does not exist', '0x99 unknown abort code'."""
+    return f"0x{code:02X} {USDO_ABORT_TEXT.get(code, 'unknown abort code')}"
+
+
+def _pacing(units: int) -> str:
+    if units == 0:
+        return "pacing 0 (none)"
+    micros = units * 100
+    shown = f"{micros} us" if micros < 1000 else f"{micros / 1000:g} ms"
+    return f"pacing {units} ({shown})"
+
+
+def _usdo(can_id: int, data: bytes) -> str:
+    sender = can_id - (_USDO_REQUEST if can_id > _USDO_REQUEST else _USDO_RESPONSE)
+    if len(data) < 3:
+        return (f"USDO {sender} malformed: {len(data)} bytes, expected at least 3"
+                + (f" ({hex_bytes(data)})" if data else ""))
+    dest = "bcast" if data[0] == 0 else str(data[0])
+    head = f"USDO {sender}->{dest} sid {data[2]}"
+    cs = data[1]
+    command = USDO_COMMANDS.get(cs)
+    if command is None:
+        return f"{head} unknown command 0x{cs:02X}"
+    name, layout = command
+    mux: Optional[str] = None
+    if layout in _HAS_MUX and len(data) >= 6:
+        mux = f"0x{data[4] | data[5] << 8:04X}:{data[3]:02X}"
+    what = f"{head} {name}" + (f" {mux}" if mux else "")
+
+    def malformed(why: str) -> str:
+        return f"{what} malformed: {why}"
+
+    need = _HEAD_LEN[layout]
+    if len(data) < need:
+        return malformed(f"{len(data)} bytes, expected {need}"
+                         + (" or more" if layout in (_EXPEDITED, _LAST) else ""))
+    if layout == _EXPEDITED:
+        n = data[7]
+        if n > _USDO_EXPEDITED_MAX:
+            return malformed(f"N={n} > {_USDO_EXPEDITED_MAX}")
+        if len(data) < 8 + n:
+            return malformed(f"{len(data)} bytes, N={n} needs {8 + n}")
+        text = f"{what} {usdo_type_name(data[6])} N={n}"
+        return f"{text} {hex_bytes(data[8:8 + n])}" if n else text
+    if layout == _INITIATE:
+        size = int.from_bytes(data[8:12], "little")
+        shown = "0xFFFFFFFF (unknown)" if size == 0xFFFFFFFF else str(size)
+        return f"{what} {usdo_type_name(data[6])} size {shown}"
+    if layout == _SEGMENT:
+        return f"{what} #{data[3]} {_USDO_SEGMENT_DATA} B"
+    if layout == _LAST:
+        n = data[3]
+        if n > _USDO_SEGMENT_DATA:
+            return malformed(f"n={n} > {_USDO_SEGMENT_DATA}")
+        if len(data) < 4 + n:
+            return malformed(f"{len(data)} bytes, n={n} needs {4 + n}")
+        return f"{what} {n} B"
+    if layout == _COUNTER:
+        return f"{what} #{data[3]}"
+    if layout == _ABORT:
+        return f"{what} {usdo_abort_text(data[6])}"
+    if layout == _BULK_ACCEPT:
+        return f"{what} {_pacing(data[6] | data[7] << 8)}"
+    return what  # _MUX, _END: nothing more

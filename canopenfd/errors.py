@@ -66,6 +66,59 @@ ABORT_TEXT = {
 }
 
 
+#: One-byte USDO (CiA 1301) abort codes and their meaning; values and evidence in
+#: docs/protocol-notes.md and co_usdo_abort_t (csrc/core/co_usdo.h). 0x71..0xFF are
+#: reserved by CiA.
+USDO_ABORT_TEXT = {
+    0x10: "unknown error",
+    0x11: "USDO protocol error",
+    0x12: "USDO timed out",
+    0x13: "command specifier unknown or unexpected",
+    0x14: "invalid segment counter",
+    0x15: "data size differs from the size field",
+    0x16: "out of memory",
+    0x17: "general parameter incompatibility",
+    0x18: "general internal incompatibility in the device",
+    0x19: "general routing error",
+    0x1A: "destination network unknown",
+    0x1B: "destination node unknown",
+    0x1C: "source network unknown",
+    0x1D: "source node unknown",
+    0x1E: "unexpected data length",
+    0x1F: "multiplexer of the response differs from the request",
+    0x20: "parallel access to the same sub-index",
+    0x21: "session-ID wrong or unknown",
+    0x30: "unsupported access to an object",
+    0x31: "attempt to read a write-only object",
+    0x32: "attempt to write a read-only object",
+    0x33: "object does not exist",
+    0x34: "sub-index does not exist",
+    0x35: "hardware error",
+    0x36: "data type or length does not match",
+    0x37: "length too high",
+    0x38: "length too low",
+    0x40: "invalid value",
+    0x41: "value too high",
+    0x42: "value too low",
+    0x43: "maximum value is less than minimum value",
+    0x44: "minimum value is greater than maximum value",
+    0x45: "CAN-ID or frame format is read-only",
+    0x50: "object cannot be mapped to the PDO",
+    0x51: "mapping would exceed the PDO length",
+    0x52: "parameter cannot be mapped",
+    0x53: "RPDO-only object mapped into a TPDO",
+    0x54: "TPDO-only object mapped into an RPDO",
+    0x55: "PDO parameters written while the PDO is valid",
+    0x56: "PDO mapping written while the mapping is valid",
+    0x60: "data cannot be transferred or stored to the application",
+    0x61: "data cannot be transferred or stored because of local control",
+    0x62: "data cannot be transferred or stored because of the device state",
+    0x63: "object dictionary dynamic generation failed or no object dictionary",
+    0x64: "no data available",
+    0x70: "USDO server busy",
+}
+
+
 class AbortError(CanopenFDError):
     """An object dictionary access was refused with a CiA 301 abort code.
 
