@@ -24,11 +24,13 @@ from .network import Network
 from .nmt import NmtCommand, NmtState
 from .node import LocalNode, LocalValue, RemoteNode
 from .od import ObjectDictionary, OdFileError, OdValueError, import_od
+from .usdo import UsdoAbortError, UsdoTransfer
 
 __all__ = [
     "__version__",
     "AbortError", "CanopenFDError", "ClosedError", "CommandError", "ConfigurationError",
     "InterfaceError", "OdFileError", "OdValueError", "ObjectDictionary", "import_od", "LocalValue",
     "Frame", "NmtCommand", "NmtState", "decode",
-    "Network", "Line", "CommEvent", "LocalNode", "RemoteNode",
+    "Network", "Line", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
+    "UsdoAbortError", "UsdoTransfer",
 ]

@@ -181,6 +181,12 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
+    def od_domain(self, line: int, index: int, sub: int, capacity: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_od_domain(self._live(what), line, index, sub, capacity)
+            if rc < 0:
+                self._raise(rc, what)
+
     def od_indicate(self, line: int, first: int, last: int, kinds: int, what: str) -> None:
         """Network reads/writes of keys first..last (index << 8 | sub) wait on
         the application (CO_EV_OD_REQUEST) until od_answer."""
@@ -237,6 +243,57 @@ class Runtime:
     def store_finish(self, line: int, ok: bool, what: str) -> None:
         with self._lock:
             rc = lib.co_rt_store_finish(self._live(what), line, int(ok))
+            if rc < 0:
+                self._raise(rc, what)
+
+    # ------------------------------------------------------------ USDO client
+    def usdo_client(self, line: int, node_id: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_usdo_client(self._live(what), line, node_id)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def usdo_start(self, line: int, request, what: str) -> int:
+        with self._lock:
+            rc = lib.co_rt_usdo_start(self._live(what), line, request)
+            if rc < 0:
+                self._raise(rc, what)
+        return rc
+
+    def usdo_cancel(self, line: int, handle: int, code: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_usdo_cancel(self._live(what), line, handle, code)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def usdo_result(self, line: int, handle: int, what: str) -> dict:
+        out = ffi.new("co_rt_usdo_result_t *")
+        with self._lock:
+            rc = lib.co_rt_usdo_result(self._live(what), line, handle, out)
+            if rc < 0:
+                self._raise(rc, what)
+        return {name: getattr(out, name) for name, _ in ffi.typeof("co_rt_usdo_result_t").fields}
+
+    def usdo_data(self, line: int, handle: int, size: int, what: str) -> bytes:
+        buf = ffi.new("uint8_t[]", max(size, 1))
+        with self._lock:
+            rc = lib.co_rt_usdo_data(self._live(what), line, handle, buf, size)
+            if rc < 0:
+                self._raise(rc, what)
+        return bytes(ffi.buffer(buf, rc))
+
+    def usdo_answers(self, line: int, handle: int, what: str) -> list:
+        """[(node, abort, data bytes)] of a broadcast."""
+        out = ffi.new("co_rt_usdo_answer_t[]", 127)
+        with self._lock:
+            rc = lib.co_rt_usdo_answers(self._live(what), line, handle, out, 127)
+            if rc < 0:
+                self._raise(rc, what)
+        return [(a.node, a.abort, bytes(ffi.buffer(a.data, a.length))) for a in out[0:rc]]
+
+    def usdo_release(self, line: int, handle: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_usdo_release(self._live(what), line, handle)
             if rc < 0:
                 self._raise(rc, what)
 

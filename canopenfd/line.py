@@ -19,6 +19,7 @@ from .store import check_store
 
 if TYPE_CHECKING:  # pragma: no cover
     from .network import Network
+    from .usdo import UsdoClient
 
 log = logging.getLogger("canopenfd")
 
@@ -57,6 +58,7 @@ class Line:
         self.monitor = monitor
         self.nmt = NmtMaster(self)
         self.nodes: Dict[int, RemoteNode] = {}
+        self._usdo: Optional["UsdoClient"] = None
         self.local_node: Optional[LocalNode] = None
         self._cond = threading.Condition()
         self._waiter = Waiter(self._cond, lambda: network.closed, network._on_dispatcher)
@@ -117,10 +119,13 @@ class Line:
                     raise
         return node
 
-    def add_node(self, node_id: int, heartbeat_timeout_ms: int = 0) -> RemoteNode:
+    def add_node(self, node_id: int, heartbeat_timeout_ms: int = 0, *,
+                 od: Optional[Any] = None) -> RemoteNode:
         """Watch a remote node (python-canopen's network.add_node): its boot-up,
         states and, with heartbeat_timeout_ms > 0, the loss of its heartbeat.
-        Adding a node already watched updates its timeout and returns it."""
+        od: its ObjectDictionary or EDS/DCF/XDD file, so `node.od[name].raw`
+        and `node.usdo` know names and types. Adding a node already watched
+        updates its timeout (and OD, when given) and returns it."""
         node_id = check_node_id(node_id, f"add_node on {self._where}")
         heartbeat_timeout_ms = check_ms(heartbeat_timeout_ms, "heartbeat_timeout_ms",
                                         f"add_node({node_id}) on {self._where}")
@@ -130,11 +135,15 @@ class Line:
                     f"{self._where}: node-id {node_id} is this line's local node; "
                     "a remote node needs another id")
             existing = self.nodes.get(node_id)
+        if od is not None:
+            od = _remote_od(od, node_id, f"add_node({node_id}) on {self._where}")
         if existing is not None:
             existing.heartbeat_timeout_ms = heartbeat_timeout_ms
+            if od is not None:
+                existing.object_dictionary = od
             return existing
         self._check_consumer_owner(node_id, heartbeat_timeout_ms, f"add_node({node_id})")
-        node = RemoteNode(self, node_id, heartbeat_timeout_ms)
+        node = RemoteNode(self, node_id, heartbeat_timeout_ms, od)
         with self._cond:
             self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, heartbeat_timeout_ms,
                              what=f"add_node({node_id}) on {self._where}")
@@ -230,6 +239,21 @@ class Line:
             raise ConfigurationError(f"{where}: {len(data)} bytes, a classic frame holds 8")
         frame = Frame(can_id, data, fd=fd, brs=brs, ext=bool(extended))
         self._rt.command(lib.CO_CMD_SEND_FRAME, self.index, frame=frame, what=where)
+
+    # ---------------------------------------------------------------- USDO
+    @property
+    def usdo(self) -> "UsdoClient":
+        """The USDO client of this fd line: upload/download any node's
+        entries (see canopenfd.usdo). Our client node-id is the local node's,
+        else 127 (set `line.usdo.client_id` before the first transfer)."""
+        if self.mode != "fd":
+            raise ConfigurationError(f"{self._where} is a classic line: USDO needs CAN FD "
+                                     "(classic lines use SDO)")
+        with self._cond:
+            if self._usdo is None:
+                from .usdo import UsdoClient
+                self._usdo = UsdoClient(self)
+            return self._usdo
 
     # ---------------------------------------------------------------- for nodes
     def _define_od(self, defs: Any, count: int, store: Optional[str], where: str) -> None:
@@ -332,6 +356,12 @@ class Line:
             elif kind == lib.CO_EV_OD_REQUEST:
                 if self.local_node is not None:
                     run = self.local_node._event_request(a, b)
+            elif kind == lib.CO_EV_USDO_DONE:
+                if self._usdo is not None:
+                    run = self._usdo._event_done(a)
+            elif kind == lib.CO_EV_USDO_PROGRESS:
+                if self._usdo is not None:
+                    run = self._usdo._event_progress(a, b)
             elif kind == lib.CO_EV_STORE:
                 if self.local_node is not None:
                     run = self.local_node._event_store(a, b)
@@ -349,6 +379,17 @@ class Line:
     @staticmethod
     def _status_text(status: int) -> str:
         return status_text(status)
+
+
+def _remote_od(od: Any, node_id: int, where: str) -> Any:
+    """The ObjectDictionary of a remote node: given, or imported from a file."""
+    from .od import ObjectDictionary, import_od
+    if isinstance(od, (str, bytes)) or hasattr(od, "__fspath__"):
+        od = import_od(od, node_id=node_id)
+    if not isinstance(od, ObjectDictionary):
+        raise ConfigurationError(f"{where}: od must be an ObjectDictionary or a file path, "
+                                 f"got {type(od).__name__}")
+    return od
 
 
 def _served_od(od: Any, mode: str, node_id: int, store: Optional[str], where: str) -> Any:

@@ -12,6 +12,7 @@ from .indications import READ, WRITE, Indications, ODRequest
 from .errors import AbortError, ConfigurationError
 from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
 from .od import ObjectDictionary, ODVariable
+from .od.datatypes import DataType
 
 log = logging.getLogger(__name__)
 
@@ -28,6 +29,7 @@ STORE_STATUS = {0: "ok", 1: "empty", 2: "damaged", 3: "foreign", 4: "io-error", 
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
+    from .usdo import RemoteObjects, RemoteUsdo
 
 StateLike = Union[NmtState, str, int]
 
@@ -90,6 +92,7 @@ class LocalNode:
         self._store_problems = CallbackList(f"node {node_id} store problem")
         self._changed = CallbackList(f"node {node_id} object changed")
         self._indications = Indications(self)
+        self._domains: Dict[Tuple[int, int], int] = {}
         self._booted = False
         self.nmt = LocalNmt(self)
         self._heartbeat_default_ms = heartbeat_ms
@@ -122,6 +125,8 @@ class LocalNode:
             if self.od is not None:
                 self._define_od()
                 self._indications.register_all()
+                for (index, sub), capacity in self._domains.items():
+                    self._give_domain(index, sub, capacity)
             self.line._create_node(self.node_id, self._heartbeat_ms, self._where)
             self._booted = True
 
@@ -190,6 +195,31 @@ class LocalNode:
             raise ConfigurationError(f"{self._where} serves no object dictionary "
                                      "(create it with od=...)")
         return self.od[key]
+
+    def serve_domain(self, key: Any, capacity: int) -> None:
+        """Keep the data of DOMAIN entry `key` in the stack's memory (up to
+        `capacity` bytes, allocated once): the network then uploads and
+        downloads it (any size up to capacity, in chunks, no Python per
+        frame) and `node[key].data` reads or replaces it. A download that
+        fails leaves it empty, never half old and half new."""
+        entry = self._entry(key)
+        what = f"serve_domain({key!r}) on {self._where}"
+        if not isinstance(entry, ODVariable) or entry.data_type != DataType.DOMAIN:
+            raise ConfigurationError(f"{what}: {entry!r} is not a DOMAIN entry")
+        if isinstance(capacity, bool) or not isinstance(capacity, int) or \
+                not 0 < capacity < 1 << 32:
+            raise ConfigurationError(f"{what}: capacity must be 1..2^32-1 bytes, got "
+                                     f"{capacity!r}")
+        where = (entry.index, entry.subindex)
+        if where in self._domains:
+            raise ConfigurationError(f"{what}: the domain already has memory")
+        self._domains[where] = capacity
+        if self._booted:
+            self._give_domain(entry.index, entry.subindex, capacity)
+
+    def _give_domain(self, index: int, sub: int, capacity: int) -> None:
+        self.line._rt.od_domain(self.line.index, index, sub, capacity,
+                                f"memory domain 0x{index:04X}:{sub:02X} of {self._where}")
 
     # ---------------------------------------------------------------- indications
     def on_read(self, key: Any, callback: Optional[Callable[[ODRequest], Any]] = None):
@@ -459,9 +489,12 @@ class RemoteNode:
     (`on_heartbeat_lost`) and come back (`on_heartbeat_started`).
     """
 
-    def __init__(self, line: "Line", node_id: int, heartbeat_timeout_ms: int) -> None:
+    def __init__(self, line: "Line", node_id: int, heartbeat_timeout_ms: int,
+                 od: Optional[ObjectDictionary] = None) -> None:
         self.line = line
         self.node_id = node_id
+        #: The node's object dictionary (names and types of its entries), or None.
+        self.object_dictionary = od
         self.nmt = RemoteNmt(self)
         self._heartbeat_timeout_ms = heartbeat_timeout_ms
         self._history = _StateHistory()
@@ -479,6 +512,23 @@ class RemoteNode:
 
     def __repr__(self) -> str:
         return f"<RemoteNode {self.node_id} on {self.line.channel!r}>"
+
+    # ---------------------------------------------------------------- USDO
+    @property
+    def usdo(self) -> "RemoteUsdo":
+        """USDO access (fd lines): upload/download by index, (index, sub),
+        "INDEX:SUB" or OD name, blocking, awaitable or started in the
+        background (see canopenfd.usdo)."""
+        from .usdo import RemoteUsdo
+        self.line.usdo  # noqa: B018 - raises on a classic line
+        return RemoteUsdo(self)
+
+    @property
+    def od(self) -> "RemoteObjects":
+        """Typed values by the node's OD: `remote.od["Producer heartbeat
+        time"].raw = 100`, `remote.od[0x1018][1].raw`."""
+        from .usdo import RemoteObjects
+        return RemoteObjects(self)
 
     @property
     def id(self) -> int:  # python-canopen spelling

@@ -139,6 +139,72 @@ def test_usdo_expedited_upload_and_download_on_the_wire(ifaces, networks, raw_bu
     assert node.heartbeat_ms == 300
 
 
+def _usdo_device(networks, iface, node_id=5, domain=16 << 20):
+    from canopenfd.od import demo_od
+    node = networks().open_line(iface, mode="fd").create_local_node(node_id, od=demo_od("fd"),
+                                                                    boot=False)
+    if domain:
+        node.serve_domain(0x2100, domain)
+    node.boot()
+    return node
+
+
+def test_usdo_client_frames_on_the_wire(ifaces, networks, raw_buses):
+    """Our client (node 2) and our server (node 5) on vcan, every request the
+    client puts on the wire captured by a raw socket and checked byte for byte."""
+    raw = raw_buses(ifaces["fd"])
+    device = _usdo_device(networks, ifaces["fd"])
+    line = networks().open_line(ifaces["fd"], mode="fd")
+    line.usdo.client_id = 2
+    device[0x1017].raw = 0x1234
+    assert line.usdo.upload(5, 0x1017, timeout=scaled(1)) == b"\x34\x12"
+    request = recv_until(raw, lambda m: m.arbitration_id == 0x602)
+    sid = request.data[2]
+    assert (request.is_fd, request.bitrate_switch) == (True, True)
+    assert bytes(request.data[:6]) == bytes([5, 0x11, sid, 0x00, 0x17, 0x10])
+    answer = recv_until(raw, lambda m: m.arbitration_id == 0x585)
+    assert bytes(answer.data[:10]) == bytes([2, 0x31, sid, 0, 0x17, 0x10, 0x06, 2, 0x34, 0x12])
+
+    for size, first_cs, segment_cs, last_cs in ((1000, 0x02, 0x03, 0x04),
+                                                (6010, 0x06, 0x07, 0x08)):
+        data = bytes((i * 7) & 0xFF for i in range(size))
+        transfer = line.usdo.start_download(5, 0x2100, 0, data, timeout=scaled(1))
+        transfer.result()
+        initiate = recv_until(raw, lambda m: m.arbitration_id == 0x602 and m.data[1] == first_cs)
+        sid = initiate.data[2]
+        assert bytes(initiate.data[:12]) == bytes([5, first_cs, sid, 0, 0x00, 0x21, 0x0F, 0]) + \
+            size.to_bytes(4, "little")
+        for number in range(size // 60):
+            segment = recv_until(raw, lambda m: m.arbitration_id == 0x602)
+            assert (segment.dlc, bytes(segment.data[:4])) == (64, bytes([5, segment_cs, sid,
+                                                                         number & 0xFF]))
+            assert bytes(segment.data[4:]) == data[number * 60:(number + 1) * 60]
+        last = recv_until(raw, lambda m: m.arbitration_id == 0x602)
+        rest = size % 60
+        assert bytes(last.data[:4 + rest]) == bytes([5, last_cs, sid, rest]) + data[-rest:]
+        assert device[0x2100].data == data
+
+
+def test_usdo_1_mib_both_ways_over_vcan(ifaces, networks):
+    import os
+    device = _usdo_device(networks, ifaces["fd"])
+    line = networks().open_line(ifaces["fd"], mode="fd")
+    data = os.urandom(1 << 20)
+    transfer = line.usdo.start_download(5, 0x2100, 0, data, timeout=scaled(1))
+    transfer.result()
+    assert transfer.mode == "bulk" and device[0x2100].data == data
+    back = line.usdo.start_upload(5, 0x2100, 0, timeout=scaled(1))
+    assert back.result() == data and back.mode == "segmented"
+
+
+def test_usdo_broadcast_over_vcan(ifaces, networks):
+    for node_id in (3, 4, 6):
+        _usdo_device(networks, ifaces["fd"], node_id, domain=0)[0x1017].raw = node_id
+    line = networks().open_line(ifaces["fd"], mode="fd")
+    answers = line.usdo.broadcast_upload(0x1017, window=scaled(0.5))
+    assert answers == {3: b"\x03\x00", 4: b"\x04\x00", 6: b"\x06\x00"}
+
+
 # ------------------------------------------------------------------ interface errors
 def test_fd_line_on_classic_mtu_raises(ifaces, networks):
     net = networks()

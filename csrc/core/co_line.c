@@ -90,12 +90,52 @@ bool co_line_receive(co_line_t *line, const co_frame_t *frame)
     return false;
 }
 
+bool co_line_tx_space_register(co_line_t *line, co_tx_space_fn fn, void *user)
+{
+    if (fn == NULL || line->tx_space_count >= CO_LINE_MAX_TX_SPACE) {
+        return false;
+    }
+    for (uint8_t i = 0; i < line->tx_space_count; i++) {
+        if (line->tx_space[i].fn == fn && line->tx_space[i].user == user) {
+            return false;
+        }
+    }
+    line->tx_space[line->tx_space_count++] = (co_tx_space_cb_t){fn, user};
+    return true;
+}
+
+void co_line_tx_space_unregister(co_line_t *line, co_tx_space_fn fn, void *user)
+{
+    uint8_t kept = 0;
+    for (uint8_t i = 0; i < line->tx_space_count; i++) {
+        if (line->tx_space[i].fn != fn || line->tx_space[i].user != user) {
+            line->tx_space[kept++] = line->tx_space[i];
+        }
+    }
+    line->tx_space_count = kept;
+}
+
+/* One pop lowers the count by one, so "from above half to at-or-below half"
+ * is exactly "count == capacity / 2 after the pop". */
+static void tx_space_notify(co_line_t *line)
+{
+    if (co_queue_count(&line->tx) != line->tx.capacity / 2u) {
+        return;
+    }
+    for (uint8_t i = 0; i < line->tx_space_count; i++) {
+        line->tx_space[i].fn(line, line->tx_space[i].user);
+    }
+}
+
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
 {
     if (!co_queue_pop(&line->tx, out)) {
         return false;
     }
     line->stats.tx_frames++;
+    if (line->tx_space_count != 0) {   /* the only cost when nobody listens */
+        tx_space_notify(line);
+    }
     if (line->tx_was_full && co_queue_is_empty(&line->tx)) {
         line->tx_was_full = false;
         co_line_comm_event(line, CO_COMM_TX_QUEUE_EMPTY);

@@ -54,8 +54,11 @@ typedef struct co_line co_line_t;
 /* Receive handler of a service. */
 typedef void (*co_rx_fn)(co_line_t *line, const co_frame_t *frame, void *user);
 typedef void (*co_comm_fn)(co_line_t *line, co_comm_event_t event, void *user);
+/* "tx space" indication: the tx queue went from above half full to half
+ * full (called from co_line_tx_pop, i.e. from the driver). */
+typedef void (*co_tx_space_fn)(co_line_t *line, void *user);
 
-enum { CO_LINE_MAX_RECEIVERS = 32, CO_LINE_ID_MAP_SIZE = 2048 };
+enum { CO_LINE_MAX_RECEIVERS = 32, CO_LINE_ID_MAP_SIZE = 2048, CO_LINE_MAX_TX_SPACE = 4 };
 
 typedef struct co_receiver {
     uint32_t first_id;   /* inclusive range of 11-bit CAN-IDs */
@@ -63,6 +66,11 @@ typedef struct co_receiver {
     co_rx_fn fn;
     void *user;
 } co_receiver_t;
+
+typedef struct co_tx_space_cb {
+    co_tx_space_fn fn;
+    void *user;
+} co_tx_space_cb_t;
 
 struct co_line {
     co_mode_t mode;
@@ -79,6 +87,8 @@ struct co_line {
     uint8_t receiver_count;
     co_receiver_t receivers[CO_LINE_MAX_RECEIVERS];
     uint8_t id_map[CO_LINE_ID_MAP_SIZE];   /* CAN-ID -> receiver index + 1 */
+    uint8_t tx_space_count;
+    co_tx_space_cb_t tx_space[CO_LINE_MAX_TX_SPACE];
 };
 
 typedef struct co_line_config {
@@ -99,6 +109,18 @@ void co_line_set_comm_indication(co_line_t *line, co_comm_fn fn, void *user);
 bool co_line_subscribe(co_line_t *line, uint32_t first_id, uint32_t last_id,
                        co_rx_fn fn, void *user);
 void co_line_unsubscribe(co_line_t *line, co_rx_fn fn, void *user);
+
+/* Services that fill the tx queue in bursts (USDO bulk download) register
+ * here to learn when it has drained: fn runs inside co_line_tx_pop each time
+ * a pop takes the queue from above half full to half full (count ==
+ * capacity / 2 after the pop), so a service that stopped at more than half
+ * full always hears of it. fn runs in the driver's context: it should only
+ * note the fact (arm a timer due now, say) and send from co_line_process.
+ * fn must not register or unregister. At most CO_LINE_MAX_TX_SPACE
+ * registrations; false when full, fn is NULL or (fn, user) is already
+ * registered. */
+bool co_line_tx_space_register(co_line_t *line, co_tx_space_fn fn, void *user);
+void co_line_tx_space_unregister(co_line_t *line, co_tx_space_fn fn, void *user);
 
 /* Driver side: queue a received frame (false + rx overflow event when full). */
 bool co_line_receive(co_line_t *line, const co_frame_t *frame);

@@ -157,8 +157,10 @@ size_t co_usdo_encode(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX]);
 /* Abort code mapping. co_abort_t values without a USDO counterpart give
  * CO_USDO_ABORT_UNKNOWN; USDO codes without a CiA 301 counterpart give
  * CO_ABORT_GENERAL (0x08000000). */
+/* cffi:begin */
 uint8_t co_usdo_abort_from_co(uint32_t co_abort);
 uint32_t co_usdo_abort_to_co(uint8_t usdo_abort);
+/* cffi:end */
 
 /* The segment counter after `counter`: wraps from 0xFF to 0x00 (UNCONFIRMED,
  * see docs/protocol-notes.md). */

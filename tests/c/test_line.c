@@ -661,6 +661,153 @@ static void test_tx_no_queue_events_without_filling(void **state)
     assert_int_equal(fx->event_count, 0);
 }
 
+/* ------------------------------------------------------------ tx space */
+
+typedef struct space {
+    fx_t *fx;
+    int calls;
+    uint32_t count_seen[8];   /* tx queue count at each call */
+    int send_more;            /* push a frame from inside the next calls */
+} space_t;
+
+static void on_space(co_line_t *line, void *user)
+{
+    space_t *sp = user;
+    assert_ptr_equal(line, &sp->fx->line);
+    if (sp->calls < 8)
+        sp->count_seen[sp->calls] = co_queue_count(&line->tx);
+    sp->calls++;
+    if (sp->send_more > 0) {
+        sp->send_more--;
+        assert_true(co_line_send(line, 0x222, NULL, 0));
+    }
+}
+
+static void on_space_other(co_line_t *line, void *user)
+{
+    on_space(line, user);
+}
+
+static void fill_tx(fx_t *fx, uint32_t n)
+{
+    uint32_t i;
+    for (i = 0; i < n; i++)
+        assert_true(co_line_send(&fx->line, 0x100, NULL, 0));
+}
+
+static void pop_tx(fx_t *fx, uint32_t n)
+{
+    co_frame_t out;
+    uint32_t i;
+    for (i = 0; i < n; i++)
+        assert_true(co_line_tx_pop(&fx->line, &out));
+}
+
+static void test_tx_space_register_bounded(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, 8);
+    space_t sp[CO_LINE_MAX_TX_SPACE + 1];
+    int i;
+    memset(sp, 0, sizeof sp);
+    assert_false(co_line_tx_space_register(&fx->line, NULL, &sp[0]));
+    for (i = 0; i < CO_LINE_MAX_TX_SPACE; i++)
+        assert_true(co_line_tx_space_register(&fx->line, on_space, &sp[i]));
+    assert_false(co_line_tx_space_register(&fx->line, on_space, &sp[CO_LINE_MAX_TX_SPACE]));
+    /* the same (fn, user) twice: refused (it would be called twice) */
+    co_line_tx_space_unregister(&fx->line, on_space, &sp[1]);
+    assert_false(co_line_tx_space_register(&fx->line, on_space, &sp[0]));
+    assert_true(co_line_tx_space_register(&fx->line, on_space_other, &sp[0]));
+    /* unregistering what is not there: harmless */
+    co_line_tx_space_unregister(&fx->line, on_space, &sp[CO_LINE_MAX_TX_SPACE]);
+    assert_int_equal(fx->line.tx_space_count, CO_LINE_MAX_TX_SPACE);
+}
+
+static void test_tx_space_called_when_queue_drains_to_half(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, 8);
+    space_t a, b;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    a.fx = b.fx = fx;
+    assert_true(co_line_tx_space_register(&fx->line, on_space, &a));
+    assert_true(co_line_tx_space_register(&fx->line, on_space, &b));
+    fill_tx(fx, 8);
+    pop_tx(fx, 3);                 /* 8 -> 5: above half */
+    assert_int_equal(a.calls, 0);
+    pop_tx(fx, 1);                 /* 5 -> 4: half */
+    assert_int_equal(a.calls, 1);
+    assert_int_equal(b.calls, 1);
+    assert_int_equal(a.count_seen[0], 4);
+    pop_tx(fx, 4);                 /* further down: no more calls */
+    assert_int_equal(a.calls, 1);
+    /* below half and back up to it by sending: no call (only pops count) */
+    fill_tx(fx, 4);
+    assert_int_equal(a.calls, 1);
+    /* each crossing from above half is reported once */
+    fill_tx(fx, 1);
+    pop_tx(fx, 1);
+    assert_int_equal(a.calls, 2);
+    fill_tx(fx, 1);
+    pop_tx(fx, 1);
+    assert_int_equal(a.calls, 3);
+    /* unregistered: not called any more */
+    co_line_tx_space_unregister(&fx->line, on_space, &a);
+    fill_tx(fx, 1);
+    pop_tx(fx, 1);
+    assert_int_equal(a.calls, 3);
+    assert_int_equal(b.calls, 4);
+}
+
+/* Small and odd capacities: a queue filled above half always reports on its
+ * way down (capacity 1: at empty). */
+static void test_tx_space_small_and_odd_capacities(void **state)
+{
+    static const uint32_t caps[] = { 1, 2, 3, 5, 7 };
+    size_t k;
+    for (k = 0; k < sizeof caps / sizeof caps[0]; k++) {
+        fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, caps[k]);
+        space_t sp;
+        memset(&sp, 0, sizeof sp);
+        sp.fx = fx;
+        assert_true(co_line_tx_space_register(&fx->line, on_space, &sp));
+        fill_tx(fx, caps[k]);
+        pop_tx(fx, caps[k]);
+        assert_int_equal(sp.calls, 1);
+        assert_int_equal(sp.count_seen[0], caps[k] / 2);
+    }
+}
+
+/* The callback may queue a frame from inside co_line_tx_pop (a callback
+ * that refilled at every call would keep a draining loop going: services
+ * only note the call and send from co_line_process). */
+static void test_tx_space_callback_may_send(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, 8);
+    space_t sp;
+    co_frame_t out;
+    int popped = 0;
+    memset(&sp, 0, sizeof sp);
+    sp.fx = fx;
+    sp.send_more = 1;
+    assert_true(co_line_tx_space_register(&fx->line, on_space, &sp));
+    fill_tx(fx, 6);
+    while (co_line_tx_pop(&fx->line, &out))
+        popped++;
+    assert_int_equal(sp.calls, 2);   /* the pushed frame made it cross once more */
+    assert_int_equal(popped, 7);
+    assert_int_equal(out.id, 0x222);
+}
+
+/* Nobody registered: pops report nothing and cost one test. */
+static void test_tx_space_nobody_registered(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, 8);
+    fill_tx(fx, 8);
+    pop_tx(fx, 8);
+    assert_int_equal(fx->line.tx_space_count, 0);
+    assert_int_equal(fx->line.stats.tx_frames, 8);
+}
+
 /* ------------------------------------------------------------ process */
 
 typedef struct tick {
@@ -919,6 +1066,11 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_tx_queue_full_reported_once_when_it_fills, setup, teardown),
         cmocka_unit_test_setup_teardown(test_tx_queue_empty_reported_once_after_full, setup, teardown),
         cmocka_unit_test_setup_teardown(test_tx_no_queue_events_without_filling, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_space_register_bounded, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_space_called_when_queue_drains_to_half, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_space_small_and_odd_capacities, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_space_callback_may_send, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_space_nobody_registered, setup, teardown),
         cmocka_unit_test_setup_teardown(test_process_returns_never_without_timers, setup, teardown),
         cmocka_unit_test_setup_teardown(test_process_runs_due_timers_and_returns_next_deadline, setup, teardown),
         cmocka_unit_test_setup_teardown(test_process_returns_deadline_set_by_timer_callback, setup, teardown),

@@ -9,6 +9,7 @@
 #include "../../core/co_node.h"
 #include "../../core/co_od.h"
 #include "../../core/co_store.h"
+#include "../../core/co_usdo_client.h"
 #include "../../core/co_usdo_server.h"
 #include "co_store_file.h"
 #include "../../drivers/co_membus.h"
@@ -33,7 +34,9 @@ enum {
     RT_CHANNEL_SIZE = 64,
     RT_HB_ENTRIES = 127,
     RT_INDICATIONS = 16,          /* key ranges with Python indications */
-    RT_OD_SUBSCRIPTIONS = 8 + RT_INDICATIONS,
+    RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
+    /* node services and store (8), indications, domains, app store (2) */
+    RT_OD_SUBSCRIPTIONS = 8 + RT_INDICATIONS + RT_DOMAINS + 2,
     RT_REQUESTS = 32,             /* network accesses waiting on Python at once */
     RT_USDO_SESSIONS = 8
 };
@@ -106,6 +109,16 @@ typedef struct rt_app_store {
     bool staged_pending;
 } rt_app_store_t;
 
+/* A DOMAIN entry whose data the runtime keeps in memory (co_rt_od_domain). */
+typedef struct rt_domain {
+    struct rt_line *line;
+    uint32_t key;            /* index << 8 | sub */
+    uint8_t *data;
+    uint32_t size;           /* bytes held (0 while a download fills it) */
+    uint32_t filled;         /* bytes of the download in progress */
+    uint32_t capacity;
+} rt_domain_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -130,6 +143,8 @@ typedef struct rt_line {
     rt_indication_t indications[RT_INDICATIONS];
     uint8_t indication_count;
     rt_request_t requests[RT_REQUESTS];
+    rt_domain_t domains[RT_DOMAINS];
+    uint8_t domain_count;
     char *store_path;                /* file store, or NULL */
     rt_app_store_t app_store;        /* application store (instead of a file) */
     co_store_file_t *store_file;
@@ -140,6 +155,7 @@ typedef struct rt_line {
     co_usdo_server_t usdo;
     co_usdo_session_t usdo_sessions[RT_USDO_SESSIONS];
     uint8_t *usdo_scratch;
+    struct rt_usdo *usdo_client;     /* fd lines: created at the first transfer */
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -214,6 +230,7 @@ uint32_t rt_od_park(rt_line_t *l, co_od_xfer_t *xfer, uint32_t key, const uint8_
                     uint32_t length, uint8_t kind);
 /* Forget every access waiting on Python (the servers holding them are gone). */
 void rt_od_drop_requests(rt_line_t *l);
+void rt_od_free_domains(rt_line_t *l);
 
 /* co_rt_store.c: the application store. */
 /* Open the store over the sealed OD and hook 0x1010/0x1011 (node attach). */
@@ -224,5 +241,8 @@ bool rt_app_store_hook(rt_line_t *l);
  * returns the abort to resume the access with. */
 uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort);
 void rt_app_store_free(rt_line_t *l);
+
+/* co_rt_usdo.c: the USDO client of a line. */
+void rt_usdo_free(rt_line_t *l);
 
 #endif

@@ -90,6 +90,157 @@ int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t cou
     return status;
 }
 
+/* ================================================================ memory domains */
+
+static rt_domain_t *domain_of(rt_line_t *l, uint16_t index, uint8_t sub)
+{
+    uint32_t key = (uint32_t)index << 8 | sub;
+    for (uint8_t i = 0; i < l->domain_count; i++) {
+        if (l->domains[i].key == key) {
+            return &l->domains[i];
+        }
+    }
+    return NULL;
+}
+
+static int domain_get(const rt_domain_t *d, uint8_t *buf, uint32_t capacity, uint32_t *length)
+{
+    *length = d->size;
+    if (capacity < d->size) {
+        return (int)CO_ABORT_OUT_OF_MEMORY;
+    }
+    if (d->size > 0) {
+        memcpy(buf, d->data, d->size);
+    }
+    return 0;
+}
+
+static int domain_put(rt_domain_t *d, const uint8_t *data, uint32_t length)
+{
+    if (length > d->capacity) {
+        return (int)CO_ABORT_LENGTH_HIGH;
+    }
+    if (length > 0) {
+        memcpy(d->data, data, length);
+    }
+    d->size = length;
+    return 0;
+}
+
+static uint32_t on_domain_size(co_od_t *od, const co_od_entry_t *e, uint32_t *size, void *user)
+{
+    (void)od;
+    (void)e;
+    *size = ((const rt_domain_t *)user)->size;
+    return 0;
+}
+
+static uint32_t on_domain_read(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
+                               uint8_t *buf, uint32_t cap, uint32_t *n, bool *last, void *user)
+{
+    const rt_domain_t *d = user;
+    (void)od;
+    (void)e;
+    uint32_t left = offset < d->size ? d->size - offset : 0;
+    *n = left < cap ? left : cap;
+    if (*n > 0) {
+        memcpy(buf, d->data + offset, *n);
+    }
+    *last = offset + *n >= d->size;
+    return 0;
+}
+
+/* Downloads land in place and the domain reads empty until the last chunk
+ * is in; an abort (or a gap) leaves it empty: never a mix of old and new. */
+static uint32_t on_domain_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
+                                const uint8_t *data, uint32_t n, uint32_t total, bool last,
+                                uint32_t abort, void *user)
+{
+    rt_domain_t *d = user;
+    (void)od;
+    (void)e;
+    if (offset == 0) {
+        d->filled = 0;
+    }
+    d->size = 0;
+    if (abort != 0) {
+        return 0;
+    }
+    if ((total != CO_OD_SIZE_UNKNOWN && total > d->capacity) || n > d->capacity ||
+        offset > d->capacity - n) {
+        return CO_ABORT_LENGTH_HIGH;
+    }
+    if (offset != d->filled) {
+        return CO_ABORT_GENERAL;   /* chunks arrive in order: a gap is a bug upstream */
+    }
+    if (n > 0) {
+        memcpy(d->data + offset, data, n);
+    }
+    d->filled = offset + n;
+    if (last) {
+        d->size = d->filled;
+    }
+    return 0;
+}
+
+static const co_od_handler_t domain_handler = {.domain_size = on_domain_size,
+                                               .domain_read = on_domain_read,
+                                               .domain_write = on_domain_write};
+
+void rt_od_free_domains(rt_line_t *l)
+{
+    for (uint8_t i = 0; i < l->domain_count; i++) {
+        free(l->domains[i].data);
+    }
+    memset(l->domains, 0, sizeof l->domains);
+    l->domain_count = 0;
+}
+
+int co_rt_od_domain(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint32_t capacity)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    const co_od_entry_t *e = l->has_od ? co_od_find(&l->od, index, sub) : NULL;
+    if (!l->has_od) {
+        rt_set_error(rt, "line %d: define the object dictionary before its domains", line);
+        status = CO_RT_ERR_STATE;
+    } else if (!e || e->type != CO_TYPE_DOMAIN) {
+        status = rt_argument_error(rt, "line %d: 0x%04X:%02X is %s", line, index, sub,
+                                   e ? "not a DOMAIN" : "not in the object dictionary");
+    } else if (domain_of(l, index, sub)) {
+        status = rt_argument_error(rt, "line %d: 0x%04X:%02X already has memory", line, index,
+                                   sub);
+    } else if (l->domain_count == RT_DOMAINS) {
+        rt_set_error(rt, "line %d: no room for more than %d memory domains", line, RT_DOMAINS);
+        status = CO_RT_ERR_FULL;
+    } else {
+        rt_domain_t *d = &l->domains[l->domain_count];
+        d->data = malloc(capacity ? capacity : 1u);
+        if (!d->data) {
+            rt_set_error(rt, "line %d: no memory for a %u-byte domain", line,
+                         (unsigned)capacity);
+            status = CO_RT_ERR_NO_MEMORY;
+        } else if (!co_od_subscribe(&l->od, index, sub, index, sub, &domain_handler, d)) {
+            free(d->data);
+            d->data = NULL;
+            rt_set_error(rt, "line %d: object dictionary handler table full", line);
+            status = CO_RT_ERR_FULL;
+        } else {
+            d->line = l;
+            d->key = (uint32_t)index << 8 | sub;
+            d->capacity = capacity;
+            d->size = 0;
+            l->domain_count++;
+        }
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return status;
+}
+
 /* Under rt->lock: the line's served OD, or NULL with the reason set. */
 static co_od_t *served_od(co_rt_t *rt, rt_line_t *l)
 {
@@ -109,7 +260,13 @@ int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *b
     }
     pthread_mutex_lock(&rt->lock);
     co_od_t *od = served_od(rt, l);
-    int result = od ? (int)co_od_get(od, index, sub, buf, capacity, length) : CO_RT_ERR_STATE;
+    rt_domain_t *d = od ? domain_of(l, index, sub) : NULL;
+    int result = CO_RT_ERR_STATE;
+    if (d) {
+        result = domain_get(d, buf, capacity, length);
+    } else if (od) {
+        result = (int)co_od_get(od, index, sub, buf, capacity, length);
+    }
     pthread_mutex_unlock(&rt->lock);
     return result;
 }
@@ -127,7 +284,8 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
     if (od) {
         /* Services re-arm timers from the line's clock (0x1017 at once). */
         co_line_set_time(&l->line, co_rt_now_us());
-        result = (int)co_od_put(od, index, sub, data, length);
+        rt_domain_t *d = domain_of(l, index, sub);
+        result = d ? domain_put(d, data, length) : (int)co_od_put(od, index, sub, data, length);
     }
     pthread_mutex_unlock(&rt->lock);
     if (result == 0) {

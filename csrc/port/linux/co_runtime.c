@@ -363,6 +363,7 @@ static void od_forget(rt_line_t *l)
     l->store_file = NULL;
     l->store_buffer = NULL;
     rt_app_store_free(l);
+    rt_od_free_domains(l);
     l->has_od = false;
 }
 
@@ -808,6 +809,10 @@ static void iterate(co_rt_t *rt)
     apply_mailbox(rt, now);
     uint64_t next = run_lines(rt, now);
     next = min_u64(next, flush_drivers(rt, now));
+    /* Sending may have armed timers (a service told of free tx space). */
+    for (int i = 0; i < rt->line_count; i++) {
+        next = min_u64(next, co_timer_list_next(&rt->lines[i]->line.timers));
+    }
     arm_timer(rt, next, now);
 }
 
@@ -882,6 +887,8 @@ static void line_free(rt_line_t *l)
     free(l->store_file);
     free(l->store_buffer);
     rt_app_store_free(l);
+    rt_usdo_free(l);
+    rt_od_free_domains(l);
     free(l->usdo_scratch);
     free(l->rx_slots);
     free(l->tx_slots);

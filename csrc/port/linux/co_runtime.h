@@ -76,10 +76,13 @@ typedef enum co_rt_event_kind {
                                   a = index << 8 | sub, b = co_od_origin_t */
     CO_EV_STORE = 10,          /* parameters loaded at boot or reset from a store:
                                   a = co_store_status_t, b = records skipped */
-    CO_EV_OD_REQUEST = 11      /* a network read/write waits on the application
+    CO_EV_OD_REQUEST = 11,     /* a network read/write waits on the application
                                   (co_rt_od_indicate): a = index << 8 | sub,
                                   b = token for co_rt_od_answer; b >> 24 is
                                   CO_RT_INDICATE_READ or CO_RT_INDICATE_WRITE */
+    CO_EV_USDO_DONE = 12,      /* a USDO client transfer ended: a = handle,
+                                  b = USDO abort code (0 = ok) */
+    CO_EV_USDO_PROGRESS = 13   /* a = handle, b = bytes moved so far */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -153,6 +156,13 @@ int co_rt_od_restore_defaults(co_rt_t *rt, int line, int group_mask);
  * co_rt_status_t when the line has no node with a store. */
 int co_rt_store_status(co_rt_t *rt, int line);
 
+/* A DOMAIN entry backed by up to capacity bytes of runtime memory (allocated
+ * here, once): the network uploads and downloads it in chunks (a download
+ * larger than capacity is refused with CO_ABORT_LENGTH_HIGH; an aborted one
+ * leaves the domain empty, never half old and half new), and
+ * co_rt_od_read / co_rt_od_write reach its bytes. The OD must be defined. */
+int co_rt_od_domain(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint32_t capacity);
+
 /* Indications answered by the application (Python): network reads
  * (before-read) and/or writes (check-write) of the entries first..last
  * (index << 8 | sub keys, inclusive) wait until co_rt_od_answer. Each one is
@@ -193,6 +203,63 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
 /* After co_rt_od_save / co_rt_od_restore_defaults: persisted (ok = 1: the
  * staged image becomes the one loads use) or not (ok = 0: dropped). */
 int co_rt_store_finish(co_rt_t *rt, int line, int ok);
+
+/* ---- USDO client (fd lines). Transfers run in the runtime thread; the
+ * caller starts them, is told CO_EV_USDO_DONE, collects the result and
+ * releases the handle. */
+typedef struct co_rt_usdo_request {
+    int server;                /* node-id 1..127, 0 = broadcast */
+    uint16_t index;
+    uint8_t sub;
+    int upload;                /* 1 upload (read), 0 download (write) */
+    int mode;                  /* downloads: 0 auto, 1 expedited, 2 segmented, 3 bulk */
+    uint8_t type;              /* download: CiA 301 type byte, 0 = DOMAIN (raw bytes) */
+    const uint8_t *data;       /* download from memory: must stay valid until done */
+    uint32_t size;             /* download: bytes */
+    int fd;                    /* >= 0: download from / upload to this file ... */
+    uint64_t fd_offset;        /* ... starting at this offset (data unused) */
+    uint32_t max_size;         /* upload to memory: largest accepted (0 = 64 MiB) */
+    uint32_t timeout_ms;       /* per frame; broadcast: the answer window; 0 = 1000 */
+    int progress;              /* post CO_EV_USDO_PROGRESS (at most every 50 ms) */
+} co_rt_usdo_request_t;
+
+typedef struct co_rt_usdo_result {
+    int running;               /* 1 until CO_EV_USDO_DONE */
+    uint8_t abort;             /* USDO abort code, 0 = ok */
+    uint8_t abort_from_server; /* 1: the server aborted; 0: we did (timeout, cancel, ...) */
+    uint8_t type;              /* upload: data type byte the server sent */
+    uint8_t mode;              /* mode used: 1 expedited, 2 segmented, 3 bulk */
+    uint8_t session_id;
+    uint16_t pacing;           /* bulk: pacing the server asked (100 us units) */
+    uint32_t transferred;      /* bytes moved */
+    uint32_t answers;          /* broadcast: servers that answered */
+    int error_number;          /* file transfers: errno of a failed read/write, else 0 */
+} co_rt_usdo_result_t;
+
+typedef struct co_rt_usdo_answer {
+    uint8_t node;
+    uint8_t abort;             /* 0: data below; else the USDO abort code */
+    uint8_t type;
+    uint8_t length;
+    uint8_t data[56];
+} co_rt_usdo_answer_t;
+
+/* Our client node-id on the line (1..127): requests go out on 0x600 + it.
+ * Once, before the first transfer; the default is the local node's id. */
+int co_rt_usdo_client(co_rt_t *rt, int line, int node_id);
+/* Start a transfer: a handle (>= 0) or a co_rt_status_t; a USDO code the
+ * core refused it with comes back as CO_RT_ERR_ARGUMENT / CO_RT_ERR_FULL
+ * with the reason in the last error. */
+int co_rt_usdo_start(co_rt_t *rt, int line, const co_rt_usdo_request_t *request);
+/* Abort a running transfer (code 0 = 0x10 general error; sent to the server). */
+int co_rt_usdo_cancel(co_rt_t *rt, int line, int handle, uint8_t code);
+int co_rt_usdo_result(co_rt_t *rt, int line, int handle, co_rt_usdo_result_t *out);
+/* Upload to memory: copy the data (returns the byte count, or a status). */
+int co_rt_usdo_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);
+/* Broadcast: copy up to max answers (returns the count, or a status). */
+int co_rt_usdo_answers(co_rt_t *rt, int line, int handle, co_rt_usdo_answer_t *out, int max);
+/* Forget a finished transfer (a running one is cancelled first). */
+int co_rt_usdo_release(co_rt_t *rt, int line, int handle);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
