@@ -1,7 +1,13 @@
-"""The `canopenfd` command: demo, nmt, monitor, device.
+"""The `canopenfd` command: demo, nmt, monitor, device, od, and the USDO
+commands read, write, download, upload (canopenfd/cli_usdo.py).
 
 Errors a user can fix (no such interface, wrong MTU, bad node-id) print one
 line to stderr and exit with status 2, never a traceback.
+
+`main(argv, network=...)` runs a command on a given Network (its lines stay
+open afterwards) instead of one of its own: an in-process bus ('mem:NAME')
+belongs to one Network, so tests and embedding programs reach the nodes they
+run themselves this way.
 """
 
 from __future__ import annotations
@@ -12,12 +18,12 @@ import os
 import sys
 import threading
 import time
-from typing import Any, Callable, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from . import __version__
+from . import __version__, cli_usdo
 from .cli_od import add_od_parser
 from .decode import decode, describe
-from .errors import CanopenFDError
+from .errors import AbortError, CanopenFDError
 from .frame import Frame
 from .line import Line
 from .network import Network
@@ -94,6 +100,17 @@ def _open_line(net: Network, args: argparse.Namespace, owned: List[Any],
     return net.open_line(args.channel, mode=mode, brs=brs, monitor=monitor)
 
 
+def _network(args: argparse.Namespace) -> Network:
+    """The Network a command runs on: the one handed to main(), else a new one."""
+    given = getattr(args, "network", None)
+    return given if given is not None else Network()
+
+
+def _owned(net: Network, args: argparse.Namespace) -> Optional[Network]:
+    """net when the command created it (and closes it), None when it was handed in."""
+    return None if net is getattr(args, "network", None) else net
+
+
 def _shutdown(net: Optional[Network], owned: List[Any]) -> None:
     if net is not None:
         net.close()
@@ -112,7 +129,7 @@ def cmd_nmt(args: argparse.Namespace) -> int:
     except CanopenFDError as exc:
         raise UsageError(str(exc)) from None
     owned: List[Any] = []
-    net = Network()
+    net = _network(args)
     try:
         # A monitor line reports our own frame once it went out, so we close
         # only after the command really left.
@@ -130,14 +147,14 @@ def cmd_nmt(args: argparse.Namespace) -> int:
               f"({'classic' if args.classic else 'fd'})")
         return EXIT_OK
     finally:
-        _shutdown(net, owned)
+        _shutdown(_owned(net, args), owned)
 
 
 def cmd_monitor(args: argparse.Namespace) -> int:
     if args.count is not None and args.count < 1:
         raise UsageError(f"--count must be >= 1, got {args.count}")
     owned: List[Any] = []
-    net = Network()
+    net = _network(args)
     try:
         line = _open_line(net, args, owned, monitor=True)
         printer = Printer()
@@ -161,7 +178,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             pass
         return EXIT_OK
     finally:
-        _shutdown(net, owned)
+        _shutdown(_owned(net, args), owned)
 
 
 def _device_od(spec: Optional[str], mode: str, node_id: int) -> Any:
@@ -195,6 +212,29 @@ def _check_store_path(path: Optional[str]) -> None:
         raise UsageError(f"--store {path}: directory {folder} does not exist")
 
 
+def _bytes_text(count: int) -> str:
+    for unit, shift in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if count >= 1 << shift and count % (1 << shift) == 0:
+            return f"{count >> shift} {unit}"
+    return f"{count} bytes"
+
+
+def _device_domains(args: argparse.Namespace, od: Any, mode: str) -> Dict[Tuple[int, int], int]:
+    """{(index, sub): capacity} of the DOMAIN entries the device keeps in
+    memory: 0x2100 of the built-in fd dictionary (its DOMAIN_MAX_LENGTH,
+    16 MiB, so the device can be the far end of large USDO transfers), then
+    every --domain INDEX[:SUB]=BYTES (replacing a default for the same entry)."""
+    from .od.demo import DOMAIN_MAX_LENGTH
+
+    domains: Dict[Tuple[int, int], int] = {}
+    if mode == "fd" and (args.od is None or args.od == "builtin:fd"):
+        domains[(0x2100, 0)] = max(DOMAIN_MAX_LENGTH, 16 << 20)
+    for spec in args.domain or ():
+        index, sub, capacity = cli_usdo.parse_domain(spec, od)
+        domains[(index, sub)] = capacity
+    return domains
+
+
 def cmd_device(args: argparse.Namespace) -> int:
     mode = "classic" if args.classic else "fd"
     try:
@@ -216,8 +256,9 @@ def cmd_device(args: argparse.Namespace) -> int:
             producer.value = args.heartbeat
         except CanopenFDError as exc:
             raise UsageError(f"--heartbeat {args.heartbeat}: {exc}") from None
+    domains = _device_domains(args, od, mode)
     owned: List[Any] = []
-    net = Network()
+    net = _network(args)
     try:
         line = _open_line(net, args, owned)
         printer = Printer()
@@ -233,11 +274,17 @@ def cmd_device(args: argparse.Namespace) -> int:
         node.on_store_problem(lambda status, skipped: printer.line(
             f"node {node_id}: saved parameters in {args.store} are {status}; "
             "running on defaults"))
+        for (index, sub), capacity in domains.items():
+            node.serve_domain((index, sub), capacity)
         node.boot()
         if args.heartbeat is not None and has_1017 and node.heartbeat_ms != args.heartbeat:
             node.heartbeat_ms = args.heartbeat   # a saved 0x1017 loaded at boot: override it
         source = args.od or f"builtin:{mode}"
         store = f", parameters in {args.store}" if args.store else ""
+        for (index, sub), capacity in domains.items():
+            name = od.get_variable(index, sub).qualname
+            print(f"node {node_id}: 0x{index:04X}:{sub:02X} {name} in {_bytes_text(capacity)} "
+                  "of memory", file=sys.stderr)
         print(f"node {node_id} running on {args.channel} ({line.mode}), heartbeat "
               f"{node.heartbeat_ms} ms, object dictionary {source}{store}; Ctrl-C to stop",
               file=sys.stderr)
@@ -247,22 +294,114 @@ def cmd_device(args: argparse.Namespace) -> int:
             pass
         return EXIT_OK
     finally:
-        _shutdown(net, owned)
+        _shutdown(_owned(net, args), owned)
+
+
+_DEMO_BULK = 1 << 20          # bytes the demo moves each way over USDO
+# Events the demo's runtime can queue: its monitor line reports each of the
+# ~52 000 frames of the 1 MiB round trip, faster than Python takes them.
+_DEMO_EVENTS = 1 << 16
+_USDO_IDS = range(0x581, 0x680)   # USDO responses 0x581..0x5FF, requests 0x601..0x67F
+
+
+class _FrameCount:
+    """USDO frames the demo's monitor has shown (to wait for them)."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self.count = 0
+
+    def add(self) -> None:
+        with self._cond:
+            self.count += 1
+            self._cond.notify_all()
+
+    def wait(self, count: int, timeout: float = 1.0) -> None:
+        with self._cond:
+            self._cond.wait_for(lambda: self.count >= count, timeout)
+
+
+def _finished(transfer: Any) -> float:
+    """Wait for a USDO transfer; the time it ended. Polls the runtime: the
+    done event queues behind the monitor's frame events of a bulk transfer."""
+    while not transfer.done():
+        time.sleep(0.001)
+    return time.monotonic()
+
+
+def _demo_usdo(say: Callable[..., None], line: Line, remote: Any, device: Any,
+               shown: _FrameCount, mute_from: List[float]) -> bool:
+    """The demo's USDO part (node 1 is the client, node 2 the server): a
+    typed read, a write read back, then 1 MiB down into node 2's memory
+    domain 0x2100 and back up, compared byte for byte. False on a mismatch."""
+    vendor = remote.od["Identity object.Vendor-ID"]
+    say("node 1   USDO read node 2 0x1018:01 Identity object.Vendor-ID")
+    value = vendor.raw
+    shown.wait(2)
+    say(f"node 1   node 2 Vendor-ID = {value} (0x{value:08X})")
+    setpoint = remote.od["Demo record.Setpoint"]
+    say("node 1   USDO write node 2 0x2200:01 Demo record.Setpoint = 123, read it back")
+    setpoint.raw = 123
+    back = setpoint.raw
+    shown.wait(6)
+    say(f"node 1   node 2 Setpoint reads back {back}"
+        f"{'' if back == 123 else ' (expected 123)'}")
+
+    payload = os.urandom(_DEMO_BULK)
+    size = f"{_DEMO_BULK >> 20} MiB" if _DEMO_BULK % (1 << 20) == 0 else f"{_DEMO_BULK} bytes"
+    say(f"node 1   USDO {size} to node 2 0x2100 (a memory domain) and back; frames not "
+        "shown")
+    started = time.monotonic()
+    mute_from[0] = started
+    transfer = line.usdo.start_download(2, 0x2100, 0, payload)
+    ended = _finished(transfer)
+    transfer.result()
+    down_ok = device[0x2100].data == payload
+    say(f"node 1   download: {transfer.transferred} bytes, {transfer.mode}, "
+        f"{ended - started:.3f} s, {_rate(transfer.transferred, ended - started)}; node 2 "
+        f"holds {'identical' if down_ok else 'DIFFERENT'} bytes")
+    started = time.monotonic()
+    transfer = line.usdo.start_upload(2, 0x2100, 0, max_size=_DEMO_BULK)
+    ended = _finished(transfer)
+    data = transfer.result()
+    up_ok = data == payload
+    mode = transfer.mode if transfer.mode not in (None, "auto") else "mode of the server's choice"
+    say(f"node 1   upload: {transfer.transferred} bytes, {mode}, {ended - started:.3f} s, "
+        f"{_rate(transfer.transferred, ended - started)}; "
+        f"{'identical to' if up_ok else 'DIFFERENT from'} what was sent")
+    return down_ok and up_ok and back == 123
+
+
+def _rate(count: int, seconds: float) -> str:
+    return f"{count / seconds / 1e6:.1f} MB/s" if seconds > 0 else "- MB/s"
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """Two nodes and a monitor on the in-process FD bus 'mem:demo'."""
+    """Two nodes and a monitor on the in-process FD bus 'mem:demo': NMT and
+    heartbeat, then USDO (a read, a write, 1 MiB each way)."""
+    from .od import demo_od
+
     if args.duration <= 0:
         raise UsageError(f"--duration must be > 0 s, got {args.duration:g}")
-    with Network() as net:
+    with Network(event_capacity=_DEMO_EVENTS) as net:
         printer = Printer()
         say = printer.line
+        shown = _FrameCount()
+        mute_from = [float("inf")]   # frames stamped from then on are not shown
+
+        def on_frame(frame: Frame) -> None:
+            if frame.timestamp >= mute_from[0]:
+                return
+            say(f"bus      {decode(frame)}")
+            if frame.id in _USDO_IDS:
+                shown.add()
+
         monitor = net.open_line("mem:demo", mode="fd", monitor=True)
-        monitor.on_frame(lambda f: say(f"bus      {decode(f)}"))
+        monitor.on_frame(on_frame)
 
         manager_line = net.open_line("mem:demo", mode="fd")
         manager_line.create_local_node(1)
-        watched = manager_line.add_node(2, heartbeat_timeout_ms=250)
+        watched = manager_line.add_node(2, heartbeat_timeout_ms=250, od=demo_od("fd"))
         lost = threading.Event()
         watched.on_bootup(lambda: say("node 1   sees node 2 boot-up"))
         watched.on_state_change(lambda s: say(f"node 1   sees node 2 {s.label}"))
@@ -270,7 +409,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
         watched.on_heartbeat_lost(lambda: (say("node 1   node 2 heartbeat lost"), lost.set()))
 
         device_line = net.open_line("mem:demo", mode="fd")
-        device = device_line.create_local_node(2, heartbeat_ms=100, boot=False)
+        device = device_line.create_local_node(2, heartbeat_ms=100, od=demo_od("fd"),
+                                               boot=False)
+        device.serve_domain(0x2100, _DEMO_BULK)
         device.on_state_change(lambda old, new: say(f"node 2   {old.label} -> {new.label}"))
         device.on_reset(lambda kind: say(f"node 2   {kind.label}"))
         device.boot()
@@ -299,11 +440,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
             rest = t0 + args.duration - time.monotonic()
             if rest > 0:
                 time.sleep(rest)
+            try:
+                usdo_ok = _demo_usdo(say, manager_line, watched, device, shown, mute_from)
+            except AbortError as exc:
+                say(f"node 1   USDO failed: {exc}")
+                usdo_ok = False
         except KeyboardInterrupt:
-            pass
+            usdo_ok = True
         states = ", ".join(f"{n}: {s.label}" for n, s in manager_line.states.items())
         say(f"done: states seen by node 1 {{{states}}}")
-    return EXIT_OK
+    return EXIT_OK if usdo_ok else EXIT_FAILED
 
 
 # ------------------------------------------------------------------ parser
@@ -356,14 +502,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--heartbeat", type=int, default=None, metavar="MS",
                    help="heartbeat producer time, replacing the dictionary's 0x1017 "
                         "(0 = off; default: 0x1017 of the dictionary or the store)")
+    p.add_argument("--domain", action="append", metavar="INDEX[:SUB]=BYTES",
+                   help="keep DOMAIN entry INDEX[:SUB] (hex, or a name) in memory of BYTES "
+                        "(like 16M, 512K, 0x100000), so USDO/SDO uploads and downloads reach "
+                        "it; repeatable (the built-in fd dictionary has 0x2100 = 16M already)")
     p.add_argument("--duration", type=float, metavar="SECONDS")
     p.set_defaults(func=cmd_device)
     add_od_parser(sub)
+    cli_usdo.add_usdo_parsers(sub, line_options)
     return parser
 
 
-def main(argv: Optional[List[str]] = None) -> int:
+def main(argv: Optional[List[str]] = None, network: Optional[Network] = None) -> int:
+    """Run the command line argv (default sys.argv[1:]); the exit status.
+    network: run on this Network instead of a new one (see the module doc)."""
     args = build_parser().parse_args(argv)
+    args.network = network
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     try:

@@ -38,8 +38,16 @@ def test_demo():
                  "NMT pre-operational node 2", "NMT reset-comm node 2",
                  "heartbeat node 2 OPERATIONAL", "heartbeat node 2 STOPPED",
                  "PRE-OPERATIONAL -> OPERATIONAL", "sees node 2 boot-up",
-                 "node 2 heartbeat lost"):
+                 "node 2 heartbeat lost",
+                 # USDO: a typed read, a write read back, 1 MiB each way
+                 "upload request 0x1018:01", "node 2 Vendor-ID = 0 (0x00000000)",
+                 "download expedited 0x2200:01 I16 N=2 7B 00", "Setpoint reads back 123",
+                 "download: 1048576 bytes, bulk, ", "node 2 holds identical bytes",
+                 "upload: 1048576 bytes, ", "identical to what was sent"):
         assert text in out, f"{text!r} missing from the demo output:\n{out}"
+    assert "MB/s" in out and "DIFFERENT" not in out
+    assert len(out.splitlines()) < 80            # the bulk frames are not printed
+    assert "events lost" not in result.stderr
     # every line starts with a time stamp
     for line in out.strip().splitlines():
         float(line.split()[0])

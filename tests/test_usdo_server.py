@@ -97,3 +97,34 @@ def test_object_changed_callback_sees_network_writes_only(rig):
     node[0x1017].raw = 20                             # the application's own write: not told
     ask(client, answers, bytes([SERVER, 0x01, 3, 0x00, 0x17, 0x10, 0x06, 2, 0x2C, 0x01]))
     assert changes.wait_count(1) == [(0x1017, "network", 300)]
+
+
+def test_cob_id_of_an_active_object_cannot_change(net, bus_name):
+    """CiA 301: a COB-ID changes only while its object is invalid; otherwise
+    abort 0x40 (0x06090030, invalid value) and the entry stays."""
+    from canopenfd.od import ODRecord, ODVariable
+    from canopenfd.od.datatypes import DataType
+    od = demo_od("fd")
+    od.add_object(ODVariable("COB-ID EMCY", 0x1014, 0, DataType.UNSIGNED32, "rw", 0x85))
+    tpdo = ODRecord("TPDO 1 communication parameter", 0x1800)
+    tpdo.add_member(ODVariable("Highest sub-index supported", 0x1800, 0, DataType.UNSIGNED8,
+                               "ro", 1))
+    tpdo.add_member(ODVariable("COB-ID used by TPDO", 0x1800, 1, DataType.UNSIGNED32, "rw",
+                               0x185))
+    od.add_object(tpdo)
+    node = net.open_line(bus_name, mode="fd").create_local_node(SERVER, od=od)
+    client = net.open_line(bus_name, mode="fd", monitor=True)
+    answers = Recorder()
+    client.on_frame(lambda f: answers(f) if f.id == RESPONSE else None)
+
+    def write(session, sub, index, value):
+        return ask(client, answers, bytes([SERVER, 0x01, session, sub]) +
+                   index.to_bytes(2, "little") + bytes([0x07, 4]) + value.to_bytes(4, "little"))
+
+    assert write(1, 1, 0x1800, 0x186).data[:7] == bytes([CLIENT, 0x7F, 1, 1, 0x00, 0x18, 0x40])
+    assert node[0x1800][1].raw == 0x185
+    assert write(2, 0, 0x1014, 0x86).data[:7] == bytes([CLIENT, 0x7F, 2, 0, 0x14, 0x10, 0x40])
+    # disable, change, enable: each answered 0x21
+    for session, value in ((3, 0x80000185), (4, 0x80000186), (5, 0x186)):
+        assert write(session, 1, 0x1800, value).data[:2] == bytes([CLIENT, 0x21])
+    assert node[0x1800][1].raw == 0x186

@@ -1,5 +1,7 @@
 #include "co_node.h"
 
+#include "co_cob_id.h"
+
 static void on_state_changed(co_nmt_t *nmt, co_nmt_state_t old_state,
                              co_nmt_state_t new_state, void *user)
 {
@@ -135,6 +137,10 @@ bool co_node_attach_od(co_node_t *node, co_od_t *od, co_store_t *store,
                          node)) {
         return false;
     }
+    if (!co_cob_id_attach(od)) {
+        co_od_unsubscribe(od, &comm_handler, node);
+        return false;
+    }
     node->od = od;
     node->store = store;
     node->consumer = consumer;
@@ -171,6 +177,7 @@ void co_node_deinit(co_node_t *node)
 {
     if (node->od) {
         co_od_unsubscribe(node->od, &comm_handler, node);
+        co_cob_id_detach(node->od);
         node->od = NULL;
     }
     co_hb_producer_stop(&node->heartbeat);

@@ -1,0 +1,777 @@
+"""The USDO commands of `canopenfd`: read, write, download, upload.
+
+    canopenfd read NODE INDEX[:SUB] --channel IFACE [--type T] [--od FILE]
+    canopenfd write NODE INDEX[:SUB] VALUE --channel IFACE [--type T] [--od FILE]
+    canopenfd download NODE INDEX[:SUB] FILE --channel IFACE [--mode M] [--progress]
+    canopenfd upload NODE INDEX[:SUB] FILE --channel IFACE [--progress]
+
+Every command is a USDO client (CiA 1301) on one CAN FD line, node-id
+--client-id (default 127). INDEX and SUB are hex (`0x1018:1`, `1018:01`,
+`1018sub1`; SUB defaults to 0); with --od FILE (the remote node's EDS, DCF,
+XDD or XDC, or builtin:fd) INDEX may also be a name (`"Producer heartbeat
+time"`, `"Identity object.Vendor-ID"`) and values are typed by the file.
+
+Exit status: 0 done, 1 the transfer failed (a USDO abort: ours, such as a
+timeout, or the server's), 2 a bad argument (one line on stderr, never a
+traceback). `main` may hand in a Network (`args.network`): the commands then
+open their line on it instead of a Network of their own (tests, embedding).
+
+Helpers used by `canopenfd device` live here too: `parse_key` (INDEX[:SUB]
+or a name) and `parse_domain` (--domain INDEX[:SUB]=BYTES).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime as _dt
+import math
+import os
+import re
+import stat
+import struct
+import sys
+import tempfile
+import threading
+import time
+from typing import Any, Callable, Dict, Iterator, Optional, TextIO, Tuple
+
+from . import cli as _cli
+from .errors import CanopenFDError
+from .od import (DataType, ODArray, ODRecord, ODVariable, ObjectDictionary, OdFileError,
+                 OdValueError, TimeDifference, TimeOfDay, demo_od, import_od)
+from .od import decode as _decode
+from .od import encode as _encode
+from .usdo import MODES, UsdoAbortError, UsdoTransfer
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+
+DEFAULT_CLIENT_ID = 127
+DEFAULT_TIMEOUT_S = 1.0
+EXPEDITED_MAX = 56          # bytes an expedited USDO transfer carries
+TRANSFER_MAX = 0xFFFFFFFE   # bytes a USDO transfer moves at most
+_WAIT_SLICE_S = 0.1         # result() in slices: Ctrl-C works, a late done event costs <= this
+
+_KEY_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})(?:(?::|sub)(?:0x)?([0-9a-f]{1,2}))?$",
+                     re.IGNORECASE)
+_SIZE_RE = re.compile(r"^(0x[0-9a-f]+|\d+)\s*(k|kib|m|mib|g|gib|b)?$", re.IGNORECASE)
+_SIZE_UNITS = {None: 1, "b": 1, "k": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mib": 1 << 20,
+               "g": 1 << 30, "gib": 1 << 30}
+
+# --type names besides the CiA 301 ones (UNSIGNED32, VISIBLE_STRING, ...).
+_TYPE_ALIASES: Dict[str, DataType] = {
+    "BOOL": DataType.BOOLEAN,
+    "FLOAT": DataType.REAL32, "F32": DataType.REAL32, "R32": DataType.REAL32,
+    "DOUBLE": DataType.REAL64, "F64": DataType.REAL64, "R64": DataType.REAL64,
+    "STRING": DataType.VISIBLE_STRING, "STR": DataType.VISIBLE_STRING,
+    "VSTR": DataType.VISIBLE_STRING, "VS": DataType.VISIBLE_STRING,
+    "OCTETS": DataType.OCTET_STRING, "OSTR": DataType.OCTET_STRING,
+    "OS": DataType.OCTET_STRING,
+    "USTR": DataType.UNICODE_STRING, "UNICODE": DataType.UNICODE_STRING,
+    "BYTES": DataType.DOMAIN,
+    "TOD": DataType.TIME_OF_DAY, "TD": DataType.TIME_DIFFERENCE,
+}
+for _bits in (8, 16, 24, 32, 40, 48, 56, 64):
+    _TYPE_ALIASES[f"U{_bits}"] = _TYPE_ALIASES[f"UINT{_bits}"] = DataType[f"UNSIGNED{_bits}"]
+    _TYPE_ALIASES[f"I{_bits}"] = _TYPE_ALIASES[f"INT{_bits}"] = DataType[f"INTEGER{_bits}"]
+_TYPE_HINT = "U8..U64, I8..I64, BOOLEAN, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING, " \
+             "UNICODE_STRING, DOMAIN, TIME_OF_DAY, TIME_DIFFERENCE or a CiA 301 code like 0x07"
+_TRUE = ("1", "true", "on", "yes")
+_FALSE = ("0", "false", "off", "no")
+
+Entry = Tuple[int, int, Optional[ODVariable]]
+
+
+# ------------------------------------------------------------------ parser
+def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser], None]) -> None:
+    """Register read, write, download and upload on the main parser's
+    subparsers (`line_options` adds --channel, --interface, ...)."""
+    key_help = "entry: INDEX[:SUB] in hex (0x1018:1), or a name from --od"
+
+    def common(p: argparse.ArgumentParser) -> None:
+        line_options(p)
+        p.add_argument("--client-id", type=int, default=DEFAULT_CLIENT_ID, metavar="N",
+                       help=f"our USDO client node-id 1..127 (default {DEFAULT_CLIENT_ID})")
+        p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
+                       help="how long to wait for each answer of the server (default "
+                            f"{DEFAULT_TIMEOUT_S:g}; with NODE 0 how long to collect answers)")
+        p.add_argument("--od", metavar="FILE",
+                       help="the remote node's EDS/DCF/XDD/XDC (or builtin:fd): names for "
+                            "INDEX, and typed values")
+
+    p = sub.add_parser("read", help="read one entry of a node (USDO upload) and print it")
+    p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
+    p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
+    p.add_argument("--type", metavar="T",
+                   help=f"print the value as this type ({_TYPE_HINT}); default: the type "
+                        "from --od, else raw hex bytes")
+    common(p)
+    p.set_defaults(func=cmd_read)
+
+    p = sub.add_parser("write", help="write one entry of a node (USDO download)")
+    p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
+    p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
+    p.add_argument("value", metavar="VALUE",
+                   help="integers in decimal or 0x hex, strings as text, OCTET_STRING / "
+                        "DOMAIN as hex bytes ('01 02 ff' or 0102ff)")
+    p.add_argument("--type", metavar="T",
+                   help=f"the value's type ({_TYPE_HINT}); default: the type from --od")
+    common(p)
+    p.set_defaults(func=cmd_write)
+
+    p = sub.add_parser("download", help="send a file's contents to an entry (USDO download)")
+    p.add_argument("node", metavar="NODE", help="node-id 1..127")
+    p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
+    p.add_argument("file", metavar="FILE", help="the file to send")
+    p.add_argument("--mode", choices=list(MODES), default="auto",
+                   help="USDO transfer mode (default auto: expedited up to 56 bytes, "
+                        "segmented below 4 KiB, bulk above)")
+    p.add_argument("--progress", action="store_true",
+                   help="show the progress bar on stderr even when it is no terminal")
+    common(p)
+    p.set_defaults(func=cmd_download)
+
+    p = sub.add_parser("upload", help="read an entry into a file (USDO upload)")
+    p.add_argument("node", metavar="NODE", help="node-id 1..127")
+    p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
+    p.add_argument("file", metavar="FILE", help="the file to write (replaced once complete)")
+    p.add_argument("--progress", action="store_true",
+                   help="show the progress on stderr even when it is no terminal")
+    common(p)
+    p.set_defaults(func=cmd_upload)
+
+
+# ------------------------------------------------------------------ argument parsing
+def _usage(text: str) -> Exception:
+    return _cli.UsageError(text)
+
+
+def parse_node(text: str, broadcast: bool) -> int:
+    """NODE: 1..127 (decimal or 0x hex), 0 = broadcast when allowed."""
+    try:
+        node = int(text.strip(), 16) if text.strip().lower().startswith("0x") \
+            else int(text.strip(), 10)
+    except ValueError:
+        raise _usage(f"NODE {text!r} is not a node-id (1..127"
+                     f"{', 0 = every node' if broadcast else ''})") from None
+    if node == 0 and not broadcast:
+        raise _usage("NODE 0 (broadcast) works only with read and write: give a node-id "
+                     "1..127")
+    if not 0 <= node <= 127:
+        raise _usage(f"NODE {node} outside 0..127 (0 = every node)" if broadcast
+                     else f"NODE {node} outside 1..127")
+    return node
+
+
+def parse_key(text: str, od: Optional[ObjectDictionary], what: str = "INDEX") -> Entry:
+    """(index, sub, the OD's entry or None) of INDEX[:SUB] in hex, or with an
+    OD of a name ('Producer heartbeat time', 'Identity object.Vendor-ID')."""
+    text = text.strip()
+    match = _KEY_RE.match(text)
+    if od is not None:
+        try:
+            entry = od[text]
+        except KeyError:
+            entry = None
+        if isinstance(entry, ODVariable):
+            return entry.index, entry.subindex, entry
+        if isinstance(entry, (ODRecord, ODArray)) and not match:
+            first = min([s for s in entry.subindices if s > 0] or [1])
+            raise _usage(f"{what} {text!r} is the {entry.object_type.name} 0x{entry.index:04X}: "
+                         f"give a sub-index, e.g. 0x{entry.index:04X}:{first:X} or "
+                         f"'{entry.name}.{entry[first].name}'")
+    if match:
+        index = int(match.group(1), 16)
+        sub = int(match.group(2), 16) if match.group(2) is not None else 0
+        return index, sub, od.get_variable(index, sub) if od is not None else None
+    if od is not None:
+        raise _usage(f"{what} {text!r}: no such name in the object dictionary, and not "
+                     "INDEX[:SUB] in hex (like 0x1018:1)")
+    raise _usage(f"{what} {text!r} is not INDEX[:SUB] in hex (like 0x1018:1 or 1017); "
+                 "names need --od FILE")
+
+
+def parse_type(text: str) -> DataType:
+    """--type: a CiA 301 name (UNSIGNED32), a short one (U32, I16, REAL32,
+    STRING, ...) or the type code (7, 0x07)."""
+    name = text.strip().upper().replace("-", "_")
+    if name in _TYPE_ALIASES:
+        return _TYPE_ALIASES[name]
+    try:
+        return DataType.parse(name)
+    except OdValueError:
+        pass
+    try:
+        return DataType.parse(int(name, 0))
+    except (ValueError, OdValueError):
+        raise _usage(f"--type {text!r} is not a data type: give {_TYPE_HINT}") from None
+
+
+def parse_size(text: str, what: str) -> int:
+    """BYTES: decimal or 0x hex, optional K/KiB, M/MiB, G/GiB (powers of 1024)."""
+    match = _SIZE_RE.match(text.strip())
+    if not match:
+        raise _usage(f"{what}: {text!r} is not a size (like 1048576, 0x100000, 512K or 16M)")
+    number = int(match.group(1), 0)
+    unit = match.group(2).lower() if match.group(2) else None
+    return number * _SIZE_UNITS[unit]
+
+
+def parse_domain(text: str, od: ObjectDictionary) -> Tuple[int, int, int]:
+    """--domain INDEX[:SUB]=BYTES: (index, sub, capacity) of a DOMAIN entry of od."""
+    key, sep, size_text = text.rpartition("=")
+    if not sep or not key.strip():
+        raise _usage(f"--domain {text!r}: expected INDEX[:SUB]=BYTES, like 0x2100=16M")
+    index, sub, variable = parse_key(key, od, "--domain")
+    if variable is None:
+        raise _usage(f"--domain {text}: 0x{index:04X}:{sub:02X} is not in the object "
+                     "dictionary")
+    if variable.data_type != DataType.DOMAIN:
+        raise _usage(f"--domain {text}: {variable.where} {variable.qualname} is "
+                     f"{variable.data_type.name}, not a DOMAIN")
+    capacity = parse_size(size_text, f"--domain {text}")
+    if not 0 < capacity < 1 << 32:
+        raise _usage(f"--domain {text}: {capacity} bytes outside 1..4 GiB - 1")
+    return index, sub, capacity
+
+
+def _parse_int(dtype: DataType, text: str) -> int:
+    stripped = text.strip().replace("_", "")
+    sign = -1 if stripped.startswith("-") else 1
+    digits = stripped.lstrip("+-")
+    try:
+        if digits[:2].lower() == "0x":
+            number = int(digits[2:], 16)
+            # 0xFFFF as INTEGER16 is -1 (two's complement of the type's width)
+            if dtype.signed and sign > 0 and dtype.max < number < 1 << (8 * dtype.size):
+                number -= 1 << (8 * dtype.size)
+        else:
+            number = int(digits, 10)
+    except ValueError:
+        raise OdValueError("not an integer (decimal or 0x hex)") from None
+    return sign * number
+
+
+def _parse_hex(text: str) -> bytes:
+    digits = "".join(text.split())
+    if digits[:2].lower() == "0x":
+        digits = digits[2:]
+    if len(digits) % 2:
+        raise OdValueError("an odd number of hex digits (give whole bytes: 01 02 ff)")
+    try:
+        return bytes.fromhex(digits)
+    except ValueError:
+        raise OdValueError("not hex bytes (like '01 02 ff' or 0102ff)") from None
+
+
+def parse_value(dtype: DataType, text: str) -> Any:
+    """The Python value of VALUE for dtype (range-checked by the encoder later)."""
+    if dtype == DataType.BOOLEAN:
+        lowered = text.strip().lower()
+        if lowered in _TRUE or lowered in _FALSE:
+            return lowered in _TRUE
+        raise OdValueError("not a BOOLEAN (true/false, 1/0, on/off)")
+    if dtype.is_integer:
+        return _parse_int(dtype, text)
+    if dtype.is_real:
+        try:
+            return float(text.strip())
+        except ValueError:
+            raise OdValueError("not a number") from None
+    if dtype in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
+        return text
+    if dtype in (DataType.OCTET_STRING, DataType.DOMAIN):
+        return _parse_hex(text)
+    if dtype == DataType.TIME_OF_DAY:
+        try:
+            return TimeOfDay.from_datetime(_dt.datetime.fromisoformat(text.strip()))
+        except ValueError:
+            raise OdValueError("not a date and time (like 2024-05-01T12:00:00)") from None
+    try:   # TIME_DIFFERENCE: milliseconds
+        return TimeDifference.from_timedelta(
+            _dt.timedelta(milliseconds=_parse_int(DataType.UNSIGNED64, text)))
+    except (OverflowError, OdValueError):
+        raise OdValueError("not a time difference in milliseconds") from None
+
+
+# ------------------------------------------------------------------ value output
+def _short_real32(value: float) -> str:
+    """The shortest text that reads back to the same REAL32."""
+    if not math.isfinite(value):
+        return repr(value)
+    packed = struct.pack("<f", value)
+    for digits in range(1, 10):
+        text = f"{value:.{digits}g}"
+        if struct.pack("<f", float(text)) == packed:
+            return text
+    return repr(value)
+
+
+def format_value(dtype: DataType, value: Any) -> str:
+    """A read value for the terminal: integers in decimal and hex, strings
+    as text, bytes as hex."""
+    if dtype == DataType.BOOLEAN:
+        return "true" if value else "false"
+    if dtype.is_integer:
+        width = dtype.size or 1
+        return f"{value} (0x{value & ((1 << (8 * width)) - 1):0{2 * width}X})"
+    if dtype == DataType.REAL32:
+        return _short_real32(value)
+    if dtype.is_real:
+        return repr(value)
+    if isinstance(value, TimeOfDay):
+        return value.to_datetime().isoformat(timespec="milliseconds")
+    if isinstance(value, TimeDifference):
+        return f"{value.to_timedelta()} ({value.days * 86_400_000 + value.ms} ms)"
+    if isinstance(value, (bytes, bytearray)):
+        return hex_bytes(value)
+    return str(value)
+
+
+def hex_bytes(data: bytes) -> str:
+    return data.hex(" ") if data else "(empty)"
+
+
+def _show(data: bytes, dtype: Optional[DataType], variable: Optional[ODVariable]) -> str:
+    """Typed text of the bytes read; raw hex when the type is unknown or the
+    bytes do not decode as it (a warning on stderr then)."""
+    if dtype is None and variable is None:
+        return hex_bytes(data)
+    try:
+        if dtype is not None:
+            return format_value(dtype, _decode(dtype, data))
+        assert variable is not None
+        return format_value(variable.data_type, variable.decode_raw(data))
+    except OdValueError as exc:
+        kind = (dtype or variable.data_type).name  # type: ignore[union-attr]
+        print(f"canopenfd: warning: the {len(data)} bytes read are no {kind} ({exc}); "
+              "shown raw", file=sys.stderr)
+        return hex_bytes(data)
+
+
+def _size_text(count: float) -> str:
+    for unit in ("B", "KiB", "MiB"):
+        if count < 1024:
+            return f"{count:.0f} {unit}" if unit == "B" else f"{count:.1f} {unit}"
+        count /= 1024
+    return f"{count:.2f} GiB"
+
+
+def _rate_text(count: int, seconds: float) -> str:
+    return f"{count / seconds / 1e6:.2f} MB/s" if seconds > 0 else "- MB/s"
+
+
+def _eta_text(seconds: float) -> str:
+    if not math.isfinite(seconds) or seconds < 0:
+        return "--:--"
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    return f"{hours}:{rest // 60:02d}:{rest % 60:02d}" if hours else \
+        f"{rest // 60}:{rest % 60:02d}"
+
+
+class ProgressBar:
+    """Progress of one transfer on stderr (the transfer's progress callback,
+    called on the dispatcher thread): bar, percent, bytes, rate and ETA when
+    the size is known, else bytes and rate. On a terminal the line is redrawn
+    in place at most 10 times a second; elsewhere (--progress into a file or
+    pipe) one line is written at most every second."""
+
+    WIDTH = 24
+
+    def __init__(self, verb: str, total: Optional[int], stream: Optional[TextIO] = None,
+                 tty: Optional[bool] = None) -> None:
+        self.verb = verb
+        self.total = total
+        self.stream = stream if stream is not None else sys.stderr
+        self.tty = self.stream.isatty() if tty is None else tty
+        self.interval = 0.1 if self.tty else 1.0
+        self.t0 = time.monotonic()
+        self._lock = threading.Lock()
+        self._moved = 0
+        self._last: Optional[float] = None
+        self._width = 0
+        self._closed = False
+
+    def start(self) -> None:
+        self.t0 = time.monotonic()
+
+    def __call__(self, moved: int) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._moved = max(self._moved, moved)
+            now = time.monotonic()
+            if self._last is not None and now - self._last < self.interval:
+                return
+            self._draw(now)
+
+    def close(self, moved: Optional[int] = None) -> None:
+        """The last state (moved bytes when the transfer completed), then a
+        newline on a terminal; later callbacks are ignored."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if moved is not None:
+                self._moved = moved
+                self._draw(time.monotonic())
+            if self.tty and self._last is not None:
+                self._write("\n")
+
+    def text(self, now: float) -> str:
+        elapsed = now - self.t0
+        moved = self._moved
+        rate = moved / elapsed if elapsed > 0 else 0.0
+        if self.total is None:
+            return f"{self.verb}  {_size_text(moved)}  {_rate_text(moved, elapsed)}"
+        fraction = min(1.0, moved / self.total) if self.total else 1.0
+        filled = int(fraction * self.WIDTH)
+        bar = "#" * filled + "-" * (self.WIDTH - filled)
+        # the first moments (connection, first chunk) would give a wild guess
+        eta = 0.0 if moved >= self.total else \
+            (self.total - moved) / rate if rate > 0 and elapsed >= 0.3 else math.inf
+        return (f"{self.verb} [{bar}] {fraction * 100:3.0f}%  {_size_text(moved)} / "
+                f"{_size_text(self.total)}  {_rate_text(moved, elapsed)}  "
+                f"ETA {_eta_text(eta)}")
+
+    def _draw(self, now: float) -> None:
+        self._last = now
+        text = self.text(now)
+        if self.tty:
+            padded = text.ljust(self._width)
+            self._width = len(text)
+            self._write("\r" + padded)
+        else:
+            self._write(text + "\n")
+
+    def _write(self, text: str) -> None:
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            pass   # a closed stderr never stops a transfer
+
+
+# ------------------------------------------------------------------ session
+def _load_od(spec: Optional[str], node: int) -> Optional[ObjectDictionary]:
+    """--od FILE (the remote node's dictionary) or builtin:fd / builtin:classic."""
+    if spec is None:
+        return None
+    if spec.startswith("builtin:"):
+        kind = spec[len("builtin:"):]
+        if kind not in ("fd", "classic"):
+            raise _usage(f"--od {spec}: the built-in dictionaries are builtin:fd and "
+                         "builtin:classic")
+        return demo_od(kind, node_id=node or None)
+    try:
+        return import_od(spec, node_id=node or None)
+    except OdFileError as exc:
+        raise _usage(f"--od {exc}") from None
+    except OSError as exc:
+        raise _usage(f"--od {spec}: {exc.strerror or exc}") from None
+
+
+def _check_common(args: argparse.Namespace, node: int) -> None:
+    if args.classic:
+        raise _usage(f"{args.cmd} uses USDO, which needs a CAN FD line: drop --classic "
+                     "(classic CANopen nodes speak SDO)")
+    if not 1 <= args.client_id <= 127:
+        raise _usage(f"--client-id {args.client_id} outside 1..127")
+    if node == args.client_id:
+        raise _usage(f"NODE {node} is our own USDO client id: give the server's node-id, "
+                     "or another --client-id")
+    if not (0 < args.timeout <= 3600):
+        raise _usage(f"--timeout {args.timeout:g} s outside (0, 3600]")
+
+
+@contextlib.contextmanager
+def _client_line(args: argparse.Namespace) -> Iterator[Any]:
+    """The fd line named by the line options, our USDO client on it as
+    --client-id; closed at the end (unless the network was handed in)."""
+    owned: list = []
+    net = _cli._network(args)
+    try:
+        line = _cli._open_line(net, args, owned)
+        line.usdo.client_id = args.client_id
+        yield line
+    finally:
+        _cli._shutdown(_cli._owned(net, args), owned)
+
+
+def _wait(transfer: UsdoTransfer) -> Any:
+    """transfer.result(), in slices so Ctrl-C cancels the transfer (the
+    abort goes to the server) instead of leaving it running."""
+    try:
+        while True:
+            try:
+                return transfer.result(timeout=_WAIT_SLICE_S)
+            except TimeoutError:
+                continue
+    except KeyboardInterrupt:
+        try:
+            transfer.cancel()
+        except CanopenFDError:
+            pass
+        raise
+
+
+def _failed(exc: UsdoAbortError) -> int:
+    text = str(exc)
+    if isinstance(exc.__cause__, OSError):
+        text += f" ({exc.__cause__.strerror or exc.__cause__})"
+    print(f"canopenfd: error: {text}", file=sys.stderr)
+    return EXIT_FAILED
+
+
+def _where(index: int, sub: int, variable: Optional[ODVariable]) -> str:
+    name = f" ({variable.qualname})" if variable is not None else ""
+    return f"0x{index:04X}:{sub:02X}{name}"
+
+
+def _abort_text(error: UsdoAbortError) -> str:
+    return f"abort 0x{error.usdo_code:02X} ({error.meaning})"
+
+
+# ------------------------------------------------------------------ read / write
+def cmd_read(args: argparse.Namespace) -> int:
+    node = parse_node(args.node, broadcast=True)
+    _check_common(args, node)
+    od = _load_od(args.od, node)
+    index, sub, variable = parse_key(args.key, od)
+    dtype = parse_type(args.type) if args.type is not None else None
+    with _client_line(args) as line:
+        try:
+            transfer = line.usdo.start_upload(node, index, sub, timeout=args.timeout)
+            result = _wait(transfer)
+        except UsdoAbortError as exc:
+            return _failed(exc)
+        if node != 0:
+            print(_show(result, dtype, variable))
+            return EXIT_OK
+        return _broadcast_report(result, args.timeout,
+                                 lambda data: _show(data, dtype, variable))
+
+
+def _broadcast_report(answers: Dict[int, Any], window: float,
+                      show: Callable[[Any], str]) -> int:
+    """One line per answering node; exit 1 when none answered or all refused."""
+    if not answers:
+        print(f"canopenfd: error: no node answered within {window:g} s", file=sys.stderr)
+        return EXIT_FAILED
+    for node in sorted(answers):
+        answer = answers[node]
+        text = _abort_text(answer) if isinstance(answer, UsdoAbortError) else show(answer)
+        print(f"node {node}: {text}")
+    refused = all(isinstance(answer, UsdoAbortError) for answer in answers.values())
+    return EXIT_FAILED if refused else EXIT_OK
+
+
+def _encode_value(args: argparse.Namespace, index: int, sub: int,
+                  variable: Optional[ODVariable]) -> Tuple[bytes, DataType]:
+    """VALUE as wire bytes and the type code to send with it."""
+    place = f"0x{index:04X}:{sub:02X}"
+    if args.type is not None:
+        dtype = parse_type(args.type)
+        try:
+            return _encode(dtype, parse_value(dtype, args.value)), dtype
+        except OdValueError as exc:
+            raise _usage(f"VALUE {args.value!r} is no {dtype.name}: {exc}") from None
+    if variable is None:
+        if args.od is not None:
+            raise _usage(f"write {place}: the entry is not in {args.od}, so VALUE has no "
+                         "type: give --type (--type DOMAIN for raw hex bytes)")
+        raise _usage(f"write {place}: VALUE needs a type: give --type or --od "
+                     "(--type DOMAIN for raw hex bytes)")
+    dtype = variable.data_type
+    try:
+        return variable.encode_raw(parse_value(dtype, args.value)), dtype
+    except OdValueError as exc:
+        raise _usage(f"VALUE {args.value!r} for {variable.where} {variable.qualname} "
+                     f"({dtype.name}): {exc.problem}") from None
+
+
+def cmd_write(args: argparse.Namespace) -> int:
+    node = parse_node(args.node, broadcast=True)
+    _check_common(args, node)
+    od = _load_od(args.od, node)
+    index, sub, variable = parse_key(args.key, od)
+    data, dtype = _encode_value(args, index, sub, variable)
+    if node == 0 and len(data) > EXPEDITED_MAX:
+        raise _usage(f"write to every node (NODE 0): {len(data)} bytes, a broadcast "
+                     f"carries at most {EXPEDITED_MAX}")
+    with _client_line(args) as line:
+        try:
+            if node == 0:
+                transfer = line.usdo.start_download(0, index, sub, data, mode="expedited",
+                                                    data_type=int(dtype),
+                                                    timeout=args.timeout)
+            else:
+                transfer = line.usdo.start_download(node, index, sub, data,
+                                                    data_type=int(dtype),
+                                                    timeout=args.timeout)
+            result = _wait(transfer)
+        except UsdoAbortError as exc:
+            return _failed(exc)
+        if node == 0:
+            return _broadcast_report(result, args.timeout, lambda _: "written")
+        print(f"wrote {len(data)} byte{'s' if len(data) != 1 else ''} ({dtype.name}) to "
+              f"node {node} {_where(index, sub, variable)}")
+        return EXIT_OK
+
+
+# ------------------------------------------------------------------ download / upload
+def _show_progress(args: argparse.Namespace) -> bool:
+    if args.progress:
+        return True
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def _summary(verb: str, size: int, seconds: float, transfer: UsdoTransfer) -> str:
+    mode = transfer.mode if transfer.mode not in (None, "auto") else None
+    return (f"{verb} {size} bytes in {seconds:.3f} s ({_rate_text(size, seconds)}"
+            f"{', ' + mode if mode else ''})")
+
+
+def cmd_download(args: argparse.Namespace) -> int:
+    node = parse_node(args.node, broadcast=False)
+    _check_common(args, node)
+    od = _load_od(args.od, node)
+    index, sub, variable = parse_key(args.key, od)
+    try:
+        source = open(args.file, "rb")
+    except OSError as exc:
+        raise _usage(f"FILE {args.file}: {exc.strerror or exc}") from None
+    with source:
+        info = os.fstat(source.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise _usage(f"FILE {args.file} is not a regular file (its size must be known "
+                         "before the transfer)")
+        size = info.st_size
+        if size > TRANSFER_MAX:
+            raise _usage(f"FILE {args.file}: {size} bytes; a USDO transfer moves at most "
+                         f"{TRANSFER_MAX}")
+        if args.mode == "expedited" and size > EXPEDITED_MAX:
+            raise _usage(f"--mode expedited carries at most {EXPEDITED_MAX} bytes; "
+                         f"{args.file} has {size}")
+        bar = ProgressBar("download", size) if _show_progress(args) else None
+        try:
+            with _client_line(args) as line:
+                started = time.monotonic()
+                if bar is not None:
+                    bar.start()
+                try:
+                    transfer = line.usdo.start_download(node, index, sub, source,
+                                                        mode=args.mode, timeout=args.timeout,
+                                                        progress=bar)
+                    _wait(transfer)
+                except UsdoAbortError as exc:
+                    if bar is not None:
+                        bar.close()
+                    return _failed(exc)
+                seconds = time.monotonic() - started
+                if bar is not None:
+                    bar.close(size)
+        finally:
+            if bar is not None:
+                bar.close()
+        print(_summary("downloaded", size, seconds, transfer) +
+              f": {args.file} -> node {node} {_where(index, sub, variable)}")
+    return EXIT_OK
+
+
+@contextlib.contextmanager
+def _output_file(path: str) -> Iterator[Any]:
+    """The file an upload streams into: a temporary file next to FILE that
+    replaces it once the upload completed (FILE stays as it was on failure);
+    FILE itself when it exists and is no regular file (a device, a FIFO)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise _usage(f"FILE {path} is a directory")
+    if not os.path.isdir(folder):
+        raise _usage(f"FILE {path}: directory {folder} does not exist")
+    if os.path.exists(path) and not stat.S_ISREG(os.stat(path).st_mode):
+        try:
+            target = open(path, "wb")
+        except OSError as exc:
+            raise _usage(f"FILE {path}: {exc.strerror or exc}") from None
+        with target:
+            yield target
+        return
+    try:
+        handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.",
+                                             suffix=".part")
+    except OSError as exc:
+        raise _usage(f"FILE {path}: {exc.strerror or exc}") from None
+    done = False
+    try:
+        with os.fdopen(handle, "wb") as target:
+            yield target
+        if os.path.exists(path):   # keep the permissions of the file replaced
+            os.chmod(temporary, stat.S_IMODE(os.stat(path).st_mode))
+        else:                      # mkstemp made it 0600: as open() would, instead
+            os.chmod(temporary, 0o666 & ~_umask())
+        os.replace(temporary, path)
+        done = True
+    finally:
+        if not done:
+            try:
+                os.unlink(temporary)
+            except OSError:
+                pass
+
+
+def _umask() -> int:
+    """The process umask, read without changing it (os.umask would, for a
+    moment, for every thread)."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0o022
+
+
+class _Failed(Exception):
+    def __init__(self, status: int) -> None:
+        super().__init__(status)
+        self.status = status
+
+
+def cmd_upload(args: argparse.Namespace) -> int:
+    node = parse_node(args.node, broadcast=False)
+    _check_common(args, node)
+    od = _load_od(args.od, node)
+    index, sub, variable = parse_key(args.key, od)
+    bar = ProgressBar("upload", None) if _show_progress(args) else None
+    try:
+        with _output_file(args.file) as target, _client_line(args) as line:
+            started = time.monotonic()
+            if bar is not None:
+                bar.start()
+            try:
+                transfer = line.usdo.start_upload(node, index, sub, file=target,
+                                                  timeout=args.timeout, progress=bar)
+                _wait(transfer)
+            except UsdoAbortError as exc:
+                if bar is not None:
+                    bar.close()
+                raise _Failed(_failed(exc)) from None
+            seconds = time.monotonic() - started
+            size = transfer.transferred
+            if bar is not None:
+                bar.close(size)
+    except _Failed as failed:
+        return failed.status
+    finally:
+        if bar is not None:
+            bar.close()
+    print(_summary("uploaded", size, seconds, transfer) +
+          f": node {node} {_where(index, sub, variable)} -> {args.file}")
+    return EXIT_OK
