@@ -244,6 +244,31 @@ class LocalNode:
     def _event_request(self, key: int, token: int) -> Optional[Callable[[], None]]:
         return self._indications.event(key, token)
 
+    def export_eds(self, dest: Any = None) -> Optional[str]:
+        """The served OD as an EDS (CiA 306): written to dest (a path or a
+        text file), or returned as text when dest is None."""
+        from .od import export_eds
+        return export_eds(self._entry_od(), dest)
+
+    def export_dcf(self, dest: Any = None) -> Optional[str]:
+        """The served OD as a DCF: the EDS plus this node's id and every
+        entry's current value as its ParameterValue (domains left out)."""
+        import copy
+
+        from .od import export_dcf
+        snapshot = copy.deepcopy(self._entry_od())
+        snapshot.node_id = self.node_id
+        for variable in snapshot.entries():
+            if variable.data_type == DataType.DOMAIN or not self._booted:
+                continue
+            variable.value = self[(variable.index, variable.subindex)].raw
+        return export_dcf(snapshot, dest)
+
+    def _entry_od(self) -> ObjectDictionary:
+        if self.od is None:
+            raise ConfigurationError(f"{self._where} serves no object dictionary")
+        return self.od
+
     def save_parameters(self, group: str = "all") -> None:
         """What writing "save" to 0x1010 does: the stored entries of `group`
         ('all', 'communication', 'application', 'manufacturer') go to the store

@@ -653,3 +653,26 @@ def test_file_path_that_cannot_be_read_raises(net, bus_name):
     with pytest.raises(ConfigurationError, match="od must be an ObjectDictionary"):
         line.create_local_node(NODE, od=42)
     assert line.local_node is None
+
+
+def test_export_of_the_served_od_as_eds_and_dcf_with_current_values(net, bus_name, tmp_path):
+    from canopenfd.od import import_od
+    node = net.open_line(bus_name, mode="fd").create_local_node(NODE, od=demo_od("fd"))
+    node[0x1017].raw = 345
+    node["Demo record.Label"].raw = "exported"
+    eds = import_od(text_file(tmp_path / "node.eds", node.export_eds()))
+    assert eds[0x1017].default == demo_od("fd")[0x1017].default
+    dcf_path = tmp_path / "node.dcf"
+    node.export_dcf(str(dcf_path))
+    dcf = import_od(str(dcf_path))
+    assert dcf.node_id == NODE
+    assert dcf[0x1017].value == 345
+    assert dcf["Demo record.Label"].value == "exported"
+    # a node built from the DCF starts with those values
+    clone = net.open_line(bus_name + "-clone", mode="fd").create_local_node(NODE, od=dcf)
+    assert clone[0x1017].raw == 345 and clone["Demo record.Label"].raw == "exported"
+
+
+def text_file(path, text):
+    path.write_text(text)
+    return str(path)
