@@ -548,6 +548,39 @@ class RemoteNode:
         self.line.usdo  # noqa: B018 - raises on a classic line
         return RemoteUsdo(self)
 
+    def read(self, key: Any, **options: Any) -> Any:
+        """Read an entry over the line's SDO service (USDO on fd lines): the
+        typed value when the node's OD knows the entry, else the bytes."""
+        from .usdo import resolve
+        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
+        data = self.usdo.upload(key, **options)
+        return variable.decode_raw(data) if variable is not None else data
+
+    def write(self, key: Any, value: Any, **options: Any) -> None:
+        """Write an entry (typed by the node's OD when it knows the entry,
+        else `value` must be bytes)."""
+        from .usdo import resolve
+        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
+        if variable is not None:
+            value = variable.encode_raw(value)
+        elif not isinstance(value, (bytes, bytearray, memoryview)):
+            raise ConfigurationError(
+                f"node {self.node_id}: write({key!r}): without an OD entry the value must be "
+                f"bytes, got {type(value).__name__} (add the node with od=...)")
+        self.usdo.download(key, value, **options)
+
+    async def aread(self, key: Any, **options: Any) -> Any:
+        from .usdo import resolve
+        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
+        data = await self.usdo.aupload(key, **options)
+        return variable.decode_raw(data) if variable is not None else data
+
+    async def awrite(self, key: Any, value: Any, **options: Any) -> None:
+        from .usdo import resolve
+        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
+        await self.usdo.adownload(key, variable.encode_raw(value) if variable is not None
+                                  else value, **options)
+
     @property
     def od(self) -> "RemoteObjects":
         """Typed values by the node's OD: `remote.od["Producer heartbeat

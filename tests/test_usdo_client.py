@@ -276,3 +276,18 @@ def test_wrong_use_is_refused_with_a_clear_error(net, bus_name, rig):
     remote = line.add_node(SERVER, od=demo_od("fd"))
     with pytest.raises(ConfigurationError, match="RECORD"):
         remote.usdo.upload(0x1018)
+
+
+def test_read_and_write_pick_the_type_from_the_od(rig):
+    server, line, _ = rig
+    typed = line.add_node(SERVER, od=demo_od("fd"))
+    typed.write("Demo record.Gain", 2.5)
+    assert typed.read("Demo record.Gain") == 2.5 == server["Demo record.Gain"].raw
+    assert asyncio.run(typed.aread(0x1017)) == server[0x1017].raw
+    asyncio.run(typed.awrite(0x1017, 77))
+    assert server[0x1017].raw == 77
+    line.remove_node(SERVER)
+    raw = line.add_node(SERVER)
+    assert raw.read((0x1017, 0)) == (77).to_bytes(2, "little")
+    with pytest.raises(ConfigurationError, match="must be bytes"):
+        raw.write(0x1017, 5)
