@@ -22,7 +22,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from . import __version__, cli_usdo
 from .cli_od import add_od_parser
-from .decode import decode, describe
+from .decode import Decoder, decode
 from .errors import AbortError, CanopenFDError
 from .frame import Frame
 from .line import Line
@@ -158,13 +158,15 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     try:
         line = _open_line(net, args, owned, monitor=True)
         printer = Printer()
+        decoder = Decoder()  # follows SDO block transfers across frames
         done = threading.Event()
         seen = [0]
 
         def on_frame(frame: Frame) -> None:
             if done.is_set():
                 return
-            printer.line(f"{'TX' if frame.tx else 'RX'}  {describe(frame)}", frame.timestamp)
+            printer.line(f"{'TX' if frame.tx else 'RX'}  {decoder.describe(frame)}",
+                         frame.timestamp)
             seen[0] += 1
             if args.count is not None and seen[0] >= args.count:
                 done.set()
