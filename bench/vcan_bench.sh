@@ -1,31 +1,66 @@
 #!/bin/bash
-# Raw SocketCAN frame rate on vcan0 (MTU 72): the yardstick for USDO throughput.
+# SocketCAN benches on vcan0 (MTU 72): the raw frame rate (raw_socketcan, the
+# yardstick) and the USDO throughput (usdo_bench), in the same run.
 #
-# Usage: bench/vcan_bench.sh [-n FRAMES] [-b BATCH] [-r RUNS] [IFACE]   (also: make -C bench vcan)
+# Usage: bench/vcan_bench.sh [-n FRAMES] [-b BATCH] [-r RUNS] [-t SECONDS] [-Q QUEUE] [-q] [-s]
+#                            [-v] [--raw-only | --usdo-only] [--asan] [IFACE]
+#        (also: make -C bench vcan VCAN_ARGS="...")
+#   -n, -r   both programs (frames per raw run, runs per figure)
+#   -b       raw_socketcan only (frames per sendmmsg/recvmmsg)
+#   -t, -Q, -q, -s, -v   usdo_bench only (seconds per timed run, queue capacity, quick,
+#            steering figure only, verbose)
+#   --raw-only / --usdo-only   run one of the two
+#   --asan   run the sanitizer build of usdo_bench (build/bench/usdo_bench_asan)
 #
-# Builds build/bench/raw_socketcan on this host, then runs it
+# Builds build/bench/raw_socketcan and build/bench/usdo_bench on this host, then
+# runs them one after the other
 #   (a) here, when this kernel has vcan (tests/vm/have_vcan.sh; needs root):
 #       IFACE (default vcan0) is created with MTU 72 if it is missing;
 #   (b) otherwise inside the test VM (tests/vm/run_in_vm.sh: qemu, TCG, 1-2 vCPUs,
 #       the host root mounted read-only), where IFACE is created with MTU 72.
 # The VM is much slower than the host: compare figures from the same place only.
 # Fails with a message (exit 2) when neither is possible; never installs anything.
+# Exit status: the first non-zero status of the two programs (1 = frames lost or
+# transfers failed, 2 = interface problem), else 0.
 #
-# Environment: CANOPENFD_VM_TIMEOUT (default here 600 s) and the other
+# Environment: CANOPENFD_VM_TIMEOUT (default here 900 s) and the other
 # CANOPENFD_VM_* settings of tests/vm/run_in_vm.sh; CC, CFLAGS for the build.
 set -euo pipefail
 
 main() {
     cd "$(dirname "${BASH_SOURCE[0]}")/.."
-    local root=$PWD bin=$PWD/build/bench/raw_socketcan iface=vcan0 a why missing=()
+    local root=$PWD iface=vcan0 a why missing=() here=0 raw=1 usdo=1 asan=0
+    local raw_args=() usdo_args=() args=("$@") i=0
 
     # The interface is the one positional argument (options take a value).
-    local args=("$@") i=0
     while ((i < ${#args[@]})); do
         a=${args[i]}
         case $a in
-        -n | -b | -r) i=$((i + 2)) ;;
-        -*) i=$((i + 1)) ;;
+        -n | -r)
+            [[ $((i + 1)) -lt ${#args[@]} ]] || die "$a needs a value"
+            raw_args+=("$a" "${args[i + 1]}")
+            usdo_args+=("$a" "${args[i + 1]}")
+            i=$((i + 2))
+            ;;
+        -b)
+            [[ $((i + 1)) -lt ${#args[@]} ]] || die "$a needs a value"
+            raw_args+=("$a" "${args[i + 1]}")
+            i=$((i + 2))
+            ;;
+        -t | -Q)
+            [[ $((i + 1)) -lt ${#args[@]} ]] || die "$a needs a value"
+            usdo_args+=("$a" "${args[i + 1]}")
+            i=$((i + 2))
+            ;;
+        -q | -s | -v)
+            usdo_args+=("$a")
+            i=$((i + 1))
+            ;;
+        --raw-only) usdo=0 i=$((i + 1)) ;;
+        --usdo-only) raw=0 i=$((i + 1)) ;;
+        --asan) asan=1 i=$((i + 1)) ;;
+        --here) here=1 i=$((i + 1)) ;; # internal: run now (inside the VM)
+        -*) die "unknown option $a (see the head of bench/vcan_bench.sh)" ;;
         *)
             iface=$a
             i=$((i + 1))
@@ -33,9 +68,18 @@ main() {
         esac
     done
     [[ $iface =~ ^[A-Za-z0-9_.-]{1,15}$ ]] || die "bad interface name '$iface'"
+    ((raw || usdo)) || die "--raw-only and --usdo-only exclude each other"
+    RAW_BIN=$root/build/bench/raw_socketcan
+    USDO_BIN=$root/build/bench/usdo_bench
+    ((asan == 0)) || USDO_BIN=$root/build/bench/usdo_bench_asan
 
-    echo "vcan_bench: building $bin" >&2
-    make -s -C "$root/bench" raw > /dev/null || die "build of bench/raw_socketcan failed"
+    if ((here)); then
+        run_both "$iface" "$raw" "$usdo"
+        return
+    fi
+
+    echo "vcan_bench: building $RAW_BIN and $USDO_BIN" >&2
+    make -s -C "$root/bench" raw "$USDO_BIN" > /dev/null || die "build of the benches failed"
 
     if why=$(bash tests/vm/have_vcan.sh -v 2>&1); then
         echo "vcan_bench: running on this kernel ($(uname -r), $(nproc) CPUs)" >&2
@@ -43,7 +87,8 @@ main() {
             bash tests/vm/setup_vcan.sh --ifaces "$iface:72" || die "cannot create $iface"
         fi
         compiler_line
-        exec "$bin" "$@"
+        run_both "$iface" "$raw" "$usdo"
+        return
     fi
     why=${why#have_vcan: }
 
@@ -62,16 +107,42 @@ main() {
     echo "vcan_bench: this kernel has no vcan ($why): running inside the qemu VM" \
         "(tests/vm/run_in_vm.sh; TCG, slower than the host)" >&2
     compiler_line
+    echo "(host: $(cpu_name), $(nproc) CPUs, kernel $(uname -r))"
     local rc=0
-    CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-600} \
+    CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-900} \
         bash tests/vm/run_in_vm.sh --ifaces "$iface:72" -- \
-        sh -c 'echo "(VM: kernel $(uname -r), $(nproc) vCPU)"; exec "$0" "$@"' "$bin" "$@" || rc=$?
+        bash "$root/bench/vcan_bench.sh" --here "$@" || rc=$?
     case $rc in
     0) ;;
-    124) die "the VM timed out (CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-600} s)" ;;
+    124) die "the VM timed out (CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-900} s)" ;;
     125) die "the VM could not run the bench (see run_in_vm's message above)" ;;
-    *) exit "$rc" ;; # raw_socketcan's own status (1 = frames lost, 2 = interface problem)
+    *) exit "$rc" ;; # the programs' own status (1 = frames lost / transfers failed, 2 = interface)
     esac
+}
+
+# Run raw_socketcan, then usdo_bench, on $1; exit with the first non-zero status.
+run_both() {
+    local iface=$1 raw=$2 usdo=$3 rc=0 r
+    if [[ ${CANOPENFD_IN_VM:-} == 1 ]]; then
+        echo "(VM: kernel $(uname -r), $(nproc) vCPU, $(cpu_name))"
+    fi
+    if ((raw)); then
+        r=0
+        "$RAW_BIN" "${raw_args[@]}" "$iface" || r=$?
+        ((rc != 0)) || rc=$r
+        ((r != 2)) || exit 2 # the interface cannot be used: usdo_bench could not either
+        echo
+    fi
+    if ((usdo)); then
+        r=0
+        "$USDO_BIN" "${usdo_args[@]}" "$iface" || r=$?
+        ((rc != 0)) || rc=$r
+    fi
+    exit "$rc"
+}
+
+cpu_name() {
+    sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo 2> /dev/null | head -n 1
 }
 
 # What run_in_vm.sh looks for (checked here so that it never starts installing).

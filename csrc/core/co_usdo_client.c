@@ -339,14 +339,15 @@ static bool bulk_send_segment(co_usdo_client_session_t *ses)
     return true;
 }
 
-/* Send one burst (paced) or as much as the tx queue takes (unpaced), then
- * wait for the pace timer or the tx-space indication. Never loops longer
- * than the queue has room. */
+/* Send one burst (paced: k segments; unpaced: CO_USDO_CLIENT_BULK_BURST),
+ * then wait for the pace timer (unpaced: due at once, i.e. the next process
+ * call) or the tx-space indication. Never loops longer than the queue has
+ * room. */
 static void bulk_run(co_usdo_client_session_t *ses)
 {
     co_usdo_client_t *c = ses->client;
     uint64_t now = now_of(c);
-    uint32_t budget = ses->period_us != 0 ? ses->burst : UINT32_MAX;
+    uint32_t budget = ses->period_us != 0 ? ses->burst : CO_USDO_CLIENT_BULK_BURST;
     if (ses->period_us != 0) {
         ses->next_at = now + ses->period_us;
     }

@@ -23,10 +23,14 @@
  *
  * Every session has a per-frame timeout (time without a frame from the
  * server; re-armed by every accepted frame, and during bulk sending by
- * every segment sent). Bulk segments go back to back while the line's tx
- * queue is below 3/4 full (a quarter stays free for other services) and
- * resume when it has drained to half (co_line tx-space indication); a
- * server's pacing is honoured with a timer. Wire choices and their
+ * every segment sent). Bulk segments go back to back, at most
+ * CO_USDO_CLIENT_BULK_BURST per process call, while the line's tx queue is
+ * below 3/4 full (a quarter stays free for other services), and resume when
+ * it has drained to half (co_line tx-space indication); a server's pacing
+ * is honoured with a timer. The client's timers run from the line's clock:
+ * a caller that starts a transfer outside co_line_process sets the line's
+ * time first (co_line_set_time), or the per-frame timeout counts from the
+ * last process call. Wire choices and their
  * evidence: docs/protocol-notes.md, section "USDO client". */
 #ifndef CO_USDO_CLIENT_H
 #define CO_USDO_CLIENT_H
@@ -43,7 +47,11 @@ enum {
     CO_USDO_CLIENT_BULK_THRESHOLD = 4096,
     /* Pacing gaps below this go out as bursts: k segments every k gaps, so
      * the timer is never asked for less than about 1 ms. */
-    CO_USDO_CLIENT_PACE_TICK_US = 1000
+    CO_USDO_CLIENT_PACE_TICK_US = 1000,
+    /* Unpaced bulk: at most this many segments per co_line_process call
+     * (the rest follow at the next call), so a receiver on the same thread
+     * or behind a small socket buffer reads between bursts. */
+    CO_USDO_CLIENT_BULK_BURST = 64
 };
 /* Largest download: 0xFFFFFFFF means "unknown size" in USDO size fields. */
 #define CO_USDO_CLIENT_SIZE_MAX 0xFFFFFFFEu

@@ -45,6 +45,7 @@ typedef struct co_socketcan {
     co_mode_t mode;
     int last_errno;               /* of the last failed call */
     uint32_t drop_counter;        /* last SO_RXQ_OVFL value seen */
+    bool backlog;                 /* a full batch was read since the socket was last empty */
     co_sc_stats_t stats;
 } co_socketcan_t;
 
