@@ -164,3 +164,30 @@ def test_python_canopen_heartbeat_loss_is_detected(peer, line):
     theirs.nmt.stop_heartbeat()
     lost.wait_count(1, timeout=10)
     assert lost.times[0] - stopped_at >= 0.15
+
+
+# ------------------------------------------------------------------ SDO
+def test_python_canopen_sdo_client_against_our_server(line, peer):
+    """python-canopen's SDO client (expedited, segmented, block with CRC) reads
+    and writes our node's OD over a real classic SocketCAN line."""
+    import os
+
+    from canopenfd.od import demo_od
+    node = line.create_local_node(5, od=demo_od("classic"), boot=False)
+    node.serve_domain(0x2100, 1 << 20)
+    node.boot()
+    remote = peer.add_node(5, canopen.ObjectDictionary())
+    remote.sdo.RESPONSE_TIMEOUT = scaled(1.0)
+    node[0x1017].raw = 0x1234
+    assert remote.sdo.upload(0x1017, 0) == b"\x34\x12"
+    remote.sdo.download(0x1017, 0, (250).to_bytes(2, "little"))
+    assert node[0x1017].raw == 250
+    data = os.urandom(3000)
+    remote.sdo.download(0x2100, 0, data, force_segment=True)
+    assert node[0x2100].data == data and remote.sdo.upload(0x2100, 0) == data
+    data = os.urandom(20000)
+    with remote.sdo.open(0x2100, 0, "wb", size=len(data), block_transfer=True) as f:
+        f.write(data)
+    assert node[0x2100].data == data
+    with remote.sdo.open(0x2100, 0, "rb", block_transfer=True) as f:
+        assert f.read() == data

@@ -9,6 +9,7 @@
 #include "../../core/co_node.h"
 #include "../../core/co_od.h"
 #include "../../core/co_store.h"
+#include "../../core/co_sdo_server.h"
 #include "../../core/co_usdo_client.h"
 #include "../../core/co_usdo_server.h"
 #include "co_store_file.h"
@@ -155,6 +156,12 @@ typedef struct rt_line {
     co_usdo_server_t usdo;
     co_usdo_session_t usdo_sessions[RT_USDO_SESSIONS];
     uint8_t *usdo_scratch;
+    /* classic lines: the node's OD served over SDO (default channel and
+     * 0x1201.. channels of the OD). */
+    bool has_sdo;
+    co_sdo_server_t sdo;
+    co_sdo_channel_t *sdo_channels;
+    uint8_t *sdo_scratch;
     struct rt_usdo *usdo_client;     /* fd lines: created at the first transfer */
     rt_socket_t sc;
     rt_host_t host;

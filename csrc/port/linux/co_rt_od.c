@@ -517,8 +517,9 @@ int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort)
             abort = rt_app_store_persisted(l, abort);
         }
         co_line_set_time(&l->line, co_rt_now_us());
-        if (l->has_usdo) {
-            co_usdo_server_resume(&l->usdo, xfer, abort);
+        /* whichever server parked it (the other does not know the xfer) */
+        if (!(l->has_usdo && co_usdo_server_resume(&l->usdo, xfer, abort)) && l->has_sdo) {
+            co_sdo_server_resume(&l->sdo, xfer, abort);
         }
         status = CO_RT_OK;
     }

@@ -357,6 +357,14 @@ static void od_forget(rt_line_t *l)
     }
     free(l->usdo_scratch);
     l->usdo_scratch = NULL;
+    if (l->has_sdo) {
+        co_sdo_server_deinit(&l->sdo);
+        l->has_sdo = false;
+    }
+    free(l->sdo_channels);
+    free(l->sdo_scratch);
+    l->sdo_channels = NULL;
+    l->sdo_scratch = NULL;
     rt_od_release(l);
     free(l->store_file);
     free(l->store_buffer);
@@ -367,7 +375,36 @@ static void od_forget(rt_line_t *l)
     l->has_od = false;
 }
 
-/* fd lines: serve the OD over USDO (classic SDO comes with its own issue). */
+/* classic lines: serve the OD over SDO on the default channel and on every
+ * server channel the OD describes (0x1201..0x127F). */
+static int sdo_serve(co_rt_t *rt, rt_line_t *l)
+{
+    uint32_t count = 1;
+    for (uint32_t index = CO_SDO_SERVER_PARAM + 1; index <= CO_SDO_SERVER_PARAM_LAST; index++) {
+        count += co_od_has_index(&l->od, (uint16_t)index) ? 1u : 0u;
+    }
+    uint32_t need = co_sdo_server_scratch_need(&l->od);
+    l->sdo_channels = calloc(count, sizeof *l->sdo_channels);
+    l->sdo_scratch = malloc((size_t)need * count);
+    if (!l->sdo_channels || !l->sdo_scratch) {
+        rt_set_error(rt, "line %d: no memory for the SDO server", l->index);
+        return CO_RT_ERR_NO_MEMORY;
+    }
+    co_sdo_server_config_t config = {.channels = l->sdo_channels,
+                                     .channel_count = (uint8_t)count,
+                                     .scratch = l->sdo_scratch,
+                                     .scratch_size = need};
+    if (!co_sdo_server_init(&l->sdo, &l->line, &l->od, &config)) {
+        rt_set_error(rt, "line %d: SDO server could not start (CAN-IDs 0x600/0x580 + node-id "
+                     "taken?)", l->index);
+        return CO_RT_ERR_STATE;
+    }
+    co_sdo_server_refresh(&l->sdo);   /* the node-id is set by now */
+    l->has_sdo = true;
+    return CO_RT_OK;
+}
+
+/* fd lines: serve the OD over USDO. */
 static int usdo_serve(co_rt_t *rt, rt_line_t *l)
 {
     uint32_t need = co_usdo_server_scratch_need(&l->od);
@@ -430,7 +467,7 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
         rt_set_error(rt, "line %d: object dictionary handler table full", l->index);
         return CO_RT_ERR_FULL;
     }
-    return l->line.mode == CO_MODE_FD ? usdo_serve(rt, l) : CO_RT_OK;
+    return l->line.mode == CO_MODE_FD ? usdo_serve(rt, l) : sdo_serve(rt, l);
 }
 
 static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
@@ -890,6 +927,8 @@ static void line_free(rt_line_t *l)
     rt_usdo_free(l);
     rt_od_free_domains(l);
     free(l->usdo_scratch);
+    free(l->sdo_channels);
+    free(l->sdo_scratch);
     free(l->rx_slots);
     free(l->tx_slots);
     free(l);
