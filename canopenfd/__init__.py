@@ -24,6 +24,8 @@ from .network import Network
 from .nmt import NmtCommand, NmtState
 from .node import LocalNode, LocalValue, RemoteNode
 from .od import ObjectDictionary, OdFileError, OdValueError, import_od
+from .sdo import SdoAbortError
+from .transfer import Transfer
 from .usdo import UsdoAbortError, UsdoTransfer
 
 __all__ = [
@@ -32,5 +34,5 @@ __all__ = [
     "InterfaceError", "OdFileError", "OdValueError", "ObjectDictionary", "import_od", "LocalValue",
     "Frame", "NmtCommand", "NmtState", "decode",
     "Network", "Line", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
-    "UsdoAbortError", "UsdoTransfer",
+    "UsdoAbortError", "UsdoTransfer", "SdoAbortError", "Transfer",
 ]

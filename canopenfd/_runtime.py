@@ -246,44 +246,45 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
-    # ------------------------------------------------------------ USDO client
+    # ------------------------------------------------------------ client transfers
     def usdo_client(self, line: int, node_id: int, what: str) -> None:
         with self._lock:
             rc = lib.co_rt_usdo_client(self._live(what), line, node_id)
             if rc < 0:
                 self._raise(rc, what)
 
-    def usdo_start(self, line: int, request, what: str) -> int:
+    def transfer_start(self, line: int, request, what: str) -> int:
         with self._lock:
-            rc = lib.co_rt_usdo_start(self._live(what), line, request)
+            rc = lib.co_rt_transfer_start(self._live(what), line, request)
             if rc < 0:
                 self._raise(rc, what)
         return rc
 
-    def usdo_cancel(self, line: int, handle: int, code: int, what: str) -> None:
+    def transfer_cancel(self, line: int, handle: int, code: int, what: str) -> None:
         with self._lock:
-            rc = lib.co_rt_usdo_cancel(self._live(what), line, handle, code)
+            rc = lib.co_rt_transfer_cancel(self._live(what), line, handle, code)
             if rc < 0:
                 self._raise(rc, what)
 
-    def usdo_result(self, line: int, handle: int, what: str) -> dict:
-        out = ffi.new("co_rt_usdo_result_t *")
+    def transfer_result(self, line: int, handle: int, what: str) -> dict:
+        out = ffi.new("co_rt_transfer_result_t *")
         with self._lock:
-            rc = lib.co_rt_usdo_result(self._live(what), line, handle, out)
+            rc = lib.co_rt_transfer_result(self._live(what), line, handle, out)
             if rc < 0:
                 self._raise(rc, what)
-        return {name: getattr(out, name) for name, _ in ffi.typeof("co_rt_usdo_result_t").fields}
+        return {name: getattr(out, name)
+                for name, _ in ffi.typeof("co_rt_transfer_result_t").fields}
 
-    def usdo_data(self, line: int, handle: int, size: int, what: str) -> bytes:
+    def transfer_data(self, line: int, handle: int, size: int, what: str) -> bytes:
         buf = ffi.new("uint8_t[]", max(size, 1))
         with self._lock:
-            rc = lib.co_rt_usdo_data(self._live(what), line, handle, buf, size)
+            rc = lib.co_rt_transfer_data(self._live(what), line, handle, buf, size)
             if rc < 0:
                 self._raise(rc, what)
         return bytes(ffi.buffer(buf, rc))
 
     def usdo_answers(self, line: int, handle: int, what: str) -> list:
-        """[(node, abort, data bytes)] of a broadcast."""
+        """[(node, abort, data bytes)] of a USDO broadcast."""
         out = ffi.new("co_rt_usdo_answer_t[]", 127)
         with self._lock:
             rc = lib.co_rt_usdo_answers(self._live(what), line, handle, out, 127)
@@ -291,9 +292,9 @@ class Runtime:
                 self._raise(rc, what)
         return [(a.node, a.abort, bytes(ffi.buffer(a.data, a.length))) for a in out[0:rc]]
 
-    def usdo_release(self, line: int, handle: int, what: str) -> None:
+    def transfer_release(self, line: int, handle: int, what: str) -> None:
         with self._lock:
-            rc = lib.co_rt_usdo_release(self._live(what), line, handle)
+            rc = lib.co_rt_transfer_release(self._live(what), line, handle)
             if rc < 0:
                 self._raise(rc, what)
 

@@ -42,7 +42,11 @@ from .od import (DataType, ODArray, ODRecord, ODVariable, ObjectDictionary, OdFi
                  OdValueError, TimeDifference, TimeOfDay, demo_od, import_od)
 from .od import decode as _decode
 from .od import encode as _encode
-from .usdo import MODES, UsdoAbortError, UsdoTransfer
+from .errors import AbortError
+from .transfer import Transfer
+
+#: download modes: 'bulk' on fd lines (USDO), 'block' on classic lines (SDO)
+MODES = ("auto", "expedited", "segmented", "bulk", "block")
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -125,8 +129,9 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to send")
     p.add_argument("--mode", choices=list(MODES), default="auto",
-                   help="USDO transfer mode (default auto: expedited up to 56 bytes, "
-                        "segmented below 4 KiB, bulk above)")
+                   help="transfer mode (default auto: USDO expedited up to 56 bytes, "
+                        "segmented below 4 KiB, bulk above; SDO expedited up to 4 bytes, "
+                        "segmented below 1 KiB, block above); bulk is USDO's, block SDO's")
     p.add_argument("--progress", action="store_true",
                    help="show the progress bar on stderr even when it is no terminal")
     common(p)
@@ -474,12 +479,11 @@ def _load_od(spec: Optional[str], node: int) -> Optional[ObjectDictionary]:
 
 
 def _check_common(args: argparse.Namespace, node: int) -> None:
-    if args.classic:
-        raise _usage(f"{args.cmd} uses USDO, which needs a CAN FD line: drop --classic "
-                     "(classic CANopen nodes speak SDO)")
+    if args.classic and node == 0:
+        raise _usage(f"NODE 0 (broadcast) is USDO's: classic SDO talks to one node at a time")
     if not 1 <= args.client_id <= 127:
         raise _usage(f"--client-id {args.client_id} outside 1..127")
-    if node == args.client_id:
+    if node == args.client_id and not args.classic:
         raise _usage(f"NODE {node} is our own USDO client id: give the server's node-id, "
                      "or another --client-id")
     if not (0 < args.timeout <= 3600):
@@ -494,13 +498,19 @@ def _client_line(args: argparse.Namespace) -> Iterator[Any]:
     net = _cli._network(args)
     try:
         line = _cli._open_line(net, args, owned)
-        line.usdo.client_id = args.client_id
+        if line.mode == "fd":
+            _client(line).client_id = args.client_id
         yield line
     finally:
         _cli._shutdown(_cli._owned(net, args), owned)
 
 
-def _wait(transfer: UsdoTransfer) -> Any:
+def _client(line: Any) -> Any:
+    """USDO on fd lines, SDO on classic lines."""
+    return line.usdo if line.mode == "fd" else line.sdo
+
+
+def _wait(transfer: Transfer) -> Any:
     """transfer.result(), in slices so Ctrl-C cancels the transfer (the
     abort goes to the server) instead of leaving it running."""
     try:
@@ -517,7 +527,7 @@ def _wait(transfer: UsdoTransfer) -> Any:
         raise
 
 
-def _failed(exc: UsdoAbortError) -> int:
+def _failed(exc: AbortError) -> int:
     text = str(exc)
     if isinstance(exc.__cause__, OSError):
         text += f" ({exc.__cause__.strerror or exc.__cause__})"
@@ -530,7 +540,7 @@ def _where(index: int, sub: int, variable: Optional[ODVariable]) -> str:
     return f"0x{index:04X}:{sub:02X}{name}"
 
 
-def _abort_text(error: UsdoAbortError) -> str:
+def _abort_text(error: AbortError) -> str:
     return f"abort 0x{error.usdo_code:02X} ({error.meaning})"
 
 
@@ -543,9 +553,9 @@ def cmd_read(args: argparse.Namespace) -> int:
     dtype = parse_type(args.type) if args.type is not None else None
     with _client_line(args) as line:
         try:
-            transfer = line.usdo.start_upload(node, index, sub, timeout=args.timeout)
+            transfer = _client(line).start_upload(node, index, sub, timeout=args.timeout)
             result = _wait(transfer)
-        except UsdoAbortError as exc:
+        except AbortError as exc:
             return _failed(exc)
         if node != 0:
             print(_show(result, dtype, variable))
@@ -562,9 +572,9 @@ def _broadcast_report(answers: Dict[int, Any], window: float,
         return EXIT_FAILED
     for node in sorted(answers):
         answer = answers[node]
-        text = _abort_text(answer) if isinstance(answer, UsdoAbortError) else show(answer)
+        text = _abort_text(answer) if isinstance(answer, AbortError) else show(answer)
         print(f"node {node}: {text}")
-    refused = all(isinstance(answer, UsdoAbortError) for answer in answers.values())
+    refused = all(isinstance(answer, AbortError) for answer in answers.values())
     return EXIT_FAILED if refused else EXIT_OK
 
 
@@ -604,15 +614,15 @@ def cmd_write(args: argparse.Namespace) -> int:
     with _client_line(args) as line:
         try:
             if node == 0:
-                transfer = line.usdo.start_download(0, index, sub, data, mode="expedited",
+                transfer = _client(line).start_download(0, index, sub, data, mode="expedited",
                                                     data_type=int(dtype),
                                                     timeout=args.timeout)
             else:
-                transfer = line.usdo.start_download(node, index, sub, data,
+                transfer = _client(line).start_download(node, index, sub, data,
                                                     data_type=int(dtype),
                                                     timeout=args.timeout)
             result = _wait(transfer)
-        except UsdoAbortError as exc:
+        except AbortError as exc:
             return _failed(exc)
         if node == 0:
             return _broadcast_report(result, args.timeout, lambda _: "written")
@@ -631,7 +641,7 @@ def _show_progress(args: argparse.Namespace) -> bool:
         return False
 
 
-def _summary(verb: str, size: int, seconds: float, transfer: UsdoTransfer) -> str:
+def _summary(verb: str, size: int, seconds: float, transfer: Transfer) -> str:
     mode = transfer.mode if transfer.mode not in (None, "auto") else None
     return (f"{verb} {size} bytes in {seconds:.3f} s ({_rate_text(size, seconds)}"
             f"{', ' + mode if mode else ''})")
@@ -665,11 +675,11 @@ def cmd_download(args: argparse.Namespace) -> int:
                 if bar is not None:
                     bar.start()
                 try:
-                    transfer = line.usdo.start_download(node, index, sub, source,
+                    transfer = _client(line).start_download(node, index, sub, source,
                                                         mode=args.mode, timeout=args.timeout,
                                                         progress=bar)
                     _wait(transfer)
-                except UsdoAbortError as exc:
+                except AbortError as exc:
                     if bar is not None:
                         bar.close()
                     return _failed(exc)
@@ -756,10 +766,10 @@ def cmd_upload(args: argparse.Namespace) -> int:
             if bar is not None:
                 bar.start()
             try:
-                transfer = line.usdo.start_upload(node, index, sub, file=target,
+                transfer = _client(line).start_upload(node, index, sub, file=target,
                                                   timeout=args.timeout, progress=bar)
                 _wait(transfer)
-            except UsdoAbortError as exc:
+            except AbortError as exc:
                 if bar is not None:
                     bar.close()
                 raise _Failed(_failed(exc)) from None

@@ -134,3 +134,23 @@ class AbortError(CanopenFDError):
         place = f"node {node} 0x{index:04X}:{subindex:02X}"
         super().__init__(f"{what + ': ' if what else ''}{place}: abort 0x{code:08X} "
                          f"({self.meaning})")
+
+
+class TransferAbortError(AbortError):
+    """A client transfer (SDO or USDO) ended with an abort: `code` (CiA 301),
+    `meaning`, `node`, `index`, `subindex`, and `from_server` (else we
+    aborted: timeout, cancel, a CRC or size error we detected)."""
+
+    def __init__(self, code: int, meaning: str, shown: str, protocol: str, node: int,
+                 index: int, subindex: int, from_server: bool, what: str = "") -> None:
+        self.code = code
+        self.meaning = meaning
+        self.node = node
+        self.index = index
+        self.subindex = subindex
+        self.from_server = from_server
+        origin = "server" if from_server else "client"
+        place = f"node {node} 0x{index:04X}:{subindex:02X}"
+        CanopenFDError.__init__(self, f"{what or place}: {protocol} abort {shown} ({meaning}) "
+                                      f"from the {origin}")
+

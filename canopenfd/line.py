@@ -19,6 +19,7 @@ from .store import check_store
 
 if TYPE_CHECKING:  # pragma: no cover
     from .network import Network
+    from .sdo import SdoClient
     from .usdo import UsdoClient
 
 log = logging.getLogger("canopenfd")
@@ -58,7 +59,7 @@ class Line:
         self.monitor = monitor
         self.nmt = NmtMaster(self)
         self.nodes: Dict[int, RemoteNode] = {}
-        self._usdo: Optional["UsdoClient"] = None
+        self._client: Optional[Any] = None   # UsdoClient / SdoClient
         self.local_node: Optional[LocalNode] = None
         self._cond = threading.Condition()
         self._waiter = Waiter(self._cond, lambda: network.closed, network._on_dispatcher)
@@ -240,7 +241,7 @@ class Line:
         frame = Frame(can_id, data, fd=fd, brs=brs, ext=bool(extended))
         self._rt.command(lib.CO_CMD_SEND_FRAME, self.index, frame=frame, what=where)
 
-    # ---------------------------------------------------------------- USDO
+    # ---------------------------------------------------------------- USDO / SDO
     @property
     def usdo(self) -> "UsdoClient":
         """The USDO client of this fd line: upload/download any node's
@@ -248,12 +249,28 @@ class Line:
         else 127 (set `line.usdo.client_id` before the first transfer)."""
         if self.mode != "fd":
             raise ConfigurationError(f"{self._where} is a classic line: USDO needs CAN FD "
-                                     "(classic lines use SDO)")
+                                     "(classic lines use line.sdo)")
+        return self._transfer_client()  # type: ignore[return-value]
+
+    @property
+    def sdo(self) -> "SdoClient":
+        """The SDO client of this classic line (see canopenfd.sdo)."""
+        if self.mode != "classic":
+            raise ConfigurationError(f"{self._where} is an fd line: CANopen FD replaces SDO "
+                                     "with USDO (use line.usdo)")
+        return self._transfer_client()  # type: ignore[return-value]
+
+    def _transfer_client(self) -> Any:
+        """The line's client: USDO on fd lines, SDO on classic lines."""
         with self._cond:
-            if self._usdo is None:
-                from .usdo import UsdoClient
-                self._usdo = UsdoClient(self)
-            return self._usdo
+            if self._client is None:
+                if self.mode == "fd":
+                    from .usdo import UsdoClient
+                    self._client = UsdoClient(self)
+                else:
+                    from .sdo import SdoClient
+                    self._client = SdoClient(self)
+            return self._client
 
     # ---------------------------------------------------------------- for nodes
     def _define_od(self, defs: Any, count: int, store: Optional[str], where: str) -> None:
@@ -356,12 +373,12 @@ class Line:
             elif kind == lib.CO_EV_OD_REQUEST:
                 if self.local_node is not None:
                     run = self.local_node._event_request(a, b)
-            elif kind == lib.CO_EV_USDO_DONE:
-                if self._usdo is not None:
-                    run = self._usdo._event_done(a)
-            elif kind == lib.CO_EV_USDO_PROGRESS:
-                if self._usdo is not None:
-                    run = self._usdo._event_progress(a, b)
+            elif kind == lib.CO_EV_TRANSFER_DONE:
+                if self._client is not None:
+                    run = self._client._event_done(a)
+            elif kind == lib.CO_EV_TRANSFER_PROGRESS:
+                if self._client is not None:
+                    run = self._client._event_progress(a, b)
             elif kind == lib.CO_EV_STORE:
                 if self.local_node is not None:
                     run = self.local_node._event_store(a, b)

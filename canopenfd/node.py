@@ -29,7 +29,7 @@ STORE_STATUS = {0: "ok", 1: "empty", 2: "damaged", 3: "foreign", 4: "io-error", 
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
-    from .usdo import RemoteObjects, RemoteUsdo
+    from .transfer import RemoteAccess, RemoteObjects
 
 StateLike = Union[NmtState, str, int]
 
@@ -538,54 +538,65 @@ class RemoteNode:
     def __repr__(self) -> str:
         return f"<RemoteNode {self.node_id} on {self.line.channel!r}>"
 
-    # ---------------------------------------------------------------- USDO
+    # ---------------------------------------------------------------- USDO / SDO
     @property
-    def usdo(self) -> "RemoteUsdo":
+    def usdo(self) -> "RemoteAccess":
         """USDO access (fd lines): upload/download by index, (index, sub),
         "INDEX:SUB" or OD name, blocking, awaitable or started in the
-        background (see canopenfd.usdo)."""
-        from .usdo import RemoteUsdo
-        self.line.usdo  # noqa: B018 - raises on a classic line
-        return RemoteUsdo(self)
+        background (see canopenfd.transfer)."""
+        from .transfer import RemoteAccess
+        return RemoteAccess(self, self.line.usdo)
+
+    @property
+    def sdo(self) -> "RemoteAccess":
+        """SDO access (classic lines), the same calls as `usdo`."""
+        from .transfer import RemoteAccess
+        return RemoteAccess(self, self.line.sdo)
+
+    @property
+    def _access(self) -> "RemoteAccess":
+        """USDO on fd lines, SDO on classic lines."""
+        return self.usdo if self.line.mode == "fd" else self.sdo
 
     def read(self, key: Any, **options: Any) -> Any:
-        """Read an entry over the line's SDO service (USDO on fd lines): the
-        typed value when the node's OD knows the entry, else the bytes."""
-        from .usdo import resolve
-        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
-        data = self.usdo.upload(key, **options)
+        """Read an entry (USDO on fd lines, SDO on classic lines): the typed
+        value when the node's OD knows the entry, else the bytes."""
+        variable = self._variable(key)
+        data = self._access.upload(key, **options)
         return variable.decode_raw(data) if variable is not None else data
 
     def write(self, key: Any, value: Any, **options: Any) -> None:
         """Write an entry (typed by the node's OD when it knows the entry,
         else `value` must be bytes)."""
-        from .usdo import resolve
-        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
-        if variable is not None:
-            value = variable.encode_raw(value)
-        elif not isinstance(value, (bytes, bytearray, memoryview)):
-            raise ConfigurationError(
-                f"node {self.node_id}: write({key!r}): without an OD entry the value must be "
-                f"bytes, got {type(value).__name__} (add the node with od=...)")
-        self.usdo.download(key, value, **options)
+        self._access.download(key, self._encoded(key, value), **options)
 
     async def aread(self, key: Any, **options: Any) -> Any:
-        from .usdo import resolve
-        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
-        data = await self.usdo.aupload(key, **options)
+        variable = self._variable(key)
+        data = await self._access.aupload(key, **options)
         return variable.decode_raw(data) if variable is not None else data
 
     async def awrite(self, key: Any, value: Any, **options: Any) -> None:
-        from .usdo import resolve
-        _, _, variable = resolve(key, self.object_dictionary, f"node {self.node_id}")
-        await self.usdo.adownload(key, variable.encode_raw(value) if variable is not None
-                                  else value, **options)
+        await self._access.adownload(key, self._encoded(key, value), **options)
+
+    def _variable(self, key: Any) -> Optional[ODVariable]:
+        from .transfer import resolve
+        return resolve(key, self.object_dictionary, f"node {self.node_id}")[2]
+
+    def _encoded(self, key: Any, value: Any) -> Any:
+        variable = self._variable(key)
+        if variable is not None:
+            return variable.encode_raw(value)
+        if not isinstance(value, (bytes, bytearray, memoryview)):
+            raise ConfigurationError(
+                f"node {self.node_id}: write({key!r}): without an OD entry the value must be "
+                f"bytes, got {type(value).__name__} (add the node with od=...)")
+        return value
 
     @property
     def od(self) -> "RemoteObjects":
         """Typed values by the node's OD: `remote.od["Producer heartbeat
         time"].raw = 100`, `remote.od[0x1018][1].raw`."""
-        from .usdo import RemoteObjects
+        from .transfer import RemoteObjects
         return RemoteObjects(self)
 
     @property

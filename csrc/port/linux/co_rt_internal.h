@@ -9,6 +9,7 @@
 #include "../../core/co_node.h"
 #include "../../core/co_od.h"
 #include "../../core/co_store.h"
+#include "../../core/co_sdo_client.h"
 #include "../../core/co_sdo_server.h"
 #include "../../core/co_usdo_client.h"
 #include "../../core/co_usdo_server.h"
@@ -162,7 +163,7 @@ typedef struct rt_line {
     co_sdo_server_t sdo;
     co_sdo_channel_t *sdo_channels;
     uint8_t *sdo_scratch;
-    struct rt_usdo *usdo_client;     /* fd lines: created at the first transfer */
+    struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -249,7 +250,7 @@ bool rt_app_store_hook(rt_line_t *l);
 uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort);
 void rt_app_store_free(rt_line_t *l);
 
-/* co_rt_usdo.c: the USDO client of a line. */
-void rt_usdo_free(rt_line_t *l);
+/* co_rt_client.c: the client transfers of a line (USDO or SDO). */
+void rt_client_free(rt_line_t *l);
 
 #endif

@@ -924,7 +924,7 @@ static void line_free(rt_line_t *l)
     free(l->store_file);
     free(l->store_buffer);
     rt_app_store_free(l);
-    rt_usdo_free(l);
+    rt_client_free(l);
     rt_od_free_domains(l);
     free(l->usdo_scratch);
     free(l->sdo_channels);

@@ -80,9 +80,8 @@ typedef enum co_rt_event_kind {
                                   (co_rt_od_indicate): a = index << 8 | sub,
                                   b = token for co_rt_od_answer; b >> 24 is
                                   CO_RT_INDICATE_READ or CO_RT_INDICATE_WRITE */
-    CO_EV_USDO_DONE = 12,      /* a USDO client transfer ended: a = handle,
-                                  b = USDO abort code (0 = ok) */
-    CO_EV_USDO_PROGRESS = 13   /* a = handle, b = bytes moved so far */
+    CO_EV_TRANSFER_DONE = 12,  /* a client transfer (USDO/SDO) ended: a = handle */
+    CO_EV_TRANSFER_PROGRESS = 13 /* a = handle, b = bytes moved so far */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -204,37 +203,38 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
  * staged image becomes the one loads use) or not (ok = 0: dropped). */
 int co_rt_store_finish(co_rt_t *rt, int line, int ok);
 
-/* ---- USDO client (fd lines). Transfers run in the runtime thread; the
- * caller starts them, is told CO_EV_USDO_DONE, collects the result and
- * releases the handle. */
-typedef struct co_rt_usdo_request {
-    int server;                /* node-id 1..127, 0 = broadcast */
+/* ---- Client transfers: USDO on fd lines, SDO on classic lines. They run in
+ * the runtime thread; the caller starts them, is told CO_EV_TRANSFER_DONE,
+ * collects the result and releases the handle. */
+typedef struct co_rt_transfer_request {
+    int server;                /* node-id 1..127; USDO: 0 = broadcast */
     uint16_t index;
     uint8_t sub;
     int upload;                /* 1 upload (read), 0 download (write) */
-    int mode;                  /* downloads: 0 auto, 1 expedited, 2 segmented, 3 bulk */
-    uint8_t type;              /* download: CiA 301 type byte, 0 = DOMAIN (raw bytes) */
+    int mode;                  /* 0 auto, 1 expedited, 2 segmented, 3 bulk (USDO) / block (SDO) */
+    uint8_t type;              /* USDO download: CiA 301 type byte, 0 = DOMAIN (raw bytes) */
     const uint8_t *data;       /* download from memory: must stay valid until done */
-    uint32_t size;             /* download: bytes */
+    uint32_t size;             /* download: bytes; SDO upload: expected size (AUTO block), 0 */
     int fd;                    /* >= 0: download from / upload to this file ... */
     uint64_t fd_offset;        /* ... starting at this offset (data unused) */
     uint32_t max_size;         /* upload to memory: largest accepted (0 = 64 MiB) */
     uint32_t timeout_ms;       /* per frame; broadcast: the answer window; 0 = 1000 */
-    int progress;              /* post CO_EV_USDO_PROGRESS (at most every 50 ms) */
-} co_rt_usdo_request_t;
+    uint32_t block_threshold;  /* SDO AUTO: block from this size (0 = 1024, 0xFFFFFFFF never) */
+    int progress;              /* post CO_EV_TRANSFER_PROGRESS (at most every 50 ms) */
+} co_rt_transfer_request_t;
 
-typedef struct co_rt_usdo_result {
-    int running;               /* 1 until CO_EV_USDO_DONE */
-    uint8_t abort;             /* USDO abort code, 0 = ok */
+typedef struct co_rt_transfer_result {
+    int running;               /* 1 until CO_EV_TRANSFER_DONE */
+    uint32_t abort;            /* 0 = ok; USDO: the one-byte code, SDO: the CiA 301 code */
     uint8_t abort_from_server; /* 1: the server aborted; 0: we did (timeout, cancel, ...) */
-    uint8_t type;              /* upload: data type byte the server sent */
-    uint8_t mode;              /* mode used: 1 expedited, 2 segmented, 3 bulk */
-    uint8_t session_id;
-    uint16_t pacing;           /* bulk: pacing the server asked (100 us units) */
+    uint8_t type;              /* USDO upload: data type byte the server sent */
+    uint8_t mode;              /* mode used: 1 expedited, 2 segmented, 3 bulk / block */
+    uint8_t session_id;        /* USDO session-ID; SDO: the channel used */
+    uint16_t pacing;           /* USDO bulk: pacing the server asked (100 us units) */
     uint32_t transferred;      /* bytes moved */
-    uint32_t answers;          /* broadcast: servers that answered */
+    uint32_t answers;          /* USDO broadcast: servers that answered */
     int error_number;          /* file transfers: errno of a failed read/write, else 0 */
-} co_rt_usdo_result_t;
+} co_rt_transfer_result_t;
 
 typedef struct co_rt_usdo_answer {
     uint8_t node;
@@ -244,22 +244,23 @@ typedef struct co_rt_usdo_answer {
     uint8_t data[56];
 } co_rt_usdo_answer_t;
 
-/* Our client node-id on the line (1..127): requests go out on 0x600 + it.
- * Once, before the first transfer; the default is the local node's id. */
+/* Our USDO client node-id on an fd line (1..127): requests go out on
+ * 0x600 + it. Once, before the first transfer; the default is the local
+ * node's id, else 127. */
 int co_rt_usdo_client(co_rt_t *rt, int line, int node_id);
-/* Start a transfer: a handle (>= 0) or a co_rt_status_t; a USDO code the
- * core refused it with comes back as CO_RT_ERR_ARGUMENT / CO_RT_ERR_FULL
- * with the reason in the last error. */
-int co_rt_usdo_start(co_rt_t *rt, int line, const co_rt_usdo_request_t *request);
-/* Abort a running transfer (code 0 = 0x10 general error; sent to the server). */
-int co_rt_usdo_cancel(co_rt_t *rt, int line, int handle, uint8_t code);
-int co_rt_usdo_result(co_rt_t *rt, int line, int handle, co_rt_usdo_result_t *out);
+/* Start a transfer: a handle (>= 0) or a co_rt_status_t; a code the core
+ * refused it with comes back as CO_RT_ERR_ARGUMENT / CO_RT_ERR_FULL with the
+ * reason in the last error. */
+int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *request);
+/* Abort a running transfer (code 0 = general error; the abort goes to the server). */
+int co_rt_transfer_cancel(co_rt_t *rt, int line, int handle, uint32_t code);
+int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_result_t *out);
 /* Upload to memory: copy the data (returns the byte count, or a status). */
-int co_rt_usdo_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);
-/* Broadcast: copy up to max answers (returns the count, or a status). */
+int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);
+/* USDO broadcast: copy up to max answers (returns the count, or a status). */
 int co_rt_usdo_answers(co_rt_t *rt, int line, int handle, co_rt_usdo_answer_t *out, int max);
 /* Forget a finished transfer (a running one is cancelled first). */
-int co_rt_usdo_release(co_rt_t *rt, int line, int handle);
+int co_rt_transfer_release(co_rt_t *rt, int line, int handle);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);

@@ -1,0 +1,556 @@
+"""Client transfers of a line — the part USDO (fd lines, canopenfd.usdo) and
+SDO (classic lines, canopenfd.sdo) share: starting, waiting (blocking, with
+`await`, or not at all), cancelling, file streams, progress, and the per-node
+views (`remote.usdo` / `remote.sdo`, `remote.od[...]`). The transfer itself
+(every frame, toggle, counter, timeout, block or bulk flow) runs in the C
+runtime: no Python per frame."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import os
+import tempfile
+import threading
+from typing import (TYPE_CHECKING, Any, BinaryIO, Callable, Dict, List, Optional, Tuple,
+                    Union)
+
+from ._runtime import ffi, lib
+from .errors import AbortError, CanopenFDError, ClosedError, ConfigurationError
+from .od import ODVariable
+from .od.datatypes import DataType
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .line import Line
+
+log = logging.getLogger(__name__)
+
+#: Largest answer we accept to an upload of unknown size unless told (bytes).
+DEFAULT_MAX_SIZE = 64 << 20
+_DOMAIN = 0x0F
+_POLL_S = 0.5          # fallback poll of the runtime when a done event is late
+_DISPATCHER_POLL_S = 0.002
+
+Key = Union[int, str, Tuple[int, int]]
+Progress = Callable[[int], None]
+
+
+def resolve(key: Key, od: Any, where: str) -> Tuple[int, int, Optional[ODVariable]]:
+    """(index, sub, variable or None) of an index, (index, sub), "index:sub"
+    text or (with an OD) a name."""
+    if od is not None:
+        try:
+            entry = od[key]
+        except KeyError:
+            entry = None
+        if isinstance(entry, ODVariable):
+            return entry.index, entry.subindex, entry
+        if entry is not None:
+            raise ConfigurationError(f"{where}: {key!r} is an ARRAY/RECORD; give a sub-index")
+    if isinstance(key, tuple) and len(key) == 2 and all(isinstance(k, int) for k in key):
+        index, sub = key
+    elif isinstance(key, int) and not isinstance(key, bool):
+        index, sub = key, 0
+    elif isinstance(key, str) and ":" in key:
+        text_index, _, text_sub = key.partition(":")
+        try:
+            index, sub = int(text_index, 16), int(text_sub, 16)
+        except ValueError:
+            raise ConfigurationError(f"{where}: {key!r} is not INDEX:SUB (hex)") from None
+    else:
+        raise ConfigurationError(
+            f"{where}: {key!r} is not an index, (index, sub), 'INDEX:SUB'"
+            + ("" if od is None else f" or a name in the object dictionary"))
+    if not 0 <= index <= 0xFFFF or not 0 <= sub <= 0xFF:
+        raise ConfigurationError(f"{where}: 0x{index:X}:{sub:X} outside 0..0xFFFF:0..0xFF")
+    variable = od.get_variable(index, sub) if od is not None else None
+    return index, sub, variable
+
+
+class Transfer:
+    """One transfer in flight: wait with `result()`, `await` it, or
+    `cancel()` it. Results: bytes (upload), None (download), a dict
+    {node: bytes/None or UsdoAbortError} (USDO broadcast)."""
+
+    def __init__(self, client: "TransferClient", handle: int, node: int, index: int, sub: int,
+                 upload: bool, keep: Any, progress: Optional[Progress], what: str) -> None:
+        self._client = client
+        self._handle = handle
+        self.node = node
+        self.index = index
+        self.subindex = sub
+        self.upload = upload
+        self._keep = keep                  # the download's buffer / file stays alive
+        self._progress = progress
+        self.what = what
+        self._done = threading.Event()
+        self._lock = threading.Lock()
+        self._outcome: Optional[Tuple[Any, Optional[BaseException]]] = None
+        self._callbacks: List[Callable[[], None]] = []
+        #: Filled once finished: mode used ('expedited', 'segmented', 'bulk' /
+        #: 'block'), bytes moved, the data type byte the server sent (USDO uploads).
+        self.mode: Optional[str] = None
+        self.transferred = 0
+        self.data_type: Optional[int] = None
+
+    def __repr__(self) -> str:
+        state = "done" if self._done.is_set() else "running"
+        return f"<Transfer {self.what} {state}>"
+
+    # ------------------------------------------------------------ waiting
+    def done(self) -> bool:
+        return self._done.is_set() or self._client._finished(self._handle)
+
+    def result(self, timeout: Optional[float] = None) -> Any:
+        """Block until the transfer ended; its value, or the abort (UsdoAbortError /
+        SdoAbortError). The
+        transfer's own per-frame timeout ends it if the server goes silent,
+        so no timeout is needed here; a given one raises TimeoutError and
+        leaves the transfer running."""
+        deadline = None if timeout is None else _now() + timeout
+        poll = _DISPATCHER_POLL_S if self._client._on_dispatcher() else _POLL_S
+        while not self._done.is_set():
+            if self._client._finished(self._handle):
+                break
+            remaining = None if deadline is None else deadline - _now()
+            if remaining is not None and remaining <= 0:
+                raise TimeoutError(f"{self.what}: not finished after {timeout} s")
+            self._done.wait(poll if remaining is None else min(poll, remaining))
+        return self._collect()
+
+    wait = result
+
+    def __await__(self):
+        loop = asyncio.get_running_loop()
+        future = loop.create_future()
+
+        def settle() -> None:
+            if future.done():
+                return
+            try:
+                future.set_result(self._collect())
+            except BaseException as exc:  # noqa: BLE001 - handed to the awaiting task
+                future.set_exception(exc)
+
+        self._on_done(lambda: loop.call_soon_threadsafe(settle))
+        return future.__await__()
+
+    def cancel(self, code: Optional[int] = None) -> None:
+        """Abort the transfer (the abort frame goes to the server); result()
+        then raises the abort error with `code` (default: general error)."""
+        self._client._cancel(self._handle, code, self.what)
+
+    # ------------------------------------------------------------ machinery
+    def _on_done(self, callback: Callable[[], None]) -> None:
+        with self._lock:
+            if not self._done.is_set():
+                self._callbacks.append(callback)
+                return
+        callback()
+
+    def _finish(self) -> None:
+        """CO_EV_TRANSFER_DONE (dispatcher thread)."""
+        with self._lock:
+            self._done.set()
+            callbacks, self._callbacks = self._callbacks, []
+        for callback in callbacks:
+            callback()
+
+    def _collect(self) -> Any:
+        with self._lock:
+            if self._outcome is None:
+                self._outcome = self._client._collect(self)
+                self._keep = None
+        value, error = self._outcome
+        if error is not None:
+            raise error
+        return value
+
+
+class TransferClient:
+    """What the USDO and SDO clients of a line share (see UsdoClient, SdoClient).
+    Every call names the server node; `RemoteNode.usdo` / `.sdo` fix the node
+    and add the OD's names and types. Many transfers may run at once, from
+    any threads."""
+
+    #: protocol name in messages, mode names (index = the runtime's mode code)
+    PROTOCOL = ""
+    MODES: Tuple[str, ...] = ()
+    #: the cancel code that means "general error"
+    GENERAL_ERROR = 0
+
+    def __init__(self, line: "Line") -> None:
+        self.line = line
+        self._lock = threading.Lock()
+        self._transfers: Dict[int, Transfer] = {}
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} of {self.line!r}>"
+
+    # ------------------------------------------------------------ per protocol
+    def _ensure_client(self) -> None:
+        """Set up what the protocol needs before the first transfer."""
+
+    def _abort_error(self, code: int, node: int, index: int, sub: int, from_server: bool,
+                     what: str) -> AbortError:
+        raise NotImplementedError
+
+    def _typed_download(self, variable: ODVariable, options: Dict[str, Any]) -> None:
+        """Options a download typed by the remote node's OD adds."""
+
+    # ------------------------------------------------------------ starting
+    def start_upload(self, node: int, index: int, sub: int = 0, *,
+                     timeout: float = 1.0, max_size: Optional[int] = None,
+                     file: Optional[BinaryIO] = None,
+                     progress: Optional[Progress] = None, size_hint: int = 0) -> Transfer:
+        """Start reading index:sub of node; returns at once. `file`: an open
+        binary file the data streams into (else memory, at most max_size).
+        size_hint (SDO): the bytes expected, so AUTO can pick a block upload."""
+        what = f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X} from node {node}"
+        request = self._request(node, index, sub, True, timeout, what)
+        if not 0 <= size_hint < 0xFFFFFFFF:
+            raise ConfigurationError(f"{what}: size_hint {size_hint} outside 0..2^32-2")
+        request.size = size_hint
+        if max_size is not None:
+            if not 0 < max_size <= 0xFFFFFFFF:
+                raise ConfigurationError(f"{what}: max_size {max_size} outside 1..2^32-1")
+            request.max_size = max_size
+        if file is not None:
+            request.fd, request.fd_offset = _file_target(file, what)
+        request.progress = int(progress is not None)
+        return self._start(request, node, index, sub, True, file, progress, what)
+
+    def start_download(self, node: int, index: int, sub: int, data: Any, *,
+                       mode: str = "auto", data_type: Optional[int] = None,
+                       timeout: float = 1.0,
+                       progress: Optional[Progress] = None) -> Transfer:
+        """Start writing `data` (bytes-like, or an open binary file read from
+        its position to its end) to index:sub of node. mode: 'auto' (by the
+        size), 'expedited', 'segmented', or 'bulk' (USDO) / 'block' (SDO).
+        data_type (USDO): the CiA 301 type code sent (default DOMAIN 0x0F =
+        raw bytes, accepted for any entry)."""
+        what = f"{self.PROTOCOL} download 0x{index:04X}:{sub:02X} to node {node}"
+        if mode not in self.MODES:
+            raise ConfigurationError(f"{what}: mode {mode!r} is not one of "
+                                     f"{', '.join(self.MODES)}")
+        request = self._request(node, index, sub, False, timeout, what)
+        request.mode = self.MODES.index(mode)
+        request.type = _DOMAIN if data_type is None else _type_code(data_type, what)
+        keep: Any
+        if hasattr(data, "fileno") and hasattr(data, "seek"):
+            request.fd, request.fd_offset = _file_target(data, what)
+            size = os.fstat(request.fd).st_size - request.fd_offset
+            keep = data
+        else:
+            try:
+                keep = ffi.from_buffer(data)
+            except TypeError:
+                raise ConfigurationError(f"{what}: data must be bytes-like or an open binary "
+                                         f"file, got {type(data).__name__}") from None
+            size = len(keep)
+            request.data = keep
+        if size > 0xFFFFFFFE:
+            raise ConfigurationError(f"{what}: {size} bytes; a transfer moves at most 4 GiB - 2")
+        request.size = size
+        request.progress = int(progress is not None)
+        return self._start(request, node, index, sub, False, keep, progress, what)
+
+    def _request(self, node: int, index: int, sub: int, upload: bool, timeout: float,
+                 what: str) -> Any:
+        lowest = 0 if self.PROTOCOL == "USDO" else 1
+        if isinstance(node, bool) or not isinstance(node, int) or not lowest <= node <= 127:
+            raise ConfigurationError(f"{what}: node must be 1..127"
+                                     f"{' (0 = broadcast)' if lowest == 0 else ''}, got {node!r}")
+        if not 0 <= index <= 0xFFFF or not 0 <= sub <= 0xFF:
+            raise ConfigurationError(f"{what}: 0x{index:X}:{sub:X} outside 0..0xFFFF:0..0xFF")
+        if not 0 < timeout <= 3600:
+            raise ConfigurationError(f"{what}: timeout {timeout!r} s outside (0, 3600]")
+        request = ffi.new("co_rt_transfer_request_t *")
+        request.server = node
+        request.index = index
+        request.sub = sub
+        request.upload = int(upload)
+        request.fd = -1
+        request.timeout_ms = max(1, int(timeout * 1000))
+        return request
+
+    def _start(self, request: Any, node: int, index: int, sub: int, upload: bool, keep: Any,
+               progress: Optional[Progress], what: str) -> Transfer:
+        self._ensure_client()
+        with self._lock:   # the done event cannot overtake the registration
+            handle = self.line._rt.transfer_start(self.line.index, request, what)
+            transfer = Transfer(self, handle, node, index, sub, upload, keep, progress, what)
+            self._transfers[handle] = transfer
+        return transfer
+
+    # ------------------------------------------------------------ blocking / async forms
+    def upload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
+        return self.start_upload(node, index, sub, **options).result()
+
+    def download(self, node: int, index: int, sub: int, data: Any, **options: Any) -> None:
+        self.start_download(node, index, sub, data, **options).result()
+
+    async def aupload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
+        return await self.start_upload(node, index, sub, **options)
+
+    async def adownload(self, node: int, index: int, sub: int, data: Any,
+                        **options: Any) -> None:
+        await self.start_download(node, index, sub, data, **options)
+
+    # ------------------------------------------------------------ runtime side
+    def _on_dispatcher(self) -> bool:
+        return self.line.network._on_dispatcher()
+
+    def _finished(self, handle: int) -> bool:
+        """Ask the runtime directly (a done event may still be queued)."""
+        try:
+            return not self.line._rt.transfer_result(self.line.index, handle, "poll")["running"]
+        except ClosedError:
+            raise
+        except CanopenFDError:
+            return True   # released: _collect reports it
+
+    def _cancel(self, handle: int, code: Optional[int], what: str) -> None:
+        code = self.GENERAL_ERROR if code is None else code
+        self.line._rt.transfer_cancel(self.line.index, handle, code, f"cancel of {what}")
+
+    def _collect(self, transfer: Transfer) -> Tuple[Any, Optional[BaseException]]:
+        rt, line = self.line._rt, self.line.index
+        handle = transfer._handle
+        try:
+            result = rt.transfer_result(line, handle, transfer.what)
+            data = rt.transfer_data(line, handle, result["transferred"], transfer.what) \
+                if transfer.upload and transfer.node != 0 and transfer._keep is None \
+                else None
+            answers = rt.usdo_answers(line, handle, transfer.what) if transfer.node == 0 else []
+        finally:
+            with self._lock:
+                self._transfers.pop(handle, None)
+            try:
+                rt.transfer_release(line, handle, transfer.what)
+            except CanopenFDError:
+                pass
+        transfer.mode = self.MODES[result["mode"]] if result["mode"] < len(self.MODES) else None
+        transfer.transferred = result["transferred"]
+        transfer.data_type = result["type"] if transfer.upload else None
+        if transfer.node == 0:
+            return self._broadcast_result(transfer, answers), None
+        if result["abort"]:
+            error = self._abort_error(result["abort"], transfer.node, transfer.index,
+                                      transfer.subindex, bool(result["abort_from_server"]),
+                                      transfer.what)
+            if result["error_number"]:  # a file read/write failed under the transfer
+                error.__cause__ = OSError(result["error_number"],
+                                          os.strerror(result["error_number"]))
+            return None, error
+        return (data if transfer.upload else None), None
+
+    def _broadcast_result(self, transfer: Transfer, answers: List[Any]) -> Dict[int, Any]:
+        out: Dict[int, Any] = {}
+        for node, abort, data in answers:
+            if abort:
+                out[node] = self._abort_error(abort, node, transfer.index, transfer.subindex,
+                                              True, transfer.what)
+            else:
+                out[node] = data if transfer.upload else None
+        return out
+
+    def _event_done(self, handle: int) -> Optional[Callable[[], None]]:
+        with self._lock:
+            transfer = self._transfers.get(handle)
+        return transfer._finish if transfer is not None else None
+
+    def _event_progress(self, handle: int, moved: int) -> Optional[Callable[[], None]]:
+        with self._lock:
+            transfer = self._transfers.get(handle)
+        if transfer is None or transfer._progress is None:
+            return None
+        callback = transfer._progress
+
+        def run() -> None:
+            try:
+                callback(moved)
+            except Exception:  # noqa: BLE001 - a broken progress callback never stops a transfer
+                log.exception("%s: progress callback %r raised", transfer.what, callback)
+        return run
+
+
+
+class RemoteAccess:
+    """Transfers to one remote node (`remote.usdo` on fd lines, `remote.sdo`
+    on classic lines): keys are an index, (index, sub), "INDEX:SUB" or, with
+    the node's OD, a name."""
+
+    def __init__(self, node: Any, client: "TransferClient") -> None:
+        self._node = node
+        self._client = client
+
+    def _key(self, key: Key) -> Tuple[int, int, Optional[ODVariable]]:
+        return resolve(key, self._node.object_dictionary, f"node {self._node.node_id}")
+
+    def start_upload(self, key: Key, **options: Any) -> Transfer:
+        index, sub, _ = self._key(key)
+        return self._client.start_upload(self._node.node_id, index, sub, **options)
+
+    def start_download(self, key: Key, data: Any, **options: Any) -> Transfer:
+        index, sub, variable = self._key(key)
+        if variable is not None:
+            self._client._typed_download(variable, options)
+        return self._client.start_download(self._node.node_id, index, sub, data, **options)
+
+    def upload(self, key: Key, **options: Any) -> bytes:
+        return self.start_upload(key, **options).result()
+
+    def download(self, key: Key, data: Any, **options: Any) -> None:
+        self.start_download(key, data, **options).result()
+
+    async def aupload(self, key: Key, **options: Any) -> bytes:
+        return await self.start_upload(key, **options)
+
+    async def adownload(self, key: Key, data: Any, **options: Any) -> None:
+        await self.start_download(key, data, **options)
+
+    def open(self, key: Key, mode: str = "rb", *, progress: Optional[Progress] = None,
+             timeout: float = 1.0) -> BinaryIO:
+        """A file-like stream of a (large) entry. 'rb': the entry is uploaded
+        into a temporary file first (never whole in memory), which is
+        returned at offset 0. 'wb': writes go to a temporary file that is
+        downloaded when the stream is closed (an abort raises from close())."""
+        if mode == "rb":
+            spool = tempfile.TemporaryFile()
+            try:
+                self.start_upload(key, file=spool, progress=progress, timeout=timeout).result()
+            except BaseException:
+                spool.close()
+                raise
+            spool.seek(0)
+            return spool  # type: ignore[return-value]
+        if mode == "wb":
+            return _DownloadStream(self, key, progress, timeout)  # type: ignore[return-value]
+        raise ConfigurationError(f"node {self._node.node_id}: open() mode {mode!r} is not "
+                                 "'rb' or 'wb'")
+
+
+class _DownloadStream:
+    """Writer of RemoteAccess.open(key, 'wb'): spooled to disk, sent at close()."""
+
+    def __init__(self, access: RemoteAccess, key: Key, progress: Optional[Progress],
+                 timeout: float) -> None:
+        self._access = access
+        self._key = key
+        self._progress = progress
+        self._timeout = timeout
+        self._spool = tempfile.TemporaryFile()
+        self.closed = False
+
+    def write(self, data: bytes) -> int:
+        return self._spool.write(data)
+
+    def writable(self) -> bool:
+        return True
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._spool.seek(0)
+            self._access.start_download(self._key, self._spool, progress=self._progress,
+                                      timeout=self._timeout).result()
+        finally:
+            self._spool.close()
+
+    def __enter__(self) -> "_DownloadStream":
+        return self
+
+    def __exit__(self, kind: Any, value: Any, traceback: Any) -> None:
+        if kind is None:
+            self.close()
+        else:
+            self.closed = True
+            self._spool.close()
+
+
+class RemoteValue:
+    """One entry of a remote node, typed by its OD: `.raw` reads/writes the
+    value (USDO on fd lines, SDO on classic lines), `.data` the bytes."""
+
+    def __init__(self, node: Any, variable: ODVariable) -> None:
+        self.node = node
+        self.variable = variable
+
+    def __repr__(self) -> str:
+        return f"<RemoteValue {self.variable.where} {self.variable.qualname!r} of node " \
+               f"{self.node.node_id}>"
+
+    @property
+    def data(self) -> bytes:
+        return self.node._access.upload((self.variable.index, self.variable.subindex))
+
+    @data.setter
+    def data(self, data: bytes) -> None:
+        self.node._access.download((self.variable.index, self.variable.subindex), data)
+
+    @property
+    def raw(self) -> Any:
+        return self.variable.decode_raw(self.data)
+
+    @raw.setter
+    def raw(self, value: Any) -> None:
+        self.data = self.variable.encode_raw(value)
+
+    async def aget(self) -> Any:
+        return self.variable.decode_raw(
+            await self.node._access.aupload((self.variable.index, self.variable.subindex)))
+
+    async def aset(self, value: Any) -> None:
+        await self.node._access.adownload((self.variable.index, self.variable.subindex),
+                                          self.variable.encode_raw(value))
+
+
+class RemoteObjects:
+    """`remote.od[key]`: RemoteValue of an entry of the node's OD."""
+
+    def __init__(self, node: Any) -> None:
+        self._node = node
+
+    def __getitem__(self, key: Key) -> Any:
+        od = self._node.object_dictionary
+        if od is None:
+            raise ConfigurationError(
+                f"node {self._node.node_id} has no object dictionary: add it with "
+                f"line.add_node({self._node.node_id}, od=...) or read by index:sub "
+                "(node.read / node.usdo / node.sdo)")
+        entry = od[key]
+        if isinstance(entry, ODVariable):
+            return RemoteValue(self._node, entry)
+        return _RemoteObject(self._node, entry)
+
+
+class _RemoteObject:
+    def __init__(self, node: Any, obj: Any) -> None:
+        self._node = node
+        self._object = obj
+
+    def __getitem__(self, sub: Union[int, str]) -> RemoteValue:
+        return RemoteValue(self._node, self._object[sub])
+
+
+def _file_target(file: Any, what: str) -> Tuple[int, int]:
+    try:
+        return file.fileno(), file.tell()
+    except (AttributeError, OSError, ValueError) as exc:
+        raise ConfigurationError(f"{what}: file must be an open binary file with a "
+                                 f"descriptor ({exc})") from None
+
+
+def _type_code(data_type: Any, what: str) -> int:
+    try:
+        return int(DataType.parse(data_type))
+    except (ValueError, KeyError, TypeError):
+        raise ConfigurationError(f"{what}: unknown data type {data_type!r}") from None
+
+
+def _now() -> float:
+    import time
+    return time.monotonic()
