@@ -191,3 +191,28 @@ def test_python_canopen_sdo_client_against_our_server(line, peer):
     assert node[0x2100].data == data
     with remote.sdo.open(0x2100, 0, "rb", block_transfer=True) as f:
         assert f.read() == data
+
+
+def test_our_sdo_client_against_python_canopen_server(line, peer):
+    """Our SDO client reads and writes python-canopen's LocalNode (its own SDO
+    server) over a real classic SocketCAN line: expedited and segmented."""
+    import os
+
+    from canopen.objectdictionary import DOMAIN, UNSIGNED32, ODVariable
+    od = canopen.ObjectDictionary()
+    for index, dtype in ((0x2000, UNSIGNED32), (0x2001, DOMAIN)):
+        var = ODVariable(f"v{index:X}", index, 0)
+        var.data_type = dtype
+        var.access_type = "rw"
+        od.add_object(var)
+    local = peer.create_node(7, od)
+    store = {}
+    local.add_write_callback(lambda index, subindex, od, data: store.__setitem__(index, data))
+    local.add_read_callback(lambda index, subindex, od: store.get(index))
+    line.sdo.download(7, 0x2000, 0, (0x12345678).to_bytes(4, "little"), timeout=scaled(1))
+    assert bytes(store[0x2000]) == (0x12345678).to_bytes(4, "little")
+    assert line.sdo.upload(7, 0x2000, timeout=scaled(1)) == (0x12345678).to_bytes(4, "little")
+    data = os.urandom(2000)
+    line.sdo.download(7, 0x2001, 0, data, mode="segmented", timeout=scaled(1))
+    assert bytes(store[0x2001]) == data
+    assert line.sdo.upload(7, 0x2001, timeout=scaled(1)) == data
