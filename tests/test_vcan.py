@@ -158,11 +158,14 @@ def test_usdo_client_frames_on_the_wire(ifaces, networks, raw_buses):
     line.usdo.client_id = 2
     device[0x1017].raw = 0x1234
     assert line.usdo.upload(5, 0x1017, timeout=scaled(1)) == b"\x34\x12"
-    request = recv_until(raw, lambda m: m.arbitration_id == 0x602)
+    seen = []   # both frames, whichever order the capturing socket sees them in
+    recv_until(raw, lambda m: seen.append(m) or {f.arbitration_id for f in seen} >= {0x602,
+                                                                                   0x585})
+    request = next(m for m in seen if m.arbitration_id == 0x602)
+    answer = next(m for m in seen if m.arbitration_id == 0x585)
     sid = request.data[2]
     assert (request.is_fd, request.bitrate_switch) == (True, True)
     assert bytes(request.data[:6]) == bytes([5, 0x11, sid, 0x00, 0x17, 0x10])
-    answer = recv_until(raw, lambda m: m.arbitration_id == 0x585)
     assert bytes(answer.data[:10]) == bytes([2, 0x31, sid, 0, 0x17, 0x10, 0x06, 2, 0x34, 0x12])
 
     for size, first_cs, segment_cs, last_cs in ((1000, 0x02, 0x03, 0x04),
@@ -183,6 +186,29 @@ def test_usdo_client_frames_on_the_wire(ifaces, networks, raw_buses):
         rest = size % 60
         assert bytes(last.data[:4 + rest]) == bytes([5, last_cs, sid, rest]) + data[-rest:]
         assert device[0x2100].data == data
+
+    # segmented upload of the last 6010 bytes: 0x11, the server's 0x32 with the size,
+    # then 0x13 requests (counter from 0) answered by 0x33 segments and a last 0x34.
+    # Each sender's frames are checked in their own order: the capturing socket may
+    # see the two senders' frames interleaved differently (per-CPU loopback queues).
+    assert line.usdo.upload(5, 0x2100, timeout=scaled(1)) == data
+    seen = []
+    recv_until(raw, lambda m: seen.append(m) or (m.arbitration_id == 0x585 and m.data[1] == 0x34))
+    requests = [bytes(m.data) for m in seen if m.arbitration_id == 0x602]
+    answers = [bytes(m.data) for m in seen if m.arbitration_id == 0x585]
+    upload = next(i for i, r in enumerate(requests) if r[1] == 0x11)
+    sid = requests[upload][2]
+    asks = [r for r in requests[upload + 1:] if r[2] == sid]
+    assert [r[:4] for r in asks] == [bytes([5, 0x13, sid, n & 0xFF])
+                                     for n in range(len(data) // 60 + 1)]
+    mine = [a for a in answers if a[2] == sid]
+    assert mine[0][:12] == bytes([2, 0x32, sid, 0, 0x00, 0x21, 0x0F, 0]) + \
+        len(data).to_bytes(4, "little")
+    for number, segment in enumerate(mine[1:-1]):
+        assert segment[:4] == bytes([2, 0x33, sid, number & 0xFF])
+        assert segment[4:] == data[number * 60:(number + 1) * 60]
+    rest = len(data) % 60
+    assert mine[-1][:4 + rest] == bytes([2, 0x34, sid, rest]) + data[-rest:]
 
 
 def test_usdo_large_transfers_over_vcan(ifaces, networks):
