@@ -15,7 +15,11 @@
  * per frame (the data of one USDO segment), so USDO bulk bytes/s divided by it
  * is the share of the raw frame rate USDO reaches.
  *
- *   raw_socketcan [-n FRAMES] [-b BATCH] [-r RUNS] [IFACE]
+ *   raw_socketcan [-c] [-n FRAMES] [-b BATCH] [-r RUNS] [IFACE]
+ *
+ * -c: classic CAN instead: 8-byte classic frames (CAN_MTU 16), payload counted
+ * as 7 bytes per frame (the data of one classic SDO segment / block segment),
+ * the yardstick of bench/sdo_bench.py; the interface may have MTU 16 or 72.
  *
  * Exit status: 0 ok, 1 frames lost/duplicated/corrupted (the table is still
  * printed), 2 usage or interface problem (missing, not CAN, not CAN FD
@@ -49,6 +53,10 @@
 #define DRAIN_IDLE_MS 500          /* after the last send: wait this long for stragglers */
 
 static const char *prog = "raw_socketcan";
+static int classic;                   /* -c: classic 8-byte frames */
+static unsigned frame_mtu = CANFD_MTU; /* bytes per frame written / read */
+static unsigned frame_dlen = CANFD_MAX_DLEN;
+static double payload = PAYLOAD_PER_FRAME;
 
 typedef struct result {
     uint64_t sent;
@@ -98,7 +106,7 @@ static int open_socket(const char *ifname, unsigned ifindex, int receiver)
         fail("socket(AF_CAN, CAN_RAW): %s - this kernel has no CAN support "
              "(bench/vcan_bench.sh runs the bench in a VM)", strerror(errno));
     }
-    if (setsockopt(s, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) < 0) {
+    if (!classic && setsockopt(s, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) < 0) {
         fail("%s: CAN_RAW_FD_FRAMES refused (%s): kernel without CAN FD support",
              ifname, strerror(errno));
     }
@@ -151,7 +159,7 @@ static unsigned check_interface(int s, const char *ifname)
     if (ioctl(s, SIOCGIFMTU, &ifr) < 0) {
         fail("%s: cannot read the MTU: %s", ifname, strerror(errno));
     }
-    if (ifr.ifr_mtu < (int)CANFD_MTU) {
+    if (!classic && ifr.ifr_mtu < (int)CANFD_MTU) {
         fail("%s: MTU %d, not CAN FD capable (needs MTU %d: ip link set %s mtu %d)", ifname,
              ifr.ifr_mtu, (int)CANFD_MTU, ifname, (int)CANFD_MTU);
     }
@@ -171,13 +179,13 @@ static void make_frame(struct canfd_frame *f, uint32_t seq)
     unsigned i;
     memset(f, 0, sizeof *f);
     f->can_id = BENCH_ID;
-    f->len = CANFD_MAX_DLEN;
-    f->flags = CANFD_BRS;
+    f->len = (uint8_t)frame_dlen;
+    f->flags = classic ? 0 : CANFD_BRS;
     f->data[0] = (uint8_t)seq;
     f->data[1] = (uint8_t)(seq >> 8);
     f->data[2] = (uint8_t)(seq >> 16);
     f->data[3] = (uint8_t)(seq >> 24);
-    for (i = 4; i < CANFD_MAX_DLEN; i++) {
+    for (i = 4; i < frame_dlen; i++) {
         f->data[i] = (uint8_t)(seq + i);
     }
 }
@@ -186,8 +194,8 @@ static void check_frame(bench_t *b, const struct canfd_frame *f, ssize_t n)
 {
     uint32_t seq;
     unsigned i;
-    if (n != (ssize_t)CANFD_MTU || f->can_id != BENCH_ID || f->len != CANFD_MAX_DLEN ||
-        !(f->flags & CANFD_BRS)) {
+    if (n != (ssize_t)frame_mtu || f->can_id != BENCH_ID || f->len != frame_dlen ||
+        (!classic && !(f->flags & CANFD_BRS))) {
         b->r.corrupted++;
         return;
     }
@@ -197,7 +205,7 @@ static void check_frame(bench_t *b, const struct canfd_frame *f, ssize_t n)
         b->r.corrupted++;
         return;
     }
-    for (i = 4; i < CANFD_MAX_DLEN; i++) {
+    for (i = 4; i < frame_dlen; i++) {
         if (f->data[i] != (uint8_t)(seq + i)) {
             b->r.corrupted++;
             return;
@@ -327,7 +335,7 @@ static void run(bench_t *b, int batched)
             for (i = 0; i < want; i++) {
                 make_frame(&frames[i], (uint32_t)(next + i));
                 iov[i].iov_base = &frames[i];
-                iov[i].iov_len = CANFD_MTU;
+                iov[i].iov_len = frame_mtu;
                 memset(&msgs[i], 0, sizeof msgs[i]);
                 msgs[i].msg_hdr.msg_iov = &iov[i];
                 msgs[i].msg_hdr.msg_iovlen = 1;
@@ -347,14 +355,14 @@ static void run(bench_t *b, int batched)
         } else {
             ssize_t n;
             make_frame(&frames[0], (uint32_t)next);
-            n = write(b->tx, &frames[0], CANFD_MTU);
+            n = write(b->tx, &frames[0], frame_mtu);
             if (n < 0) {
                 if (!refused(errno)) {
                     fail("write: %s", strerror(errno));
                 }
                 wait_writable(b, batched, next);
-            } else if (n != (ssize_t)CANFD_MTU) {
-                fail("write: short write (%ld of %d bytes)", (long)n, (int)CANFD_MTU);
+            } else if (n != (ssize_t)frame_mtu) {
+                fail("write: short write (%ld of %u bytes)", (long)n, frame_mtu);
             } else {
                 next++;
             }
@@ -391,11 +399,12 @@ static void run(bench_t *b, int batched)
 
 static void header(const char *ifname, const bench_t *b)
 {
-    printf("raw SocketCAN on %s: 64-byte CAN FD frames (BRS), sender and receiver socket on one "
+    printf("raw SocketCAN on %s: %s, sender and receiver socket on one "
            "thread, %llu frames per run, best of %u run%s\n\n", ifname,
+           classic ? "8-byte classic CAN frames" : "64-byte CAN FD frames (BRS)",
            (unsigned long long)b->frames, b->runs, b->runs == 1 ? "" : "s");
     printf("%-40s %9s %8s %12s %12s %9s %7s\n", "figure", "frames", "time s", "frames/s",
-           "MB/s @60 B", "ns/frame", "lost");
+           classic ? "MB/s @7 B" : "MB/s @60 B", "ns/frame", "lost");
     printf("%-40s %9s %8s %12s %12s %9s %7s\n", "------", "------", "------", "--------",
            "----------", "--------", "----");
 }
@@ -425,7 +434,7 @@ static uint64_t figure(bench_t *b, int batched, const char *what)
     seconds = best.seconds > 0 ? best.seconds : 1e-9;
     rate = (double)best.received / seconds;
     printf("%-40s %9llu %8.3f %12.0f %12.2f %9.1f %7llu\n", what,
-           (unsigned long long)best.received, best.seconds, rate, rate * PAYLOAD_PER_FRAME / 1e6,
+           (unsigned long long)best.received, best.seconds, rate, rate * payload / 1e6,
            seconds * 1e9 / (double)(best.received ? best.received : 1),
            (unsigned long long)lost);
     if (lost || sum.duplicates || sum.reordered || sum.corrupted) {
@@ -444,8 +453,8 @@ static uint64_t figure(bench_t *b, int batched, const char *what)
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: %s [-n FRAMES] [-b BATCH] [-r RUNS] [IFACE]   (defaults: -n 200000 "
-            "-b 32 -r 3 vcan0)\n", prog);
+    fprintf(stderr, "usage: %s [-c] [-n FRAMES] [-b BATCH] [-r RUNS] [IFACE]   (defaults: -n "
+            "200000 -b 32 -r 3 vcan0; -c = classic 8-byte frames)\n", prog);
     exit(2);
 }
 
@@ -474,8 +483,14 @@ int main(int argc, char **argv)
     b.frames = 200000;
     b.batch = 32;
     b.runs = 3;
-    while ((opt = getopt(argc, argv, "n:b:r:h")) != -1) {
+    while ((opt = getopt(argc, argv, "cn:b:r:h")) != -1) {
         switch (opt) {
+        case 'c':
+            classic = 1;
+            frame_mtu = CAN_MTU;
+            frame_dlen = CAN_MAX_DLEN;
+            payload = 7.0;
+            break;
         case 'n':
             b.frames = parse_number(optarg, 1, 100000000ul);
             break;

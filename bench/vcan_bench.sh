@@ -12,6 +12,11 @@
 #   --raw-only / --usdo-only   run one of the two
 #   --asan   run the sanitizer build of usdo_bench (build/bench/usdo_bench_asan)
 #
+#        bench/vcan_bench.sh --sdo [sdo_bench.py options] [IFACE]   (make -C bench sdo)
+#   classic SDO throughput instead (bench/sdo_bench.py: our client and python-canopen's,
+#   against our server and python-canopen's, next to raw_socketcan -c): IFACE (default
+#   vcan0) is a classic interface (MTU 16); everything after --sdo goes to sdo_bench.py.
+#
 # Builds build/bench/raw_socketcan and build/bench/usdo_bench on this host, then
 # runs them one after the other
 #   (a) here, when this kernel has vcan (tests/vm/have_vcan.sh; needs root):
@@ -31,6 +36,12 @@ main() {
     cd "$(dirname "${BASH_SOURCE[0]}")/.."
     local root=$PWD iface=vcan0 a why missing=() here=0 raw=1 usdo=1 asan=0
     local raw_args=() usdo_args=() args=("$@") i=0
+
+    if [[ ${1:-} == --sdo ]]; then
+        shift
+        run_sdo "$root" "$@"
+        return
+    fi
 
     # The interface is the one positional argument (options take a value).
     while ((i < ${#args[@]})); do
@@ -118,6 +129,49 @@ main() {
     125) die "the VM could not run the bench (see run_in_vm's message above)" ;;
     *) exit "$rc" ;; # the programs' own status (1 = frames lost / transfers failed, 2 = interface)
     esac
+}
+
+# --sdo: build raw_socketcan, run bench/sdo_bench.py here (vcan + root) or in the VM.
+run_sdo() {
+    local root=$1 a iface=vcan0 py rc=0
+    shift
+    local skip=0
+    for a in "$@"; do
+        if ((skip)); then
+            skip=0
+            continue
+        fi
+        case $a in
+        -t | -e | -n | --sizes | --servers) skip=1 ;;
+        -*) ;;
+        *) iface=$a ;;
+        esac
+    done
+    [[ $iface =~ ^[A-Za-z0-9_.-]{1,15}$ ]] || die "bad interface name '$iface'"
+    py=$(command -v python3) || die "python3 not found"
+    echo "vcan_bench: building $root/build/bench/raw_socketcan" >&2
+    make -s -C "$root/bench" raw > /dev/null || die "build of raw_socketcan failed"
+    if [[ ${CANOPENFD_IN_VM:-} == 1 ]] || bash tests/vm/have_vcan.sh 2> /dev/null; then
+        if [[ ${CANOPENFD_IN_VM:-} != 1 ]] && ! ip link show dev "$iface" > /dev/null 2>&1; then
+            bash tests/vm/setup_vcan.sh --ifaces "$iface:16" || die "cannot create $iface"
+        fi
+        echo "(kernel $(uname -r), $(nproc) CPUs, $(cpu_name))"
+        exec python3 "$root/bench/sdo_bench.py" "$@"
+    fi
+    echo "vcan_bench: this kernel has no vcan: running bench/sdo_bench.py inside the qemu VM" \
+        "(tests/vm/run_in_vm.sh; TCG, far slower than the host)" >&2
+    compiler_line
+    echo "(host: $(cpu_name), $(nproc) CPUs, kernel $(uname -r))"
+    CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-1200} \
+        bash tests/vm/run_in_vm.sh --ifaces "$iface:16" -- \
+        bash "$root/bench/vcan_bench.sh" --sdo "$@" || rc=$?
+    case $rc in
+    0) ;;
+    124) die "the VM timed out (CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-1200} s)" ;;
+    125) die "the VM could not run the bench (see run_in_vm's message above)" ;;
+    *) exit "$rc" ;;
+    esac
+    exit 0
 }
 
 # Run raw_socketcan, then usdo_bench, on $1; exit with the first non-zero status.
