@@ -1463,34 +1463,12 @@ bool co_sdo_client_running(const co_sdo_client_t *c, const co_sdo_request_t *req
 
 uint32_t co_sdo_buffer_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want)
 {
-    const co_sdo_buffer_t *b = ctx;
-    uint32_t n;
-    if (offset >= b->size) {
-        return 0;
-    }
-    n = b->size - offset;
-    if (n > want) {
-        n = want;
-    }
-    memcpy(buf, b->data + offset, n);
-    return n;
+    return co_buffer_read(ctx, offset, buf, want);
 }
 
 uint32_t co_sdo_buffer_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
                             uint32_t total)
 {
-    co_sdo_buffer_t *b = ctx;
-    if (len == 0) {
-        if (total != CO_SDO_CLIENT_SIZE_UNKNOWN && total > b->capacity) {
-            return CO_ABORT_OUT_OF_MEMORY;
-        }
-        b->size = 0;
-        return 0;
-    }
-    if (offset > b->capacity || len > b->capacity - offset) {
-        return CO_ABORT_OUT_OF_MEMORY;
-    }
-    memcpy(b->data + offset, data, len);
-    b->size = offset + len;
-    return 0;
+    bool known = total != CO_SDO_CLIENT_SIZE_UNKNOWN;
+    return co_buffer_put(ctx, offset, data, len, total, known) ? 0u : CO_ABORT_OUT_OF_MEMORY;
 }

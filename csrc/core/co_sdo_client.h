@@ -52,6 +52,7 @@
 #ifndef CO_SDO_CLIENT_H
 #define CO_SDO_CLIENT_H
 
+#include "co_buffer.h"
 #include "co_line.h"
 #include "co_od.h"
 #include "co_sdo.h"
@@ -318,11 +319,7 @@ co_sdo_mode_t co_sdo_client_choose_mode(uint8_t mode, uint32_t size, uint32_t th
 /* Buffer source/sink for tests, benches and simple callers. Source: the
  * first `size` bytes of data. Sink: refuses (0x05040005) an indicated total
  * or data beyond `capacity`; `size` = bytes held. */
-typedef struct co_sdo_buffer {
-    uint8_t *data;
-    uint32_t size;
-    uint32_t capacity;
-} co_sdo_buffer_t;
+typedef co_buffer_t co_sdo_buffer_t;   /* see co_buffer.h */
 uint32_t co_sdo_buffer_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want);
 uint32_t co_sdo_buffer_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
                             uint32_t total);

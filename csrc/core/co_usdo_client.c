@@ -976,34 +976,12 @@ bool co_usdo_client_running(const co_usdo_client_t *c, const co_usdo_request_t *
 
 uint32_t co_usdo_buffer_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want)
 {
-    const co_usdo_buffer_t *b = ctx;
-    uint32_t n;
-    if (offset >= b->size) {
-        return 0;
-    }
-    n = b->size - offset;
-    if (n > want) {
-        n = want;
-    }
-    memcpy(buf, b->data + offset, n);
-    return n;
+    return co_buffer_read(ctx, offset, buf, want);
 }
 
 uint8_t co_usdo_buffer_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
                             uint32_t total)
 {
-    co_usdo_buffer_t *b = ctx;
-    if (len == 0) {
-        if (total != SIZE_UNKNOWN && total > b->capacity) {
-            return CO_USDO_ABORT_OUT_OF_MEMORY;
-        }
-        b->size = 0;
-        return 0;
-    }
-    if (offset > b->capacity || len > b->capacity - offset) {
-        return CO_USDO_ABORT_OUT_OF_MEMORY;
-    }
-    memcpy(b->data + offset, data, len);
-    b->size = offset + len;
-    return 0;
+    bool known = total != SIZE_UNKNOWN;
+    return co_buffer_put(ctx, offset, data, len, total, known) ? 0u : CO_USDO_ABORT_OUT_OF_MEMORY;
 }

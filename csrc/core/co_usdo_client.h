@@ -35,6 +35,7 @@
 #ifndef CO_USDO_CLIENT_H
 #define CO_USDO_CLIENT_H
 
+#include "co_buffer.h"
 #include "co_line.h"
 #include "co_usdo.h"
 
@@ -235,11 +236,7 @@ co_usdo_mode_t co_usdo_client_choose_mode(uint8_t mode, uint32_t size);
 /* Buffer source/sink for tests, benches and simple callers. Source: the
  * first `size` bytes of data. Sink: refuses (0x16) an announced total or
  * data beyond `capacity`; `size` = bytes held. */
-typedef struct co_usdo_buffer {
-    uint8_t *data;
-    uint32_t size;
-    uint32_t capacity;
-} co_usdo_buffer_t;
+typedef co_buffer_t co_usdo_buffer_t;   /* see co_buffer.h */
 uint32_t co_usdo_buffer_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want);
 uint8_t co_usdo_buffer_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
                             uint32_t total);
