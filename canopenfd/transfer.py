@@ -16,7 +16,8 @@ from typing import (TYPE_CHECKING, Any, BinaryIO, Callable, Dict, List, Optional
                     Union)
 
 from ._runtime import ffi, lib
-from .errors import AbortError, CanopenFDError, ClosedError, ConfigurationError
+from .errors import (ABORT_TEXT, AbortError, CanopenFDError, ClosedError, ConfigurationError,
+                     TransferAbortError)
 from .od import ODVariable
 from .od.datatypes import DataType
 
@@ -193,7 +194,11 @@ class TransferClient:
 
     def _abort_error(self, code: int, node: int, index: int, sub: int, from_server: bool,
                      what: str) -> AbortError:
-        raise NotImplementedError
+        """The exception for an abort `code` (a CiA 301 code here; USDO and
+        SDO clients give their own exception classes)."""
+        return TransferAbortError(code, ABORT_TEXT.get(code, "unknown abort code"),
+                                  f"0x{code:08X}", self.PROTOCOL, node, index, sub,
+                                  from_server, what)
 
     def _typed_download(self, variable: ODVariable, options: Dict[str, Any]) -> None:
         """Options a download typed by the remote node's OD adds."""
