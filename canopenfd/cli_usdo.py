@@ -1,17 +1,19 @@
-"""The USDO commands of `canopenfd`: read, write, download, upload.
+"""The transfer commands of `canopenfd`: read, write, download, upload
+(USDO on CAN FD lines, SDO with --classic).
 
     canopenfd read NODE INDEX[:SUB] --channel IFACE [--type T] [--od FILE]
     canopenfd write NODE INDEX[:SUB] VALUE --channel IFACE [--type T] [--od FILE]
     canopenfd download NODE INDEX[:SUB] FILE --channel IFACE [--mode M] [--progress]
     canopenfd upload NODE INDEX[:SUB] FILE --channel IFACE [--progress]
 
-Every command is a USDO client (CiA 1301) on one CAN FD line, node-id
---client-id (default 127). INDEX and SUB are hex (`0x1018:1`, `1018:01`,
+On a CAN FD line every command is a USDO client (CiA 1301) with node-id
+--client-id (default 127); with --classic it is an SDO client (CiA 301) of
+the node's default SDO channel. INDEX and SUB are hex (`0x1018:1`, `1018:01`,
 `1018sub1`; SUB defaults to 0); with --od FILE (the remote node's EDS, DCF,
 XDD or XDC, or builtin:fd) INDEX may also be a name (`"Producer heartbeat
 time"`, `"Identity object.Vendor-ID"`) and values are typed by the file.
 
-Exit status: 0 done, 1 the transfer failed (a USDO abort: ours, such as a
+Exit status: 0 done, 1 the transfer failed (an abort: ours, such as a
 timeout, or the server's), 2 a bad argument (one line on stderr, never a
 traceback). `main` may hand in a Network (`args.network`): the commands then
 open their line on it instead of a Network of their own (tests, embedding).
@@ -54,7 +56,7 @@ EXIT_FAILED = 1
 DEFAULT_CLIENT_ID = 127
 DEFAULT_TIMEOUT_S = 1.0
 EXPEDITED_MAX = 56          # bytes an expedited USDO transfer carries
-TRANSFER_MAX = 0xFFFFFFFE   # bytes a USDO transfer moves at most
+TRANSFER_MAX = 0xFFFFFFFE   # bytes a transfer moves at most
 _WAIT_SLICE_S = 0.1         # result() in slices: Ctrl-C works, a late done event costs <= this
 
 _KEY_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})(?:(?::|sub)(?:0x)?([0-9a-f]{1,2}))?$",
@@ -96,7 +98,7 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
     def common(p: argparse.ArgumentParser) -> None:
         line_options(p)
         p.add_argument("--client-id", type=int, default=DEFAULT_CLIENT_ID, metavar="N",
-                       help=f"our USDO client node-id 1..127 (default {DEFAULT_CLIENT_ID})")
+                       help=f"our USDO client node-id 1..127 (default {DEFAULT_CLIENT_ID}; fd lines only)")
         p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
                        help="how long to wait for each answer of the server (default "
                             f"{DEFAULT_TIMEOUT_S:g}; with NODE 0 how long to collect answers)")
@@ -104,7 +106,7 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
                        help="the remote node's EDS/DCF/XDD/XDC (or builtin:fd): names for "
                             "INDEX, and typed values")
 
-    p = sub.add_parser("read", help="read one entry of a node (USDO upload) and print it")
+    p = sub.add_parser("read", help="read one entry of a node (USDO, or SDO with --classic) and print it")
     p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("--type", metavar="T",
@@ -113,7 +115,7 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
     common(p)
     p.set_defaults(func=cmd_read)
 
-    p = sub.add_parser("write", help="write one entry of a node (USDO download)")
+    p = sub.add_parser("write", help="write one entry of a node (USDO, or SDO with --classic)")
     p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("value", metavar="VALUE",
@@ -124,7 +126,7 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
     common(p)
     p.set_defaults(func=cmd_write)
 
-    p = sub.add_parser("download", help="send a file's contents to an entry (USDO download)")
+    p = sub.add_parser("download", help="send a file's contents to an entry (USDO, or SDO with --classic)")
     p.add_argument("node", metavar="NODE", help="node-id 1..127")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to send")
@@ -137,7 +139,7 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
     common(p)
     p.set_defaults(func=cmd_download)
 
-    p = sub.add_parser("upload", help="read an entry into a file (USDO upload)")
+    p = sub.add_parser("upload", help="read an entry into a file (USDO, or SDO with --classic)")
     p.add_argument("node", metavar="NODE", help="node-id 1..127")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to write (replaced once complete)")
@@ -663,7 +665,7 @@ def cmd_download(args: argparse.Namespace) -> int:
                          "before the transfer)")
         size = info.st_size
         if size > TRANSFER_MAX:
-            raise _usage(f"FILE {args.file}: {size} bytes; a USDO transfer moves at most "
+            raise _usage(f"FILE {args.file}: {size} bytes; a transfer moves at most "
                          f"{TRANSFER_MAX}")
         if args.mode == "expedited" and size > EXPEDITED_MAX:
             raise _usage(f"--mode expedited carries at most {EXPEDITED_MAX} bytes; "

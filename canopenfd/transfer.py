@@ -12,6 +12,7 @@ import logging
 import os
 import tempfile
 import threading
+import time
 from typing import (TYPE_CHECKING, Any, BinaryIO, Callable, Dict, List, Optional, Tuple,
                     Union)
 
@@ -61,7 +62,7 @@ def resolve(key: Key, od: Any, where: str) -> Tuple[int, int, Optional[ODVariabl
     else:
         raise ConfigurationError(
             f"{where}: {key!r} is not an index, (index, sub), 'INDEX:SUB'"
-            + ("" if od is None else f" or a name in the object dictionary"))
+            + ("" if od is None else " or a name in the object dictionary"))
     if not 0 <= index <= 0xFFFF or not 0 <= sub <= 0xFF:
         raise ConfigurationError(f"{where}: 0x{index:X}:{sub:X} outside 0..0xFFFF:0..0xFF")
     variable = od.get_variable(index, sub) if od is not None else None
@@ -557,5 +558,4 @@ def _type_code(data_type: Any, what: str) -> int:
 
 
 def _now() -> float:
-    import time
     return time.monotonic()
