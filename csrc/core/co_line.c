@@ -79,6 +79,31 @@ void co_line_unsubscribe(co_line_t *line, co_rx_fn fn, void *user)
     }
 }
 
+bool co_line_subscribe_other(co_line_t *line, co_rx_other_fn fn, void *user)
+{
+    if (fn == NULL || line->other_count >= CO_LINE_MAX_OTHER) {
+        return false;
+    }
+    for (uint8_t i = 0; i < line->other_count; i++) {
+        if (line->other[i].fn == fn && line->other[i].user == user) {
+            return false;
+        }
+    }
+    line->other[line->other_count++] = (co_other_receiver_t){fn, user};
+    return true;
+}
+
+void co_line_unsubscribe_other(co_line_t *line, co_rx_other_fn fn, void *user)
+{
+    uint8_t kept = 0;
+    for (uint8_t i = 0; i < line->other_count; i++) {
+        if (line->other[i].fn != fn || line->other[i].user != user) {
+            line->other[kept++] = line->other[i];
+        }
+    }
+    line->other_count = kept;
+}
+
 bool co_line_receive(co_line_t *line, const co_frame_t *frame)
 {
     line->stats.rx_frames++;
@@ -193,32 +218,36 @@ bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len)
     return co_line_send_frame(line, &frame);
 }
 
-/* Decide whether a received frame reaches a service; everything refused is
- * counted in the line statistics. */
-static bool frame_is_acceptable(co_line_t *line, const co_frame_t *frame)
+/* Offer a frame no range takes to the "other" receivers; count it when
+ * nobody uses it. */
+static void dispatch_other(co_line_t *line, const co_frame_t *frame)
 {
-    if (!co_frame_is_valid(frame)) {
-        line->stats.rx_invalid++;
-        return false;
-    }
-    if ((frame->flags & CO_FRAME_FD) && line->mode == CO_MODE_CLASSIC) {
-        line->stats.rx_wrong_format++;
-        return false;
+    for (uint8_t i = 0; i < line->other_count; i++) {
+        if (line->other[i].fn(line, frame, line->other[i].user)) {
+            return;
+        }
     }
     if (frame->flags & CO_FRAME_RTR) {
         line->stats.rx_rtr++;
-        return false;
-    }
-    if ((frame->flags & CO_FRAME_EXT) || line->id_map[frame->id] == 0) {
+    } else {
         line->stats.rx_unhandled++;
-        return false;
     }
-    return true;
 }
 
+/* Route a received frame to the service that takes it; everything refused is
+ * counted in the line statistics. */
 static void dispatch(co_line_t *line, const co_frame_t *frame)
 {
-    if (!frame_is_acceptable(line, frame)) {
+    if (!co_frame_is_valid(frame)) {
+        line->stats.rx_invalid++;
+        return;
+    }
+    if ((frame->flags & CO_FRAME_FD) && line->mode == CO_MODE_CLASSIC) {
+        line->stats.rx_wrong_format++;
+        return;
+    }
+    if ((frame->flags & (CO_FRAME_RTR | CO_FRAME_EXT)) || line->id_map[frame->id] == 0) {
+        dispatch_other(line, frame);
         return;
     }
     const co_receiver_t *r = &line->receivers[line->id_map[frame->id] - 1];

@@ -57,8 +57,12 @@ typedef void (*co_comm_fn)(co_line_t *line, co_comm_event_t event, void *user);
 /* "tx space" indication: the tx queue went from above half full to half
  * full (called from co_line_tx_pop, i.e. from the driver). */
 typedef void (*co_tx_space_fn)(co_line_t *line, void *user);
+/* Receiver of frames no CAN-ID range takes (see co_line_subscribe_other):
+ * returns true when it used the frame. */
+typedef bool (*co_rx_other_fn)(co_line_t *line, const co_frame_t *frame, void *user);
 
-enum { CO_LINE_MAX_RECEIVERS = 32, CO_LINE_ID_MAP_SIZE = 2048, CO_LINE_MAX_TX_SPACE = 4 };
+enum { CO_LINE_MAX_RECEIVERS = 32, CO_LINE_ID_MAP_SIZE = 2048, CO_LINE_MAX_TX_SPACE = 4,
+       CO_LINE_MAX_OTHER = 4 };
 
 typedef struct co_receiver {
     uint32_t first_id;   /* inclusive range of 11-bit CAN-IDs */
@@ -71,6 +75,11 @@ typedef struct co_tx_space_cb {
     co_tx_space_fn fn;
     void *user;
 } co_tx_space_cb_t;
+
+typedef struct co_other_receiver {
+    co_rx_other_fn fn;
+    void *user;
+} co_other_receiver_t;
 
 struct co_line {
     co_mode_t mode;
@@ -89,6 +98,8 @@ struct co_line {
     uint8_t id_map[CO_LINE_ID_MAP_SIZE];   /* CAN-ID -> receiver index + 1 */
     uint8_t tx_space_count;
     co_tx_space_cb_t tx_space[CO_LINE_MAX_TX_SPACE];
+    uint8_t other_count;
+    co_other_receiver_t other[CO_LINE_MAX_OTHER];
 };
 
 typedef struct co_line_config {
@@ -109,6 +120,17 @@ void co_line_set_comm_indication(co_line_t *line, co_comm_fn fn, void *user);
 bool co_line_subscribe(co_line_t *line, uint32_t first_id, uint32_t last_id,
                        co_rx_fn fn, void *user);
 void co_line_unsubscribe(co_line_t *line, co_rx_fn fn, void *user);
+
+/* Services whose CAN-IDs are many and configurable (PDOs, EMCY consumers) or
+ * that answer remote frames (TPDOs with RTR, node guarding) register here:
+ * they are offered every valid frame no subscribed range takes, i.e. data
+ * frames with an 11-bit id nobody subscribed, data frames with a 29-bit id,
+ * and every remote (RTR) frame, whatever its id. Offered in registration
+ * order until one returns true; a frame nobody takes is counted (rx_rtr for
+ * remote frames, rx_unhandled otherwise). At most CO_LINE_MAX_OTHER; false
+ * when full, fn is NULL or (fn, user) is already registered. */
+bool co_line_subscribe_other(co_line_t *line, co_rx_other_fn fn, void *user);
+void co_line_unsubscribe_other(co_line_t *line, co_rx_other_fn fn, void *user);
 
 /* Services that fill the tx queue in bursts (USDO bulk download) register
  * here to learn when it has drained: fn runs inside co_line_tx_pop each time

@@ -276,6 +276,61 @@ static void test_receiver_table_full_refused(void **state)
     assert_int_equal(fx->line.stats.rx_unhandled, 1);
 }
 
+/* "other" receivers: offered frames no range takes; first taker wins. */
+typedef struct other_handler {
+    fx_t *fx;
+    int tag;
+    uint32_t takes_id;     /* the only id this handler uses */
+} other_handler_t;
+
+static bool on_other(co_line_t *line, const co_frame_t *frame, void *user)
+{
+    other_handler_t *h = user;
+    if (frame->id != h->takes_id) {
+        return false;
+    }
+    on_rx(line, frame, &(handler_t){h->fx, h->tag});
+    return true;
+}
+
+static void test_other_receivers_get_unclaimed_ext_and_rtr_frames(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, 16, SMALL);
+    handler_t a = {fx, 1};
+    other_handler_t pdo = {fx, 2, 0x181}, guard = {fx, 3, 0x705}, ext = {fx, 4, 0x1234567};
+    assert_true(co_line_subscribe(&fx->line, 0x700, 0x77F, on_rx, &a));
+    assert_true(co_line_subscribe_other(&fx->line, on_other, &pdo));
+    assert_true(co_line_subscribe_other(&fx->line, on_other, &guard));
+    assert_true(co_line_subscribe_other(&fx->line, on_other, &ext));
+    assert_false(co_line_subscribe_other(&fx->line, on_other, &pdo));   /* twice */
+    assert_false(co_line_subscribe_other(&fx->line, NULL, &pdo));
+    receive(fx, 0x181, 0, 8);                    /* unsubscribed id: pdo */
+    receive(fx, 0x705, CO_FRAME_RTR, 1);         /* RTR in a subscribed range: guard */
+    receive(fx, 0x705, 0, 1);                    /* data frame: the range's receiver */
+    receive(fx, 0x1234567, CO_FRAME_EXT, 2);     /* 29-bit id */
+    receive(fx, 0x182, 0, 8);                    /* nobody: unhandled */
+    receive(fx, 0x706, CO_FRAME_RTR, 0);         /* nobody: rx_rtr */
+    (void)co_line_process(&fx->line, 0);
+    assert_int_equal(fx->seen_count, 4);
+    assert_int_equal(fx->seen_by[0], 2);
+    assert_int_equal(fx->seen_by[1], 3);
+    assert_true(fx->seen[1].flags & CO_FRAME_RTR);
+    assert_int_equal(fx->seen_by[2], 1);
+    assert_int_equal(fx->seen_by[3], 4);
+    assert_int_equal(fx->line.stats.rx_unhandled, 1);
+    assert_int_equal(fx->line.stats.rx_rtr, 1);
+    /* unsubscribed: no longer offered; the table has room again */
+    co_line_unsubscribe_other(&fx->line, on_other, &pdo);
+    receive(fx, 0x181, 0, 8);
+    (void)co_line_process(&fx->line, 0);
+    assert_int_equal(fx->seen_count, 4);
+    assert_int_equal(fx->line.stats.rx_unhandled, 2);
+    assert_true(co_line_subscribe_other(&fx->line, on_other, &pdo));
+    other_handler_t extra = {fx, 5, 0}, more = {fx, 6, 0};
+    assert_true(co_line_subscribe_other(&fx->line, on_other, &extra));   /* the 4th */
+    assert_false(co_line_subscribe_other(&fx->line, on_other, &more));   /* full */
+}
+
 static void test_unsubscribe_stops_dispatch_and_frees_range(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
@@ -1040,6 +1095,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_overlapping_subscribe_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(test_invalid_range_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(test_receiver_table_full_refused, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_other_receivers_get_unclaimed_ext_and_rtr_frames, setup, teardown),
         cmocka_unit_test_setup_teardown(test_unsubscribe_stops_dispatch_and_frees_range, setup, teardown),
         cmocka_unit_test_setup_teardown(test_unsubscribe_unknown_is_harmless, setup, teardown),
         cmocka_unit_test_setup_teardown(test_unhandled_counted, setup, teardown),
