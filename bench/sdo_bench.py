@@ -43,6 +43,7 @@ DOMAIN_OURS = 0x2100
 DOMAIN_THEIRS_W = 0x2001       # their server: writes go into a dict
 UPLOAD_THEIRS = 0x2100         # their server: 0x2100:n = prebuilt n-th size for uploads
 TIMEOUT = 5.0                  # per-response timeout of both clients (slow VM)
+SETTLE_S = 1.5                 # quiet time after a cut or failure (see settle())
 
 
 def pattern(size: int) -> bytes:
@@ -99,6 +100,24 @@ def serve_theirs(iface: str, sizes: list) -> None:
     print("ready", flush=True)
     sys.stdin.read()
     net.disconnect()
+
+
+class LocalServer:
+    """Our server on its own line of our client's Network: one runtime thread
+    runs both ends, like raw_socketcan's one-thread yardstick (like with like
+    for the raw share; no cross-process wake-ups per frame)."""
+
+    def __init__(self, client: "OurClient", iface: str) -> None:
+        from canopenfd.od import demo_od
+        self.node = client.net.open_line(iface, mode="classic").create_local_node(
+            OURS, od=demo_od("classic"), boot=False)
+        self.node.serve_domain(DOMAIN_OURS, 16 << 20)
+        self.node.boot()
+
+    def stop(self) -> None:
+        # A runtime keeps its lines until it closes: the node stays (so no
+        # "ours" server may follow; main() checks the order).
+        pass
 
 
 class Server:
@@ -312,6 +331,7 @@ class Row:
         self.note = ""
         self.na = ""
         self.modes_used = set()
+        self.server_name = "ours" if server == OURS else "python-canopen"
 
     @property
     def tps(self):
@@ -335,17 +355,30 @@ def measure(row: Row, one, budget: float, max_failures: int = 2) -> Row:
             row.bytes += cut.moved
             if row.done == 0:
                 row.partial = True
-            break
+            row.seconds = time.monotonic() - start
+            settle()
+            return row
         except Exception as exc:  # noqa: BLE001 - reported in the table
             row.failed += 1
             row.note = f"{type(exc).__name__}: {exc}"[:160]
             if row.failed >= max_failures:
                 break
-            time.sleep(0.2)
+            settle()
         if time.monotonic() >= deadline:
             break
     row.seconds = time.monotonic() - start
+    if row.failed:
+        settle()
     return row
+
+
+def settle() -> None:
+    """After a cut or failed transfer (untimed): let late answers arrive and a
+    server channel the cut left open time out (our server: 1 s), so neither
+    meets the next transfer. A server cannot tell a new block download
+    initiate from a segment of a sub-block still open, and python-canopen's
+    client takes any late frame as the answer to its next request."""
+    time.sleep(SETTLE_S)
 
 
 HEADER = (f"{'client':<15} {'server':<15} {'op':<8} {'mode':<10} {'size':>7} "
@@ -354,7 +387,7 @@ HEADER = (f"{'client':<15} {'server':<15} {'op':<8} {'mode':<10} {'size':>7} "
 
 
 def fmt(row: Row, ratio, share) -> str:
-    server = "ours" if row.server == OURS else "python-canopen"
+    server = row.server_name
     if row.na:
         return (f"{row.client:<15} {server:<15} {row.op:<8} {row.mode:<10} "
                 f"{size_name(row.size):>7} {'n/a':>12} {'n/a':>9} {'-':>6} {'-':>7}  "
@@ -380,10 +413,18 @@ def main() -> int:
     ap.add_argument("-e", type=float, default=3.0, help="seconds per expedited row")
     ap.add_argument("-n", type=int, default=100000, help="frames per raw reference run")
     ap.add_argument("--sizes", default="1024,65536,1048576")
-    ap.add_argument("--servers", default="ours,theirs")
+    ap.add_argument("--servers", default="ours,local,theirs",
+                    help="ours = our server in its own process, local = our server on a "
+                         "second line of our client's runtime (one thread), theirs = "
+                         "python-canopen's LocalNode")
     ap.add_argument("--serve", choices=("ours", "theirs"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
+    servers = args.servers.split(",")
+    if not set(servers) <= {"ours", "local", "theirs"}:
+        ap.error(f"--servers: unknown server in {args.servers!r}")
+    if "local" in servers and "ours" in servers[servers.index("local"):]:
+        ap.error("--servers: 'ours' cannot follow 'local' (the local node 5 stays on the line)")
     if args.serve == "ours":
         serve_ours(args.iface)
         return 0
@@ -410,9 +451,10 @@ def main() -> int:
     clients = [OurClient(args.iface), TheirClient(args.iface)]
     rows = []
     status = 0
-    for which in args.servers.split(","):
-        node = OURS if which == "ours" else THEIRS
-        server = Server(which, args.iface, sizes)
+    for which in servers:
+        node = THEIRS if which == "theirs" else OURS
+        server = (LocalServer(clients[0], args.iface) if which == "local"
+                  else Server(which, args.iface, sizes))
         try:
             plan = [("download", "expedited", 4), ("upload", "expedited", 4)]
             for size in sizes:
@@ -428,6 +470,8 @@ def main() -> int:
                 pair = []
                 for client in clients:
                     row = Row(client.name, node, op, mode, size)
+                    if which == "local":
+                        row.server_name = "ours, 1 thread"
                     if node == THEIRS and mode == "block" and op == "download":
                         row.na = "n/a: python-canopen's LocalNode has no block download server"
                     elif mode == "expedited":
@@ -464,7 +508,7 @@ def main() -> int:
         print("\nblock transfers against our server (ours vs python-canopen client, share of "
               "raw frames/s x 7 B):")
         for o, t in block:
-            print(f"  {o.op:<8} {size_name(o.size):>7}: ours {o.kbps:8.2f} kB/s = "
+            print(f"  {o.server_name:<14} {o.op:<8} {size_name(o.size):>7}: ours {o.kbps:8.2f} kB/s = "
                   f"{o.kbps / t.kbps:6.1f}x python-canopen ({t.kbps:.2f} kB/s), "
                   f"{o.kbps * 1000 / (raw_fps * 7) * 100:5.1f} % of raw")
     return status

@@ -63,6 +63,10 @@ class Runtime:
 
     def __init__(self, event_capacity: int = 0) -> None:
         self._lock = threading.Lock()
+        # Application threads blocked in co_rt_transfer_wait: free() waits
+        # until they left (stop() has woken them).
+        self._idle = threading.Condition(self._lock)
+        self._waiters = 0
         self._rt = ffi.NULL
         self._stopped = False
         rt = lib.co_rt_new(event_capacity)
@@ -94,6 +98,9 @@ class Runtime:
         """Free the runtime. Only once every thread that waits in it has left."""
         with self._lock:
             self._stopped = True
+            while self._waiters > 0 and self._rt != ffi.NULL:
+                lib.co_rt_stop(self._rt)   # idempotent; wakes the waiters
+                self._idle.wait(0.1)
             if self._rt != ffi.NULL:
                 lib.co_rt_free(self._rt)
                 self._rt = ffi.NULL
@@ -274,6 +281,24 @@ class Runtime:
                 self._raise(rc, what)
         return {name: getattr(out, name)
                 for name, _ in ffi.typeof("co_rt_transfer_result_t").fields}
+
+    def transfer_wait(self, line: int, handle: int, timeout_ms: int, what: str) -> bool:
+        """Block (GIL released) until the transfer ended or timeout_ms passed;
+        True when it ended."""
+        with self._lock:
+            rt = self._live(what)
+            self._waiters += 1
+        try:
+            rc = lib.co_rt_transfer_wait(rt, line, handle, timeout_ms)
+        finally:
+            with self._lock:
+                self._waiters -= 1
+                self._idle.notify_all()
+        if rc < 0:
+            with self._lock:
+                self._live(what)
+                self._raise(rc, what)
+        return rc == 1
 
     def transfer_data(self, line: int, handle: int, size: int, what: str) -> bytes:
         buf = ffi.new("uint8_t[]", max(size, 1))

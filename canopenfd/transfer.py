@@ -8,6 +8,7 @@ runtime: no Python per frame."""
 from __future__ import annotations
 
 import asyncio
+import math
 import logging
 import os
 import tempfile
@@ -30,7 +31,7 @@ log = logging.getLogger(__name__)
 #: Largest answer we accept to an upload of unknown size unless told (bytes).
 DEFAULT_MAX_SIZE = 64 << 20
 _DOMAIN = 0x0F
-_POLL_S = 0.5          # fallback poll of the runtime when a done event is late
+_WAIT_STEP_S = 0.5     # longest blocking wait in C (Ctrl-C is seen between steps)
 _DISPATCHER_POLL_S = 0.002
 
 Key = Union[int, str, Tuple[int, int]]
@@ -110,14 +111,21 @@ class Transfer:
         so no timeout is needed here; a given one raises TimeoutError and
         leaves the transfer running."""
         deadline = None if timeout is None else _now() + timeout
-        poll = _DISPATCHER_POLL_S if self._client._on_dispatcher() else _POLL_S
+        on_dispatcher = self._client._on_dispatcher()
         while not self._done.is_set():
-            if self._client._finished(self._handle):
-                break
             remaining = None if deadline is None else deadline - _now()
             if remaining is not None and remaining <= 0:
+                if self._client._finished(self._handle):
+                    break
                 raise TimeoutError(f"{self.what}: not finished after {timeout} s")
-            self._done.wait(poll if remaining is None else min(poll, remaining))
+            step = _WAIT_STEP_S if remaining is None else min(_WAIT_STEP_S, remaining)
+            if on_dispatcher:
+                # the done event would come through this very thread: poll
+                if self._client._finished(self._handle):
+                    break
+                self._done.wait(min(_DISPATCHER_POLL_S, step))
+            elif self._client._wait(self._handle, step):
+                break   # woken by the runtime thread itself, not via the event queue
         return self._collect()
 
     wait = result
@@ -311,6 +319,16 @@ class TransferClient:
         """Ask the runtime directly (a done event may still be queued)."""
         try:
             return not self.line._rt.transfer_result(self.line.index, handle, "poll")["running"]
+        except ClosedError:
+            raise
+        except CanopenFDError:
+            return True   # released: _collect reports it
+
+    def _wait(self, handle: int, seconds: float) -> bool:
+        """Block in the runtime until the transfer ended (True) or seconds passed."""
+        try:
+            return self.line._rt.transfer_wait(self.line.index, handle,
+                                               max(1, math.ceil(seconds * 1000)), "wait")
         except ClosedError:
             raise
         except CanopenFDError:

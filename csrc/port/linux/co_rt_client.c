@@ -9,6 +9,7 @@
 #include "co_rt_internal.h"
 
 #include <errno.h>
+#include <time.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -208,6 +209,7 @@ static void on_answer(co_usdo_request_t *req, uint8_t node, uint8_t abort, uint8
 static void finished(rt_req_t *r)
 {
     r->running = false;
+    rt_transfer_ended(r->line->rt);
     rt_client_t *c = r->line->client;
     if (!c->closing) {
         rt_post(r->line, CO_EV_TRANSFER_DONE, 0, (uint32_t)handle_of(c, r), 0, NULL);
@@ -485,10 +487,10 @@ int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *
             req_clear(r);
         }
     }
-    pthread_mutex_unlock(&rt->lock);
     if (status >= 0) {
-        rt_wake(rt);   /* frames wait in the tx queue, a timer was armed */
+        rt_kick(rt);   /* frames wait in the tx queue, a timer was armed */
     }
+    pthread_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -522,8 +524,8 @@ int co_rt_transfer_cancel(co_rt_t *rt, int line, int handle, uint32_t code)
         }
         status = CO_RT_OK;
     }
+    rt_kick(rt);
     pthread_mutex_unlock(&rt->lock);
-    rt_wake(rt);
     return status;
 }
 
@@ -562,6 +564,46 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
     }
     pthread_mutex_unlock(&rt->lock);
     return status;
+}
+
+/* Under rt->lock: 1 = ended, 0 = running, < 0 = no such transfer. */
+static int transfer_ended(co_rt_t *rt, int line, int handle)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    rt_req_t *r = l ? request_of(rt, l, handle) : NULL;
+    return r ? !r->running : CO_RT_ERR_STATE;
+}
+
+int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms)
+{
+    if (!rt_checked_line(rt, line, false)) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    struct timespec start;
+    clock_gettime(CLOCK_MONOTONIC, &start);
+    for (;;) {
+        uint64_t gen = rt_transfer_generation(rt);
+        pthread_mutex_lock(&rt->lock);
+        int ended = transfer_ended(rt, line, handle);
+        pthread_mutex_unlock(&rt->lock);
+        if (ended != 0) {
+            return ended;
+        }
+        int left = timeout_ms;
+        if (timeout_ms > 0) {
+            struct timespec now;
+            clock_gettime(CLOCK_MONOTONIC, &now);
+            long long spent = (long long)(now.tv_sec - start.tv_sec) * 1000 +
+                              (now.tv_nsec - start.tv_nsec) / 1000000;
+            left = spent >= timeout_ms ? 0 : (int)(timeout_ms - spent);
+        }
+        if (left == 0 || !rt_wait_transfer_end(rt, gen, left)) {
+            pthread_mutex_lock(&rt->lock);
+            ended = transfer_ended(rt, line, handle);
+            pthread_mutex_unlock(&rt->lock);
+            return ended;
+        }
+    }
 }
 
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity)

@@ -208,6 +208,13 @@ struct co_rt {
     rt_bus_t *buses[RT_MAX_BUSES];
     rt_mailbox_t mail;
     rt_events_t events;
+    /* Client transfers that ended: done_gen counts them, done_ready wakes
+     * threads blocked in co_rt_transfer_wait (own lock: never waits for a
+     * turn of the runtime thread). */
+    pthread_mutex_t done_lock;
+    pthread_cond_t done_ready;
+    uint64_t done_gen;
+    bool done_closed;
     char error[RT_ERROR_SIZE];
 };
 
@@ -221,6 +228,18 @@ int rt_argument_error(co_rt_t *rt, const char *fmt, ...);
 rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only);
 /* Wake the thread (a deadline or the tx queue changed). */
 void rt_wake(co_rt_t *rt);
+/* Under rt->lock, from an application thread that just queued frames or
+ * armed timers (a transfer started or cancelled): hand the frames to the
+ * sockets and move the timerfd earlier at once, instead of waking the
+ * runtime thread for it; wakes it only for lines only it can flush
+ * (in-process buses, host lines). */
+void rt_kick(co_rt_t *rt);
+/* Under rt->lock: a client transfer ended (wakes co_rt_transfer_wait). */
+void rt_transfer_ended(co_rt_t *rt);
+/* Block until done_gen differs from gen or timeout_ms passed (< 0: no
+ * limit); false on timeout or when the runtime stopped. */
+bool rt_wait_transfer_end(co_rt_t *rt, uint64_t gen, int timeout_ms);
+uint64_t rt_transfer_generation(co_rt_t *rt);
 /* Post an event of line l; false when the queue was full (dropped, counted). */
 bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
              const co_frame_t *frame);

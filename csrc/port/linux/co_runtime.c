@@ -839,6 +839,60 @@ static void arm_timer(co_rt_t *rt, uint64_t deadline, uint64_t now)
     rt->armed_us = deadline;
 }
 
+void rt_kick(co_rt_t *rt)
+{
+    if (rt->stopping || !rt->started) {
+        return;
+    }
+    uint64_t now = co_rt_now_us();
+    uint64_t next = CO_TIME_NEVER;
+    bool wake = false;
+    for (int i = 0; i < rt->line_count; i++) {
+        rt_line_t *l = rt->lines[i];
+        if (l->driver == CO_DRIVER_SOCKETCAN) {
+            next = min_u64(next, flush_socket(rt, l, now));
+        } else if (!co_queue_is_empty(&l->line.tx)) {
+            wake = true;
+        }
+        next = min_u64(next, co_timer_list_next(&l->line.timers));
+    }
+    /* only ever earlier: the thread recomputes everything at its next turn */
+    if (next < rt->armed_us) {
+        arm_timer(rt, next, now);
+    }
+    if (wake) {
+        rt_wake(rt);
+    }
+}
+
+void rt_transfer_ended(co_rt_t *rt)
+{
+    pthread_mutex_lock(&rt->done_lock);
+    rt->done_gen++;
+    pthread_cond_broadcast(&rt->done_ready);
+    pthread_mutex_unlock(&rt->done_lock);
+}
+
+uint64_t rt_transfer_generation(co_rt_t *rt)
+{
+    pthread_mutex_lock(&rt->done_lock);
+    uint64_t gen = rt->done_gen;
+    pthread_mutex_unlock(&rt->done_lock);
+    return gen;
+}
+
+bool rt_wait_transfer_end(co_rt_t *rt, uint64_t gen, int timeout_ms)
+{
+    struct timespec deadline = deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
+    pthread_mutex_lock(&rt->done_lock);
+    while (rt->done_gen == gen && !rt->done_closed &&
+           wait_step(&rt->done_ready, &rt->done_lock, timeout_ms, &deadline)) {
+    }
+    bool changed = rt->done_gen != gen;
+    pthread_mutex_unlock(&rt->done_lock);
+    return changed;
+}
+
 static void iterate(co_rt_t *rt)
 {
     uint64_t now = co_rt_now_us();
@@ -949,6 +1003,8 @@ static void rt_destroy(co_rt_t *rt)
     pthread_mutex_destroy(&rt->events.lock);
     pthread_cond_destroy(&rt->events.ready);
     pthread_mutex_destroy(&rt->mail.lock);
+    pthread_mutex_destroy(&rt->done_lock);
+    pthread_cond_destroy(&rt->done_ready);
     pthread_mutex_destroy(&rt->error_lock);
     pthread_mutex_destroy(&rt->lock);
     pthread_mutex_destroy(&rt->life_lock);
@@ -981,6 +1037,8 @@ co_rt_t *co_rt_new(uint32_t event_capacity)
     pthread_mutex_init(&rt->mail.lock, NULL);
     pthread_mutex_init(&rt->events.lock, NULL);
     monotonic_cond_init(&rt->events.ready);
+    pthread_mutex_init(&rt->done_lock, NULL);
+    monotonic_cond_init(&rt->done_ready);
     rt->epfd = rt->wakefd = rt->timerfd = -1;
     rt->armed_us = CO_TIME_NEVER;
     rt->events.capacity = event_capacity ? event_capacity : RT_DEFAULT_EVENTS;
@@ -1021,6 +1079,10 @@ int co_rt_start(co_rt_t *rt)
 /* Wake everybody blocked in wait_events / host_transmit with CLOSED. */
 static void close_waiters(co_rt_t *rt)
 {
+    pthread_mutex_lock(&rt->done_lock);
+    rt->done_closed = true;
+    pthread_cond_broadcast(&rt->done_ready);
+    pthread_mutex_unlock(&rt->done_lock);
     pthread_mutex_lock(&rt->events.lock);
     rt->events.closed = true;
     pthread_cond_broadcast(&rt->events.ready);

@@ -255,6 +255,11 @@ int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *
 /* Abort a running transfer (code 0 = general error; the abort goes to the server). */
 int co_rt_transfer_cancel(co_rt_t *rt, int line, int handle, uint32_t code);
 int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_result_t *out);
+/* Block (without the GIL) until the transfer ended: 1 = ended, 0 = still
+ * running after timeout_ms (< 0: no limit), < 0 = error. The application
+ * thread is woken by the runtime thread directly, not through the event
+ * queue, so a blocking request costs one wake-up less. */
+int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
 /* Upload to memory: copy the data (returns the byte count, or a status). */
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);
 /* USDO broadcast: copy up to max answers (returns the count, or a status). */
