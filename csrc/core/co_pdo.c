@@ -101,16 +101,22 @@ static uint64_t ms_to_us(uint16_t ms)
 
 /* ------------------------------------------------------------ sending */
 
-static void sample(co_pdo_t *pdo, co_pdo_channel_t *ch)
+/* False when the before-send callback disabled the PDO (it may write the
+ * OD, PDO parameters included). */
+static bool sample(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     if (pdo->ind != NULL && pdo->ind->before_send != NULL) {
         ch->sampling = true;   /* a trigger from inside the callback is refused */
         pdo->ind->before_send(pdo, ch->number, pdo->user);
         ch->sampling = false;
+        if (!ch->active || !pdo->operational) {
+            return false;
+        }
     }
     co_pdo_map_pack(pdo->od, ch->map, ch->map_count, ch->bits, ch->buf);
     ch->len = (uint8_t)((ch->bits + 7u) / 8u);
     ch->has_data = true;
+    return true;
 }
 
 /* Queue buf; the line rounds the length up on fd (zero padding). */
@@ -142,7 +148,9 @@ static void arm_event_timer(co_pdo_t *pdo, co_pdo_channel_t *ch)
 static void send_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     ch->event_pending = false;
-    sample(pdo, ch);
+    if (!sample(pdo, ch)) {
+        return;
+    }
     transmit(pdo, ch);
     ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
     arm_event_timer(pdo, ch);
@@ -567,7 +575,9 @@ static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
         return true;
     }
     if (ch->type == CO_PDO_TYPE_RTR_EVENT || is_event_type(ch->type)) {
-        sample(pdo, ch);   /* sampled now */
+        if (!sample(pdo, ch)) {   /* sampled now */
+            return true;
+        }
     } else if (!ch->has_data) {
         pdo->stats.rtr_refused++;   /* nothing sampled at a SYNC yet */
         return true;
@@ -653,18 +663,16 @@ void co_pdo_sync(co_pdo_t *pdo, uint8_t counter)
         if (ch->type == CO_PDO_TYPE_SYNC_ACYCLIC) {
             if (ch->event_pending) {
                 ch->event_pending = false;
-                sample(pdo, ch);
-                ch->sync_due = true;
+                ch->sync_due = sample(pdo, ch);
                 any = true;
             }
         } else if (ch->type <= CO_PDO_TYPE_SYNC_MAX) {
             if (cyclic_due(ch, counter)) {
-                sample(pdo, ch);
-                ch->sync_due = true;
+                ch->sync_due = sample(pdo, ch);
                 any = true;
             }
         } else if (ch->type == CO_PDO_TYPE_RTR_SYNC) {
-            sample(pdo, ch);   /* answered at the next RTR */
+            (void)sample(pdo, ch);   /* answered at the next RTR */
         }
     }
     if (any) {

@@ -1088,6 +1088,59 @@ static void test_random_fd(void **state)
     check_random(CO_MODE_FD);
 }
 
+/* 29-bit RPDO on a classic line; deinit unhooks everything. */
+static void test_ext_rpdo_and_deinit(void **state)
+{
+    const uint32_t rm[1] = {MAP(0x2002, 0, 32)};
+    const uint8_t d[4] = {0xEF, 0xBE, 0xAD, 0xDE};
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, SMALL_ENTRIES);
+    co_line_t *b = &fx->l[1].line;
+    (void)state;
+    add_pdo(&fx->b, true, 4, EXT | 0x1ABCDE, 255, 0, 0, 0, 1, rm, 1);
+    fx_finish(fx);
+    fx_operational(fx);
+    inject(fx, 0x1ABCDE & 0x7FF, 0, d, 4, MS(1));   /* the same low bits, 11-bit: not it */
+    assert_int_equal(get(&fx->b, 0x2002, 0, 4), 0x33333333);
+    assert_int_equal(co_pdo_stats(&fx->b.pdo)->rx_not_ours, 1);
+    inject(fx, 0x1ABCDE, CO_FRAME_EXT, d, 4, MS(2));
+    assert_int_equal(get(&fx->b, 0x2002, 0, 4), 0xDEADBEEF);
+    assert_int_equal(fx->b.received[0], 4);
+    assert_int_equal(b->other_count, 1);
+    co_pdo_deinit(&fx->b.pdo);
+    fx->b.ready = false;
+    assert_int_equal(b->other_count, 0);
+    assert_int_equal(fx->b.od.sub_count, 1);   /* only co_cob_id's */
+    inject(fx, 0x1ABCDE, CO_FRAME_EXT, d, 4, MS(3));
+    assert_int_equal(b->stats.rx_unhandled, 2);
+    fx_free(fx);
+}
+
+/* A before-send callback that disables its own TPDO: nothing is sent. */
+static void disable_self(co_pdo_t *pdo, uint16_t number, void *user)
+{
+    node_t *n = user;
+    uint8_t v[4] = {0x85, 0x01, 0x00, 0x80};
+    (void)pdo;
+    (void)number;
+    n->before_send++;
+    assert_int_equal(co_od_put(&n->od, 0x1800, 1, v, 4), 0);
+}
+
+static const co_pdo_indications_t disabling = {on_error, on_received, disable_self};
+
+static void test_before_send_disables(void **state)
+{
+    fx_t *fx = pair(CO_MODE_CLASSIC, 254, 0, 0, 254, 0);
+    (void)state;
+    fx->a.pdo.ind = &disabling;
+    trigger_at(fx, &fx->a, 1, MS(1), true);
+    assert_int_equal(fx->a.before_send, 1);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x185), 0);
+    assert_false(co_pdo_is_active(&fx->a.pdo, false, 1));
+    assert_int_equal(co_pdo_stats(&fx->a.pdo)->tx_frames, 0);
+    fx_free(fx);
+}
+
 /* Wrong API use. */
 static void test_api_misuse(void **state)
 {
@@ -1138,6 +1191,8 @@ int main(void)
         cmocka_unit_test(test_512_each),
         cmocka_unit_test(test_random_classic),
         cmocka_unit_test(test_random_fd),
+        cmocka_unit_test(test_ext_rpdo_and_deinit),
+        cmocka_unit_test(test_before_send_disables),
         cmocka_unit_test(test_api_misuse),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
