@@ -32,13 +32,18 @@ static uint16_t map_index(const co_pdo_channel_t *ch)
     return (uint16_t)((ch->is_rpdo ? CO_PDO_RPDO_MAP : CO_PDO_TPDO_MAP) + ch->number - 1u);
 }
 
+/* Channel + 1 of PDO number (1..512), 0 when there is none. */
+static uint16_t slot_of(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
+{
+    if (number < 1 || number > CO_PDO_MAX_NUMBER) {
+        return 0;
+    }
+    return is_rpdo ? pdo->rpdo_of[number - 1u] : pdo->tpdo_of[number - 1u];
+}
+
 static co_pdo_channel_t *channel_of(co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    uint16_t slot;
-    if (number < 1 || number > CO_PDO_MAX_NUMBER) {
-        return NULL;
-    }
-    slot = is_rpdo ? pdo->rpdo_of[number - 1u] : pdo->tpdo_of[number - 1u];
+    uint16_t slot = slot_of(pdo, is_rpdo, number);
     return slot != 0 ? &pdo->channels[slot - 1u] : NULL;
 }
 
@@ -675,7 +680,7 @@ void co_pdo_sync(co_pdo_t *pdo, uint8_t counter)
             (void)sample(pdo, ch);   /* answered at the next RTR */
         }
     }
-    if (any) {
+    if (any && pdo->operational) {   /* (a callback may have left operational) */
         flush_sync(pdo);
     }
 }
@@ -905,6 +910,6 @@ uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
 
 bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    const co_pdo_channel_t *ch = channel_of((co_pdo_t *)pdo, is_rpdo, number);
-    return ch != NULL && ch->active;
+    uint16_t slot = slot_of(pdo, is_rpdo, number);
+    return slot != 0 && pdo->channels[slot - 1u].active;
 }
