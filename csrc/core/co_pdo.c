@@ -1,0 +1,915 @@
+/* PDO service (see co_pdo.h). */
+#include "co_pdo.h"
+
+#include <string.h>
+
+#include "co_sdo.h"   /* co_sdo_can_id_restricted: CiA 301's restricted CAN-IDs */
+
+#define COB_INVALID 0x80000000u
+#define COB_NO_RTR 0x40000000u
+#define COB_EXT 0x20000000u
+#define COB_ID_29 0x1FFFFFFFu
+#define COB_ID_11 0x7FFu
+
+enum {
+    SUB_COB_ID = 1,
+    SUB_TYPE = 2,
+    SUB_INHIBIT = 3,
+    SUB_EVENT = 5,
+    SUB_SYNC_START = 6,
+    SYNC_START_MAX = 240
+};
+
+/* ------------------------------------------------------------ helpers */
+
+static uint16_t comm_index(const co_pdo_channel_t *ch)
+{
+    return (uint16_t)((ch->is_rpdo ? CO_PDO_RPDO_COMM : CO_PDO_TPDO_COMM) + ch->number - 1u);
+}
+
+static uint16_t map_index(const co_pdo_channel_t *ch)
+{
+    return (uint16_t)((ch->is_rpdo ? CO_PDO_RPDO_MAP : CO_PDO_TPDO_MAP) + ch->number - 1u);
+}
+
+/* Channel + 1 of PDO number (1..512), 0 when there is none. */
+static uint16_t slot_of(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
+{
+    if (number < 1 || number > CO_PDO_MAX_NUMBER) {
+        return 0;
+    }
+    return is_rpdo ? pdo->rpdo_of[number - 1u] : pdo->tpdo_of[number - 1u];
+}
+
+static co_pdo_channel_t *channel_of(co_pdo_t *pdo, bool is_rpdo, uint16_t number)
+{
+    uint16_t slot = slot_of(pdo, is_rpdo, number);
+    return slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+}
+
+/* The channel an index of 0x1400..0x1BFF belongs to. */
+static co_pdo_channel_t *channel_of_index(co_pdo_t *pdo, uint16_t index, bool *is_map)
+{
+    bool is_rpdo = index < CO_PDO_TPDO_COMM;
+    uint16_t base = is_rpdo ? CO_PDO_RPDO_COMM : CO_PDO_TPDO_COMM;
+    uint16_t offset = (uint16_t)(index - base);
+    *is_map = offset >= CO_PDO_MAX_NUMBER;
+    return channel_of(pdo, is_rpdo, (uint16_t)(offset % CO_PDO_MAX_NUMBER + 1u));
+}
+
+static bool is_sync_type(uint8_t type)
+{
+    return type <= CO_PDO_TYPE_SYNC_MAX;
+}
+
+static bool is_event_type(uint8_t type)
+{
+    return type >= CO_PDO_TYPE_EVENT_MANUFACTURER;
+}
+
+/* 0 or the abort code for a transmission type on this kind of PDO/line. */
+static uint32_t check_type(const co_pdo_t *pdo, bool is_rpdo, uint8_t type)
+{
+    if (type > CO_PDO_TYPE_SYNC_MAX && type < CO_PDO_TYPE_RTR_SYNC) {
+        return CO_ABORT_INVALID_VALUE;   /* reserved */
+    }
+    if ((type == CO_PDO_TYPE_RTR_SYNC || type == CO_PDO_TYPE_RTR_EVENT) &&
+        (is_rpdo || pdo->line->mode == CO_MODE_FD)) {
+        return CO_ABORT_INVALID_VALUE;   /* RTR-only: classic TPDOs only */
+    }
+    return 0;
+}
+
+/* 0 or the abort code for a valid COB-ID value (bit 31 clear). */
+static uint32_t check_cob_id_value(uint32_t cob)
+{
+    if (cob & COB_EXT) {
+        return 0;
+    }
+    if ((cob & (COB_ID_29 & ~COB_ID_11)) != 0 || co_sdo_can_id_restricted(cob & COB_ID_11)) {
+        return CO_ABORT_INVALID_VALUE;
+    }
+    return 0;
+}
+
+static void report(co_pdo_t *pdo, const co_pdo_channel_t *ch, uint16_t code)
+{
+    if (pdo->ind != NULL && pdo->ind->error != NULL) {
+        pdo->ind->error(pdo, code, ch->is_rpdo, ch->number, pdo->user);
+    }
+}
+
+static uint64_t ms_to_us(uint16_t ms)
+{
+    return (uint64_t)ms * 1000u;
+}
+
+/* ------------------------------------------------------------ sending */
+
+/* False when the before-send callback disabled the PDO (it may write the
+ * OD, PDO parameters included). */
+static bool sample(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    if (pdo->ind != NULL && pdo->ind->before_send != NULL) {
+        ch->sampling = true;   /* a trigger from inside the callback is refused */
+        pdo->ind->before_send(pdo, ch->number, pdo->user);
+        ch->sampling = false;
+        if (!ch->active || !pdo->operational) {
+            return false;
+        }
+    }
+    co_pdo_map_pack(pdo->od, ch->map, ch->map_count, ch->bits, ch->buf);
+    ch->len = (uint8_t)((ch->bits + 7u) / 8u);
+    ch->has_data = true;
+    return true;
+}
+
+/* Queue buf; the line rounds the length up on fd (zero padding). */
+static bool transmit(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    co_frame_t f;
+    f.id = ch->can_id;
+    f.flags = ch->ext ? CO_FRAME_EXT : 0;
+    f.len = ch->len;
+    memcpy(f.data, ch->buf, ch->len);
+    if (!co_line_send_frame(pdo->line, &f)) {
+        pdo->stats.tx_failed++;
+        return false;
+    }
+    pdo->stats.tx_frames++;
+    return true;
+}
+
+static void arm_event_timer(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    if (ch->event_ms != 0 && is_event_type(ch->type)) {
+        co_timer_start(co_line_timers(pdo->line), &ch->timer,
+                       pdo->line->now_us + ms_to_us(ch->event_ms));
+    }
+}
+
+/* Event-driven TPDO: sample and send now; the inhibit time and the event
+ * timer start over. */
+static void send_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    ch->event_pending = false;
+    if (!sample(pdo, ch)) {
+        return;
+    }
+    transmit(pdo, ch);
+    ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
+    arm_event_timer(pdo, ch);
+}
+
+/* An event for a 254/255 TPDO: sent now, or when the inhibit time ends. */
+static void tpdo_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    if (ch->inhibit_100us != 0 && pdo->line->now_us < ch->inhibit_end_us) {
+        if (!ch->event_pending) {
+            ch->event_pending = true;
+            pdo->stats.tx_inhibited++;
+            co_timer_start(co_line_timers(pdo->line), &ch->inhibit_timer, ch->inhibit_end_us);
+        }
+        return;
+    }
+    send_event(pdo, ch);
+}
+
+static void on_inhibit_end(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    co_pdo_channel_t *ch = user;
+    (void)timer;
+    (void)now_us;
+    if (ch->event_pending && ch->active && ch->owner->operational) {
+        send_event(ch->owner, ch);
+    }
+}
+
+/* TPDO: event timer expired. RPDO: reception deadline missed. */
+static void on_channel_timer(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    co_pdo_channel_t *ch = user;
+    co_pdo_t *pdo = ch->owner;
+    (void)timer;
+    (void)now_us;
+    if (!ch->active || !pdo->operational) {
+        return;
+    }
+    if (!ch->is_rpdo) {
+        tpdo_event(pdo, ch);
+        return;
+    }
+    ch->monitoring = false;   /* restarts with the next reception */
+    ch->timed_out = true;
+    pdo->stats.rx_timeouts++;
+    report(pdo, ch, CO_PDO_EMCY_RPDO_TIMEOUT);
+}
+
+/* Queue every synchronous TPDO sampled at SYNC; the ones the tx queue
+ * refuses stay due (retried when it drains, dropped when the window closes). */
+static void flush_sync(co_pdo_t *pdo)
+{
+    uint16_t i;
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        if (ch->sync_due && transmit(pdo, ch)) {
+            ch->sync_due = false;
+        }
+    }
+}
+
+static void on_retry(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    co_pdo_t *pdo = user;
+    (void)timer;
+    (void)now_us;
+    if (pdo->operational) {
+        flush_sync(pdo);
+    }
+}
+
+/* The tx queue drained to half (driver context): retry from a timer. */
+static void on_tx_space(co_line_t *line, void *user)
+{
+    co_pdo_t *pdo = user;
+    co_timer_start(co_line_timers(line), &pdo->retry_timer, line->now_us);
+}
+
+/* ------------------------------------------------------------ runtime state */
+
+/* Forget timers and buffered data of a channel. */
+static void stop_channel(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    co_timer_cancel(co_line_timers(pdo->line), &ch->timer);
+    co_timer_cancel(co_line_timers(pdo->line), &ch->inhibit_timer);
+    ch->sync_count = 0;
+    ch->wait_start = true;
+    ch->event_pending = false;
+    ch->sync_due = false;
+    ch->has_data = false;
+    ch->rx_pending = false;
+    ch->monitoring = false;
+    ch->timed_out = false;
+    ch->rx_error = 0;
+    ch->len = 0;
+}
+
+/* Entering operational (or configured while operational). */
+static void start_channel(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    if (!ch->is_rpdo) {
+        arm_event_timer(pdo, ch);
+    }
+}
+
+/* ------------------------------------------------------------ configuration */
+
+static void unmap(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
+    if (!ch->active) {
+        return;
+    }
+    if (ch->is_rpdo) {
+        if (ch->ext) {
+            pdo->ext_rpdos--;
+        } else if (pdo->rx_map[ch->can_id] == slot) {
+            pdo->rx_map[ch->can_id] = 0;
+        }
+    } else if (ch->rtr_allowed && !ch->ext && pdo->rtr_map[ch->can_id] == slot) {
+        pdo->rtr_map[ch->can_id] = 0;
+    }
+    ch->active = false;
+}
+
+static uint8_t mapping_count(const co_pdo_t *pdo, const co_pdo_channel_t *ch)
+{
+    uint8_t n = 0;
+    co_od_get_u8(pdo->od, map_index(ch), 0, &n);
+    return n;
+}
+
+/* Read the channel's parameters from the OD and (de)activate it. */
+static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    uint16_t comm = comm_index(ch);
+    uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
+    uint32_t cob = COB_INVALID;
+    uint8_t type = CO_PDO_TYPE_EVENT_MANUFACTURER;
+    uint8_t count;
+    uint16_t bits = 0;
+
+    unmap(pdo, ch);
+    stop_channel(pdo, ch);
+    ch->map_count = 0;
+    ch->bits = 0;
+    ch->inhibit_100us = 0;
+    ch->event_ms = 0;
+    ch->sync_start = 0;
+    co_od_get_u32(pdo->od, comm, SUB_COB_ID, &cob);
+    co_od_get_u8(pdo->od, comm, SUB_TYPE, &type);
+    co_od_get_u16(pdo->od, comm, SUB_EVENT, &ch->event_ms);
+    if (!ch->is_rpdo) {
+        co_od_get_u16(pdo->od, comm, SUB_INHIBIT, &ch->inhibit_100us);
+        co_od_get_u8(pdo->od, comm, SUB_SYNC_START, &ch->sync_start);
+        if (ch->sync_start > SYNC_START_MAX) {
+            ch->sync_start = 0;
+        }
+    }
+    ch->type = type;
+    count = mapping_count(pdo, ch);
+    if (cob & COB_INVALID) {
+        return;
+    }
+    if (count == 0 || check_type(pdo, ch->is_rpdo, type) != 0 || check_cob_id_value(cob) != 0 ||
+        co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, count, ch->map_capacity, ch->map,
+                           &bits) != 0) {
+        pdo->stats.config_invalid++;
+        return;
+    }
+    ch->map_count = count;
+    ch->bits = bits;
+    ch->ext = (cob & COB_EXT) != 0;
+    ch->can_id = cob & (ch->ext ? COB_ID_29 : COB_ID_11);
+    if (ch->is_rpdo) {
+        if (ch->ext) {
+            pdo->ext_rpdos++;
+        } else if (pdo->rx_map[ch->can_id] != 0 || pdo->line->id_map[ch->can_id] != 0) {
+            pdo->stats.id_conflicts++;
+            return;
+        } else {
+            pdo->rx_map[ch->can_id] = slot;
+        }
+    } else {
+        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && pdo->line->mode == CO_MODE_CLASSIC;
+        if (ch->rtr_allowed && !ch->ext && pdo->rtr_map[ch->can_id] == 0) {
+            pdo->rtr_map[ch->can_id] = slot;
+        }
+    }
+    ch->active = true;
+    if (pdo->operational) {
+        start_channel(pdo, ch);
+    }
+}
+
+/* ------------------------------------------------------------ OD write path */
+
+/* Whether the OD says the PDO exists (COB-ID bit 31 clear). */
+static bool od_valid(const co_pdo_t *pdo, const co_pdo_channel_t *ch)
+{
+    uint32_t cob = COB_INVALID;
+    co_od_get_u32(pdo->od, comm_index(ch), SUB_COB_ID, &cob);
+    return (cob & COB_INVALID) == 0;
+}
+
+static uint32_t get_le32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint32_t check_comm(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entry_t *e,
+                           const uint8_t *value, uint32_t length)
+{
+    uint8_t sub = co_od_entry_sub(e);
+    uint32_t abort;
+    if (sub == SUB_COB_ID && e->type == CO_TYPE_UNSIGNED32 && length == 4) {
+        uint32_t cob = get_le32(value);
+        uint16_t bits;
+        uint32_t id;
+        if (cob & COB_INVALID) {
+            return 0;
+        }
+        abort = check_cob_id_value(cob);
+        if (abort != 0) {
+            return abort;
+        }
+        /* enabling needs a usable mapping and transmission type */
+        if (mapping_count(pdo, ch) == 0 ||
+            co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, mapping_count(pdo, ch),
+                               ch->map_capacity, NULL, &bits) != 0 ||
+            check_type(pdo, ch->is_rpdo, ch->type) != 0) {
+            return CO_ABORT_INVALID_VALUE;
+        }
+        id = cob & COB_ID_11;
+        if (ch->is_rpdo && !(cob & COB_EXT)) {
+            uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
+            if ((pdo->rx_map[id] != 0 && pdo->rx_map[id] != slot) ||
+                pdo->line->id_map[id] != 0) {
+                return CO_ABORT_INVALID_VALUE;   /* another RPDO or service takes it */
+            }
+        }
+        return 0;
+    }
+    if (sub == SUB_TYPE && e->type == CO_TYPE_UNSIGNED8 && length == 1) {
+        return check_type(pdo, ch->is_rpdo, value[0]);
+    }
+    if (ch->is_rpdo) {
+        return 0;
+    }
+    if (sub == SUB_INHIBIT && e->type == CO_TYPE_UNSIGNED16 && length == 2) {
+        uint16_t old = 0;
+        co_od_get_u16(pdo->od, comm_index(ch), SUB_INHIBIT, &old);
+        if (od_valid(pdo, ch) && old != (uint16_t)(value[0] | value[1] << 8)) {
+            return CO_ABORT_INVALID_VALUE;   /* only while the PDO does not exist */
+        }
+    }
+    if (sub == SUB_SYNC_START && e->type == CO_TYPE_UNSIGNED8 && length == 1) {
+        uint8_t old = 0;
+        co_od_get_u8(pdo->od, comm_index(ch), SUB_SYNC_START, &old);
+        if (value[0] > SYNC_START_MAX || (od_valid(pdo, ch) && old != value[0])) {
+            return CO_ABORT_INVALID_VALUE;
+        }
+    }
+    return 0;
+}
+
+/* CiA 301 mapping procedure: invalidate the PDO, sub 0 = 0, entries,
+ * sub 0 = n (checked whole), validate. Writing a value equal to the current
+ * one is always accepted (configuration tools write whole DCFs). */
+static uint32_t check_map(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entry_t *e,
+                          const uint8_t *value, uint32_t length)
+{
+    uint8_t sub = co_od_entry_sub(e);
+    if (sub == 0 && e->type == CO_TYPE_UNSIGNED8 && length == 1) {
+        uint16_t bits;
+        if (value[0] == mapping_count(pdo, ch)) {
+            return 0;
+        }
+        if (od_valid(pdo, ch)) {
+            return CO_ABORT_INVALID_VALUE;
+        }
+        if (value[0] == 0) {
+            return 0;
+        }
+        return co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, value[0],
+                                  ch->map_capacity, NULL, &bits);
+    }
+    if (sub >= 1 && e->type == CO_TYPE_UNSIGNED32 && length == 4) {
+        uint32_t mapping = get_le32(value);
+        uint32_t old = 0;
+        co_od_get_u32(pdo->od, map_index(ch), sub, &old);
+        if (mapping == old) {
+            return 0;
+        }
+        if (od_valid(pdo, ch) || mapping_count(pdo, ch) != 0) {
+            return CO_ABORT_INVALID_VALUE;
+        }
+        return mapping == 0 ? 0 : co_pdo_map_check_entry(pdo->od, ch->is_rpdo, mapping, NULL);
+    }
+    return 0;
+}
+
+static uint32_t check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                            const uint8_t *value, uint32_t length, void *user)
+{
+    co_pdo_t *pdo = user;
+    bool is_map;
+    co_pdo_channel_t *ch = channel_of_index(pdo, co_od_entry_index(e), &is_map);
+    (void)od;
+    (void)xfer;
+    if (ch == NULL) {
+        return 0;
+    }
+    return is_map ? check_map(pdo, ch, e, value, length) : check_comm(pdo, ch, e, value, length);
+}
+
+static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin, void *user)
+{
+    co_pdo_t *pdo = user;
+    bool is_map;
+    co_pdo_channel_t *ch = channel_of_index(pdo, co_od_entry_index(e), &is_map);
+    (void)od;
+    if (ch == NULL || origin == CO_ORIGIN_RESTORE) {
+        return;   /* a reset re-reads everything: co_pdo_reload */
+    }
+    configure(pdo, ch);
+}
+
+static const co_od_handler_t pdo_handler = {
+    .check_write = check_write,
+    .after_write = after_write,
+};
+
+/* ------------------------------------------------------------ reception */
+
+static void apply(co_pdo_t *pdo, co_pdo_channel_t *ch, const uint8_t *data)
+{
+    co_pdo_map_unpack(pdo->od, ch->map, ch->map_count, data);
+    pdo->stats.rx_frames++;
+    if (pdo->ind != NULL && pdo->ind->received != NULL) {
+        pdo->ind->received(pdo, ch->number, pdo->user);
+    }
+}
+
+/* A length error is reported once until a frame of the right length comes. */
+static void length_error(co_pdo_t *pdo, co_pdo_channel_t *ch, uint16_t code)
+{
+    if (ch->rx_error != code) {
+        ch->rx_error = code;
+        report(pdo, ch, code);
+    }
+}
+
+static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
+{
+    uint8_t need = (uint8_t)((ch->bits + 7u) / 8u);
+    /* fd lines send the mapped bytes rounded up to an FD length */
+    uint8_t allowed = pdo->line->mode == CO_MODE_FD ? co_fd_len_round(need) : need;
+    if (!pdo->operational) {
+        pdo->stats.rx_not_operational++;
+        return;
+    }
+    if (f->len < need) {
+        pdo->stats.rx_short++;
+        length_error(pdo, ch, CO_PDO_EMCY_LENGTH);
+        return;
+    }
+    if (f->len > allowed) {
+        pdo->stats.rx_long++;
+        length_error(pdo, ch, CO_PDO_EMCY_LENGTH_EXCEEDED);
+    } else {
+        ch->rx_error = 0;
+    }
+    if (ch->event_ms != 0) {
+        ch->monitoring = true;
+        co_timer_start(co_line_timers(pdo->line), &ch->timer,
+                       pdo->line->now_us + ms_to_us(ch->event_ms));
+    }
+    if (ch->timed_out) {
+        ch->timed_out = false;
+        report(pdo, ch, CO_PDO_EMCY_RECEIVED_AGAIN);
+    }
+    if (is_sync_type(ch->type)) {
+        memcpy(ch->buf, f->data, need);   /* the latest frame before the SYNC wins */
+        ch->rx_pending = true;
+        return;
+    }
+    apply(pdo, ch, f->data);
+}
+
+static co_pdo_channel_t *find_ext(co_pdo_t *pdo, bool is_rpdo, uint32_t id)
+{
+    uint16_t i;
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        if (ch->active && ch->ext && ch->is_rpdo == is_rpdo && ch->can_id == id &&
+            (is_rpdo || ch->rtr_allowed)) {
+            return ch;
+        }
+    }
+    return NULL;
+}
+
+static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
+{
+    co_pdo_channel_t *ch;
+    if (pdo->line->mode != CO_MODE_CLASSIC) {
+        return false;   /* fd lines have no remote frames for PDOs */
+    }
+    if (f->flags & CO_FRAME_EXT) {
+        ch = find_ext(pdo, false, f->id);
+    } else {
+        uint16_t slot = pdo->rtr_map[f->id];
+        ch = slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+    }
+    if (ch == NULL) {
+        return false;
+    }
+    if (!pdo->operational) {
+        pdo->stats.rx_not_operational++;
+        return true;
+    }
+    if (ch->type == CO_PDO_TYPE_RTR_EVENT || is_event_type(ch->type)) {
+        if (!sample(pdo, ch)) {   /* sampled now */
+            return true;
+        }
+    } else if (!ch->has_data) {
+        pdo->stats.rtr_refused++;   /* nothing sampled at a SYNC yet */
+        return true;
+    }
+    pdo->stats.rtr_answered++;
+    transmit(pdo, ch);
+    if (is_event_type(ch->type)) {
+        ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
+        arm_event_timer(pdo, ch);
+    }
+    return true;
+}
+
+static bool on_other(co_line_t *line, const co_frame_t *f, void *user)
+{
+    co_pdo_t *pdo = user;
+    co_pdo_channel_t *ch;
+    (void)line;
+    if (f->flags & CO_FRAME_RTR) {
+        return on_rtr(pdo, f);
+    }
+    if (f->flags & CO_FRAME_EXT) {
+        ch = pdo->ext_rpdos != 0 ? find_ext(pdo, true, f->id) : NULL;
+    } else {
+        uint16_t slot = pdo->rx_map[f->id];
+        ch = slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+    }
+    if (ch == NULL) {
+        pdo->stats.rx_not_ours++;
+        return false;
+    }
+    on_rpdo(pdo, ch, f);
+    return true;
+}
+
+/* ------------------------------------------------------------ SYNC */
+
+/* Whether a cyclic synchronous TPDO (1..240) is due at this SYNC. Without
+ * a start value the first SYNC counts as 1 (sent at the n-th); with one
+ * (and a SYNC counter) it is sent at the SYNC carrying the start value and
+ * every n-th after it (as CANopenNode). */
+static bool cyclic_due(co_pdo_channel_t *ch, uint8_t counter)
+{
+    if (ch->wait_start) {
+        if (ch->sync_start != 0 && counter != 0) {
+            if (counter != ch->sync_start) {
+                return false;
+            }
+            ch->wait_start = false;
+            ch->sync_count = ch->type;
+            return true;
+        }
+        ch->wait_start = false;
+        ch->sync_count = ch->type;
+    }
+    if (--ch->sync_count == 0) {
+        ch->sync_count = ch->type;
+        return true;
+    }
+    return false;
+}
+
+void co_pdo_sync(co_pdo_t *pdo, uint8_t counter)
+{
+    uint16_t i;
+    bool any = false;
+    if (!pdo->operational) {
+        return;
+    }
+    /* RPDOs received before this SYNC first, then the TPDOs sample */
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        if (ch->is_rpdo && ch->active && ch->rx_pending) {
+            ch->rx_pending = false;
+            apply(pdo, ch, ch->buf);
+        }
+    }
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        if (ch->is_rpdo || !ch->active) {
+            continue;
+        }
+        if (ch->type == CO_PDO_TYPE_SYNC_ACYCLIC) {
+            if (ch->event_pending) {
+                ch->event_pending = false;
+                ch->sync_due = sample(pdo, ch);
+                any = true;
+            }
+        } else if (ch->type <= CO_PDO_TYPE_SYNC_MAX) {
+            if (cyclic_due(ch, counter)) {
+                ch->sync_due = sample(pdo, ch);
+                any = true;
+            }
+        } else if (ch->type == CO_PDO_TYPE_RTR_SYNC) {
+            (void)sample(pdo, ch);   /* answered at the next RTR */
+        }
+    }
+    if (any && pdo->operational) {   /* (a callback may have left operational) */
+        flush_sync(pdo);
+    }
+}
+
+void co_pdo_sync_window_closed(co_pdo_t *pdo)
+{
+    uint16_t i;
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        if (ch->sync_due) {
+            ch->sync_due = false;
+            pdo->stats.sync_window_drops++;
+        }
+    }
+}
+
+/* ------------------------------------------------------------ API */
+
+/* Calls fn(user, is_rpdo, number, map_capacity) for every PDO of the OD. */
+static void each_pdo(const co_od_t *od, void (*fn)(void *, bool, uint16_t, uint8_t), void *user)
+{
+    uint16_t n;
+    int dir;
+    for (dir = 0; dir < 2; dir++) {
+        bool is_rpdo = dir == 0;
+        uint16_t comm = is_rpdo ? CO_PDO_RPDO_COMM : CO_PDO_TPDO_COMM;
+        uint16_t map = is_rpdo ? CO_PDO_RPDO_MAP : CO_PDO_TPDO_MAP;
+        for (n = 0; n < CO_PDO_MAX_NUMBER; n++) {
+            uint8_t capacity = 0, sub;
+            if (!co_od_has_index(od, (uint16_t)(comm + n)) ||
+                co_od_find(od, (uint16_t)(comm + n), SUB_COB_ID) == NULL) {
+                continue;
+            }
+            if (co_od_has_index(od, (uint16_t)(map + n))) {
+                for (sub = 1; sub <= CO_PDO_MAX_ENTRIES; sub++) {
+                    if (co_od_find(od, (uint16_t)(map + n), sub) != NULL) {
+                        capacity = sub;
+                    }
+                }
+            }
+            fn(user, is_rpdo, (uint16_t)(n + 1u), capacity);
+        }
+    }
+}
+
+typedef struct need_count {
+    uint32_t channels;
+    uint32_t items;
+} need_count_t;
+
+static void count_pdo(void *user, bool is_rpdo, uint16_t number, uint8_t capacity)
+{
+    need_count_t *c = user;
+    (void)is_rpdo;
+    (void)number;
+    c->channels++;
+    c->items += capacity;
+}
+
+bool co_pdo_need(const co_od_t *od, uint32_t *channel_count, uint32_t *item_count)
+{
+    need_count_t c = {0, 0};
+    if (od == NULL || !od->sealed) {
+        return false;
+    }
+    each_pdo(od, count_pdo, &c);
+    *channel_count = c.channels;
+    *item_count = c.items;
+    return true;
+}
+
+typedef struct setup {
+    co_pdo_t *pdo;
+    co_pdo_map_item_t *items;
+    uint32_t used;
+} setup_t;
+
+static void setup_pdo(void *user, bool is_rpdo, uint16_t number, uint8_t capacity)
+{
+    setup_t *s = user;
+    co_pdo_t *pdo = s->pdo;
+    co_pdo_channel_t *ch = &pdo->channels[pdo->channel_count++];
+    memset(ch, 0, sizeof *ch);
+    ch->owner = pdo;
+    ch->is_rpdo = is_rpdo;
+    ch->number = number;
+    ch->map = s->items + s->used;
+    ch->map_capacity = capacity;
+    s->used += capacity;
+    co_timer_init(&ch->timer, on_channel_timer, ch);
+    co_timer_init(&ch->inhibit_timer, on_inhibit_end, ch);
+    if (is_rpdo) {
+        pdo->rpdo_of[number - 1u] = pdo->channel_count;
+    } else {
+        pdo->tpdo_of[number - 1u] = pdo->channel_count;
+    }
+}
+
+bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_config_t *config)
+{
+    uint32_t channels, items;
+    setup_t s;
+    if (pdo == NULL || line == NULL || config == NULL || !co_pdo_need(od, &channels, &items) ||
+        od->mode != line->mode || config->channel_count < channels ||
+        config->item_count < items || (channels > 0 && config->channels == NULL) ||
+        (items > 0 && config->items == NULL)) {
+        return false;
+    }
+    memset(pdo, 0, sizeof *pdo);
+    pdo->line = line;
+    pdo->od = od;
+    pdo->ind = config->ind;
+    pdo->user = config->user;
+    pdo->channels = config->channels;
+    co_timer_init(&pdo->retry_timer, on_retry, pdo);
+    s.pdo = pdo;
+    s.items = config->items;
+    s.used = 0;
+    each_pdo(od, setup_pdo, &s);
+    if (!co_od_subscribe(od, CO_PDO_RPDO_COMM, 0, CO_PDO_TPDO_MAP + CO_PDO_MAX_NUMBER - 1u, 0xFF,
+                         &pdo_handler, pdo)) {
+        return false;
+    }
+    if (!co_line_subscribe_other(line, on_other, pdo)) {
+        co_od_unsubscribe(od, &pdo_handler, pdo);
+        return false;
+    }
+    if (!co_line_tx_space_register(line, on_tx_space, pdo)) {
+        co_line_unsubscribe_other(line, on_other, pdo);
+        co_od_unsubscribe(od, &pdo_handler, pdo);
+        return false;
+    }
+    pdo->hooked = true;
+    co_pdo_reload(pdo);
+    return true;
+}
+
+void co_pdo_deinit(co_pdo_t *pdo)
+{
+    uint16_t i;
+    if (!pdo->hooked) {
+        return;
+    }
+    for (i = 0; i < pdo->channel_count; i++) {
+        unmap(pdo, &pdo->channels[i]);
+        stop_channel(pdo, &pdo->channels[i]);
+    }
+    co_timer_cancel(co_line_timers(pdo->line), &pdo->retry_timer);
+    co_line_tx_space_unregister(pdo->line, on_tx_space, pdo);
+    co_line_unsubscribe_other(pdo->line, on_other, pdo);
+    co_od_unsubscribe(pdo->od, &pdo_handler, pdo);
+    pdo->hooked = false;
+}
+
+void co_pdo_reload(co_pdo_t *pdo)
+{
+    uint16_t i;
+    /* everything off first, so a COB-ID another PDO gave up is free */
+    for (i = 0; i < pdo->channel_count; i++) {
+        unmap(pdo, &pdo->channels[i]);
+    }
+    for (i = 0; i < pdo->channel_count; i++) {
+        configure(pdo, &pdo->channels[i]);
+    }
+}
+
+void co_pdo_set_operational(co_pdo_t *pdo, bool operational)
+{
+    uint16_t i;
+    if (operational == pdo->operational) {
+        return;
+    }
+    pdo->operational = operational;
+    co_timer_cancel(co_line_timers(pdo->line), &pdo->retry_timer);
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        stop_channel(pdo, ch);
+        if (operational && ch->active) {
+            start_channel(pdo, ch);
+        }
+    }
+}
+
+bool co_pdo_trigger(co_pdo_t *pdo, uint16_t tpdo_number)
+{
+    co_pdo_channel_t *ch = channel_of(pdo, false, tpdo_number);
+    if (ch == NULL || !ch->active || !pdo->operational || ch->sampling) {
+        return false;
+    }
+    if (ch->type == CO_PDO_TYPE_SYNC_ACYCLIC) {
+        ch->event_pending = true;   /* sent at the next SYNC */
+        return true;
+    }
+    if (!is_event_type(ch->type)) {
+        return false;
+    }
+    tpdo_event(pdo, ch);
+    return true;
+}
+
+uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
+{
+    const co_od_entry_t *e = co_od_find(pdo->od, index, sub);
+    uint32_t entry, triggered = 0;
+    uint16_t i;
+    if (e == NULL || !pdo->operational) {
+        return 0;
+    }
+    entry = (uint32_t)(e - pdo->od->entries);
+    for (i = 0; i < pdo->channel_count; i++) {
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        uint8_t k;
+        if (ch->is_rpdo || !ch->active ||
+            !(ch->type == CO_PDO_TYPE_SYNC_ACYCLIC || is_event_type(ch->type))) {
+            continue;
+        }
+        for (k = 0; k < ch->map_count; k++) {
+            if (ch->map[k].entry == entry && !(ch->map[k].flags & CO_PDO_ITEM_DUMMY)) {
+                co_pdo_trigger(pdo, ch->number);
+                triggered++;
+                break;
+            }
+        }
+    }
+    return triggered;
+}
+
+bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
+{
+    uint16_t slot = slot_of(pdo, is_rpdo, number);
+    return slot != 0 && pdo->channels[slot - 1u].active;
+}

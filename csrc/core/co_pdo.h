@@ -1,0 +1,193 @@
+/* PDO service (CiA 301 / CiA 1301): up to 512 RPDOs and 512 TPDOs taken
+ * from a sealed object dictionary, their data in the OD's value pool.
+ *
+ *   RPDO n (1..512): communication 0x1400 + n - 1, mapping 0x1600 + n - 1
+ *   TPDO n (1..512): communication 0x1800 + n - 1, mapping 0x1A00 + n - 1
+ *
+ * A PDO exists when its communication object has sub 1 (COB-ID); it has as
+ * many mapping slots as its mapping object has sub-entries (at most 64).
+ * It works (is "active") while its COB-ID has bit 31 clear, its mapping
+ * compiles with at least one entry and its transmission type suits it;
+ * data flow only while the node is operational (co_pdo_set_operational).
+ *
+ * Configuration follows the OD at once: a handler on 0x1400..0x1BFF checks
+ * network writes (CiA 301 abort codes, see docs/protocol-notes.md "PDO")
+ * and re-reads the PDO after every write. Values loaded by a reset (origin
+ * RESTORE) are not re-read one by one: call co_pdo_reload after loading.
+ *
+ * Transmission types: 0 (sent at the next SYNC after a trigger), 1..240
+ * (every n-th SYNC, SYNC start value sub 6), 252 (classic: sampled at SYNC,
+ * sent on RTR), 253 (classic: sampled and sent on RTR), 254/255 (events:
+ * trigger, trigger by mapped object, event timer sub 5; inhibit time sub 3).
+ * RPDOs 0..240 are applied at the next SYNC, 254/255 at once; sub 5 of an
+ * RPDO is its reception deadline.
+ *
+ * Reception goes through co_line_subscribe_other (COB-IDs are configurable):
+ * an 11-bit id finds its RPDO in a 2048-entry table, a 29-bit id by a
+ * bounded search of the RPDOs with 29-bit COB-IDs. Nothing allocates; all
+ * storage is the caller's, sized by co_pdo_need. */
+#ifndef CO_PDO_H
+#define CO_PDO_H
+
+#include "co_line.h"
+#include "co_od.h"
+#include "co_pdo_map.h"
+
+enum {
+    CO_PDO_MAX_NUMBER = 512,        /* RPDOs and TPDOs each */
+    CO_PDO_RPDO_COMM = 0x1400,
+    CO_PDO_RPDO_MAP = 0x1600,
+    CO_PDO_TPDO_COMM = 0x1800,
+    CO_PDO_TPDO_MAP = 0x1A00
+};
+
+/* EMCY error codes handed to the error callback (CiA 301). */
+enum {
+    CO_PDO_EMCY_RECEIVED_AGAIN = 0x0000,   /* an RPDO that missed its deadline arrived */
+    CO_PDO_EMCY_LENGTH = 0x8210,           /* RPDO shorter than its mapping: ignored */
+    CO_PDO_EMCY_LENGTH_EXCEEDED = 0x8220,  /* RPDO longer than allowed: applied */
+    CO_PDO_EMCY_RPDO_TIMEOUT = 0x8250      /* no RPDO within its event time */
+};
+
+/* Transmission types (sub 2). */
+enum {
+    CO_PDO_TYPE_SYNC_ACYCLIC = 0,
+    CO_PDO_TYPE_SYNC_MAX = 240,
+    CO_PDO_TYPE_RTR_SYNC = 252,
+    CO_PDO_TYPE_RTR_EVENT = 253,
+    CO_PDO_TYPE_EVENT_MANUFACTURER = 254,
+    CO_PDO_TYPE_EVENT_PROFILE = 255
+};
+
+/* cffi:begin */
+typedef struct co_pdo_stats {
+    uint32_t tx_frames;             /* TPDOs queued for sending */
+    uint32_t tx_failed;             /* the line refused a TPDO (tx queue full) */
+    uint32_t tx_inhibited;          /* events held back until the inhibit time ended */
+    uint32_t sync_window_drops;     /* synchronous TPDOs still unsent when the window closed */
+    uint32_t rx_frames;             /* RPDOs applied (at once or at SYNC) */
+    uint32_t rx_short;              /* RPDOs shorter than their mapping (ignored) */
+    uint32_t rx_long;               /* RPDOs longer than allowed (applied) */
+    uint32_t rx_not_ours;           /* frames offered whose id is no active RPDO */
+    uint32_t rx_not_operational;    /* RPDO / RTR frames while not operational */
+    uint32_t rx_timeouts;           /* RPDO deadlines missed */
+    uint32_t rtr_answered;
+    uint32_t rtr_refused;           /* RTR on a TPDO that does not allow it (bit 30, type) */
+    uint32_t config_invalid;        /* a valid COB-ID whose PDO cannot work (mapping, type, id) */
+    uint32_t id_conflicts;          /* an RPDO COB-ID another RPDO or service already takes */
+} co_pdo_stats_t;
+/* cffi:end */
+
+struct co_pdo;
+
+typedef struct co_pdo_channel {
+    struct co_pdo *owner;
+    co_pdo_map_item_t *map;         /* slice of the caller's items */
+    uint8_t map_capacity;           /* mapping sub-entries in the OD */
+    uint8_t map_count;              /* compiled items */
+    uint16_t bits;                  /* mapped length in bits */
+    uint16_t number;                /* 1..512 */
+    bool is_rpdo;
+    bool active;
+    bool ext;                       /* 29-bit CAN-ID */
+    bool rtr_allowed;               /* TPDO, classic, COB-ID bit 30 clear */
+    uint8_t type;
+    uint32_t can_id;
+    uint16_t inhibit_100us;
+    uint16_t event_ms;
+    uint8_t sync_start;
+    /* runtime */
+    uint8_t sync_count;             /* SYNCs still to go (1..240); 0 = not counting yet */
+    bool wait_start;                /* waiting for the SYNC start value */
+    bool event_pending;             /* TPDO: an event waits (inhibit time, or SYNC for type 0) */
+    bool sync_due;                  /* TPDO: sampled at SYNC, not queued yet */
+    bool has_data;                  /* TPDO: buf holds data for an RTR */
+    bool rx_pending;                /* RPDO: buf holds a frame for the next SYNC */
+    bool monitoring;                /* RPDO: deadline armed (from the first reception) */
+    bool timed_out;                 /* RPDO: deadline missed, not received since */
+    bool sampling;                  /* TPDO: inside before_send */
+    uint16_t rx_error;              /* RPDO: length error reported last (0 = none) */
+    uint8_t len;                    /* bytes in buf */
+    uint64_t inhibit_end_us;
+    co_timer_t timer;               /* TPDO event timer / RPDO deadline */
+    co_timer_t inhibit_timer;
+    uint8_t buf[CO_PDO_FD_BYTES];
+} co_pdo_channel_t;
+
+typedef struct co_pdo co_pdo_t;
+
+/* Callbacks to the integration; each may be NULL. pdo_number is 1..512. */
+typedef struct co_pdo_indications {
+    /* emcy_code: CO_PDO_EMCY_* (a length error is reported once until a
+     * frame of the right length arrives; RECEIVED_AGAIN ends a timeout). */
+    void (*error)(co_pdo_t *pdo, uint16_t emcy_code, bool is_rpdo, uint16_t pdo_number,
+                  void *user);
+    /* An RPDO's data were written into the OD (origin "pdo"). */
+    void (*received)(co_pdo_t *pdo, uint16_t pdo_number, void *user);
+    /* A TPDO is about to be sampled: refresh its mapped values now
+     * (co_pdo_trigger of this TPDO is refused from inside). */
+    void (*before_send)(co_pdo_t *pdo, uint16_t pdo_number, void *user);
+} co_pdo_indications_t;
+
+typedef struct co_pdo_config {
+    co_pdo_channel_t *channels;     /* co_pdo_need's channel count */
+    uint32_t channel_count;
+    co_pdo_map_item_t *items;       /* co_pdo_need's item count */
+    uint32_t item_count;
+    const co_pdo_indications_t *ind;
+    void *user;
+} co_pdo_config_t;
+
+struct co_pdo {
+    co_line_t *line;
+    co_od_t *od;
+    const co_pdo_indications_t *ind;
+    void *user;
+    co_pdo_channel_t *channels;
+    uint16_t channel_count;
+    bool operational;
+    bool hooked;
+    uint16_t ext_rpdos;             /* active RPDOs with a 29-bit COB-ID */
+    uint16_t rpdo_of[CO_PDO_MAX_NUMBER];   /* number - 1 -> channel + 1 (0 = none) */
+    uint16_t tpdo_of[CO_PDO_MAX_NUMBER];
+    uint16_t rx_map[CO_LINE_ID_MAP_SIZE];  /* 11-bit CAN-ID -> active RPDO channel + 1 */
+    uint16_t rtr_map[CO_LINE_ID_MAP_SIZE]; /* 11-bit CAN-ID -> TPDO answering RTR + 1 */
+    co_timer_t retry_timer;         /* sends synchronous TPDOs the tx queue refused */
+    co_pdo_stats_t stats;
+};
+
+/* Storage a sealed OD needs: PDOs (communication objects with sub 1) and
+ * mapping slots (sub-entries 1..64 of their mapping objects). False when
+ * the OD is not sealed. */
+bool co_pdo_need(const co_od_t *od, uint32_t *channel_count, uint32_t *item_count);
+/* Reads every PDO from the OD (as co_pdo_reload), hooks the OD's write path
+ * and the line's "other" receivers. Not operational yet. False when the OD
+ * is not sealed, its mode differs from the line's, storage is too small, or
+ * a hook is refused (nothing stays hooked then). */
+bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_config_t *config);
+void co_pdo_deinit(co_pdo_t *pdo);
+/* Re-read every PDO's communication and mapping parameters (after a reset
+ * loaded them); running timers and buffered data start over. */
+void co_pdo_reload(co_pdo_t *pdo);
+/* NMT operational or not: leaving stops every timer and drops buffered
+ * data; entering starts the TPDO event timers. */
+void co_pdo_set_operational(co_pdo_t *pdo, bool operational);
+/* A SYNC was received (or produced); counter = its counter value, 0 when
+ * the SYNC carries none. Applies buffered synchronous RPDOs, then samples
+ * and sends the synchronous TPDOs that are due. */
+void co_pdo_sync(co_pdo_t *pdo, uint8_t counter);
+/* The synchronous window (0x1007) closed: synchronous TPDOs not sent yet
+ * are dropped (counted in sync_window_drops). */
+void co_pdo_sync_window_closed(co_pdo_t *pdo);
+/* Application event for TPDO n: types 254/255 send now (or when the
+ * inhibit time ends), type 0 at the next SYNC. False when the TPDO does not
+ * exist, is not active, not operational, or its type takes no events. */
+bool co_pdo_trigger(co_pdo_t *pdo, uint16_t tpdo_number);
+/* The mapped object index:sub changed: triggers every active TPDO of type
+ * 0, 254 or 255 that maps it. Returns how many were triggered. */
+uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub);
+/* Active = configured and usable (independent of the NMT state). */
+bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number);
+static inline const co_pdo_stats_t *co_pdo_stats(const co_pdo_t *pdo) { return &pdo->stats; }
+
+#endif
