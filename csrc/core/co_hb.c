@@ -106,6 +106,9 @@ static void monitor_heartbeat(co_hb_consumer_t *c, co_hb_entry_t *e, co_nmt_stat
 static void on_heartbeat_frame(co_line_t *line, const co_frame_t *frame, void *user)
 {
     co_hb_consumer_t *c = user;
+    if (c->filter && c->filter(line, frame, c->filter_user)) {
+        return;
+    }
     uint8_t node_id = (uint8_t)(frame->id - CO_NMT_EC_COB_ID_BASE);
     if (node_id == 0) {
         line->stats.hb_bad_node++;
@@ -150,6 +153,8 @@ bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *en
     c->capacity = capacity;
     c->on_event = on_event;
     c->user = user;
+    c->filter = NULL;
+    c->filter_user = NULL;
     memset(c->last_state, CO_NMT_UNKNOWN, sizeof c->last_state);
     for (uint8_t i = 0; i < capacity; i++) {
         entries[i] = (co_hb_entry_t){.owner = c};
@@ -165,6 +170,12 @@ void co_hb_consumer_deinit(co_hb_consumer_t *c)
         co_timer_cancel(&c->line->timers, &c->entries[i].timer);
     }
     co_line_unsubscribe(c->line, on_heartbeat_frame, c);
+}
+
+void co_hb_consumer_set_filter(co_hb_consumer_t *c, co_rx_other_fn fn, void *user)
+{
+    c->filter = fn;
+    c->filter_user = user;
 }
 
 co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t index,

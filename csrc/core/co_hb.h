@@ -54,6 +54,10 @@ typedef struct co_hb_consumer {
     uint8_t capacity;
     co_hb_event_fn on_event;
     void *user;
+    /* Offered every frame of 0x700..0x77F first; true = taken (node guarding
+     * answers of guarded nodes, see co_guard.h). NULL: none. */
+    co_rx_other_fn filter;
+    void *filter_user;
     /* Last state seen of every node, CO_NMT_UNKNOWN when none. Indexed by node-id. */
     uint8_t last_state[128];
 } co_hb_consumer_t;
@@ -63,6 +67,10 @@ typedef struct co_hb_consumer {
 bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *entries,
                          uint8_t capacity, co_hb_event_fn on_event, void *user);
 void co_hb_consumer_deinit(co_hb_consumer_t *c);
+/* Hand frames of the range to fn first (one filter; NULL removes it): a
+ * frame it takes is not a heartbeat (co_guard_master_receive takes the node
+ * guarding answers of the nodes it guards). */
+void co_hb_consumer_set_filter(co_hb_consumer_t *c, co_rx_other_fn fn, void *user);
 
 /* Result codes for entry configuration (map to SDO aborts later). */
 typedef enum co_hb_config_result {
