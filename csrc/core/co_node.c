@@ -2,11 +2,32 @@
 
 #include "co_cob_id.h"
 
+#include <string.h>
+
+/* Every service hears the NMT state (PDOs flow only in operational). */
+static void services_set_state(co_node_t *node, co_nmt_state_t state)
+{
+    const co_node_services_t *s = &node->services;
+    if (s->pdo) {
+        co_pdo_set_operational(s->pdo, state == CO_NMT_OPERATIONAL);
+    }
+    if (s->emcy) {
+        co_emcy_set_nmt_state(s->emcy, state);
+    }
+    if (s->sync) {
+        co_sync_set_nmt_state(s->sync, state);
+    }
+    if (s->time) {
+        co_time_set_nmt_state(s->time, state);
+    }
+}
+
 static void on_state_changed(co_nmt_t *nmt, co_nmt_state_t old_state,
                              co_nmt_state_t new_state, void *user)
 {
     (void)nmt;
     co_node_t *node = user;
+    services_set_state(node, new_state);
     if (node->ind && node->ind->state_changed) {
         node->ind->state_changed(node, old_state, new_state, node->user);
     }
@@ -68,6 +89,282 @@ static void load_parameters(co_node_t *node, uint8_t groups)
     apply_od_parameters(node);
 }
 
+/* ------------------------------------------------------------ errors */
+
+static bool bit_test(const uint8_t *map, uint16_t n) { return (map[n / 8u] >> (n % 8u)) & 1u; }
+
+static void bit_put(uint8_t *map, uint16_t n, bool on)
+{
+    if (on) {
+        map[n / 8u] = (uint8_t)(map[n / 8u] | (1u << (n % 8u)));
+    } else {
+        map[n / 8u] = (uint8_t)(map[n / 8u] & ~(1u << (n % 8u)));
+    }
+}
+
+static bool bits_any(const uint8_t *map, size_t size)
+{
+    for (size_t i = 0; i < size; i++) {
+        if (map[i] != 0) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* The stack's own errors use CiA 301's code table; info (a node-id, a PDO
+ * number) goes to the first manufacturer-specific bytes. */
+static void raise_error(co_node_t *node, uint16_t code, uint16_t info)
+{
+    if (node->services.emcy) {
+        co_emcy_error_t err = {.code = code, .spec_number = 301};
+        err.msef[0] = (uint8_t)info;
+        err.msef[1] = (uint8_t)(info >> 8);
+        (void)co_emcy_raise(node->services.emcy, &err);
+    }
+}
+
+static void clear_error(co_node_t *node, uint16_t code)
+{
+    if (node->services.emcy) {
+        co_emcy_error_t err = {.code = code, .spec_number = 301};
+        (void)co_emcy_clear(node->services.emcy, &err);
+    }
+}
+
+void co_node_error_behaviour(co_node_t *node, uint8_t error_class)
+{
+    uint8_t behaviour = 0;
+    if (node->od) {
+        (void)co_od_get_u8(node->od, CO_NODE_ERROR_BEHAVIOUR, error_class, &behaviour);
+    }
+    co_nmt_state_t state = node->nmt.state;
+    if (behaviour == 0 && state == CO_NMT_OPERATIONAL) {
+        co_nmt_apply(&node->nmt, CO_NMT_CMD_PRE_OPERATIONAL);
+    } else if (behaviour == 2 && state != CO_NMT_STOPPED && state != CO_NMT_INITIALISING) {
+        co_nmt_apply(&node->nmt, CO_NMT_CMD_STOP);
+    }
+}
+
+/* 0x8130 stays active while any consumed node is lost or life guarding is. */
+static void life_guard_changed(co_node_t *node)
+{
+    if (!node->life_lost && !bits_any(node->hb_lost, sizeof node->hb_lost)) {
+        clear_error(node, CO_NODE_EMCY_LIFE_GUARD);
+    }
+}
+
+void co_node_heartbeat_event(co_node_t *node, uint8_t node_id, bool lost)
+{
+    if (node_id == 0 || node_id > 127 || bit_test(node->hb_lost, node_id) == lost) {
+        return;
+    }
+    bit_put(node->hb_lost, node_id, lost);
+    if (lost) {
+        raise_error(node, CO_NODE_EMCY_LIFE_GUARD, node_id);
+        co_node_error_behaviour(node, 1);
+    } else {
+        life_guard_changed(node);
+    }
+}
+
+void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, void *user)
+{
+    (void)slave;
+    co_node_t *node = user;
+    if (event == CO_GUARD_LIFE_LOST && !node->life_lost) {
+        node->life_lost = true;
+        raise_error(node, CO_NODE_EMCY_LIFE_GUARD, node->nmt.node_id);
+        co_node_error_behaviour(node, 1);
+    } else if (event == CO_GUARD_LIFE_RESOLVED && node->life_lost) {
+        node->life_lost = false;
+        life_guard_changed(node);
+    }
+}
+
+void co_node_comm_event(co_node_t *node, co_comm_event_t event)
+{
+    switch (event) {
+    case CO_COMM_BUS_OFF:
+        raise_error(node, CO_NODE_EMCY_BUS_OFF, 0);   /* goes out after recovery */
+        co_node_error_behaviour(node, 1);
+        break;
+    case CO_COMM_BUS_OFF_RECOVERED:
+        clear_error(node, CO_NODE_EMCY_BUS_OFF);
+        break;
+    case CO_COMM_ERROR_PASSIVE:
+        raise_error(node, CO_NODE_EMCY_ERROR_PASSIVE, 0);
+        break;
+    case CO_COMM_ERROR_ACTIVE:
+        clear_error(node, CO_NODE_EMCY_ERROR_PASSIVE);
+        clear_error(node, CO_NODE_EMCY_BUS_OFF);
+        break;
+    case CO_COMM_RX_OVERFLOW:
+        /* received frames were lost: an EMCY and its reset (the loss is
+         * over), at most one pair per CO_NODE_OVERRUN_QUIET_US so a lasting
+         * overload does not add an EMCY flood; tx overflow gets none: the
+         * EMCY could not be sent either */
+        if (!node->overrun_told ||
+            node->line->now_us - node->overrun_told_us >= CO_NODE_OVERRUN_QUIET_US) {
+            node->overrun_told = true;
+            node->overrun_told_us = node->line->now_us;
+            raise_error(node, CO_NODE_EMCY_CAN_OVERRUN, 0);
+            clear_error(node, CO_NODE_EMCY_CAN_OVERRUN);
+        }
+        break;
+    default:
+        break;
+    }
+}
+
+/* ------------------------------------------------------------ services */
+
+static void on_sync(uint8_t counter, void *user)
+{
+    co_node_t *node = user;
+    if (node->sync_length_error) {
+        node->sync_length_error = false;   /* a SYNC of the right length came */
+        clear_error(node, CO_SYNC_EMCY_LENGTH);
+    }
+    if (node->services.pdo) {
+        co_pdo_sync(node->services.pdo, counter);
+    }
+}
+
+static void on_sync_window(co_sync_t *sync, void *user)
+{
+    (void)sync;
+    co_node_t *node = user;
+    if (node->services.pdo) {
+        co_pdo_sync_window_closed(node->services.pdo);
+    }
+}
+
+static void on_sync_error(co_sync_t *sync, uint16_t code, uint8_t length, void *user)
+{
+    (void)sync;
+    co_node_t *node = user;
+    if (!node->sync_length_error) {
+        node->sync_length_error = true;
+        raise_error(node, code, length);
+    }
+}
+
+/* An RPDO's error ends: its code is cleared once no RPDO has it. */
+static void rpdo_error_ends(co_node_t *node, uint8_t *map, uint16_t number, uint16_t code)
+{
+    if (bit_test(map, number)) {
+        bit_put(map, number, false);
+        if (!bits_any(map, CO_NODE_PDO_BITMAP)) {
+            clear_error(node, code);
+        }
+    }
+}
+
+static void on_pdo_error(co_pdo_t *pdo, uint16_t code, bool is_rpdo, uint16_t number,
+                         void *user)
+{
+    (void)pdo;
+    co_node_t *node = user;
+    if (!is_rpdo || number == 0 || number > CO_PDO_MAX_NUMBER) {
+        return;
+    }
+    uint16_t bit = (uint16_t)(number - 1u);
+    uint8_t *map = NULL;
+    switch (code) {
+    case CO_PDO_EMCY_LENGTH:
+        map = node->rpdo_short;
+        break;
+    case CO_PDO_EMCY_LENGTH_EXCEEDED:
+        map = node->rpdo_long;
+        node->rpdo_long_now = number;   /* applied right after: not yet a good one */
+        break;
+    case CO_PDO_EMCY_RPDO_TIMEOUT:
+        map = node->rpdo_late;
+        break;
+    case CO_PDO_EMCY_RECEIVED_AGAIN:
+        rpdo_error_ends(node, node->rpdo_late, bit, CO_PDO_EMCY_RPDO_TIMEOUT);
+        return;
+    default:
+        return;
+    }
+    if (!bit_test(map, bit)) {
+        bit_put(map, bit, true);
+        raise_error(node, code, number);
+    }
+}
+
+static void on_pdo_received(co_pdo_t *pdo, uint16_t number, void *user)
+{
+    (void)pdo;
+    co_node_t *node = user;
+    if (number >= 1 && number <= CO_PDO_MAX_NUMBER) {
+        uint16_t bit = (uint16_t)(number - 1u);
+        /* a frame of the mapped length ends the RPDO's length errors */
+        rpdo_error_ends(node, node->rpdo_short, bit, CO_PDO_EMCY_LENGTH);
+        if (node->rpdo_long_now == number) {
+            node->rpdo_long_now = 0;
+        } else {
+            rpdo_error_ends(node, node->rpdo_long, bit, CO_PDO_EMCY_LENGTH_EXCEEDED);
+        }
+    }
+    if (node->ind && node->ind->pdo_received) {
+        node->ind->pdo_received(node, number, node->user);
+    }
+}
+
+static void on_pdo_before_send(co_pdo_t *pdo, uint16_t number, void *user)
+{
+    (void)pdo;
+    co_node_t *node = user;
+    if (node->ind && node->ind->pdo_before_send) {
+        node->ind->pdo_before_send(node, number, node->user);
+    }
+}
+
+const co_pdo_indications_t co_node_pdo_indications = {
+    .error = on_pdo_error,
+    .received = on_pdo_received,
+    .before_send = on_pdo_before_send,
+};
+
+void co_node_attach_services(co_node_t *node, const co_node_services_t *services)
+{
+    node->services = *services;
+    if (services->sync) {
+        (void)co_sync_add_listener(services->sync, on_sync, node);
+        co_sync_set_window_indication(services->sync, on_sync_window, node);
+        co_sync_set_error_indication(services->sync, on_sync_error, node);
+    }
+    services_set_state(node, node->nmt.state);
+}
+
+/* Resets reload what the OD now says; the errors the node detected start
+ * over (the watched nodes, the PDOs and guarding start over too). */
+static void services_reset(co_node_t *node)
+{
+    const co_node_services_t *s = &node->services;
+    if (s->pdo) {
+        co_pdo_reload(s->pdo);
+    }
+    if (s->guard) {
+        co_guard_slave_reset_communication(s->guard);
+    }
+    static const uint16_t own[] = {CO_NODE_EMCY_LIFE_GUARD, CO_SYNC_EMCY_LENGTH,
+                                   CO_PDO_EMCY_LENGTH, CO_PDO_EMCY_LENGTH_EXCEEDED,
+                                   CO_PDO_EMCY_RPDO_TIMEOUT};
+    for (size_t i = 0; i < sizeof own / sizeof own[0]; i++) {
+        clear_error(node, own[i]);
+    }
+    memset(node->rpdo_short, 0, sizeof node->rpdo_short);
+    memset(node->rpdo_long, 0, sizeof node->rpdo_long);
+    memset(node->rpdo_late, 0, sizeof node->rpdo_late);
+    memset(node->hb_lost, 0, sizeof node->hb_lost);
+    node->rpdo_long_now = 0;
+    node->life_lost = false;
+    node->sync_length_error = false;
+}
+
 static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
 {
     (void)nmt;
@@ -77,6 +374,7 @@ static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
      * heartbeat one period later. */
     load_parameters(node, kind == CO_NMT_CMD_RESET_COMMUNICATION ? CO_GROUP_COMMUNICATION
                                                                   : CO_GROUP_ALL);
+    services_reset(node);
     if (node->ind && node->ind->reset) {
         node->ind->reset(node, kind, node->user);
     }
@@ -164,6 +462,16 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
     node->store = NULL;
     node->consumer = NULL;
     node->store_status = CO_STORE_EMPTY;
+    memset(&node->services, 0, sizeof node->services);
+    memset(node->rpdo_short, 0, sizeof node->rpdo_short);
+    memset(node->rpdo_long, 0, sizeof node->rpdo_long);
+    memset(node->rpdo_late, 0, sizeof node->rpdo_late);
+    memset(node->hb_lost, 0, sizeof node->hb_lost);
+    node->rpdo_long_now = 0;
+    node->life_lost = false;
+    node->sync_length_error = false;
+    node->overrun_told = false;
+    node->overrun_told_us = 0;
     if (!co_nmt_init(&node->nmt, line, node_id, &nmt_indications, node)) {
         return false;
     }
@@ -175,6 +483,12 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
 
 void co_node_deinit(co_node_t *node)
 {
+    if (node->services.sync) {
+        co_sync_remove_listener(node->services.sync, on_sync, node);
+        co_sync_set_window_indication(node->services.sync, NULL, NULL);
+        co_sync_set_error_indication(node->services.sync, NULL, NULL);
+    }
+    memset(&node->services, 0, sizeof node->services);
     if (node->od) {
         co_od_unsubscribe(node->od, &comm_handler, node);
         co_cob_id_detach(node->od);

@@ -6,9 +6,14 @@
 #ifndef CO_NODE_H
 #define CO_NODE_H
 
+#include "co_emcy.h"
+#include "co_guard.h"
 #include "co_hb.h"
 #include "co_od.h"
+#include "co_pdo.h"
 #include "co_store.h"
+#include "co_sync.h"
+#include "co_time.h"
 
 typedef struct co_node co_node_t;
 
@@ -17,7 +22,36 @@ typedef struct co_node_indications {
                           co_nmt_state_t new_state, void *user);
     bool (*allow_operational)(co_node_t *node, void *user);   /* may be NULL */
     void (*reset)(co_node_t *node, co_nmt_command_t kind, void *user); /* may be NULL */
+    /* RPDO n was applied to the OD (may be NULL). */
+    void (*pdo_received)(co_node_t *node, uint16_t rpdo_number, void *user);
+    /* TPDO n is about to be sampled: refresh its values now (may be NULL). */
+    void (*pdo_before_send)(co_node_t *node, uint16_t tpdo_number, void *user);
 } co_node_indications_t;
+
+/* The services a node runs besides NMT and heartbeat, each set up by the
+ * caller over its own storage (and bound to the OD) before
+ * co_node_attach_services; any may be NULL. The node wires them together:
+ * NMT state to each (PDOs flow only in operational), SYNC to the PDOs, the
+ * errors they detect to EMCY, communication errors to 0x1029, resets to a
+ * reload. A PDO service must be set up with co_node_pdo_indications and the
+ * node as user, a guarding slave with co_node_guard_life and the node. */
+typedef struct co_node_services {
+    co_emcy_t *emcy;
+    co_sync_t *sync;
+    co_time_t *time;
+    co_pdo_t *pdo;
+    co_guard_slave_t *guard;
+} co_node_services_t;
+
+enum {
+    CO_NODE_ERROR_BEHAVIOUR = 0x1029,   /* sub 1: communication error */
+    CO_NODE_EMCY_CAN_OVERRUN = 0x8110,
+    CO_NODE_EMCY_ERROR_PASSIVE = 0x8120,
+    CO_NODE_EMCY_LIFE_GUARD = 0x8130,   /* heartbeat consumer or life guarding */
+    CO_NODE_EMCY_BUS_OFF = 0x8140,      /* "recovered from bus off" */
+    CO_NODE_PDO_BITMAP = CO_PDO_MAX_NUMBER / 8,
+    CO_NODE_OVERRUN_QUIET_US = 1000000
+};
 
 struct co_node {
     co_line_t *line;
@@ -30,7 +64,20 @@ struct co_node {
     co_store_t *store;               /* saved parameters, or NULL */
     co_hb_consumer_t *consumer;      /* configured from 0x1016, or NULL */
     co_store_status_t store_status;  /* what the last parameter load found */
+    co_node_services_t services;
+    /* Errors the node raised and clears once their cause is gone. */
+    uint8_t rpdo_short[CO_NODE_PDO_BITMAP];     /* RPDOs in 0x8210 */
+    uint8_t rpdo_long[CO_NODE_PDO_BITMAP];      /* RPDOs in 0x8220 */
+    uint8_t rpdo_late[CO_NODE_PDO_BITMAP];      /* RPDOs in 0x8250 */
+    uint8_t hb_lost[128 / 8];                   /* consumed nodes lost (0x8130) */
+    uint16_t rpdo_long_now;                     /* RPDO whose 0x8220 was just told */
+    bool life_lost;                             /* life guarding (0x8130) */
+    bool sync_length_error;                     /* 0x8240 */
+    bool overrun_told;                          /* 0x8110 sent at overrun_told_us */
+    uint64_t overrun_told_us;
 };
+
+extern const co_pdo_indications_t co_node_pdo_indications;
 
 /* Sets up the node on the line (node_id 1..127, the line's node-id becomes
  * node_id); nothing is sent until co_node_boot(). */
@@ -47,6 +94,20 @@ bool co_node_attach_od(co_node_t *node, co_od_t *od, co_store_t *store,
 /* Power-on: parameters loaded, boot-up message, pre-operational, heartbeat
  * producer running. */
 void co_node_boot(co_node_t *node);
+/* Wire the services (see co_node_services_t) before co_node_boot(). */
+void co_node_attach_services(co_node_t *node, const co_node_services_t *services);
+/* Errors the stack detects outside the node's services, told by the
+ * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and
+ * 0x1029:01), and the line's communication events (bus-off 0x8140 with
+ * 0x1029:01, error passive 0x8120, lost frames 0x8110). */
+void co_node_heartbeat_event(co_node_t *node, uint8_t node_id, bool lost);
+void co_node_comm_event(co_node_t *node, co_comm_event_t event);
+/* Apply the error behaviour of 0x1029 sub `error_class` (1 = communication;
+ * 0 -> pre-operational when operational, 1 -> no change, 2 -> stopped;
+ * a missing entry means 0, as CiA 301's default). */
+void co_node_error_behaviour(co_node_t *node, uint8_t error_class);
+/* Guarding slave's indication (pass it to co_guard_slave_init with the node). */
+void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, void *user);
 /* Write 0x1017: takes effect at once. */
 void co_node_set_heartbeat(co_node_t *node, uint16_t time_ms);
 static inline co_nmt_state_t co_node_state(const co_node_t *node) { return node->nmt.state; }

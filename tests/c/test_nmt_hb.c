@@ -107,8 +107,8 @@ static void on_reset(co_node_t *node, co_nmt_command_t kind, void *user)
     fx->ev[fx->nev - 1].bootup_queued = tx_has_bootup(node->line, node->nmt.node_id);
 }
 
-static const co_node_indications_t node_ind = {on_state, on_allow, on_reset};
-static const co_node_indications_t node_ind_no_allow = {on_state, NULL, NULL};
+static const co_node_indications_t node_ind = {.state_changed = on_state, .allow_operational = on_allow, .reset = on_reset};
+static const co_node_indications_t node_ind_no_allow = {.state_changed = on_state};
 
 static void on_hb(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t event,
                   co_nmt_state_t state, void *user)
