@@ -27,6 +27,8 @@ CDEF_HEADERS = [
     "csrc/core/co_od.h",
     "csrc/core/co_store.h",
     "csrc/core/co_usdo.h",
+    "csrc/core/co_emcy_codec.h",
+    "csrc/core/co_emcy.h",
     "csrc/port/linux/co_runtime.h",
 ]
 SOURCE_DIRS = ["csrc/core", "csrc/drivers", "csrc/port/linux"]
@@ -66,7 +68,7 @@ def make_builder(absolute_paths):
     builder.cdef(cdef_text())
     builder.set_source(
         "canopenfd._core",
-        '#include "co_runtime.h"\n#include "co_usdo.h"\n',
+        "".join(f'#include "{os.path.basename(h)}"\n' for h in CDEF_HEADERS),
         sources=_paths(c_sources(), absolute_paths),
         include_dirs=_paths(SOURCE_DIRS, absolute_paths),
         # C99 for the core; the Linux files define _GNU_SOURCE themselves.

@@ -142,6 +142,23 @@ def test_domain_entries_have_no_value_in_the_od(net, bus_name, mode):
 
 
 # ------------------------------------------------------------------ writing
+# The EMCY producer keeps these from the active errors: the error register,
+# the error history, the FD active error list.
+KEPT_BY_EMCY = (0x1001, 0x1003, 0x1032)
+
+
+@MODES
+def test_emcy_entries_refuse_writes(net, bus_name, mode):
+    od = demo_od(mode)
+    node = serve(net, bus_name, mode, od)
+    assert 0x1001 in od
+    with pytest.raises(AbortError) as caught:
+        node[0x1001].raw = 0xFF
+    assert caught.value.code == 0x06010002
+    assert (caught.value.node, caught.value.index, caught.value.subindex) == (NODE, 0x1001, 0)
+    assert node[0x1001].raw == 0
+
+
 @MODES
 def test_writes_round_trip_for_every_data_type_and_entry(net, bus_name, mode):
     od = demo_od(mode)
@@ -150,6 +167,8 @@ def test_writes_round_trip_for_every_data_type_and_entry(net, bus_name, mode):
     for var in value_entries(od, mode):
         if var.in_object and var.subindex == 0:
             continue                               # the counts stay as they are
+        if var.index in KEPT_BY_EMCY:
+            continue                               # see test_emcy_entries_refuse_writes
         for value in other_values(var):
             entry = node[(var.index, var.subindex)]
             entry.raw = value
@@ -253,7 +272,8 @@ def test_application_writes_to_ro_entries_are_allowed(net, bus_name, mode):
     od = demo_od(mode)
     node = serve(net, bus_name, mode, od)
     read_only = [var for var in value_entries(od, mode)
-                 if var.access_type == "ro" and not (var.in_object and var.subindex == 0)]
+                 if var.access_type == "ro" and not (var.in_object and var.subindex == 0)
+                 and var.index not in KEPT_BY_EMCY]
     assert {(v.index, v.subindex) for v in read_only} >= {(0x1018, 1), (0x2014, 0)}
     for var in read_only:
         value = other_values(var)[0]

@@ -124,7 +124,12 @@ def test_cob_id_of_an_active_object_cannot_change(net, bus_name):
     assert write(1, 1, 0x1800, 0x186).data[:7] == bytes([CLIENT, 0x7F, 1, 1, 0x00, 0x18, 0x40])
     assert node[0x1800][1].raw == 0x185
     assert write(2, 0, 0x1014, 0x86).data[:7] == bytes([CLIENT, 0x7F, 2, 0, 0x14, 0x10, 0x40])
-    # disable, change, enable: each answered 0x21
-    for session, value in ((3, 0x80000185), (4, 0x80000186), (5, 0x186)):
+    # disable, change, enable: each answered 0x21 (EMCY: a TPDO without a
+    # mapping object could not be enabled again)
+    for session, value in ((3, 0x80000085), (4, 0x80000086), (5, 0x86)):
+        assert write(session, 0, 0x1014, value).data[:2] == bytes([CLIENT, 0x21])
+    assert node[0x1014].raw == 0x86
+    # the TPDO: disabled and changed while invalid
+    for session, value in ((6, 0x80000185), (7, 0x80000186)):
         assert write(session, 1, 0x1800, value).data[:2] == bytes([CLIENT, 0x21])
-    assert node[0x1800][1].raw == 0x186
+    assert node[0x1800][1].raw == 0x80000186

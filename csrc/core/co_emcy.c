@@ -435,10 +435,20 @@ static uint32_t producer_check_write(co_od_t *od, co_od_xfer_t *xfer, const co_o
     (void)od;
     (void)xfer;
     (void)user;
+    uint16_t index = co_od_entry_index(entry);
+    uint8_t sub = co_od_entry_sub(entry);
     /* 0x1003:00: only 0 may be written (clears the history). */
-    if (co_od_entry_index(entry) == OD_ERROR_FIELD && co_od_entry_sub(entry) == 0 &&
-        length == 1 && value[0] != 0) {
+    if (index == OD_ERROR_FIELD && sub == 0 && length == 1 && value[0] != 0) {
         return CO_ABORT_INVALID_VALUE;
+    }
+    /* The values the producer keeps (error register, history entries, the
+     * FD active list and count) follow the active errors: a write by the
+     * application would be replaced at once, so it is refused instead
+     * (raise or clear an error to change them). Resets loading defaults do
+     * not come here. */
+    if (index == OD_ERROR_REGISTER || (index == OD_ERROR_FIELD && sub != 0) ||
+        index == OD_ACTIVE_LIST || (index == OD_ACTIVE_HISTORY && sub == HISTORY_STATUS_SUB)) {
+        return CO_ABORT_READ_ONLY;
     }
     return CO_ABORT_NONE;
 }

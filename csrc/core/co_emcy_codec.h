@@ -58,6 +58,7 @@ typedef struct co_emcy_msg {
 /* The FD time stamp has 48 bits. */
 #define CO_EMCY_TIME_MAX 0xFFFFFFFFFFFFull
 
+/* cffi:begin */
 /* Classic: bytes 0-1 EEC (LE), 2 error register, 3-7 msef. Returns 8, or 0
  * when cap < 8. Only the classic fields are used. */
 size_t co_emcy_encode_classic(const co_emcy_msg_t *msg, uint8_t *out, size_t cap);
@@ -72,6 +73,7 @@ size_t co_emcy_encode_fd(const co_emcy_msg_t *msg, uint8_t *out, size_t cap);
 /* Refuses (false) a frame shorter than 20 bytes; bytes beyond the layout
  * (a longer FD length, padding) are ignored. Fills out only on success. */
 bool co_emcy_decode_fd(const uint8_t *data, size_t len, co_emcy_msg_t *out);
+/* cffi:end */
 
 /* The error register bits (besides generic) that an error code stands for:
  * 0x2xxx current, 0x3xxx voltage, 0x4xxx temperature, 0x80xx..0x82xx

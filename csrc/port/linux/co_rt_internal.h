@@ -37,8 +37,13 @@ enum {
     RT_HB_ENTRIES = 127,
     RT_INDICATIONS = 16,          /* key ranges with Python indications */
     RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
-    /* node services and store (8), indications, domains, app store (2) */
-    RT_OD_SUBSCRIPTIONS = 8 + RT_INDICATIONS + RT_DOMAINS + 2,
+    /* node, store, servers, process-data and error services (16),
+     * indications, domains, app store (2) */
+    RT_OD_SUBSCRIPTIONS = 16 + RT_INDICATIONS + RT_DOMAINS + 2,
+    RT_GUARD_NODES = 32,          /* remote nodes guarded by a classic line */
+    RT_EMCY_QUEUE = 16,           /* EMCYs waiting for the inhibit time */
+    RT_EMCY_ACTIVE = 32,          /* errors active at once */
+    RT_EMCY_HISTORY = 254,        /* 0x1003 / 0x1032 entries at most */
     RT_REQUESTS = 32,             /* network accesses waiting on Python at once */
     RT_USDO_SESSIONS = 8
 };
@@ -164,6 +169,27 @@ typedef struct rt_line {
     co_sdo_channel_t *sdo_channels;
     uint8_t *sdo_scratch;
     struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
+    /* Process data and errors (co_rt_services.c). Per line: */
+    co_sync_t sync;
+    co_time_t time;
+    co_emcy_consumer_t emcy_consumer;
+    bool has_guard_master;           /* classic lines */
+    co_guard_master_t guard_master;
+    co_guard_node_t guard_nodes[RT_GUARD_NODES];
+    bool sync_events;                /* Python hears every SYNC */
+    /* ... and per local node: */
+    bool has_emcy;
+    co_emcy_t emcy;
+    co_emcy_msg_t emcy_queue[RT_EMCY_QUEUE];
+    co_emcy_active_t emcy_active[RT_EMCY_ACTIVE];
+    uint32_t emcy_history[RT_EMCY_HISTORY];
+    bool has_pdo;                    /* the node has an OD */
+    co_pdo_t pdo;
+    co_pdo_channel_t *pdo_channels;
+    co_pdo_map_item_t *pdo_items;
+    uint8_t pdo_listen[CO_PDO_MAX_NUMBER / 8];   /* RPDOs Python listens to */
+    bool has_guard_slave;
+    co_guard_slave_t guard_slave;
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -258,6 +284,15 @@ uint32_t rt_od_park(rt_line_t *l, co_od_xfer_t *xfer, uint32_t key, const uint8_
 /* Forget every access waiting on Python (the servers holding them are gone). */
 void rt_od_drop_requests(rt_line_t *l);
 void rt_od_free_domains(rt_line_t *l);
+
+/* co_rt_services.c: process data and errors. */
+bool rt_services_line_init(rt_line_t *l);
+/* The node's services, after its OD (if any) was attached; before boot. */
+int rt_services_node_attach(co_rt_t *rt, rt_line_t *l);
+void rt_services_node_detach(rt_line_t *l);
+void rt_services_free(rt_line_t *l);
+/* RPDO n was applied: posted to Python when it listens to it. */
+void rt_services_pdo_received(rt_line_t *l, uint16_t number);
 
 /* co_rt_store.c: the application store. */
 /* Open the store over the sealed OD and hook 0x1010/0x1011 (node attach). */

@@ -271,6 +271,14 @@ int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *b
     return result;
 }
 
+/* The entries the EMCY producer keeps (error register, history, FD active
+ * list and count): an application write would be replaced at once. */
+static bool kept_by_emcy(uint16_t index, uint8_t sub)
+{
+    return index == 0x1001 || (index == 0x1003 && sub != 0) || index == 0x1032 ||
+           (index == 0x1031 && sub == 1);
+}
+
 int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uint8_t *data,
                    uint32_t length)
 {
@@ -285,12 +293,25 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
         /* Services re-arm timers from the line's clock (0x1017 at once). */
         co_line_set_time(&l->line, co_rt_now_us());
         rt_domain_t *d = domain_of(l, index, sub);
-        result = d ? domain_put(d, data, length) : (int)co_od_put(od, index, sub, data, length);
+        const co_od_entry_t *e = co_od_find(od, index, sub);
+        if (e && l->has_emcy && kept_by_emcy(index, sub)) {
+            /* a wrong value is told as such first, as for any entry */
+            result = (int)co_od_check_value(od, e, data, length);
+            if (result == 0) {
+                rt_set_error(rt, "line %d: 0x%04X:%02X is kept by the EMCY producer from "
+                             "the active errors: raise or clear an error instead", line,
+                             index, sub);
+                result = (int)CO_ABORT_READ_ONLY;
+            }
+        } else {
+            result = d ? domain_put(d, data, length)
+                       : (int)co_od_put(od, index, sub, data, length);
+        }
+    }
+    if (result == 0) {
+        rt_kick(rt);   /* a frame may wait (a TPDO), a deadline may have moved earlier */
     }
     pthread_mutex_unlock(&rt->lock);
-    if (result == 0) {
-        rt_wake(rt);   /* a deadline may have moved earlier */
-    }
     return result;
 }
 

@@ -203,13 +203,20 @@ static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
     (void)line;
     rt_line_t *l = user;
     rt_post(l, CO_EV_COMM, 0, (uint32_t)event, 0, NULL);
+    if (l->has_node) {
+        co_node_comm_event(&l->node, event);   /* EMCY, error behaviour */
+    }
 }
 
 static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t event,
                          co_nmt_state_t state, void *user)
 {
     (void)c;
-    rt_post(user, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
+    rt_line_t *l = user;
+    rt_post(l, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
+    if (l->has_node && (event == CO_HB_LOST || event == CO_HB_STARTED)) {
+        co_node_heartbeat_event(&l->node, node_id, event == CO_HB_LOST);
+    }
 }
 
 static void on_node_state(co_node_t *node, co_nmt_state_t old_state, co_nmt_state_t new_state,
@@ -257,10 +264,17 @@ static void on_od_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t or
 
 static const co_od_handler_t od_observer = {.after_write = on_od_written};
 
+static void on_pdo_received(co_node_t *node, uint16_t rpdo_number, void *user)
+{
+    (void)node;
+    rt_services_pdo_received(user, rpdo_number);
+}
+
 static const co_node_indications_t node_indications = {
     .state_changed = on_node_state,
     .allow_operational = on_allow_operational,
     .reset = on_node_reset,
+    .pdo_received = on_pdo_received,
 };
 
 static void on_membus_sent(co_line_t *from, const co_frame_t *frame, void *user)
@@ -481,14 +495,18 @@ static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd
         rt_set_error(rt, "line %d: node %u could not be set up", l->index, (unsigned)cmd->a);
         return CO_RT_ERR_STATE;
     }
-    if (l->has_od) {
-        int status = node_attach_od(rt, l, (uint8_t)cmd->a);
-        if (status != CO_RT_OK) {
-            /* Leave the line as it was before the OD: usable for a new try. */
-            co_node_deinit(&l->node);
+    int status = l->has_od ? node_attach_od(rt, l, (uint8_t)cmd->a) : CO_RT_OK;
+    if (status == CO_RT_OK) {
+        status = rt_services_node_attach(rt, l);
+    }
+    if (status != CO_RT_OK) {
+        /* Leave the line as it was before the node: usable for a new try. */
+        rt_services_node_detach(l);
+        co_node_deinit(&l->node);
+        if (l->has_od) {
             od_forget(l);
-            return status;
         }
+        return status;
     }
     l->has_node = true;
     co_node_boot(&l->node);
@@ -979,6 +997,7 @@ static void line_free(rt_line_t *l)
     free(l->store_buffer);
     rt_app_store_free(l);
     rt_client_free(l);
+    rt_services_free(l);
     rt_od_free_domains(l);
     free(l->usdo_scratch);
     free(l->sdo_channels);
@@ -1190,7 +1209,7 @@ static bool line_init_core(rt_line_t *l, const co_rt_line_config_t *c)
     co_line_set_comm_indication(&l->line, on_comm, l);
     /* Every line watches boot-ups and heartbeats, local node or not. */
     co_hb_consumer_init(&l->hb, &l->line, l->hb_entries, RT_HB_ENTRIES, on_heartbeat, l);
-    return true;
+    return rt_services_line_init(l);
 }
 
 static rt_line_t *line_new(co_rt_t *rt, const co_rt_line_config_t *c)

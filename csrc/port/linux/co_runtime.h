@@ -81,7 +81,14 @@ typedef enum co_rt_event_kind {
                                   b = token for co_rt_od_answer; b >> 24 is
                                   CO_RT_INDICATE_READ or CO_RT_INDICATE_WRITE */
     CO_EV_TRANSFER_DONE = 12,  /* a client transfer (USDO/SDO) ended: a = handle */
-    CO_EV_TRANSFER_PROGRESS = 13 /* a = handle, b = bytes moved so far */
+    CO_EV_TRANSFER_PROGRESS = 13, /* a = handle, b = bytes moved so far */
+    CO_EV_EMCY = 14,           /* node = producer, a = 1 FD / 0 classic format, b = code,
+                                  frame.data = the EMCY (co_emcy_decode_fd/_classic) */
+    CO_EV_PDO = 15,            /* local node's RPDO a (co_rt_pdo_listen) applied:
+                                  frame.data = its mapped values as laid out in the PDO */
+    CO_EV_SYNC = 16,           /* a = counter (0 = none); only after co_rt_sync_listen */
+    CO_EV_TIME = 17,           /* TIME received: a = ms after midnight, b = days since 1984 */
+    CO_EV_GUARD = 18           /* guarded node: a = co_guard_event_t, b = its NMT state */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -260,6 +267,53 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
  * thread is woken by the runtime thread directly, not through the event
  * queue, so a blocking request costs one wake-up less. */
 int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
+/* ---- process data and errors (co_rt_services.c) ---- */
+
+/* An error the application raises or clears on its local node's EMCY
+ * producer (FD lines send every field, classic lines code, register, msef). */
+typedef struct co_rt_emcy {
+    uint16_t code;
+    uint8_t msef[5];
+    uint8_t register_bits;     /* 0x1001 bits besides the code's class bit */
+    uint8_t logical_device;    /* FD */
+    uint16_t spec_number;      /* FD: CiA specification of the code */
+    uint8_t priority;          /* FD: 0..7 */
+    int non_recoverable;       /* FD */
+    uint64_t time_stamp;       /* FD: 48 bits */
+} co_rt_emcy_t;
+
+typedef struct co_rt_emcy_state {
+    uint8_t error_register;    /* 0x1001 */
+    uint16_t active;           /* errors active */
+    uint32_t sent;
+    uint32_t dropped;          /* the EMCY queue was full */
+} co_rt_emcy_state_t;
+
+/* Raise (clear = 0) or clear an error: 0 = EMCY sent or queued, 1 = already
+ * active (classic: nothing sent; FD: sent again as repeated), 2 = clear of
+ * an error not active; < 0 = refused (co_rt_status_t, reason in the error). */
+int co_rt_emcy(co_rt_t *rt, int line, const co_rt_emcy_t *error, int clear);
+int co_rt_emcy_state(co_rt_t *rt, int line, co_rt_emcy_state_t *out);
+/* Hear (CO_EV_EMCY) the EMCYs of node_id on 0x80 + node_id (watch = 0: stop). */
+int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch);
+/* Application event for the local node's TPDO n (types 0, 254, 255). */
+int co_rt_pdo_trigger(co_rt_t *rt, int line, int tpdo_number);
+/* index:sub changed: triggers every event TPDO mapping it (returns how many). */
+int co_rt_pdo_trigger_object(co_rt_t *rt, int line, int index, int sub);
+/* Post CO_EV_PDO for each reception of the local node's RPDO n. */
+int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen);
+/* SYNC producer of the line: every period_us (0 = stop), window, counter
+ * overflow (0 or 2..240). With a local node's OD its 0x1005/0x1006/0x1007/
+ * 0x1019 are written (as the network would), else the line's SYNC. */
+int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t window_us,
+                        int overflow);
+/* Post CO_EV_SYNC for every SYNC (listen = 0: stop). */
+int co_rt_sync_listen(co_rt_t *rt, int line, int listen);
+/* Send a TIME stamp (microseconds since 1970, UTC). */
+int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
+/* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */
+int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor);
+
 /* Upload to memory: copy the data (returns the byte count, or a status). */
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);
 /* USDO broadcast: copy up to max answers (returns the count, or a status). */

@@ -1,0 +1,508 @@
+/* Runtime: the process-data and error services of a line and its node.
+ *
+ * Per line (local node or not): SYNC and TIME (consumers always; producers
+ * from the node's OD or the API), the EMCY consumer (nodes watched by the
+ * application, 0x1028 of the node's OD), and on classic lines the node
+ * guarding master. Per local node: the EMCY producer, and with an OD the
+ * PDOs and (classic) the guarding slave; co_node wires them together.
+ * Python hears what it asked for: received EMCYs, RPDOs it listens to, TIME,
+ * SYNC when asked, guarding events. The thread never calls Python: all of
+ * it is posted as events. */
+#include "co_rt_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* ---------------------------------------------------------------- events */
+
+static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t *msg,
+                    void *user)
+{
+    (void)c;
+    rt_line_t *l = user;
+    co_frame_t frame;
+    memset(&frame, 0, sizeof frame);
+    bool fd = l->line.mode == CO_MODE_FD;
+    frame.len = (uint8_t)(fd ? co_emcy_encode_fd(msg, frame.data, sizeof frame.data)
+                             : co_emcy_encode_classic(msg, frame.data, sizeof frame.data));
+    rt_post(l, CO_EV_EMCY, node_id, fd ? 1u : 0u, msg->code, &frame);
+}
+
+static void on_time(co_time_t *t, const co_time_of_day_t *tod, void *user)
+{
+    (void)t;
+    rt_post(user, CO_EV_TIME, 0, tod->ms, tod->days, NULL);
+}
+
+static void on_sync(uint8_t counter, void *user)
+{
+    rt_line_t *l = user;
+    if (l->sync_events) {
+        rt_post(l, CO_EV_SYNC, 0, counter, 0, NULL);
+    }
+}
+
+static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t event,
+                     co_nmt_state_t state, void *user)
+{
+    (void)m;
+    rt_line_t *l = user;
+    rt_post(l, CO_EV_GUARD, node_id, (uint32_t)event, (uint32_t)state, NULL);
+    if (l->has_node && (event == CO_GUARD_LOST || event == CO_GUARD_RESUMED)) {
+        /* a guarded node is a monitored node: its loss is a communication error */
+        co_node_heartbeat_event(&l->node, node_id, event == CO_GUARD_LOST);
+    }
+}
+
+static bool bit_test(const uint8_t *map, uint16_t n) { return (map[n / 8u] >> (n % 8u)) & 1u; }
+
+void rt_services_pdo_received(rt_line_t *l, uint16_t number)
+{
+    if (number == 0 || number > CO_PDO_MAX_NUMBER || !bit_test(l->pdo_listen, number - 1u)) {
+        return;
+    }
+    uint16_t slot = l->pdo.rpdo_of[number - 1u];
+    if (slot == 0) {
+        return;
+    }
+    /* the values as now in the OD, laid out as the mapping says */
+    const co_pdo_channel_t *ch = &l->pdo.channels[slot - 1u];
+    co_frame_t frame;
+    memset(&frame, 0, sizeof frame);
+    co_pdo_map_pack(&l->od, ch->map, ch->map_count, ch->bits, frame.data);
+    frame.len = (uint8_t)((ch->bits + 7u) / 8u);
+    rt_post(l, CO_EV_PDO, l->node.nmt.node_id, number, 0, &frame);
+}
+
+/* ---------------------------------------------------------------- set-up */
+
+bool rt_services_line_init(rt_line_t *l)
+{
+    if (!co_sync_init(&l->sync, &l->line) || !co_sync_add_listener(&l->sync, on_sync, l)) {
+        return false;
+    }
+    /* Without a local node the line is a tool's: it hears SYNC, TIME and
+     * EMCYs as a pre-operational node would. */
+    co_sync_set_nmt_state(&l->sync, CO_NMT_PRE_OPERATIONAL);
+    co_time_init(&l->time, &l->line, on_time, l);
+    (void)co_time_set_cob_id(&l->time, CO_TIME_CONSUMER_BIT | CO_TIME_DEFAULT_COB_ID);
+    co_time_set_nmt_state(&l->time, CO_NMT_PRE_OPERATIONAL);
+    if (!co_emcy_consumer_init(&l->emcy_consumer, &l->line, on_emcy, l)) {
+        return false;
+    }
+    if (l->line.mode == CO_MODE_CLASSIC) {
+        if (!co_guard_master_init(&l->guard_master, &l->line, l->guard_nodes, RT_GUARD_NODES,
+                                  on_guard, l)) {
+            return false;
+        }
+        co_hb_consumer_set_filter(&l->hb, co_guard_master_receive, &l->guard_master);
+        l->has_guard_master = true;
+    }
+    return true;
+}
+
+static int emcy_start(co_rt_t *rt, rt_line_t *l)
+{
+    co_emcy_config_t config = {.queue = l->emcy_queue,
+                               .queue_capacity = RT_EMCY_QUEUE,
+                               .active = l->emcy_active,
+                               .active_capacity = RT_EMCY_ACTIVE,
+                               .history = l->emcy_history,
+                               .history_capacity = RT_EMCY_HISTORY};
+    if (!co_emcy_init(&l->emcy, &l->line, l->node.nmt.node_id, &config)) {
+        rt_set_error(rt, "line %d: EMCY producer could not start", l->index);
+        return CO_RT_ERR_STATE;
+    }
+    l->has_emcy = true;
+    if (l->has_od && !co_emcy_attach_od(&l->emcy, &l->od)) {
+        rt_set_error(rt, "line %d: EMCY producer cannot use the OD (handler table full)",
+                     l->index);
+        return CO_RT_ERR_FULL;
+    }
+    return CO_RT_OK;
+}
+
+static int pdo_start(co_rt_t *rt, rt_line_t *l)
+{
+    uint32_t channels = 0, items = 0;
+    if (!co_pdo_need(&l->od, &channels, &items)) {
+        rt_set_error(rt, "line %d: the OD's PDO entries cannot be used", l->index);
+        return CO_RT_ERR_ARGUMENT;
+    }
+    l->pdo_channels = calloc(channels ? channels : 1u, sizeof *l->pdo_channels);
+    l->pdo_items = calloc(items ? items : 1u, sizeof *l->pdo_items);
+    if (!l->pdo_channels || !l->pdo_items) {
+        rt_set_error(rt, "line %d: no memory for %u PDOs", l->index, (unsigned)channels);
+        return CO_RT_ERR_NO_MEMORY;
+    }
+    co_pdo_config_t config = {.channels = l->pdo_channels,
+                              .channel_count = channels,
+                              .items = l->pdo_items,
+                              .item_count = items,
+                              .ind = &co_node_pdo_indications,
+                              .user = &l->node};
+    if (!co_pdo_init(&l->pdo, &l->line, &l->od, &config)) {
+        rt_set_error(rt, "line %d: PDO service could not start (handler tables full?)",
+                     l->index);
+        return CO_RT_ERR_STATE;
+    }
+    l->has_pdo = true;
+    return CO_RT_OK;
+}
+
+static bool od_has(const rt_line_t *l, uint16_t index)
+{
+    return l->has_od && co_od_has_index(&l->od, index);
+}
+
+int rt_services_node_attach(co_rt_t *rt, rt_line_t *l)
+{
+    co_node_services_t s = {.sync = &l->sync, .time = &l->time};
+    int status = emcy_start(rt, l);
+    if (status != CO_RT_OK) {
+        return status;
+    }
+    s.emcy = &l->emcy;
+    if (l->has_od) {
+        /* the node's OD now says what SYNC, TIME and the consumer do */
+        if ((od_has(l, 0x1005) && !co_sync_attach_od(&l->sync, &l->od)) ||
+            (od_has(l, 0x1012) && !co_time_attach_od(&l->time, &l->od)) ||
+            (od_has(l, 0x1028) && !co_emcy_consumer_attach_od(&l->emcy_consumer, &l->od))) {
+            rt_set_error(rt, "line %d: SYNC/TIME/EMCY entries of the OD cannot be used "
+                         "(handler table full?)", l->index);
+            return CO_RT_ERR_FULL;
+        }
+        status = pdo_start(rt, l);
+        if (status != CO_RT_OK) {
+            return status;
+        }
+        s.pdo = &l->pdo;
+        if (l->line.mode == CO_MODE_CLASSIC) {
+            if (!co_guard_slave_init(&l->guard_slave, &l->line, &l->node.nmt,
+                                     co_node_guard_life, &l->node) ||
+                !co_guard_slave_attach_od(&l->guard_slave, &l->od)) {
+                rt_set_error(rt, "line %d: node guarding slave could not start", l->index);
+                return CO_RT_ERR_STATE;
+            }
+            l->has_guard_slave = true;
+            s.guard = &l->guard_slave;
+        }
+    }
+    co_node_attach_services(&l->node, &s);
+    return CO_RT_OK;
+}
+
+/* Undo rt_services_node_attach (a node that could not be created). */
+void rt_services_node_detach(rt_line_t *l)
+{
+    if (l->has_guard_slave) {
+        co_guard_slave_deinit(&l->guard_slave);
+        l->has_guard_slave = false;
+    }
+    if (l->has_pdo) {
+        co_pdo_deinit(&l->pdo);
+        l->has_pdo = false;
+    }
+    if (l->has_emcy) {
+        co_emcy_deinit(&l->emcy);
+        l->has_emcy = false;
+    }
+    co_sync_detach_od(&l->sync);
+    co_time_detach_od(&l->time);
+    co_emcy_consumer_detach_od(&l->emcy_consumer);
+    free(l->pdo_channels);
+    free(l->pdo_items);
+    l->pdo_channels = NULL;
+    l->pdo_items = NULL;
+    memset(l->pdo_listen, 0, sizeof l->pdo_listen);
+}
+
+void rt_services_free(rt_line_t *l)
+{
+    free(l->pdo_channels);
+    free(l->pdo_items);
+    l->pdo_channels = NULL;
+    l->pdo_items = NULL;
+}
+
+/* ---------------------------------------------------------------- API */
+
+/* The line, locked, with a local node (or NULL with the error set, unlocked). */
+static rt_line_t *node_line(co_rt_t *rt, int line, const char *what)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return NULL;
+    }
+    pthread_mutex_lock(&rt->lock);
+    if (!l->has_node) {
+        pthread_mutex_unlock(&rt->lock);
+        rt_set_error(rt, "line %d: %s needs a local node", line, what);
+        return NULL;
+    }
+    return l;
+}
+
+static int done(co_rt_t *rt, int status)
+{
+    rt_kick(rt);
+    pthread_mutex_unlock(&rt->lock);
+    return status;
+}
+
+int co_rt_emcy(co_rt_t *rt, int line, const co_rt_emcy_t *error, int clear)
+{
+    if (!error) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_line_t *l = node_line(rt, line, clear ? "clearing an EMCY" : "raising an EMCY");
+    if (!l) {
+        return CO_RT_ERR_STATE;
+    }
+    co_emcy_error_t err = {.code = error->code,
+                           .register_bits = error->register_bits,
+                           .logical_device = error->logical_device,
+                           .spec_number = error->spec_number,
+                           .priority = error->priority,
+                           .non_recoverable = error->non_recoverable != 0,
+                           .time_stamp = error->time_stamp};
+    memcpy(err.msef, error->msef, sizeof err.msef);
+    co_line_set_time(&l->line, co_rt_now_us());
+    co_emcy_result_t r = clear ? co_emcy_clear(&l->emcy, &err) : co_emcy_raise(&l->emcy, &err);
+    if (r == CO_EMCY_BAD_ARGUMENT) {
+        rt_set_error(rt, "line %d: EMCY 0x%04X refused: code 0, priority %u > 7 or time "
+                     "stamp above 48 bits", line, error->code, (unsigned)error->priority);
+        return done(rt, CO_RT_ERR_ARGUMENT);
+    }
+    if (r == CO_EMCY_TABLE_FULL) {
+        rt_set_error(rt, "line %d: EMCY 0x%04X refused: %d errors are active already", line,
+                     error->code, RT_EMCY_ACTIVE);
+        return done(rt, CO_RT_ERR_FULL);
+    }
+    return done(rt, (int)r);
+}
+
+int co_rt_emcy_state(co_rt_t *rt, int line, co_rt_emcy_state_t *out)
+{
+    if (!out) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_line_t *l = node_line(rt, line, "the EMCY state");
+    if (!l) {
+        return CO_RT_ERR_STATE;
+    }
+    *out = (co_rt_emcy_state_t){.error_register = co_emcy_error_register(&l->emcy),
+                                .active = co_emcy_active_count(&l->emcy),
+                                .sent = l->emcy.stats.sent,
+                                .dropped = l->emcy.stats.dropped};
+    pthread_mutex_unlock(&rt->lock);
+    return CO_RT_OK;
+}
+
+int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (node_id < 1 || node_id > 127) {
+        return rt_argument_error(rt, "line %d: EMCY of node %d: node-ids are 1..127", line,
+                                 node_id);
+    }
+    pthread_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    if (!watch) {
+        co_emcy_consumer_unwatch(&l->emcy_consumer, (uint8_t)node_id);
+    } else if (!co_emcy_consumer_watch(&l->emcy_consumer, (uint8_t)node_id)) {
+        rt_set_error(rt, "line %d: cannot consume the EMCY of node %d (CAN-ID 0x%X taken?)",
+                     line, node_id, 0x80 + node_id);
+        status = CO_RT_ERR_STATE;
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return status;
+}
+
+static rt_line_t *pdo_line(co_rt_t *rt, int line)
+{
+    rt_line_t *l = node_line(rt, line, "a PDO");
+    if (l && !l->has_pdo) {
+        pthread_mutex_unlock(&rt->lock);
+        rt_set_error(rt, "line %d: the local node has no object dictionary, so no PDOs", line);
+        return NULL;
+    }
+    return l;
+}
+
+int co_rt_pdo_trigger(co_rt_t *rt, int line, int tpdo_number)
+{
+    rt_line_t *l = pdo_line(rt, line);
+    if (!l) {
+        return CO_RT_ERR_STATE;
+    }
+    co_line_set_time(&l->line, co_rt_now_us());
+    if (tpdo_number < 1 || tpdo_number > CO_PDO_MAX_NUMBER ||
+        !co_pdo_trigger(&l->pdo, (uint16_t)tpdo_number)) {
+        rt_set_error(rt, "line %d: TPDO %d not sent: %s", line, tpdo_number,
+                     tpdo_number < 1 || tpdo_number > CO_PDO_MAX_NUMBER ? "numbers are 1..512"
+                     : !co_pdo_is_active(&l->pdo, false, (uint16_t)tpdo_number)
+                         ? "it does not exist or is not valid (COB-ID bit 31, mapping)"
+                     : l->node.nmt.state != CO_NMT_OPERATIONAL
+                         ? "the node is not operational"
+                         : "its transmission type takes no events (0, 254 or 255 do)");
+        return done(rt, CO_RT_ERR_STATE);
+    }
+    return done(rt, CO_RT_OK);
+}
+
+int co_rt_pdo_trigger_object(co_rt_t *rt, int line, int index, int sub)
+{
+    rt_line_t *l = pdo_line(rt, line);
+    if (!l) {
+        return CO_RT_ERR_STATE;
+    }
+    if (index < 0 || index > 0xFFFF || sub < 0 || sub > 0xFF) {
+        pthread_mutex_unlock(&rt->lock);
+        return rt_argument_error(rt, "line %d: no object %X:%X", line, index, sub);
+    }
+    co_line_set_time(&l->line, co_rt_now_us());
+    uint32_t n = co_pdo_trigger_object(&l->pdo, (uint16_t)index, (uint8_t)sub);
+    return done(rt, (int)n);
+}
+
+int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen)
+{
+    if (rpdo_number < 1 || rpdo_number > CO_PDO_MAX_NUMBER) {
+        return rt_argument_error(rt, "line %d: RPDO %d: numbers are 1..512", line, rpdo_number);
+    }
+    rt_line_t *l = pdo_line(rt, line);
+    if (!l) {
+        return CO_RT_ERR_STATE;
+    }
+    uint16_t n = (uint16_t)(rpdo_number - 1);
+    if (listen) {
+        l->pdo_listen[n / 8u] = (uint8_t)(l->pdo_listen[n / 8u] | (1u << (n % 8u)));
+    } else {
+        l->pdo_listen[n / 8u] = (uint8_t)(l->pdo_listen[n / 8u] & ~(1u << (n % 8u)));
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return CO_RT_OK;
+}
+
+/* Under rt->lock: write a communication entry of the node's OD the way the
+ * network would (checks, then the services' handlers). */
+static uint32_t od_put_u32(rt_line_t *l, uint16_t index, uint32_t value, uint32_t size)
+{
+    uint8_t b[4] = {(uint8_t)value, (uint8_t)(value >> 8), (uint8_t)(value >> 16),
+                    (uint8_t)(value >> 24)};
+    return co_od_put(&l->od, index, 0, b, size);
+}
+
+int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t window_us,
+                        int overflow)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (overflow < 0 || overflow == 1 || overflow > CO_SYNC_COUNTER_MAX) {
+        return rt_argument_error(rt, "line %d: SYNC counter overflow %d: 0 (no counter) or "
+                                 "2..240", line, overflow);
+    }
+    pthread_mutex_lock(&rt->lock);
+    co_line_set_time(&l->line, co_rt_now_us());
+    uint32_t id = l->sync.config.cob_id & 0x7FFu;
+    uint32_t cob_id = period_us ? (id | CO_SYNC_PRODUCER_BIT) : id;
+    if (l->sync.od) {
+        /* 0x1019 may change only while 0x1006 is 0 (CiA 301): stop first */
+        uint32_t abort = od_put_u32(l, 0x1006, 0, 4);
+        if (!abort && co_od_has_index(&l->od, 0x1019)) {
+            abort = od_put_u32(l, 0x1019, (uint32_t)overflow, 1);
+        }
+        if (!abort && co_od_has_index(&l->od, 0x1007)) {
+            abort = od_put_u32(l, 0x1007, window_us, 4);
+        }
+        if (!abort) {
+            abort = od_put_u32(l, 0x1005, cob_id, 4);
+        }
+        if (!abort && period_us) {
+            abort = od_put_u32(l, 0x1006, period_us, 4);
+        }
+        if (abort) {
+            rt_set_error(rt, "line %d: SYNC producer: the node's OD refused the SYNC "
+                         "parameters (abort 0x%08X)", line, (unsigned)abort);
+            return done(rt, CO_RT_ERR_ARGUMENT);
+        }
+    } else {
+        co_sync_config_t config = {.cob_id = cob_id,
+                                   .period_us = period_us,
+                                   .window_us = window_us,
+                                   .overflow = (uint8_t)overflow};
+        co_sync_configure(&l->sync, &config);
+    }
+    return done(rt, CO_RT_OK);
+}
+
+int co_rt_sync_listen(co_rt_t *rt, int line, int listen)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    l->sync_events = listen != 0;
+    pthread_mutex_unlock(&rt->lock);
+    return CO_RT_OK;
+}
+
+int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    pthread_mutex_lock(&rt->lock);
+    co_line_set_time(&l->line, co_rt_now_us());
+    if (!l->time.od && !(l->time.cob_id & CO_TIME_PRODUCER_BIT)) {
+        /* a line without the node's 0x1012: the application is the producer */
+        (void)co_time_set_cob_id(&l->time, l->time.cob_id | CO_TIME_PRODUCER_BIT);
+    }
+    if (!co_time_send_unix_us(&l->time, unix_us)) {
+        rt_set_error(rt, "line %d: TIME not sent: %s", line,
+                     !(l->time.cob_id & CO_TIME_PRODUCER_BIT)
+                         ? "the node's 0x1012 does not make it the TIME producer (bit 30)"
+                     : !l->time.nmt_active ? "the node is stopped"
+                                           : "time before 1984 or the tx queue is full");
+        return done(rt, CO_RT_ERR_STATE);
+    }
+    return done(rt, CO_RT_OK);
+}
+
+int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (!l->has_guard_master) {
+        return rt_argument_error(rt, "line %d: node guarding needs a classic line (CAN FD "
+                                 "has no remote frames)", line);
+    }
+    if (node_id < 1 || node_id > 127 || guard_ms < 0 || guard_ms > 0xFFFF || life_factor < 0 ||
+        life_factor > 0xFF) {
+        return rt_argument_error(rt, "line %d: guarding node %d every %d ms, factor %d: "
+                                 "node 1..127, time 0..65535 ms, factor 0..255", line,
+                                 node_id, guard_ms, life_factor);
+    }
+    pthread_mutex_lock(&rt->lock);
+    co_line_set_time(&l->line, co_rt_now_us());
+    int status = CO_RT_OK;
+    if (guard_ms == 0) {
+        co_guard_master_unguard(&l->guard_master, (uint8_t)node_id);
+    } else if (co_guard_master_guard(&l->guard_master, (uint8_t)node_id, (uint16_t)guard_ms,
+                                     (uint8_t)life_factor) != CO_GUARD_OK) {
+        rt_set_error(rt, "line %d: cannot guard node %d (%d nodes guarded already)", line,
+                     node_id, RT_GUARD_NODES);
+        status = CO_RT_ERR_FULL;
+    }
+    return done(rt, status);
+}
