@@ -179,7 +179,7 @@ def emcy_text(node_id: int, data: bytes, fd: bool) -> str:
     head = f"EMCY node {node_id}"
     msg = parse_emcy(data, fd)
     if msg is None:
-        expected = f"{EMCY_FD_LEN} (fd)" if fd else f"{EMCY_CLASSIC_LEN}"
+        expected = f"at least {EMCY_FD_LEN}" if fd else f"{EMCY_CLASSIC_LEN}"
         return _with_bytes(f"{head} malformed: {len(data)} bytes, expected {expected}", data)
     parts = [f"{head} {emcy_code_text(msg.code)}", error_register_text(msg.error_register)]
     if any(msg.msef):
@@ -283,6 +283,8 @@ def _int_entry(od: Any, index: int, sub: int, node_id: int) -> Optional[int]:
 
 def _mapping(od: Any, map_index: int, node_id: int) -> Tuple[List[MappedObject], str]:
     count = _int_entry(od, map_index, 0, node_id) or 0
+    if count == 0:
+        return [], f"no mapping in 0x{map_index:04X}"
     objects: List[MappedObject] = []
     offset = 0
     for sub in range(1, min(count, 64) + 1):

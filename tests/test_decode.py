@@ -1,5 +1,6 @@
 """The frame decoder (NMT, heartbeat, USDO, classic SDO) and the NMT enums: pure
-Python (but for the monitor command test)."""
+Python (but for the monitor command test). SYNC, TIME, EMCY, PDOs and node guarding:
+test_decode_services.py."""
 
 from __future__ import annotations
 
