@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from typing import Any, Dict, Iterable, Optional, Set, Tuple
 
 from .decode_services import (EMCY_BASE, SYNC_ID, TIME_ID, PdoDefinition, PdoMap,
-                              default_pdo, default_pdo_text, emcy_text, pdo_text, sync_text,
-                              time_text)
+                              ServiceIds, default_pdo, default_pdo_text, emcy_text, pdo_text,
+                              service_text, sync_text, time_text)
 from .errors import ABORT_TEXT, USDO_ABORT_TEXT
 from .nmt import NmtCommand, NmtState
 from .od.datatypes import DataType
@@ -99,6 +99,9 @@ def _meaning(frame: Any, decoder: Optional["Decoder"]) -> str:
     can_id, data, flags = _fields(frame)
     rtr, fd = bool(flags & _RTR), bool(flags & _FD)
     if decoder is not None:
+        service = decoder.service(can_id, bool(flags & _EXT))
+        if service is not None and not rtr:
+            return service_text(service[0], service[1], data, fd)
         pdo = decoder.pdo(can_id, bool(flags & _EXT))
         if pdo is not None:
             return pdo_text(pdo, data, fd, rtr)
@@ -121,7 +124,7 @@ def _meaning(frame: Any, decoder: Optional["Decoder"]) -> str:
         return time_text(data)
     if 0x700 <= can_id <= 0x77F:
         node = can_id - 0x700
-        guarded = decoder is not None and decoder.guarding_answered(node)
+        guarded = decoder is not None and decoder.guarding_reply(node, data)
         return _heartbeat(node, data, guarded)
     if _is_sdo_id(can_id):
         if fd:
@@ -548,9 +551,14 @@ class Decoder:
       describes, None for the OD's own, e.g. a DCF's) a frame on a PDO's CAN-ID
       (its COB-ID from 0x1400../0x1800.., $NODEID resolved) reads
       "TPDO1 node 5 name=value, ..." by the mapping (0x1600../0x1A00..);
-      see `decode_services.pdo_text`. `add_od()` adds one later.
+      see `decode_services.pdo_text`. `add_od()` adds one later. The SYNC,
+      TIME and EMCY CAN-IDs of those dictionaries (0x1005, 0x1012, 0x1014)
+      are decoded as such too (before PDOs and the default ids).
     - Node guarding: after a request (remote frame on 0x700 + node-id) the
-      node's next frame there is the reply, also with toggle 0.
+      node's next one-byte frame there is the reply, also with toggle 0 --
+      unless the node was seen sending heartbeats (bit 7 clear, unasked; a
+      heartbeat producer answers no request), until its boot-up or a reply
+      with toggle 1.
     - Classic SDO: while a server is in a block transfer's sub-block phase,
       the sending side's frames are "block segment #N" ("... last" for c=1).
 
@@ -569,15 +577,19 @@ class Decoder:
     def __init__(self, ods: Iterable[Tuple[Any, Optional[int]]] = ()) -> None:
         self._blocks: Dict[int, _Block] = {}
         self._guard_requests: Set[int] = set()
+        self._heartbeat_nodes: Set[int] = set()
         self._pdos = PdoMap()
+        self._services = ServiceIds()
         for od, node_id in ods:
             self.add_od(od, node_id)
 
     def add_od(self, od: Any, node_id: Optional[int] = None) -> int:
         """Decode the PDOs of `od` (an ObjectDictionary) on node node_id
         (default: od.node_id; ValueError when neither is known); the number of
-        PDOs it defines."""
-        return len(self._pdos.add_od(od, node_id))
+        PDOs it defines. Its SYNC, TIME and EMCY CAN-IDs are taken too."""
+        found = self._pdos.add_od(od, node_id)      # checks the node-id
+        self._services.add_od(od, node_id if node_id is not None else od.node_id)
+        return len(found)
 
     def meaning(self, frame: Any) -> str:
         return _meaning(frame, self)
@@ -597,23 +609,35 @@ class Decoder:
         return "block upload" if block.upload else "block download"
 
     def reset(self) -> None:
-        """Forget every transfer and guarding request."""
+        """Forget every transfer, guarding request and heartbeat producer seen."""
         self._blocks.clear()
         self._guard_requests.clear()
+        self._heartbeat_nodes.clear()
 
     # -- what _meaning asks
     def pdo(self, can_id: int, extended: bool) -> Optional[PdoDefinition]:
         return self._pdos.lookup(can_id, extended)
 
+    def service(self, can_id: int, extended: bool) -> Optional[Tuple[str, int]]:
+        return self._services.lookup(can_id, extended)
+
     def guarding_requested(self, node_id: int) -> None:
         self._guard_requests.add(node_id)
 
-    def guarding_answered(self, node_id: int) -> bool:
-        """True (once) when a guarding request of that node is open."""
-        if node_id in self._guard_requests:
-            self._guard_requests.discard(node_id)
-            return True
-        return False
+    def guarding_reply(self, node_id: int, data: bytes) -> bool:
+        """Whether this frame on 0x700 + node_id answers an open guarding
+        request (the request is then closed); keeps track of heartbeat producers."""
+        asked = node_id in self._guard_requests
+        self._guard_requests.discard(node_id)
+        if len(data) != 1:
+            return asked
+        if data[0] == 0 or data[0] & 0x80:           # boot-up, or a reply with toggle 1
+            self._heartbeat_nodes.discard(node_id)
+            return asked
+        if not asked:
+            self._heartbeat_nodes.add(node_id)       # bit 7 clear, unasked: a heartbeat
+            return False
+        return node_id not in self._heartbeat_nodes
 
     def sdo(self, can_id: int, data: bytes) -> str:
         text = _sdo(can_id, data)

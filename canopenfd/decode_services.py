@@ -192,6 +192,47 @@ def emcy_text(node_id: int, data: bytes, fd: bool) -> str:
     return ", ".join(parts)
 
 
+# ------------------------------------------------------------------ ids from an OD
+_COB_11_BITS = 0x7FF
+_COB_29_BITS = 0x1FFFFFFF
+
+
+class ServiceIds:
+    """The SYNC (0x1005), TIME (0x1012) and EMCY (0x1014) CAN-IDs object
+    dictionaries configure, for ids other than the defaults: `Decoder` asks
+    here before the default ids. add_od() once per node."""
+
+    def __init__(self) -> None:
+        self._by_id: Dict[Tuple[int, bool], Tuple[str, int]] = {}
+
+    def add_od(self, od: Any, node_id: int) -> None:
+        """Take the ids of `od` on node node_id (the OD's value, else its
+        default, $NODEID resolved). An EMCY COB-ID with bit 31 (invalid) set
+        is left out; bit 29 is a 29-bit CAN-ID (EMCY only: SYNC and TIME are
+        11-bit in this stack)."""
+        for index, service in ((0x1005, "SYNC"), (0x1012, "TIME"), (0x1014, "EMCY")):
+            cob = _int_entry(od, index, 0, node_id)
+            if cob is None or (service == "EMCY" and cob & _COB_INVALID):
+                continue
+            extended = service == "EMCY" and bool(cob & _COB_EXT)
+            can_id = cob & (_COB_29_BITS if extended else _COB_11_BITS)
+            self._by_id.setdefault((can_id, extended), (service, node_id))
+
+    def lookup(self, can_id: int, extended: bool = False) -> Optional[Tuple[str, int]]:
+        """('SYNC' / 'TIME' / 'EMCY', node-id of the OD) or None; the first OD
+        added wins."""
+        return self._by_id.get((can_id, extended))
+
+
+def service_text(service: str, node_id: int, data: bytes, fd: bool) -> str:
+    """The text of a SYNC, TIME or EMCY frame (ServiceIds.lookup's service)."""
+    if service == "SYNC":
+        return sync_text(data)
+    if service == "TIME":
+        return time_text(data)
+    return emcy_text(node_id, data, fd)
+
+
 # ------------------------------------------------------------------ PDO defaults
 #: CiA 301 pre-defined connection set: (base, name) of the default PDO CAN-IDs.
 DEFAULT_PDO_BASES = ((0x180, "TPDO1"), (0x200, "RPDO1"), (0x280, "TPDO2"), (0x300, "RPDO2"),
@@ -292,6 +333,8 @@ def _mapping(od: Any, map_index: int, node_id: int) -> Tuple[List[MappedObject],
         if not entry:
             return objects, f"mapping 0x{map_index:04X}:{sub:02X} missing or 0"
         index, subindex, bits = entry >> 16, entry >> 8 & 0xFF, entry & 0xFF
+        if bits == 0:
+            return objects, f"mapping 0x{map_index:04X}:{sub:02X} has length 0"
         if index in DUMMY_TYPES and subindex == 0:
             objects.append(MappedObject(index, 0, bits, offset, "dummy", None, dummy=True))
         else:
@@ -327,7 +370,7 @@ class PdoMap:
                 if cob is None or cob & _COB_INVALID:
                     continue
                 extended = bool(cob & _COB_EXT)
-                can_id = cob & (0x1FFFFFFF if extended else 0x7FF)
+                can_id = cob & (_COB_29_BITS if extended else _COB_11_BITS)
                 objects, problem = _mapping(od, mapping + n, node)
                 pdo = PdoDefinition(f"{kind}{n + 1}", node, can_id, extended, objects, problem)
                 self._by_id.setdefault((can_id, extended), []).append(pdo)

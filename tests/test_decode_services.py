@@ -18,7 +18,7 @@ from helpers import run_cli, scaled
 
 from canopenfd import Frame
 from canopenfd.decode import Decoder, decode, describe, meaning
-from canopenfd.decode_services import (EMCY_CODES, PdoMap, emcy_code_text,
+from canopenfd.decode_services import (PdoMap, emcy_code_text,
                                        error_register_text, parse_emcy)
 from canopenfd.od import DataType, TimeOfDay, encode, import_od
 
@@ -578,3 +578,61 @@ if hypothesis is not None:
             assert isinstance(text, str) and "\n" not in text and text
 
     _OD = import_od(io.BytesIO(EDS.encode()))
+
+
+# ------------------------------------------------------------------ more OD cases
+def test_fd_pdos_from_the_shipped_xdd():
+    """fd_device.xdd: TPDO1 maps 16 UNSIGNED32 (64 bytes), RPDO1 8 INTEGER64."""
+    d = Decoder([(import_od(ROOT / "tests/data/od/fd_device.xdd"), 3)])
+    frame = fd(0x183, b"".join(n.to_bytes(4, "little") for n in range(1, 17)))
+    assert d.decode(frame) == ("TPDO1 node 3 "
+                               + ", ".join(f"Counters.Counter {n}={n}" for n in range(1, 17))
+                               + " [FD BRS]")
+    frame = fd(0x203, b"".join((-n).to_bytes(8, "little", signed=True) for n in range(8)))
+    assert d.decode(frame) == ("RPDO1 node 3 "
+                               + ", ".join(f"Setpoints.Setpoint {n + 1}={-n}" for n in range(8))
+                               + " [FD BRS]")
+    assert d.decode(fd(0x203, bytes(48))) == (
+        "RPDO1 node 3 malformed: 48 bytes, mapping needs 64 (" + " ".join(["00"] * 48)
+        + ") [FD BRS]")
+
+
+def test_sync_time_and_emcy_ids_from_the_od(tmp_path):
+    path = tmp_path / "ids.eds"
+    path.write_text(EDS + _var(0x1005, None, "COB-ID SYNC", 0x07, "0x40000090")
+                    + _var(0x1012, None, "COB-ID TIME", 0x07, "0xC00001C1")
+                    + _var(0x1014, None, "COB-ID EMCY", 0x07, "$NODEID+0x1A0"))
+    d = Decoder([(import_od(path), 5)])
+    assert d.decode(Frame(0x090, b"\x02")) == "SYNC counter 2"
+    assert decode(Frame(0x090, b"\x02")) == "EMCY node 16 malformed: 1 bytes, expected 8 (02)"
+    assert d.decode(Frame(0x1C1, bytes([0x95, 0x2C, 0xB3, 0x02, 0x12, 0x39]))) == \
+        "TIME 2024-01-01 12:34:56.789"
+    assert d.decode(Frame(0x1A5, bytes([0x10, 0x32, 0x03, 1, 2, 3, 4, 5]))) == (
+        "EMCY node 5 0x3210 voltage inside the device (voltage), register 0x03 "
+        "(generic, current), msef 01 02 03 04 05")
+    assert decode(Frame(0x1A5, b"\x01")) == "TPDO1 node 37 01"
+    assert d.decode(rtr(0x1A5, 8)) == "TPDO1 node 37 remote request"   # no RTR for EMCY
+    # the default ids still work, and an invalid EMCY COB-ID (bit 31) is not taken
+    assert d.decode(Frame(0x080, b"")) == "SYNC"
+    invalid = tmp_path / "invalid.eds"
+    invalid.write_text(EDS + _var(0x1014, None, "COB-ID EMCY", 0x07, "0x800001A6"))
+    d = Decoder([(import_od(invalid), 6)])
+    assert d.decode(Frame(0x1A6, b"\x01")) == "TPDO1 node 38 01"
+
+
+def test_guarding_after_a_heartbeat_producer_was_seen():
+    """A node that sends heartbeats answers no guarding request: its frames
+    after a request stay heartbeats, until its boot-up or a toggled reply."""
+    d = Decoder()
+    frames = [(Frame(0x705, b"\x05"), "heartbeat node 5 OPERATIONAL"),
+              (rtr(0x705, 1), "node guarding request node 5"),
+              (Frame(0x705, b"\x05"), "heartbeat node 5 OPERATIONAL"),
+              (Frame(0x705, b"\x00"), "boot-up node 5"),
+              (rtr(0x705, 1), "node guarding request node 5"),
+              (Frame(0x705, b"\x7f"), "node guarding reply node 5 PRE-OPERATIONAL toggle 0"),
+              (Frame(0x706, b"\x7f"), "heartbeat node 6 PRE-OPERATIONAL"),
+              (rtr(0x706, 1), "node guarding request node 6"),
+              (Frame(0x706, b"\xff"), "node guarding reply node 6 PRE-OPERATIONAL toggle 1"),
+              (rtr(0x706, 1), "node guarding request node 6"),
+              (Frame(0x706, b"\x7f"), "node guarding reply node 6 PRE-OPERATIONAL toggle 0")]
+    assert [d.decode(frame) for frame, _ in frames] == [text for _, text in frames]
