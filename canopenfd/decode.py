@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from typing import Any, Dict, Iterable, Optional, Set, Tuple
 
 from .decode_services import (EMCY_BASE, SYNC_ID, TIME_ID, PdoDefinition, PdoMap,
-                              ServiceIds, default_pdo, default_pdo_text, emcy_text, pdo_text,
-                              service_text, sync_text, time_text)
+                              ServiceIds, default_pdo, default_pdo_text, emcy_text, hex_bytes,
+                              pdo_text, service_text, sync_text, time_text)
 from .errors import ABORT_TEXT, USDO_ABORT_TEXT
 from .nmt import NmtCommand, NmtState
 from .od.datatypes import DataType
@@ -50,10 +50,6 @@ def _fields(frame: Any):
                  | (_RTR if frame.is_remote_frame else 0))
         return frame.arbitration_id, bytes(frame.data), flags
     return frame.id, bytes(frame.data), frame.flags
-
-
-def hex_bytes(data: bytes) -> str:
-    return " ".join(f"{b:02X}" for b in data)
 
 
 def format_raw(frame: Any, max_bytes: Optional[int] = None) -> str:

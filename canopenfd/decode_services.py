@@ -2,7 +2,8 @@
 SYNC, TIME, EMCY (classic 8-byte and CANopen FD 20-byte) and PDOs, the
 latter either by the CiA 301 default CAN-IDs ("TPDO1 node 5 01 02") or by
 the mapping of an object dictionary (`PdoMap`: "TPDO1 node 5 Speed=1200,
-Enabled=true"). Pure Python; each function returns the text after the
+Enabled=true"); `ServiceIds` holds the SYNC/TIME/EMCY CAN-IDs dictionaries
+configure. Pure Python; each function returns the text after the
 CAN-ID, '... malformed: why' for frames that break the format.
 
 Wire formats follow the C core, the source of truth: `co_sync.c`,
@@ -192,47 +193,6 @@ def emcy_text(node_id: int, data: bytes, fd: bool) -> str:
     return ", ".join(parts)
 
 
-# ------------------------------------------------------------------ ids from an OD
-_COB_11_BITS = 0x7FF
-_COB_29_BITS = 0x1FFFFFFF
-
-
-class ServiceIds:
-    """The SYNC (0x1005), TIME (0x1012) and EMCY (0x1014) CAN-IDs object
-    dictionaries configure, for ids other than the defaults: `Decoder` asks
-    here before the default ids. add_od() once per node."""
-
-    def __init__(self) -> None:
-        self._by_id: Dict[Tuple[int, bool], Tuple[str, int]] = {}
-
-    def add_od(self, od: Any, node_id: int) -> None:
-        """Take the ids of `od` on node node_id (the OD's value, else its
-        default, $NODEID resolved). An EMCY COB-ID with bit 31 (invalid) set
-        is left out; bit 29 is a 29-bit CAN-ID (EMCY only: SYNC and TIME are
-        11-bit in this stack)."""
-        for index, service in ((0x1005, "SYNC"), (0x1012, "TIME"), (0x1014, "EMCY")):
-            cob = _int_entry(od, index, 0, node_id)
-            if cob is None or (service == "EMCY" and cob & _COB_INVALID):
-                continue
-            extended = service == "EMCY" and bool(cob & _COB_EXT)
-            can_id = cob & (_COB_29_BITS if extended else _COB_11_BITS)
-            self._by_id.setdefault((can_id, extended), (service, node_id))
-
-    def lookup(self, can_id: int, extended: bool = False) -> Optional[Tuple[str, int]]:
-        """('SYNC' / 'TIME' / 'EMCY', node-id of the OD) or None; the first OD
-        added wins."""
-        return self._by_id.get((can_id, extended))
-
-
-def service_text(service: str, node_id: int, data: bytes, fd: bool) -> str:
-    """The text of a SYNC, TIME or EMCY frame (ServiceIds.lookup's service)."""
-    if service == "SYNC":
-        return sync_text(data)
-    if service == "TIME":
-        return time_text(data)
-    return emcy_text(node_id, data, fd)
-
-
 # ------------------------------------------------------------------ PDO defaults
 #: CiA 301 pre-defined connection set: (base, name) of the default PDO CAN-IDs.
 DEFAULT_PDO_BASES = ((0x180, "TPDO1"), (0x200, "RPDO1"), (0x280, "TPDO2"), (0x300, "RPDO2"),
@@ -263,6 +223,8 @@ _RPDO_COMM, _RPDO_MAP, _TPDO_COMM, _TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
 _PDO_COUNT = 512
 _COB_INVALID = 1 << 31
 _COB_EXT = 1 << 29
+_COB_11_BITS = 0x7FF
+_COB_29_BITS = 0x1FFFFFFF
 #: Dummy mapping entries: index 0x0002..0x0007, sub 0, the type's size.
 DUMMY_TYPES = {0x0002: DataType.INTEGER8, 0x0003: DataType.INTEGER16,
                0x0004: DataType.INTEGER32, 0x0005: DataType.UNSIGNED8,
@@ -462,3 +424,41 @@ def pdo_text(pdo: PdoDefinition, data: bytes, fd: bool, rtr: bool = False) -> st
     if fd and any(obj.bits % 8 for obj in pdo.objects):
         problems.append("mapping not byte-wise (fd)")
     return f"{text} malformed: {', '.join(problems)}" if problems else text
+
+
+# ------------------------------------------------------------------ ids from an OD
+
+class ServiceIds:
+    """The SYNC (0x1005), TIME (0x1012) and EMCY (0x1014) CAN-IDs object
+    dictionaries configure, for ids other than the defaults: `Decoder` asks
+    here before the default ids. add_od() once per node."""
+
+    def __init__(self) -> None:
+        self._by_id: Dict[Tuple[int, bool], Tuple[str, int]] = {}
+
+    def add_od(self, od: Any, node_id: int) -> None:
+        """Take the ids of `od` on node node_id (the OD's value, else its
+        default, $NODEID resolved). An EMCY COB-ID with bit 31 (invalid) set
+        is left out; bit 29 is a 29-bit CAN-ID (EMCY only: SYNC and TIME are
+        11-bit in this stack)."""
+        for index, service in ((0x1005, "SYNC"), (0x1012, "TIME"), (0x1014, "EMCY")):
+            cob = _int_entry(od, index, 0, node_id)
+            if cob is None or (service == "EMCY" and cob & _COB_INVALID):
+                continue
+            extended = service == "EMCY" and bool(cob & _COB_EXT)
+            can_id = cob & (_COB_29_BITS if extended else _COB_11_BITS)
+            self._by_id.setdefault((can_id, extended), (service, node_id))
+
+    def lookup(self, can_id: int, extended: bool = False) -> Optional[Tuple[str, int]]:
+        """('SYNC' / 'TIME' / 'EMCY', node-id of the OD) or None; the first OD
+        added wins."""
+        return self._by_id.get((can_id, extended))
+
+
+def service_text(service: str, node_id: int, data: bytes, fd: bool) -> str:
+    """The text of a SYNC, TIME or EMCY frame (ServiceIds.lookup's service)."""
+    if service == "SYNC":
+        return sync_text(data)
+    if service == "TIME":
+        return time_text(data)
+    return emcy_text(node_id, data, fd)
