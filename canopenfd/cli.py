@@ -150,15 +150,48 @@ def cmd_nmt(args: argparse.Namespace) -> int:
         _shutdown(_owned(net, args), owned)
 
 
+def _monitor_od(spec: str) -> Tuple[Any, int]:
+    """`monitor --od FILE[@NODE]`: the dictionary and the node-id it describes
+    (NODE, else the node-id the DCF/XDC names)."""
+    path, node = spec, None
+    head, at, tail = spec.rpartition("@")
+    if at and head and tail.strip().isdigit():
+        path = head
+        try:
+            node = check_node_id(int(tail), f"--od {spec}: NODE")
+        except CanopenFDError as exc:
+            raise UsageError(str(exc)) from None
+    from .od import OdFileError, import_od
+
+    try:
+        od = import_od(path, node_id=node)
+    except OdFileError as exc:
+        raise UsageError(f"--od {exc}") from None
+    except OSError as exc:
+        raise UsageError(f"--od {path}: {exc.strerror or exc}") from None
+    node = node if node is not None else od.node_id
+    if node is None:
+        raise UsageError(f"--od {spec}: give the node-id it describes as FILE@NODE "
+                         "(the file names none)")
+    return od, node
+
+
 def cmd_monitor(args: argparse.Namespace) -> int:
     if args.count is not None and args.count < 1:
         raise UsageError(f"--count must be >= 1, got {args.count}")
+    # Follows SDO block transfers and guarding requests across frames; decodes
+    # the PDOs of the --od dictionaries by their mappings.
+    decoder = Decoder()
+    for spec in args.od or ():
+        od, node = _monitor_od(spec)
+        count = decoder.add_od(od, node)
+        print(f"node {node}: {count} PDO{'' if count == 1 else 's'} from {od.source or spec}",
+              file=sys.stderr)
     owned: List[Any] = []
     net = _network(args)
     try:
         line = _open_line(net, args, owned, monitor=True)
         printer = Printer()
-        decoder = Decoder()  # follows SDO block transfers across frames
         done = threading.Event()
         seen = [0]
 
@@ -487,6 +520,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("monitor", help="print every frame, decoded")
     line_options(p)
+    p.add_argument("--od", action="append", metavar="FILE[@NODE]",
+                   help="object dictionary (EDS, DCF, XDD or XDC) of node NODE: its PDOs "
+                        "are shown as name=value by their mapping; NODE may be left out when "
+                        "the file names its node-id (DCF, XDC); repeatable, one per node")
     p.add_argument("--duration", type=float, metavar="SECONDS")
     p.add_argument("--count", type=int, metavar="N", help="stop after N frames")
     p.set_defaults(func=cmd_monitor)

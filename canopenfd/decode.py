@@ -1,19 +1,32 @@
 """One-line, human-readable text for a CAN frame: NMT, boot-up, heartbeat,
-USDO (CAN FD frames on 0x601..0x67F and 0x581..0x5FF) and classic SDO (classic
-frames on the same CAN-IDs) decoded, malformed ones marked; anything else shown
-raw. Used by the CLI monitor and the demo; pure Python, no runtime needed.
+node guarding, SYNC, TIME, EMCY (classic and FD), PDOs, USDO (CAN FD frames on
+0x601..0x67F and 0x581..0x5FF) and classic SDO (classic frames on the same
+CAN-IDs) decoded, malformed ones marked; anything else shown raw. Used by the
+CLI monitor and the demo; pure Python, no runtime needed. SYNC, TIME, EMCY and
+PDOs are decoded in `canopenfd.decode_services`.
 
-`decode()` / `describe()` look at one frame alone. A classic SDO block
-transfer's sub-block segments carry no command specifier (byte 0 is the
-last-segment bit and a sequence number), so alone they read as whatever
-command byte 0 happens to spell; a `Decoder` (what the monitor keeps) follows
-each SDO server's transfers and names them "block segment #N"."""
+`decode()` / `describe()` look at one frame alone: PDOs by the CiA 301 default
+CAN-IDs ("TPDO1 node 5 01 02"). A `Decoder` (what the monitor keeps) also
+follows what needs earlier frames, and decodes PDOs by the mappings of the
+object dictionaries given to it (`Decoder(ods=[(od, node_id)])`):
+
+- A classic SDO block transfer's sub-block segments carry no command
+  specifier (byte 0 is the last-segment bit and a sequence number), so alone
+  they read as whatever command byte 0 happens to spell; the `Decoder` follows
+  each SDO server's transfers and names them "block segment #N".
+- A node guarding reply whose toggle bit is 0 looks like a heartbeat; after a
+  node guarding request (remote frame on 0x700 + node-id) the `Decoder` reads
+  the node's next one-byte frame as the reply. Alone, only a byte with bit 7
+  set (toggle 1) is known to be a reply."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Dict, Iterable, Optional, Set, Tuple
 
+from .decode_services import (EMCY_BASE, SYNC_ID, TIME_ID, PdoDefinition, PdoMap,
+                              ServiceIds, default_pdo, default_pdo_text, emcy_text, hex_bytes,
+                              pdo_text, service_text, sync_text, time_text)
 from .errors import ABORT_TEXT, USDO_ABORT_TEXT
 from .nmt import NmtCommand, NmtState
 from .od.datatypes import DataType
@@ -37,10 +50,6 @@ def _fields(frame: Any):
                  | (_RTR if frame.is_remote_frame else 0))
         return frame.arbitration_id, bytes(frame.data), flags
     return frame.id, bytes(frame.data), frame.flags
-
-
-def hex_bytes(data: bytes) -> str:
-    return " ".join(f"{b:02X}" for b in data)
 
 
 def format_raw(frame: Any, max_bytes: Optional[int] = None) -> str:
@@ -72,27 +81,52 @@ def _is_sdo_id(can_id: int) -> bool:
 
 
 def meaning(frame: Any) -> str:
-    """What the frame means in CANopen terms, '' when it is no NMT/boot-up/heartbeat/
-    USDO/SDO frame. On 0x581..0x5FF and 0x601..0x67F a CAN FD frame is USDO and a
+    """What the frame means in CANopen terms, '' when it is nothing this module
+    knows. On 0x581..0x5FF and 0x601..0x67F a CAN FD frame is USDO and a
     classic frame is SDO, read alone: byte 0 is taken as a command specifier, so a
     block transfer's sub-block segment reads as the command its byte 0 spells, or
-    as 'unknown command 0xNN or block segment #N' (a `Decoder` knows which)."""
-    return _meaning(frame, _sdo)
+    as 'unknown command 0xNN or block segment #N' (a `Decoder` knows which).
+    PDOs are named by the default CAN-IDs only (a `Decoder` with an object
+    dictionary decodes their values)."""
+    return _meaning(frame, None)
 
 
-def _meaning(frame: Any, sdo: Callable[[int, bytes], str]) -> str:
+def _meaning(frame: Any, decoder: Optional["Decoder"]) -> str:
     can_id, data, flags = _fields(frame)
-    if flags & (_EXT | _RTR):
-        if flags & _RTR and 0x701 <= can_id <= 0x77F and not flags & _EXT:
-            return f"node guarding request node {can_id - 0x700}"
+    rtr, fd = bool(flags & _RTR), bool(flags & _FD)
+    if decoder is not None:
+        service = decoder.service(can_id, bool(flags & _EXT))
+        if service is not None and not rtr:
+            return service_text(service[0], service[1], data, fd)
+        pdo = decoder.pdo(can_id, bool(flags & _EXT))
+        if pdo is not None:
+            return pdo_text(pdo, data, fd, rtr)
+    if flags & _EXT:
         return ""
+    if rtr:
+        if 0x701 <= can_id <= 0x77F:
+            if decoder is not None:
+                decoder.guarding_requested(can_id - 0x700)
+            return f"node guarding request node {can_id - 0x700}"
+        found = default_pdo(can_id)
+        return default_pdo_text(can_id, data, rtr=True) if found and found[0][0] == "T" else ""
     if can_id == 0x000:
         return _nmt(data)
+    if can_id == SYNC_ID:
+        return sync_text(data)
+    if EMCY_BASE < can_id <= EMCY_BASE + 0x7F:
+        return emcy_text(can_id - EMCY_BASE, data, fd)
+    if can_id == TIME_ID:
+        return time_text(data)
     if 0x700 <= can_id <= 0x77F:
-        return _heartbeat(can_id - 0x700, data)
+        node = can_id - 0x700
+        guarded = decoder is not None and decoder.guarding_reply(node, data)
+        return _heartbeat(node, data, guarded)
     if _is_sdo_id(can_id):
-        return _usdo(can_id, data) if flags & _FD else sdo(can_id, data)
-    return ""
+        if fd:
+            return _usdo(can_id, data)
+        return decoder.sdo(can_id, data) if decoder is not None else _sdo(can_id, data)
+    return default_pdo_text(can_id, data)
 
 
 def decode(frame: Any) -> str:
@@ -139,19 +173,22 @@ def _nmt(data: bytes) -> str:
     return f"NMT {label} {target}"
 
 
-def _heartbeat(node_id: int, data: bytes) -> str:
+_GUARDED_STATES = (NmtState.STOPPED, NmtState.OPERATIONAL, NmtState.PRE_OPERATIONAL)
+
+
+def _heartbeat(node_id: int, data: bytes, guarded: bool = False) -> str:
+    """A frame on 0x700 + node-id: boot-up, heartbeat, or node guarding reply
+    (bit 7 set is the guarding toggle; guarded: the answer to a request seen)."""
     if node_id == 0:
         return "heartbeat malformed: CAN-ID 0x700 (node-id 0)"
     if len(data) != 1:
-        return f"heartbeat node {node_id} malformed: {len(data)} bytes, expected 1"
+        what = "node guarding reply" if guarded else "heartbeat"
+        return f"{what} node {node_id} malformed: {len(data)} bytes, expected 1"
     code = data[0]
     if code == NmtState.INITIALISING:
         return f"boot-up node {node_id}"
-    if code & 0x7F in (NmtState.STOPPED, NmtState.OPERATIONAL, NmtState.PRE_OPERATIONAL) \
-            and code & 0x80:
-        # Node-guarding reply: state in bits 0..6, toggle bit 7.
-        return (f"node guarding reply node {node_id} {NmtState(code & 0x7F).label} "
-                "toggle 1")
+    if code & 0x80 or guarded:
+        return _guarding_reply(node_id, code)
     try:
         state = NmtState(code)
     except ValueError:
@@ -159,6 +196,15 @@ def _heartbeat(node_id: int, data: bytes) -> str:
     if state is None or state is NmtState.UNKNOWN:
         return f"heartbeat node {node_id} malformed: state 0x{code:02X}"
     return f"heartbeat node {node_id} {state.label}"
+
+
+def _guarding_reply(node_id: int, code: int) -> str:
+    """Node guarding reply: NMT state in bits 0..6, toggle in bit 7."""
+    head = f"node guarding reply node {node_id}"
+    toggle, state = code >> 7, code & 0x7F
+    if state not in _GUARDED_STATES:
+        return f"{head} toggle {toggle} malformed: state 0x{state:02X}"
+    return f"{head} {NmtState(state).label} toggle {toggle}"
 
 
 # ------------------------------------------------------------------ USDO
@@ -493,10 +539,24 @@ class _Block:
 
 
 class Decoder:
-    """A frame decoder that follows classic SDO transfers: what `canopenfd
-    monitor` keeps for its lifetime. Same text as `meaning()` / `decode()` /
-    `describe()`, except that while a server is in a block transfer's sub-block
-    phase, the sending side's frames are "block segment #N" ("... last" for c=1).
+    """A frame decoder that follows what needs earlier frames, and decodes PDOs
+    by object dictionaries: what `canopenfd monitor` keeps for its lifetime.
+    Same text as `meaning()` / `decode()` / `describe()`, except:
+
+    - PDOs: with `ods` (pairs of an `ObjectDictionary` and the node-id it
+      describes, None for the OD's own, e.g. a DCF's) a frame on a PDO's CAN-ID
+      (its COB-ID from 0x1400../0x1800.., $NODEID resolved) reads
+      "TPDO1 node 5 name=value, ..." by the mapping (0x1600../0x1A00..);
+      see `decode_services.pdo_text`. `add_od()` adds one later. The SYNC,
+      TIME and EMCY CAN-IDs of those dictionaries (0x1005, 0x1012, 0x1014)
+      are decoded as such too (before PDOs and the default ids).
+    - Node guarding: after a request (remote frame on 0x700 + node-id) the
+      node's next one-byte frame there is the reply, also with toggle 0 --
+      unless the node was seen sending heartbeats (bit 7 clear, unasked; a
+      heartbeat producer answers no request), until its boot-up or a reply
+      with toggle 1.
+    - Classic SDO: while a server is in a block transfer's sub-block phase,
+      the sending side's frames are "block segment #N" ("... last" for c=1).
 
     Per server node-id: the server's initiate block download response (or the
     client's start block upload) begins the sub-block phase; each ack starts the
@@ -510,11 +570,25 @@ class Decoder:
     meaning(), decode() or describe() takes the frame as the next one seen.
     Frames of other kinds decode as `meaning()` does."""
 
-    def __init__(self) -> None:
+    def __init__(self, ods: Iterable[Tuple[Any, Optional[int]]] = ()) -> None:
         self._blocks: Dict[int, _Block] = {}
+        self._guard_requests: Set[int] = set()
+        self._heartbeat_nodes: Set[int] = set()
+        self._pdos = PdoMap()
+        self._services = ServiceIds()
+        for od, node_id in ods:
+            self.add_od(od, node_id)
+
+    def add_od(self, od: Any, node_id: Optional[int] = None) -> int:
+        """Decode the PDOs of `od` (an ObjectDictionary) on node node_id
+        (default: od.node_id; ValueError when neither is known); the number of
+        PDOs it defines. Its SYNC, TIME and EMCY CAN-IDs are taken too."""
+        found = self._pdos.add_od(od, node_id)      # checks the node-id
+        self._services.add_od(od, node_id if node_id is not None else od.node_id)
+        return len(found)
 
     def meaning(self, frame: Any) -> str:
-        return _meaning(frame, self._sdo)
+        return _meaning(frame, self)
 
     def decode(self, frame: Any) -> str:
         return _decode(frame, self.meaning(frame))
@@ -531,10 +605,37 @@ class Decoder:
         return "block upload" if block.upload else "block download"
 
     def reset(self) -> None:
-        """Forget every transfer."""
+        """Forget every transfer, guarding request and heartbeat producer seen."""
         self._blocks.clear()
+        self._guard_requests.clear()
+        self._heartbeat_nodes.clear()
 
-    def _sdo(self, can_id: int, data: bytes) -> str:
+    # -- what _meaning asks
+    def pdo(self, can_id: int, extended: bool) -> Optional[PdoDefinition]:
+        return self._pdos.lookup(can_id, extended)
+
+    def service(self, can_id: int, extended: bool) -> Optional[Tuple[str, int]]:
+        return self._services.lookup(can_id, extended)
+
+    def guarding_requested(self, node_id: int) -> None:
+        self._guard_requests.add(node_id)
+
+    def guarding_reply(self, node_id: int, data: bytes) -> bool:
+        """Whether this frame on 0x700 + node_id answers an open guarding
+        request (the request is then closed); keeps track of heartbeat producers."""
+        asked = node_id in self._guard_requests
+        self._guard_requests.discard(node_id)
+        if len(data) != 1:
+            return asked
+        if data[0] == 0 or data[0] & 0x80:           # boot-up, or a reply with toggle 1
+            self._heartbeat_nodes.discard(node_id)
+            return asked
+        if not asked:
+            self._heartbeat_nodes.add(node_id)       # bit 7 clear, unasked: a heartbeat
+            return False
+        return node_id not in self._heartbeat_nodes
+
+    def sdo(self, can_id: int, data: bytes) -> str:
         text = _sdo(can_id, data)
         if len(data) != _SDO_LEN:
             return text                              # malformed: the state stays

@@ -1,5 +1,6 @@
 """The frame decoder (NMT, heartbeat, USDO, classic SDO) and the NMT enums: pure
-Python (but for the monitor command test)."""
+Python (but for the monitor command test). SYNC, TIME, EMCY, PDOs and node guarding:
+test_decode_services.py."""
 
 from __future__ import annotations
 
@@ -42,14 +43,16 @@ def fd(can_id, data, brs=True):
     (Frame(0x77F, b"\x7f"), "heartbeat node 127 PRE-OPERATIONAL"),
     (Frame(0x705, b"\x04"), "heartbeat node 5 STOPPED"),
     (Frame(0x705, b"\x85"), "node guarding reply node 5 OPERATIONAL toggle 1"),
-    (Frame(0x181, bytes(range(1, 9))), "0x181 [8] 01 02 03 04 05 06 07 08"),
-    (Frame(0x080, b""), "0x080 [0]"),
+    (Frame(0x181, bytes(range(1, 9))), "TPDO1 node 1 01 02 03 04 05 06 07 08"),
+    (Frame(0x080, b""), "SYNC"),
+    (Frame(0x6E0, bytes(range(1, 9))), "0x6E0 [8] 01 02 03 04 05 06 07 08"),
     (Frame(0x1ABCDEF0, b"\x01", ext=True), "0x1ABCDEF0 [1] 01"),
     (Frame(0x705, b"", rtr=True, rtr_len=1), "node guarding request node 5"),
     (Frame(0x123, b"", rtr=True, rtr_len=8), "0x123 [8] RTR"),
     (fd(0x705, b"\x00"), "boot-up node 5 [FD BRS]"),
     (fd(0x000, b"\x01\x05", brs=False), "NMT start node 5 [FD]"),
-    (fd(0x201, bytes(12)), "0x201 [12] " + " ".join(["00"] * 12) + " [FD BRS]"),
+    (fd(0x201, bytes(12)), "RPDO1 node 1 " + " ".join(["00"] * 12) + " [FD BRS]"),
+    (fd(0x6E1, bytes(12)), "0x6E1 [12] " + " ".join(["00"] * 12) + " [FD BRS]"),
 ])
 def test_decode(frame, text):
     assert decode(frame) == text
@@ -62,7 +65,8 @@ def test_decode(frame, text):
     (Frame(0x000, b"\x01\xc8"), "NMT start node 200 malformed: node-id outside 0..127"),
     (Frame(0x705, b"\x05\x00"), "heartbeat node 5 malformed: 2 bytes, expected 1"),
     (Frame(0x705, b"\x33"), "heartbeat node 5 malformed: state 0x33"),
-    (Frame(0x705, b"\x80"), "heartbeat node 5 malformed: state 0x80"),
+    (Frame(0x705, b"\x80"), "node guarding reply node 5 toggle 1 malformed: state 0x00"),
+    (Frame(0x705, b"\xb3"), "node guarding reply node 5 toggle 1 malformed: state 0x33"),
     (Frame(0x700, b"\x05"), "heartbeat malformed: CAN-ID 0x700 (node-id 0)"),
 ])
 def test_decode_marks_malformed_frames(frame, text):
@@ -74,7 +78,8 @@ def test_describe_and_raw():
     assert format_raw(Frame(0x705, b"\x7f")) == "0x705 [1] 7F"
     assert describe(fd(0x705, b"\x7f")).split() == [
         "0x705", "[1]", "7F", "heartbeat", "node", "5", "PRE-OPERATIONAL", "[FD", "BRS]"]
-    assert describe(Frame(0x181, b"\x01")) == "0x181 [1] 01"
+    assert describe(Frame(0x6E1, b"\x01")) == "0x6E1 [1] 01"
+    assert describe(Frame(0x181, b"\x01")) == "0x181 [1] 01".ljust(30) + " TPDO1 node 1 01"
 
 
 def test_decode_accepts_python_can_messages_and_tuples():
@@ -279,8 +284,9 @@ def test_classic_frames_on_usdo_ids_are_classic_sdo():
     assert decode((0x605, bytes([3, 0x11, 7, 0, 0, 0x20]))) == \
         "SDO 5 rx malformed: 6 bytes, expected 8 (03 11 07 00 00 20)"
     # FD frames just outside the ranges, and 29-bit ids, are not USDO
-    for can_id in (0x580, 0x600, 0x680, 0x57F):
+    for can_id in (0x580, 0x600, 0x680):
         assert meaning(usdo(can_id, 3, 0x11, 7, 0, 0, 0x20)) == ""
+    assert meaning(usdo(0x57F, 3, 0x11, 7, 0, 0, 0x20)) == "RPDO4 node 127 03 11 07 00 00 20"
     ext = Frame(0x605, bytes([3, 0x11, 7, 0, 0, 0x20]), fd=True, ext=True)
     assert decode(ext) == "0x00000605 [6] 03 11 07 00 00 20 [FD]"
 
@@ -293,8 +299,8 @@ def test_usdo_describe_keeps_the_monitor_line_short():
     assert describe(short) == ("0x583 [12] 05 31 07 01 00 20 07 04 01 02 03 04 "
                                "USDO 3->5 sid 7 upload expedited 0x2000:01 U32 N=4 01 02 03 04 "
                                "[FD BRS]")
-    unknown = fd(0x201, bytes(20))                                  # undecoded: every byte
-    assert describe(unknown) == "0x201 [20] " + " ".join(["00"] * 20) + " [FD BRS]"
+    unknown = fd(0x6E1, bytes(20))                                  # undecoded: every byte
+    assert describe(unknown) == "0x6E1 [20] " + " ".join(["00"] * 20) + " [FD BRS]"
     assert format_raw(frame, 2) == "0x583 [64] 05 33 ..."
 
 
@@ -559,7 +565,7 @@ def test_sdo_only_on_classic_11_bit_data_frames():
         "USDO 5->3 sid 7 upload request 0x1008:00 [FD BRS]"
     for frame in (Frame(0x605, bytes([0x40, 0x08, 0x10, 0, 0, 0, 0, 0]), ext=True),
                   Frame(0x605, b"", rtr=True, rtr_len=8),
-                  sdo(0x580, 0x60), sdo(0x600, 0x40), sdo(0x680, 0x40), sdo(0x57F, 0x60)):
+                  sdo(0x580, 0x60), sdo(0x600, 0x40), sdo(0x680, 0x40)):
         assert meaning(frame) == "" and Decoder().meaning(frame) == ""
         assert decode(frame) == format_raw(frame)
 

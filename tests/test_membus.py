@@ -562,7 +562,7 @@ def test_monitor_sees_its_own_frames_as_tx(net, bus_name):
     assert (got.id, got.data, got.fd, got.brs, got.tx) == (0x181, expected, True, True, False)
     own = mine.wait_count(1)[0]
     assert (own.id, own.data, own.tx) == (0x181, expected, True)
-    assert canopenfd.decode(got) == "0x181 [12] 00 01 02 03 04 05 06 07 08 00 00 00 [FD BRS]"
+    assert canopenfd.decode(got) == "TPDO1 node 1 00 01 02 03 04 05 06 07 08 00 00 00 [FD BRS]"
 
 
 def test_boot_later_lets_callbacks_see_the_first_transition(net, bus_name):
