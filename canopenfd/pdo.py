@@ -175,7 +175,9 @@ class PdoMaps(Mapping):
             return key - mapping + 1
         return key
 
-    def __getitem__(self, key: Any) -> "PdoMap":
+    def __getitem__(self, key: Any) -> Any:
+        """The PdoMap of a number or index; for a name, the first mapped
+        PdoVariable of that name in any of these PDOs (python-canopen)."""
         if isinstance(key, int) and not isinstance(key, bool):
             number = self._number(key)
             if number in self.maps:
@@ -184,10 +186,10 @@ class PdoMaps(Mapping):
             raise KeyError(f"{_node_where(self.node)} has no {self.kind.upper()} {key} in its "
                            f"object dictionary (it has: {have})")
         if isinstance(key, str):
-            for pdo_map in self.maps.values():     # python-canopen: a mapped variable's name
+            for pdo_map in self.maps.values():
                 for var in pdo_map.map:
                     if key in (var.name, getattr(var.od, "name", None)):
-                        return pdo_map
+                        return var
         raise KeyError(f"{_node_where(self.node)}: no {self.kind.upper()} {key!r}")
 
     def __iter__(self) -> Iterator[int]:

@@ -154,11 +154,13 @@ def test_disabled_pdo_stays_invalid_and_unchanged_mapping_is_not_rewritten(class
     tpdo = remote.tpdo[2]
     tpdo.read()                                   # COB-ID 0x80000285 from the defaults
     assert (tpdo.cob_id, tpdo.enabled, tpdo.trans_type) == (0x285, False, 255)
-    start = len(frames)
     tpdo.event_timer = 500
     tpdo.save()
+    wait_frames(frames, 5, lambda f: f.id == 0x600 + SERVER and f.data[0] & 0xE0 == 0x20,
+                "5 downloads")
     time.sleep(scaled(0.05))
-    sent = [f.data.hex(" ") for f in frames.snapshot()[start:] if f.id == 0x600 + SERVER]
+    sent = [f.data.hex(" ") for f in frames.snapshot()
+            if f.id == 0x600 + SERVER and f.data[0] & 0xE0 == 0x20]     # downloads only
     assert sent == ["23 01 18 01 85 02 00 80",   # invalid
                     "2f 01 18 02 ff 00 00 00",   # type 255 (read back, written again)
                     "2b 01 18 03 00 00 00 00",   # inhibit time 0
@@ -656,9 +658,12 @@ def test_python_canopen_attribute_names(classic):
     for name in ("map", "read", "save"):
         assert hasattr(theirs.tpdo, name) and hasattr(remote.tpdo, name)
     assert remote.tpdo.map[1] is remote.tpdo[1]
+    with pytest.raises(KeyError):
+        remote.tpdo["Demo UNSIGNED8"]
     assert my_map.predefined_cob_id == 0x185 and my_map.name == "TxPDO1_node5"
     var = my_map.add_variable("Demo UNSIGNED8")
     for name in ("index", "subindex", "offset", "length", "name", "od", "raw", "get_data"):
         assert hasattr(var, name), name
+    assert remote.tpdo["Demo UNSIGNED8"] is var is my_map["Demo UNSIGNED8"] is my_map[0]
     assert my_map.variables is my_map.map and isinstance(remote.tpdo, PdoMaps)
     assert isinstance(my_map, PdoMap)
