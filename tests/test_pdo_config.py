@@ -449,6 +449,28 @@ def test_read_back_equals_saved_on_our_server(net, bus_name, mode):
     assert settings(node.tpdo[2]) == settings(tpdo)
 
 
+def test_an_eds_file_gives_numbers_defaults_and_mapped_variables(net, bus_name):
+    eds = os.path.join(os.path.dirname(__file__), "data", "od", "classic_vendor.eds")
+    node = net.open_line(bus_name, mode="classic").create_local_node(SERVER, od=eds)
+    remote = net.open_line(bus_name, mode="classic").add_node(SERVER, od=eds)
+    assert list(remote.tpdo) == [1] and list(remote.rpdo) == [1]
+    offline = remote.tpdo[1]
+    offline.read(from_od=True)                           # 0x180+$NODEID, type 254
+    assert (offline.cob_id, offline.enabled, offline.trans_type) == (0x185, True, 254)
+    assert [(v.name, v.offset, v.length) for v in offline.map] == [
+        ("Read analog input 16-bit.Read analog input 16-bit1", 0, 16),
+        ("Read analog input 16-bit.Read analog input 16-bit2", 16, 16)]
+    snapshot = settings(offline)
+    online = remote.tpdo[1]
+    online.read()                                        # the served values over SDO
+    assert settings(online) == snapshot
+    rpdo = remote.rpdo[1]
+    rpdo.read()                                          # 0x6200:01 is not in this EDS
+    assert (rpdo.cob_id, rpdo.trans_type) == (0x205, 255)
+    assert [(v.name, v.od, v.length) for v in rpdo.map] == [("0x6200:01", None, 8)]
+    assert node[0x1600][1].raw == 0x62000108
+
+
 def test_local_node_configures_its_own_pdos(net, bus_name, mode):
     node, line, _, _ = make_rig(net, bus_name, mode)
     defaults = node.tpdo[1]
