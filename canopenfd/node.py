@@ -29,6 +29,7 @@ STORE_STATUS = {0: "ok", 1: "empty", 2: "damaged", 3: "foreign", 4: "io-error", 
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
+    from .pdo import PdoMaps
     from .transfer import RemoteAccess, RemoteObjects
 
 StateLike = Union[NmtState, str, int]
@@ -422,6 +423,21 @@ class LocalNode:
         before the node's new boot-up message."""
         return self._reset.add(callback)
 
+    # ---------------------------------------------------------------- PDO configuration
+    @property
+    def tpdo(self) -> "PdoMaps":
+        """The TPDOs of the served OD (0x1800../0x1A00..), by number:
+        `node.tpdo[1].trans_type = 255`, `.add_variable(...)`, `.save()`
+        (see canopenfd.pdo)."""
+        from .pdo import pdo_maps
+        return pdo_maps(self, "tpdo")
+
+    @property
+    def rpdo(self) -> "PdoMaps":
+        """The RPDOs of the served OD (0x1400../0x1600..), as `tpdo`."""
+        from .pdo import pdo_maps
+        return pdo_maps(self, "rpdo")
+
     # ---------------------------------------------------------------- events
     def _event_state(self, old: int, new: int) -> Callable[[], None]:
         old_s, new_s = _state(old), _state(new)
@@ -702,6 +718,21 @@ class RemoteNode:
         boot-up, the first heartbeat, a state change, resumption after loss
         (not for every unchanged heartbeat: no Python code per frame)."""
         self._heartbeat.add(callback)
+
+    # ---------------------------------------------------------------- PDO configuration
+    @property
+    def tpdo(self) -> "PdoMaps":
+        """The TPDOs of the node's OD (0x1800../0x1A00..), by number:
+        `node.tpdo[1].trans_type = 255`, `.add_variable(...)`, `.save()`
+        through USDO (fd lines) or SDO (classic lines); see canopenfd.pdo."""
+        from .pdo import pdo_maps
+        return pdo_maps(self, "tpdo")
+
+    @property
+    def rpdo(self) -> "PdoMaps":
+        """The RPDOs of the node's OD (0x1400../0x1600..), as `tpdo`."""
+        from .pdo import pdo_maps
+        return pdo_maps(self, "rpdo")
 
     # ---------------------------------------------------------------- events
     def _event(self, hb_event: int, code: int, time_us: int = 0) -> Callable[[], None]:

@@ -1,0 +1,746 @@
+"""PDO configuration (CiA 301 / CiA 1301) with python-canopen's names.
+
+    drive = line.add_node(5, od="drive.eds")
+    tpdo = drive.tpdo[1]                     # TPDO 1: 0x1800 / 0x1A00
+    tpdo.read()                              # what the node has now
+    tpdo.clear()
+    tpdo.add_variable("Statusword")          # by name ...
+    tpdo.add_variable(0x6064, 0)             # ... or index, sub (length from the OD)
+    tpdo.trans_type = 255
+    tpdo.event_timer = 10                    # ms
+    tpdo.enabled = True
+    tpdo.save()                              # the CiA 301 procedure, see PdoMap.save
+    me.rpdo[1].add_variable(0x0005, 0, 8)    # an RPDO may skip bytes with a dummy entry
+
+`node.tpdo` / `node.rpdo` exist on remote nodes (read and written through
+USDO on fd lines, SDO on classic lines) and on the local node (its own
+object dictionary). The PDO numbers are those of the node's OD: TPDO n is
+0x1800 + n - 1 (communication) / 0x1A00 + n - 1 (mapping), RPDO n 0x1400 /
+0x1600 + n - 1, n = 1..512.
+
+Checked before anything is sent (ConfigurationError naming node, PDO, field,
+expected and given value): transmission types 0, 1..240, 254, 255 and 252/253
+(classic lines, TPDOs only); inhibit time and event timer 0..65535; SYNC start
+value 0..240; mapped objects exist, are mappable in the PDO's direction and
+hold the mapped length; dummy entries 0x0002..0x0007 in RPDOs only; byte-wise
+lengths on fd lines; the total within 8 bytes (classic) or 64 bytes (fd) and
+the entries within the mapping object's sub-entries; a changed value for an
+entry the OD marks read-only (a fixed parameter is only skipped while it
+still has the value read). The node checks again
+(CiA 301 abort codes); a refusal raises the transfer's abort exception
+(SdoAbortError / UsdoAbortError, AbortError on the local node) whose message
+names the PDO and the step, also as `.pdo` and `.step`.
+
+Received PDOs are not delivered to Python yet (the runtime copies them into
+the local OD); `PdoMap.data` and `PdoVariable.raw` decode a PDO's bytes.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
+
+from .errors import AbortError, ConfigurationError
+from .od import ODArray, ODRecord, ODVariable, ObjectDictionary
+from .od.datatypes import DataType, decode
+
+__all__ = ["PdoMaps", "PdoMap", "PdoVariable", "PDO_NOT_VALID", "RTR_NOT_ALLOWED",
+           "FRAME_29BIT", "DUMMY_BITS"]
+
+log = logging.getLogger(__name__)
+
+#: COB-ID flags (sub 1 of the communication object).
+PDO_NOT_VALID = 1 << 31
+RTR_NOT_ALLOWED = 1 << 30
+FRAME_29BIT = 1 << 29
+
+#: Dummy mapping entries (RPDOs only): data type index -> length in bits.
+DUMMY_BITS = {0x0002: 8, 0x0003: 16, 0x0004: 32, 0x0005: 8, 0x0006: 16, 0x0007: 32}
+
+_MAX_ENTRIES = 64
+_BITS = {"classic": 64, "fd": 512}
+_COMM = {"rpdo": 0x1400, "tpdo": 0x1800}
+_MAP = {"rpdo": 0x1600, "tpdo": 0x1A00}
+_PREDEFINED = {"rpdo": 0x200, "tpdo": 0x180}
+# Communication sub-entries: sub -> (attribute, what, size in bytes).
+_COMM_SUBS = {1: ("cob_id", "COB-ID", 4), 2: ("trans_type", "transmission type", 1),
+              3: ("inhibit_time", "inhibit time", 2), 5: ("event_timer", "event timer", 2),
+              6: ("sync_start_value", "SYNC start value", 1)}
+# Aborts that mean "this optional sub-entry is not there" when reading.
+_ABSENT = (0x06090011, 0x06020000)
+
+
+# ------------------------------------------------------------------ node access
+def pdo_maps(node: Any, kind: str) -> "PdoMaps":
+    """The PdoMaps of a node (`node.tpdo` / `node.rpdo`): made once per node
+    and object dictionary, so settings made on `node.tpdo[1]` stay there."""
+    od = _node_od(node)
+    if od is None:
+        how = "line.add_node(N, od=...)" if _is_remote(node) else "create_local_node(N, od=...)"
+        raise ConfigurationError(f"{_node_where(node)}: no object dictionary, so no PDO "
+                                 f"objects are known ({how})")
+    cache: Dict[str, PdoMaps] = node.__dict__.setdefault("_pdo_maps", {})
+    maps = cache.get(kind)
+    if maps is None or maps.od is not od:
+        maps = cache[kind] = PdoMaps(node, kind)
+    return maps
+
+
+def _is_remote(node: Any) -> bool:
+    from .node import RemoteNode
+    return isinstance(node, RemoteNode)
+
+
+def _node_od(node: Any) -> Optional[ObjectDictionary]:
+    return node.object_dictionary if _is_remote(node) else node.od
+
+
+def _node_where(node: Any) -> str:
+    return f"{'node' if _is_remote(node) else 'local node'} {node.node_id}"
+
+
+class _Access:
+    """How one node's PDO objects are read and written: the transfer API
+    (USDO on fd lines, SDO on classic lines) for remote nodes, the served OD
+    for the local node."""
+
+    def __init__(self, node: Any) -> None:
+        self.node = node
+        self.remote = _is_remote(node)
+
+    def _client(self) -> Any:
+        return self.node.usdo if self.node.line.mode == "fd" else self.node.sdo
+
+    def _local_value(self, index: int, sub: int) -> Any:
+        if not self.node.booted:
+            raise ConfigurationError(f"{_node_where(self.node)} is not booted yet: its PDO "
+                                     "objects cannot be read or written")
+        return self.node[(index, sub)]
+
+    def read(self, index: int, sub: int) -> bytes:
+        if self.remote:
+            return self._client().upload((index, sub))
+        return self._local_value(index, sub).data
+
+    def write(self, index: int, sub: int, data: bytes) -> None:
+        if self.remote:
+            self._client().download((index, sub), data)
+        else:
+            self._local_value(index, sub).data = data
+
+
+def _add_context(exc: AbortError, pdo: str, step: str) -> None:
+    """Name the PDO and the step in an abort (same exception, same code)."""
+    exc.pdo = pdo            # type: ignore[attr-defined]
+    exc.step = step          # type: ignore[attr-defined]
+    text = exc.args[0] if exc.args else str(exc)
+    exc.args = (f"{pdo}, {step}: {text}",) + tuple(exc.args[1:])
+
+
+# ------------------------------------------------------------------ collection
+class PdoMaps(Mapping):
+    """The TPDOs or RPDOs of one node (`node.tpdo`, `node.rpdo`), by PDO
+    number 1..512 (`node.tpdo[1]`), or by the index of the communication or
+    mapping object (`node.tpdo[0x1A00]`). Only the PDOs the node's OD has
+    (a communication object with sub 1) are there."""
+
+    def __init__(self, node: Any, kind: str) -> None:
+        if kind not in _COMM:
+            raise ConfigurationError(f"PDO kind must be 'tpdo' or 'rpdo', got {kind!r}")
+        self.node = node
+        self.kind = kind
+        self.od = _node_od(node)
+        self._access = _Access(node)
+        #: {number: PdoMap} (python-canopen's name)
+        self.maps: Dict[int, PdoMap] = {}
+        if self.od is not None:
+            for number in range(1, 513):
+                if self.od.get_variable(_COMM[kind] + number - 1, 1) is not None:
+                    self.maps[number] = PdoMap(self, number)
+
+    def __repr__(self) -> str:
+        return f"<PdoMaps {self.kind.upper()} {list(self.maps)} of {_node_where(self.node)}>"
+
+    @property
+    def map(self) -> "PdoMaps":
+        """python-canopen's `node.tpdo.map[1]`: this collection."""
+        return self
+
+    def _number(self, key: int) -> int:
+        comm, mapping = _COMM[self.kind], _MAP[self.kind]
+        if comm <= key < comm + 512:
+            return key - comm + 1
+        if mapping <= key < mapping + 512:
+            return key - mapping + 1
+        return key
+
+    def __getitem__(self, key: Any) -> Any:
+        """The PdoMap of a number or index; for a name, the first mapped
+        PdoVariable of that name in any of these PDOs (python-canopen)."""
+        if isinstance(key, int) and not isinstance(key, bool):
+            number = self._number(key)
+            if number in self.maps:
+                return self.maps[number]
+            have = ", ".join(str(n) for n in self.maps) or "none"
+            raise KeyError(f"{_node_where(self.node)} has no {self.kind.upper()} {key} in its "
+                           f"object dictionary (it has: {have})")
+        if isinstance(key, str):
+            for pdo_map in self.maps.values():
+                for var in pdo_map.map:
+                    if key in (var.name, getattr(var.od, "name", None)):
+                        return var
+        raise KeyError(f"{_node_where(self.node)}: no {self.kind.upper()} {key!r}")
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self.maps)
+
+    def __len__(self) -> int:
+        return len(self.maps)
+
+    def read(self, from_od: bool = False) -> None:
+        """Read every PDO's configuration (see PdoMap.read)."""
+        for pdo_map in self.maps.values():
+            pdo_map.read(from_od=from_od)
+
+    def save(self) -> None:
+        """Save every PDO whose COB-ID is known (read or set), in number order."""
+        for pdo_map in self.maps.values():
+            if pdo_map.cob_id is not None:
+                pdo_map.save()
+
+
+# ------------------------------------------------------------------ one PDO
+class PdoVariable:
+    """One mapping entry of a PDO: an OD entry (`od`), a dummy (RPDOs) or an
+    entry the node's OD does not describe (`od` None). `offset` and `length`
+    are in bits; `raw` decodes the entry from the PDO's `data`."""
+
+    def __init__(self, index: int, subindex: int, length: int,
+                 od: Optional[ODVariable] = None) -> None:
+        self.od = od
+        self.index = index
+        self.subindex = subindex
+        #: mapped length in bits
+        self.length = length
+        #: first bit in the PDO (bit 0 = least significant bit of byte 0)
+        self.offset = 0
+        self.pdo_parent: Optional[PdoMap] = None
+
+    @property
+    def is_dummy(self) -> bool:
+        return self.od is None and self.index in DUMMY_BITS and self.subindex == 0
+
+    @property
+    def name(self) -> str:
+        if self.od is not None:
+            return self.od.qualname
+        if self.is_dummy:
+            return f"Dummy {DataType(self.index).name}"
+        return f"0x{self.index:04X}:{self.subindex:02X}"
+
+    @property
+    def mapping_value(self) -> int:
+        """The mapping entry as written to the node: index << 16 | sub << 8 | bits."""
+        return self.index << 16 | self.subindex << 8 | self.length
+
+    def __repr__(self) -> str:
+        return (f"<PdoVariable {self.name!r} 0x{self.index:04X}:{self.subindex:02X} "
+                f"bits {self.offset}..{self.offset + self.length - 1}>")
+
+    def get_data(self) -> bytes:
+        """The entry's bytes from the PDO's `data`: the mapped bits, the rest
+        of the object 0 (as a receiving node fills it); for a string the
+        mapped bytes."""
+        data = self.pdo_parent.data if self.pdo_parent is not None else b""
+        needed = (self.offset + self.length + 7) // 8
+        if len(data) < needed:
+            raise ConfigurationError(f"{self.name}: the PDO data hold {len(data)} bytes, "
+                                     f"the entry needs {needed}")
+        whole = int.from_bytes(bytes(data[:needed]), "little")
+        value = (whole >> self.offset) & ((1 << self.length) - 1)
+        size = self.od.size if self.od is not None else None
+        if size is None:
+            size = (self.length + 7) // 8
+        return value.to_bytes(size, "little")
+
+    @property
+    def raw(self) -> Any:
+        """The typed value in the PDO's `data` (bytes when the type is unknown)."""
+        data = self.get_data()
+        if self.od is None:
+            return int.from_bytes(data, "little") if self.is_dummy else data
+        return decode(self.od.data_type, data)
+
+
+class PdoMap:
+    """One PDO: communication parameters and mapping (python-canopen names).
+
+    Attributes read from or written to the node: `cob_id` (the CAN-ID),
+    `enabled` (COB-ID bit 31 clear), `rtr_allowed` (bit 30 clear; classic),
+    `extended` (bit 29: 29-bit CAN-ID), `trans_type`, `inhibit_time` (100 µs),
+    `event_timer` (ms), `sync_start_value`, and `map` (also `variables`): the
+    mapped PdoVariables. None = not known (not read, not set): not written.
+    """
+
+    def __init__(self, maps: PdoMaps, number: int) -> None:
+        self.pdo_node = maps
+        self.number = number
+        self.is_rpdo = maps.kind == "rpdo"
+        self.com_index = _COMM[maps.kind] + number - 1
+        self.map_index = _MAP[maps.kind] + number - 1
+        #: the PDO in messages: 'TPDO1'
+        self.label = f"{maps.kind.upper()}{number}"
+        self.enabled = False
+        self.rtr_allowed = True
+        self.extended = False
+        self._cob_id: Optional[int] = None
+        self._trans_type: Optional[int] = None
+        self._inhibit_time: Optional[int] = None
+        self._event_timer: Optional[int] = None
+        self._sync_start_value: Optional[int] = None
+        #: Default COB-ID in the predefined connection set (PDOs 1..4), else None.
+        self.predefined_cob_id: Optional[int] = None
+        if number <= 4:
+            self.predefined_cob_id = _PREDEFINED[maps.kind] + (number - 1) * 0x100 + \
+                maps.node.node_id
+        #: The mapped entries in PDO order (python-canopen's name).
+        self.map: List[PdoVariable] = []
+        #: Total mapped length in bits.
+        self.length = 0
+        #: PDO bytes (ceil(length / 8)); `PdoVariable.raw` decodes them.
+        self.data = bytearray()
+        # The mapping is written by save() only when it was changed here.
+        self._map_changed = False
+        # Communication values as read (sub -> value): read-only ones are not rewritten.
+        self._read_values: Dict[int, Optional[int]] = {}
+
+    # ------------------------------------------------------------ identity
+    @property
+    def node(self) -> Any:
+        return self.pdo_node.node
+
+    @property
+    def where(self) -> str:
+        """'node 5 TPDO1' — the place named in messages."""
+        return f"{_node_where(self.node)} {self.label}"
+
+    @property
+    def name(self) -> str:
+        """python-canopen's descriptive name: 'TxPDO1_node5'."""
+        return f"{'Rx' if self.is_rpdo else 'Tx'}PDO{self.number}_node{self.node.node_id}"
+
+    @property
+    def mode(self) -> str:
+        return self.node.line.mode
+
+    @property
+    def max_bits(self) -> int:
+        """Largest PDO payload on the node's line: 64 bits (classic), 512 (fd)."""
+        return _BITS[self.mode]
+
+    @property
+    def capacity(self) -> int:
+        """Mapping entries the node's mapping object has room for (0..64)."""
+        obj = self._od.get(self.map_index) if self._od is not None else None
+        if not isinstance(obj, (ODArray, ODRecord)):
+            return 0
+        return len([s for s in obj.subindices if 1 <= s <= _MAX_ENTRIES])
+
+    @property
+    def variables(self) -> List[PdoVariable]:
+        """The mapped entries (same list as `map`)."""
+        return self.map
+
+    @property
+    def _od(self) -> Optional[ObjectDictionary]:
+        return self.pdo_node.od
+
+    def __repr__(self) -> str:
+        cob = "?" if self._cob_id is None else f"0x{self._cob_id:X}"
+        return (f"<PdoMap {self.where} COB-ID {cob} {'enabled' if self.enabled else 'disabled'}"
+                f" type {self._trans_type} {[v.name for v in self.map]}>")
+
+    def __iter__(self) -> Iterator[PdoVariable]:
+        return iter(self.map)
+
+    def __len__(self) -> int:
+        return len(self.map)
+
+    def __getitem__(self, key: Union[int, str]) -> PdoVariable:
+        """A mapped entry by position (0..63), index, name or 'INDEX:SUB'."""
+        if isinstance(key, int) and not isinstance(key, bool):
+            if 0 <= key < _MAX_ENTRIES:
+                if key < len(self.map):
+                    return self.map[key]
+            else:
+                for var in self.map:
+                    if var.index == key:
+                        return var
+        elif isinstance(key, str):
+            for var in self.map:
+                if key in (var.name, getattr(var.od, "name", None),
+                           f"0x{var.index:04X}:{var.subindex:02X}"):
+                    return var
+        raise KeyError(f"{self.where}: {key!r} is not mapped (mapped: "
+                       f"{', '.join(v.name for v in self.map) or 'nothing'})")
+
+    # ------------------------------------------------------------ parameters
+    def _field(self, field: str, value: Any, low: int, high: int, expected: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            raise ConfigurationError(f"{self.where}: {field} must be {expected}, got {value!r}")
+        return value
+
+    @property
+    def cob_id(self) -> Optional[int]:
+        """The CAN-ID (0..0x7FF; up to 0x1FFFFFFF with `extended`), without
+        the flag bits (`enabled`, `rtr_allowed`, `extended`)."""
+        return self._cob_id
+
+    @cob_id.setter
+    def cob_id(self, value: Optional[int]) -> None:
+        self._cob_id = None if value is None else self._field(
+            "cob_id", value, 0, 0x1FFFFFFF,
+            "the CAN-ID 0..0x7FF (0..0x1FFFFFFF with extended=True; enabled/rtr_allowed "
+            "are separate attributes)")
+
+    def _trans_type_expected(self) -> str:
+        if not self.is_rpdo and self.mode == "classic":
+            return "0, 1..240, 252, 253, 254 or 255"
+        why = "RPDOs" if self.is_rpdo else "fd lines"
+        return f"0, 1..240, 254 or 255 (252/253 are for TPDOs on classic lines, not {why})"
+
+    def _check_trans_type(self, value: Any) -> int:
+        allowed = isinstance(value, int) and not isinstance(value, bool) and (
+            0 <= value <= 240 or value in (254, 255) or
+            (value in (252, 253) and not self.is_rpdo and self.mode == "classic"))
+        if not allowed:
+            raise ConfigurationError(f"{self.where}: trans_type must be "
+                                     f"{self._trans_type_expected()}, got {value!r}")
+        return value
+
+    @property
+    def trans_type(self) -> Optional[int]:
+        """Transmission type: 0 (synchronous acyclic), 1..240 (every n-th
+        SYNC), 252/253 (RTR; classic TPDOs), 254/255 (event driven)."""
+        return self._trans_type
+
+    @trans_type.setter
+    def trans_type(self, value: Optional[int]) -> None:
+        self._trans_type = None if value is None else self._check_trans_type(value)
+
+    @property
+    def inhibit_time(self) -> Optional[int]:
+        """Minimum time between two transmissions, in 100 µs (0..65535)."""
+        return self._inhibit_time
+
+    @inhibit_time.setter
+    def inhibit_time(self, value: Optional[int]) -> None:
+        self._inhibit_time = None if value is None else self._field(
+            "inhibit_time", value, 0, 0xFFFF, "0..65535 (units of 100 µs)")
+
+    @property
+    def event_timer(self) -> Optional[int]:
+        """TPDO: transmission period in ms; RPDO: reception deadline (0 = off)."""
+        return self._event_timer
+
+    @event_timer.setter
+    def event_timer(self, value: Optional[int]) -> None:
+        self._event_timer = None if value is None else self._field(
+            "event_timer", value, 0, 0xFFFF, "0..65535 ms")
+
+    @property
+    def sync_start_value(self) -> Optional[int]:
+        """SYNC counter value of the first transmission (0 = not used), 0..240."""
+        return self._sync_start_value
+
+    @sync_start_value.setter
+    def sync_start_value(self, value: Optional[int]) -> None:
+        self._sync_start_value = None if value is None else self._field(
+            "sync_start_value", value, 0, 240, "0..240")
+
+    @property
+    def is_periodic(self) -> bool:
+        """python-canopen: synchronous PDOs (types 0..240) are periodic."""
+        return self._trans_type is not None and self._trans_type <= 240
+
+    # ------------------------------------------------------------ mapping
+    def clear(self) -> None:
+        """Map nothing (save() then writes an empty mapping)."""
+        self.map = []
+        self.length = 0
+        self.data = bytearray()
+        self._map_changed = True
+
+    def _resolve(self, index: Any, subindex: Any) -> Tuple[int, int, Optional[ODVariable]]:
+        if isinstance(index, tuple) and len(index) == 2:
+            index, subindex = index
+        if isinstance(index, int) and not isinstance(index, bool) and index in DUMMY_BITS \
+                and subindex == 0:
+            return index, 0, None
+        od = self._od
+        try:
+            entry = od[index] if od is not None else None
+            if isinstance(entry, (ODRecord, ODArray)):
+                entry = entry[subindex]
+            elif isinstance(entry, ODVariable) and not entry.in_object and \
+                    subindex not in (0, None):
+                entry = None            # a VAR has sub 0 only
+        except KeyError:
+            entry = None
+        if isinstance(entry, ODVariable):
+            return entry.index, entry.subindex, entry
+        if isinstance(index, int) and not isinstance(index, bool) and \
+                isinstance(subindex, int) and 0 <= index <= 0xFFFF and 0 <= subindex <= 0xFF:
+            return index, subindex, None
+        raise ConfigurationError(f"{self.where}: {index!r}"
+                                 f"{'' if subindex == 0 else f' sub {subindex!r}'} is not in "
+                                 f"the object dictionary of {_node_where(self.node)}")
+
+    def add_variable(self, index: Any, subindex: Any = 0,
+                     length: Optional[int] = None) -> PdoVariable:
+        """Map the next entry: by index and sub-index (ints), a name
+        ("Statusword", "Demo record.Setpoint"), (index, sub) or 'INDEX:SUB'.
+        length: bits to map (default: the whole object from its data type);
+        fewer bits map the low-order bits of a number or the first bytes of
+        a string. RPDOs may map dummies 0x0002..0x0007 sub 0 (INTEGER8..
+        UNSIGNED32, exact size) to skip bits. An entry missing from the OD
+        needs an explicit length. Everything is checked here (see module
+        doc); nothing is sent before save()."""
+        index, subindex, variable = self._resolve(index, subindex)
+        where = f"{self.where}: mapping 0x{index:04X}:{subindex:02X}"
+        if variable is not None:
+            where += f" {variable.qualname!r}"
+        if variable is None and index in DUMMY_BITS and subindex == 0:
+            if not self.is_rpdo:
+                raise ConfigurationError(f"{where}: dummy entries (0x0002..0x0007) are for "
+                                         "RPDOs only, not TPDOs")
+            bits = DUMMY_BITS[index]
+            if length is not None and length != bits:
+                raise ConfigurationError(f"{where}: a dummy {DataType(index).name} maps "
+                                         f"exactly {bits} bits, got {length!r}")
+        elif variable is None:
+            if length is None:
+                raise ConfigurationError(f"{where}: not in the object dictionary; give the "
+                                         "length in bits to map it anyway")
+            bits = length
+        else:
+            bits = self._object_bits(variable, where) if length is None else length
+            self._check_mappable(variable, bits, where)
+        if isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 255:
+            raise ConfigurationError(f"{where}: length must be 1..255 bits, got {bits!r}")
+        if self.mode == "fd" and bits % 8:
+            raise ConfigurationError(f"{where}: {bits} bits; fd lines map whole bytes only "
+                                     "(a multiple of 8 bits)")
+        self._check_room(len(self.map) + 1, self.length + bits, where)
+        var = PdoVariable(index, subindex, bits, variable)
+        self._append(var)
+        self._map_changed = True
+        return var
+
+    def _object_bits(self, variable: ODVariable, where: str) -> int:
+        if variable.data_type == DataType.DOMAIN:
+            raise ConfigurationError(f"{where}: a DOMAIN cannot be mapped into a PDO")
+        size = variable.size if variable.size is not None else variable.storage_size
+        return 8 * size
+
+    def _check_mappable(self, variable: ODVariable, bits: int, where: str) -> None:
+        whole = self._object_bits(variable, where)
+        direction = "rpdo" if self.is_rpdo else "tpdo"
+        if variable.pdo_mappable not in (direction, "both"):
+            raise ConfigurationError(
+                f"{where}: the OD does not allow mapping it into a {direction.upper()} "
+                f"(PDO mapping: {variable.pdo_mappable or 'no'}, access {variable.access_type})")
+        if isinstance(bits, int) and not isinstance(bits, bool) and bits > whole:
+            raise ConfigurationError(f"{where}: {bits} bits, the object holds {whole}")
+
+    def _check_room(self, count: int, bits: int, where: str) -> None:
+        if bits > self.max_bits:
+            raise ConfigurationError(
+                f"{where}: the mapping would be {bits} bits ({(bits + 7) // 8} bytes); a PDO "
+                f"on a {self.mode} line holds {self.max_bits // 8} bytes ({self.max_bits} bits)")
+        capacity = self.capacity
+        if count > capacity:
+            raise ConfigurationError(
+                f"{where}: {count} entries; mapping object 0x{self.map_index:04X} has room "
+                f"for {capacity}")
+
+    def _append(self, var: PdoVariable) -> None:
+        var.offset = self.length
+        var.pdo_parent = self
+        self.map.append(var)
+        self.length += var.length
+        self.data = bytearray((self.length + 7) // 8)
+
+    # ------------------------------------------------------------ read
+    def read(self, from_od: bool = False) -> None:
+        """Read the configuration from the node (USDO on fd lines, SDO on
+        classic lines; the local node: its OD), or with from_od=True from
+        its object dictionary (the DCF value, else the default). Mapping
+        entries become PdoVariables of the node's OD (dummies and entries
+        the OD lacks are kept by index:sub). Sub-entries the OD lacks are
+        not read (None)."""
+        fetch = self._from_od if from_od else self._from_node
+        values: Dict[int, Optional[int]] = {}
+        for sub, (_attr, what, size) in _COMM_SUBS.items():
+            if self._has(self.com_index, sub):
+                values[sub] = fetch(self.com_index, sub, size, f"reading the {what}",
+                                    optional=sub != 1)
+        self._read_values = values
+        raw_cob = values.get(1)
+        if raw_cob is None:
+            raise ConfigurationError(f"{self.where}: 0x{self.com_index:04X}:01 (COB-ID) has "
+                                     "no value")
+        self._cob_id = raw_cob & 0x1FFFFFFF
+        self.enabled = not raw_cob & PDO_NOT_VALID
+        self.rtr_allowed = not raw_cob & RTR_NOT_ALLOWED
+        self.extended = bool(raw_cob & FRAME_29BIT)
+        self._trans_type = values.get(2)
+        self._inhibit_time = values.get(3)
+        self._event_timer = values.get(5)
+        self._sync_start_value = values.get(6)
+        self.map, self.length, self.data = [], 0, bytearray()
+        if self._has(self.map_index, 0):
+            count = fetch(self.map_index, 0, 1, "reading the number of mapped entries") or 0
+            for sub in range(1, min(count, _MAX_ENTRIES) + 1):
+                value = fetch(self.map_index, sub, 4, f"reading mapping entry {sub}")
+                if not value or not value & 0xFF:
+                    log.warning("%s: mapping entry %d is 0x%08X (no object or 0 bits); ignored",
+                                self.where, sub, value or 0)
+                    continue
+                self._append(self._entry_variable(value))
+        self._map_changed = False
+
+    def _entry_variable(self, value: int) -> PdoVariable:
+        index, sub, bits = value >> 16, (value >> 8) & 0xFF, value & 0xFF
+        variable = None
+        if not (index in DUMMY_BITS and sub == 0) and self._od is not None:
+            variable = self._od.get_variable(index, sub)
+        return PdoVariable(index, sub, bits, variable)
+
+    def _has(self, index: int, sub: int) -> bool:
+        return self._od is not None and self._od.get_variable(index, sub) is not None
+
+    def _size(self, index: int, sub: int, standard: int) -> int:
+        var = self._od.get_variable(index, sub) if self._od is not None else None
+        if var is not None and var.data_type.is_integer and var.size:
+            return var.size
+        return standard
+
+    def _from_node(self, index: int, sub: int, size: int, step: str,
+                   optional: bool = False) -> Optional[int]:
+        size = self._size(index, sub, size)
+        step = f"{step} (0x{index:04X}:{sub:02X})"
+        try:
+            data = self.pdo_node._access.read(index, sub)
+        except AbortError as exc:
+            if optional and exc.code in _ABSENT:
+                return None
+            _add_context(exc, self.where, step)
+            raise
+        if len(data) != size:
+            raise ConfigurationError(f"{self.where}, {step}: the node answered {len(data)} "
+                                     f"bytes, {size} expected")
+        return int.from_bytes(data, "little")
+
+    def _from_od(self, index: int, sub: int, size: int, step: str,
+                 optional: bool = False) -> Optional[int]:
+        var = self._od.get_variable(index, sub)
+        if var.value_base is not None:
+            value, relative = var.value_base, var.value_relative_to_node_id
+        else:
+            value, relative = var.default_base, var.relative_to_node_id
+        if value is None:
+            return None if optional else 0
+        return value + self.node.node_id if relative else value
+
+    # ------------------------------------------------------------ save
+    def _writable(self, index: int, sub: int) -> bool:
+        var = self._od.get_variable(index, sub) if self._od is not None else None
+        return var is not None and var.writable
+
+    def _plan(self) -> List[Tuple[str, int, int, int, int]]:
+        """The writes of save(): (step, index, sub, value, size), all checked."""
+        if self._cob_id is None:
+            raise ConfigurationError(f"{self.where}: cob_id is not known; read() the PDO or set "
+                                     "cob_id before save()")
+        if not self._has(self.com_index, 1):
+            raise ConfigurationError(f"{self.where}: the OD has no 0x{self.com_index:04X}:01")
+        if not self.extended and self._cob_id > 0x7FF:
+            raise ConfigurationError(f"{self.where}: cob_id must be 0..0x7FF for an 11-bit "
+                                     f"CAN-ID (extended=False), got 0x{self._cob_id:X}")
+        if self._trans_type is not None:
+            self._check_trans_type(self._trans_type)
+        cob = self._cob_id | (FRAME_29BIT if self.extended else 0) | \
+            (0 if self.rtr_allowed else RTR_NOT_ALLOWED)
+        com = self.com_index
+        plan = [(f"disabling it (COB-ID 0x{com:04X}:01 = 0x{cob | PDO_NOT_VALID:08X})",
+                 com, 1, cob | PDO_NOT_VALID, 4)]
+        for sub in (2, 3, 5, 6):
+            attr, what, size = _COMM_SUBS[sub]
+            value = getattr(self, attr)
+            if value is None or not self._has(com, sub):
+                continue
+            if not self._writable(com, sub):
+                if value == self._read_values.get(sub):
+                    continue            # fixed by the device and unchanged: nothing to write
+                raise ConfigurationError(
+                    f"{self.where}: {attr} {value} cannot be written: 0x{com:04X}:{sub:02X} is "
+                    f"read-only in the OD (the node has {self._read_values.get(sub)}; set "
+                    f"{attr} = None to leave it)")
+            plan.append((f"writing the {what} (0x{com:04X}:{sub:02X} = {value})",
+                         com, sub, value, size))
+        if self._map_changed:
+            plan += self._map_plan()
+        if self.enabled:
+            plan.append((f"enabling it (COB-ID 0x{com:04X}:01 = 0x{cob:08X})", com, 1, cob, 4))
+        return [(step, index, sub, value, self._size(index, sub, size))
+                for step, index, sub, value, size in plan]
+
+    def _map_plan(self) -> List[Tuple[str, int, int, int, int]]:
+        where = f"{self.where}: mapping"
+        mapping = self.map_index
+        if not self._has(mapping, 0):
+            raise ConfigurationError(f"{where}: the OD has no mapping object "
+                                     f"0x{mapping:04X}")
+        if not self._writable(mapping, 0):
+            raise ConfigurationError(f"{where}: 0x{mapping:04X}:00 is read-only in the OD "
+                                     "(a fixed mapping cannot be changed)")
+        bits = sum(var.length for var in self.map)
+        self._check_room(len(self.map), bits, where)
+        for var in self.map:
+            if self.mode == "fd" and var.length % 8:
+                raise ConfigurationError(f"{where}: {var.name} maps {var.length} bits; fd "
+                                         "lines map whole bytes only")
+            if var.is_dummy and not self.is_rpdo:
+                raise ConfigurationError(f"{where}: dummy {var.name} in a TPDO")
+        plan = [(f"clearing the mapping (0x{mapping:04X}:00 = 0)", mapping, 0, 0, 1)]
+        for sub, var in enumerate(self.map, 1):
+            step = (f"writing mapping entry {sub} (0x{mapping:04X}:{sub:02X} = "
+                    f"0x{var.mapping_value:08X}, {var.name})")
+            plan.append((step, mapping, sub, var.mapping_value, 4))
+        count = len(self.map)
+        step = f"setting the number of mapped entries (0x{mapping:04X}:00 = {count})"
+        plan.append((step, mapping, 0, count, 1))
+        return plan
+
+    def save(self) -> None:
+        """Write the configuration with the CiA 301 procedure, in this order:
+        COB-ID with bit 31 set (invalid); transmission type, inhibit time,
+        event timer, SYNC start value (those not None and in the OD, except
+        read-only ones left as read); when the mapping was changed here
+        (clear/add_variable): mapping sub 0 = 0, entries 1..n, sub 0 = n;
+        finally, if `enabled`, the COB-ID without bit 31 (a disabled PDO
+        stays invalid). Everything is checked before the first write; a
+        refusal raises the abort exception naming this PDO and the step, and
+        the procedure stops there (the PDO stays invalid)."""
+        plan = self._plan()
+        access = self.pdo_node._access
+        for step, index, sub, value, size in plan:
+            try:
+                access.write(index, sub, value.to_bytes(size, "little"))
+            except AbortError as exc:
+                _add_context(exc, self.where, step)
+                raise
+        if self._map_changed:
+            self._map_changed = False
