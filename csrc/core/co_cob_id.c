@@ -80,3 +80,10 @@ void co_cob_id_detach(co_od_t *od)
 {
     co_od_unsubscribe(od, &cob_id_handler, NULL);
 }
+
+bool co_cob_id_restricted(uint32_t can_id)
+{
+    return can_id <= 0x07Fu || (can_id >= 0x101u && can_id <= 0x180u) ||
+           (can_id >= 0x581u && can_id <= 0x5FFu) || (can_id >= 0x601u && can_id <= 0x67Fu) ||
+           (can_id >= 0x6E0u && can_id <= 0x6FFu) || can_id >= 0x701u;
+}

@@ -31,6 +31,10 @@ typedef enum co_cob_id_kind {
 co_cob_id_kind_t co_cob_id_kind(uint16_t index, uint8_t sub);
 /* 0 or CO_ABORT_INVALID_VALUE for a change from old to new of that kind. */
 uint32_t co_cob_id_check(co_cob_id_kind_t kind, uint32_t old_value, uint32_t new_value);
+/* CiA 301 restricted CAN-IDs, which SDO, SYNC, TIME, EMCY and PDO COB-IDs
+ * may not use: 0x000..0x07F, 0x101..0x180, 0x581..0x5FF, 0x601..0x67F,
+ * 0x6E0..0x6FF, 0x701..0x7FF (CANopenNode's CO_IS_RESTRICTED_CAN_ID). */
+bool co_cob_id_restricted(uint32_t can_id);
 /* Hook the rule into od (one subscription over 0x1005..0x19FF). */
 bool co_cob_id_attach(co_od_t *od);
 void co_cob_id_detach(co_od_t *od);

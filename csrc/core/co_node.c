@@ -91,6 +91,18 @@ static void load_parameters(co_node_t *node, uint8_t groups)
 
 /* ------------------------------------------------------------ errors */
 
+/* The error states the node tracks to clear its own EMCYs (not the EMCYs). */
+static void forget_detected_errors(co_node_t *node)
+{
+    memset(node->rpdo_short, 0, sizeof node->rpdo_short);
+    memset(node->rpdo_long, 0, sizeof node->rpdo_long);
+    memset(node->rpdo_late, 0, sizeof node->rpdo_late);
+    memset(node->hb_lost, 0, sizeof node->hb_lost);
+    node->rpdo_long_now = 0;
+    node->life_lost = false;
+    node->sync_length_error = false;
+}
+
 static bool bit_test(const uint8_t *map, uint16_t n) { return (map[n / 8u] >> (n % 8u)) & 1u; }
 
 static void bit_put(uint8_t *map, uint16_t n, bool on)
@@ -356,13 +368,7 @@ static void services_reset(co_node_t *node)
     for (size_t i = 0; i < sizeof own / sizeof own[0]; i++) {
         clear_error(node, own[i]);
     }
-    memset(node->rpdo_short, 0, sizeof node->rpdo_short);
-    memset(node->rpdo_long, 0, sizeof node->rpdo_long);
-    memset(node->rpdo_late, 0, sizeof node->rpdo_late);
-    memset(node->hb_lost, 0, sizeof node->hb_lost);
-    node->rpdo_long_now = 0;
-    node->life_lost = false;
-    node->sync_length_error = false;
+    forget_detected_errors(node);
 }
 
 static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
@@ -463,13 +469,7 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
     node->consumer = NULL;
     node->store_status = CO_STORE_EMPTY;
     memset(&node->services, 0, sizeof node->services);
-    memset(node->rpdo_short, 0, sizeof node->rpdo_short);
-    memset(node->rpdo_long, 0, sizeof node->rpdo_long);
-    memset(node->rpdo_late, 0, sizeof node->rpdo_late);
-    memset(node->hb_lost, 0, sizeof node->hb_lost);
-    node->rpdo_long_now = 0;
-    node->life_lost = false;
-    node->sync_length_error = false;
+    forget_detected_errors(node);
     node->overrun_told = false;
     node->overrun_told_us = 0;
     if (!co_nmt_init(&node->nmt, line, node_id, &nmt_indications, node)) {

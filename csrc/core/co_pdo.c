@@ -3,7 +3,7 @@
 
 #include <string.h>
 
-#include "co_sdo.h"   /* co_sdo_can_id_restricted: CiA 301's restricted CAN-IDs */
+#include "co_cob_id.h"   /* co_cob_id_restricted: CiA 301's restricted CAN-IDs */
 
 #define COB_INVALID 0x80000000u
 #define COB_NO_RTR 0x40000000u
@@ -86,7 +86,7 @@ static uint32_t check_cob_id_value(uint32_t cob)
     if (cob & COB_EXT) {
         return 0;
     }
-    if ((cob & (COB_ID_29 & ~COB_ID_11)) != 0 || co_sdo_can_id_restricted(cob & COB_ID_11)) {
+    if ((cob & (COB_ID_29 & ~COB_ID_11)) != 0 || co_cob_id_restricted(cob & COB_ID_11)) {
         return CO_ABORT_INVALID_VALUE;
     }
     return 0;

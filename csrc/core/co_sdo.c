@@ -203,13 +203,6 @@ bool co_sdo_frame_is_initiate(co_sdo_frame_t frame)
            frame == CO_SDO_BLOCK_DOWNLOAD_INITIATE || frame == CO_SDO_BLOCK_UPLOAD_INITIATE;
 }
 
-bool co_sdo_can_id_restricted(uint32_t can_id)
-{
-    return can_id <= 0x07Fu || (can_id >= 0x101u && can_id <= 0x180u) ||
-           (can_id >= 0x581u && can_id <= 0x5FFu) || (can_id >= 0x601u && can_id <= 0x67Fu) ||
-           (can_id >= 0x6E0u && can_id <= 0x6FFu) || can_id >= 0x701u;
-}
-
 /* ------------------------------------------------------------ decode */
 
 static void decode_mux(const uint8_t *p, co_sdo_msg_t *m)

@@ -154,9 +154,4 @@ size_t co_sdo_encode(const co_sdo_msg_t *msg, uint8_t out[CO_SDO_FRAME_LEN]);
 static inline uint32_t co_sdo_request_id(uint8_t server_node) { return CO_SDO_REQUEST_BASE + server_node; }
 static inline uint32_t co_sdo_response_id(uint8_t server_node) { return CO_SDO_RESPONSE_BASE + server_node; }
 
-/* CiA 301 restricted CAN-IDs, which SDO (and SYNC, TIME, EMCY, PDO) COB-IDs
- * may not use: 0x000..0x07F, 0x101..0x180, 0x581..0x5FF, 0x601..0x67F,
- * 0x6E0..0x6FF, 0x701..0x7FF (CANopenNode's CO_IS_RESTRICTED_CAN_ID). */
-bool co_sdo_can_id_restricted(uint32_t can_id);
-
 #endif

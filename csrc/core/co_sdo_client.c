@@ -35,6 +35,7 @@
  *    timeout runs out once; a second expiry without a segment aborts.
  *  - AUTO: a block initiate refused with 0x05040001 is done once more
  *    without block (segmented download / normal upload). */
+#include "co_cob_id.h"
 #include "co_sdo_client.h"
 
 #include <string.h>
@@ -83,13 +84,13 @@ static bool in_range(uint32_t id)
 static bool tx_id_ok(uint32_t id)
 {
     return id <= CO_SDO_COB_ID_MASK &&
-           (!co_sdo_can_id_restricted(id) ||
+           (!co_cob_id_restricted(id) ||
             (id > CO_SDO_REQUEST_BASE && id <= CO_SDO_REQUEST_BASE + NODE_MAX));
 }
 
 static bool rx_id_ok(uint32_t id)
 {
-    return id <= CO_SDO_COB_ID_MASK && (!co_sdo_can_id_restricted(id) || in_range(id));
+    return id <= CO_SDO_COB_ID_MASK && (!co_cob_id_restricted(id) || in_range(id));
 }
 
 static bool is_busy(const co_sdo_client_channel_t *ch)

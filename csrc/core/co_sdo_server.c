@@ -40,6 +40,7 @@
  *    127 -> 0x05040002, an ack above the segments sent -> 0x05040003, CRC
  *    mismatch -> 0x05040004 (download: checked only when both sides
  *    announced CRC support; upload: sent whenever we support it). */
+#include "co_cob_id.h"
 #include "co_sdo_server.h"
 
 #include <string.h>
@@ -845,7 +846,7 @@ static uint32_t check_cob_id(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_
         return 0;
     }
     id = v & CO_SDO_COB_ID_MASK;
-    if ((v & COB_RESERVED) != 0 || co_sdo_can_id_restricted(id)) {
+    if ((v & COB_RESERVED) != 0 || co_cob_id_restricted(id)) {
         return CO_ABORT_INVALID_VALUE;
     }
     if (sub == 1) {

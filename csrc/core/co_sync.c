@@ -1,4 +1,5 @@
 /* SYNC producer and consumer (see co_sync.h). */
+#include "co_cob_id.h"
 #include "co_sync.h"
 
 #include <string.h>
@@ -14,14 +15,6 @@ enum {
 /* Bits 11..29: the rest of a 29-bit id and the frame bit (29-bit ids are
  * not supported by the line's subscriptions). Bit 31 is "do not care". */
 #define EXTENDED_BITS 0x3FFFF800u
-
-/* CAN-IDs CiA 301 reserves for NMT, LSS, SDO, error control and the like:
- * never SYNC (or TIME, EMCY, PDO) ids. */
-static bool can_id_restricted(uint32_t id)
-{
-    return id <= 0x7F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) ||
-           (id >= 0x601 && id <= 0x67F) || (id >= 0x6E0 && id <= 0x6FF) || id >= 0x701;
-}
 
 /* 0x1019 as used: 1 counts as 2, above 240 as 240 (stored values that a
  * network write would have refused). */
@@ -211,7 +204,7 @@ uint32_t co_sync_check(const co_sync_t *sync, uint16_t index, uint32_t value)
 {
     switch (index) {
     case OD_COB_ID:
-        if ((value & EXTENDED_BITS) != 0 || can_id_restricted(value & CAN_ID_MASK)) {
+        if ((value & EXTENDED_BITS) != 0 || co_cob_id_restricted(value & CAN_ID_MASK)) {
             return CO_ABORT_INVALID_VALUE;
         }
         return 0;

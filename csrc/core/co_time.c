@@ -1,4 +1,5 @@
 /* TIME producer and consumer (see co_time.h). */
+#include "co_cob_id.h"
 #include "co_time.h"
 
 #include <string.h>
@@ -10,13 +11,6 @@ enum { OD_COB_ID = 0x1012 };
 #define MS_MASK 0x0FFFFFFFu           /* 28 bits; the upper 4 are reserved */
 #define US_PER_DAY ((uint64_t)CO_TIME_MS_PER_DAY * 1000u)
 #define EPOCH_US ((uint64_t)CO_TIME_EPOCH_UNIX_S * 1000000u)
-
-/* CAN-IDs CiA 301 reserves (see co_sync.c). */
-static bool can_id_restricted(uint32_t id)
-{
-    return id <= 0x7F || (id >= 0x101 && id <= 0x180) || (id >= 0x581 && id <= 0x5FF) ||
-           (id >= 0x601 && id <= 0x67F) || (id >= 0x6E0 && id <= 0x6FF) || id >= 0x701;
-}
 
 /* ------------------------------------------------------------------ codec */
 
@@ -126,7 +120,7 @@ void co_time_deinit(co_time_t *time)
 
 uint32_t co_time_check_cob_id(uint32_t value)
 {
-    if ((value & EXTENDED_BITS) != 0 || can_id_restricted(value & CAN_ID_MASK)) {
+    if ((value & EXTENDED_BITS) != 0 || co_cob_id_restricted(value & CAN_ID_MASK)) {
         return CO_ABORT_INVALID_VALUE;
     }
     return 0;

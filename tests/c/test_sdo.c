@@ -1226,9 +1226,9 @@ static void test_codec_restricted_ids(void **state)
     size_t i;
     (void)state;
     for (i = 0; i < sizeof restricted / sizeof restricted[0]; i++)
-        assert_true(co_sdo_can_id_restricted(restricted[i]));
+        assert_true(co_cob_id_restricted(restricted[i]));
     for (i = 0; i < sizeof free_ids / sizeof free_ids[0]; i++)
-        assert_false(co_sdo_can_id_restricted(free_ids[i]));
+        assert_false(co_cob_id_restricted(free_ids[i]));
     assert_int_equal(co_sdo_request_id(5), 0x605);
     assert_int_equal(co_sdo_response_id(127), 0x5FF);
 }
