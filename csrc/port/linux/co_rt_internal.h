@@ -44,6 +44,7 @@ enum {
     RT_EMCY_QUEUE = 16,           /* EMCYs waiting for the inhibit time */
     RT_EMCY_ACTIVE = 32,          /* errors active at once */
     RT_EMCY_HISTORY = 254,        /* 0x1003 / 0x1032 entries at most */
+    RT_PDO_WATCHES = 64,          /* CAN-IDs of other nodes' PDOs Python hears */
     RT_REQUESTS = 32,             /* network accesses waiting on Python at once */
     RT_USDO_SESSIONS = 8
 };
@@ -177,6 +178,12 @@ typedef struct rt_line {
     co_guard_master_t guard_master;
     co_guard_node_t guard_nodes[RT_GUARD_NODES];
     bool sync_events;                /* Python hears every SYNC */
+    /* PDOs of other nodes that Python hears (CO_EV_PDO_FRAME): CAN-ID, with
+     * bit 29 for a 29-bit one; watch_of maps an 11-bit id to its slot + 1. */
+    uint32_t watch_ids[RT_PDO_WATCHES];
+    uint32_t watch_frames[RT_PDO_WATCHES];   /* frames seen per watch */
+    uint8_t watch_count;
+    uint8_t watch_of[CO_LINE_ID_MAP_SIZE];
     /* ... and per local node: */
     bool has_emcy;
     co_emcy_t emcy;

@@ -74,10 +74,46 @@ void rt_services_pdo_received(rt_line_t *l, uint16_t number)
     rt_post(l, CO_EV_PDO, l->node.nmt.node_id, number, 0, &frame);
 }
 
+#define WATCH_EXT 0x20000000u   /* bit 29 of a COB-ID: 29-bit CAN-ID */
+
+static int watch_find(const rt_line_t *l, uint32_t can_id)
+{
+    if (!(can_id & WATCH_EXT)) {
+        return (int)l->watch_of[can_id & 0x7FFu] - 1;
+    }
+    for (int i = 0; i < l->watch_count; i++) {
+        if (l->watch_ids[i] == can_id) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+/* Offered before the PDO service (registered first): watched frames are
+ * posted and then left to whoever else takes them. */
+static bool on_watched(co_line_t *line, const co_frame_t *frame, void *user)
+{
+    (void)line;
+    rt_line_t *l = user;
+    if (l->watch_count == 0 || (frame->flags & CO_FRAME_RTR)) {
+        return false;
+    }
+    uint32_t can_id = (frame->flags & CO_FRAME_EXT) ? (frame->id | WATCH_EXT) : frame->id;
+    int slot = watch_find(l, can_id);
+    if (slot >= 0) {
+        l->watch_frames[slot]++;
+        rt_post(l, CO_EV_PDO_FRAME, 0, can_id, l->watch_frames[slot], frame);
+    }
+    return false;
+}
+
 /* ---------------------------------------------------------------- set-up */
 
 bool rt_services_line_init(rt_line_t *l)
 {
+    if (!co_line_subscribe_other(&l->line, on_watched, l)) {
+        return false;
+    }
     if (!co_sync_init(&l->sync, &l->line) || !co_sync_add_listener(&l->sync, on_sync, l)) {
         return false;
     }
@@ -367,6 +403,51 @@ int co_rt_pdo_trigger_object(co_rt_t *rt, int line, int index, int sub)
     co_line_set_time(&l->line, co_rt_now_us());
     uint32_t n = co_pdo_trigger_object(&l->pdo, (uint16_t)index, (uint8_t)sub);
     return done(rt, (int)n);
+}
+
+int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    bool ext = (can_id & WATCH_EXT) != 0;
+    if ((ext && (can_id & ~(WATCH_EXT | 0x1FFFFFFFu)) != 0) || (!ext && can_id > 0x7FFu)) {
+        return rt_argument_error(rt, "line %d: PDO CAN-ID 0x%X: 11 bits, or 29 bits with bit "
+                                 "29 set", line, (unsigned)can_id);
+    }
+    pthread_mutex_lock(&rt->lock);
+    int slot = watch_find(l, can_id);
+    int status = CO_RT_OK;
+    if (watch && slot < 0) {
+        if (l->watch_count >= RT_PDO_WATCHES) {
+            rt_set_error(rt, "line %d: already %d PDO CAN-IDs watched", line, RT_PDO_WATCHES);
+            status = CO_RT_ERR_FULL;
+        } else {
+            slot = l->watch_count++;
+            l->watch_ids[slot] = can_id;
+            l->watch_frames[slot] = 0;
+            if (!ext) {
+                l->watch_of[can_id] = (uint8_t)(slot + 1);
+            }
+        }
+    } else if (!watch && slot >= 0) {
+        /* the last slot moves into the freed one */
+        uint8_t last = (uint8_t)(l->watch_count - 1u);
+        if (!ext) {
+            l->watch_of[can_id] = 0;
+        }
+        if (slot != last) {
+            l->watch_ids[slot] = l->watch_ids[last];
+            l->watch_frames[slot] = l->watch_frames[last];
+            if (!(l->watch_ids[slot] & WATCH_EXT)) {
+                l->watch_of[l->watch_ids[slot]] = (uint8_t)(slot + 1);
+            }
+        }
+        l->watch_count = last;
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return status;
 }
 
 int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen)

@@ -88,7 +88,9 @@ typedef enum co_rt_event_kind {
                                   frame.data = its mapped values as laid out in the PDO */
     CO_EV_SYNC = 16,           /* a = counter (0 = none); only after co_rt_sync_listen */
     CO_EV_TIME = 17,           /* TIME received: a = ms after midnight, b = days since 1984 */
-    CO_EV_GUARD = 18           /* guarded node: a = co_guard_event_t, b = its NMT state */
+    CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
+    CO_EV_PDO_FRAME = 19       /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
+                                  29-bit), b = frames seen on it so far, frame = it */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -302,6 +304,10 @@ int co_rt_pdo_trigger(co_rt_t *rt, int line, int tpdo_number);
 int co_rt_pdo_trigger_object(co_rt_t *rt, int line, int index, int sub);
 /* Post CO_EV_PDO for each reception of the local node's RPDO n. */
 int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen);
+/* Hear (CO_EV_PDO_FRAME) every data frame on can_id (bit 29 set: a 29-bit
+ * id), e.g. another node's TPDO; a local RPDO on the same id still gets it.
+ * watch = 0 stops. At most 64 ids per line. */
+int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch);
 /* SYNC producer of the line: every period_us (0 = stop), window, counter
  * overflow (0 or 2..240). With a local node's OD its 0x1005/0x1006/0x1007/
  * 0x1019 are written (as the network would), else the line's SYNC. */
