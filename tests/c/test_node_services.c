@@ -775,6 +775,33 @@ static void test_heartbeat_two_lost(void **state)
     fx_free(fx);
 }
 
+/* On FD a second lost node sends 0x8130 again (status "occurred more than
+ * once", msef = the new node); the removal EMCY only after both are back. */
+static void test_heartbeat_two_lost_fd(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_FD, 1);
+    static const uint8_t first[20] = {0x30, 0x81, 0x11, 0x07, 0x00, 0, 0, 0,
+                                      0x00, 0x2D, 0x01, 0x10, 0, 0, 0, 0, 0, 0, 0, 0};
+    static const uint8_t again[20] = {0x30, 0x81, 0x11, 0x09, 0x00, 0, 0, 0,
+                                      0x00, 0x2D, 0x01, 0x30, 0, 0, 0, 0, 0, 0, 0, 0};
+    static const uint8_t removed[20] = {0x30, 0x81, 0x00, 0x00, 0x00, 0, 0, 0,
+                                        0x00, 0x2D, 0x01, 0x00, 0, 0, 0, 0, 0, 0, 0, 0};
+    clear_log(fx);
+    co_node_heartbeat_event(&fx->node, 7, true);
+    co_node_heartbeat_event(&fx->node, 9, true);
+    co_node_heartbeat_event(&fx->node, 7, false);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 0), EMCY_ID, first, 20);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 1), EMCY_ID, again, 20);
+    co_node_heartbeat_event(&fx->node, 9, false);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 3);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 2), EMCY_ID, removed, 20);
+    fx_free(fx);
+}
+
 /* Life guarding (0x100C x 0x100D after the first remote frame): LOST raises
  * 0x8130 with the own node-id and applies 0x1029:01; RESOLVED (a remote
  * frame) clears it; a lost heartbeat keeps it active until it is back. */
@@ -1066,6 +1093,7 @@ int main(void)
         cmocka_unit_test(test_heartbeat_lost_behaviour_2),
         cmocka_unit_test(test_heartbeat_lost_no_1029),
         cmocka_unit_test(test_heartbeat_two_lost),
+        cmocka_unit_test(test_heartbeat_two_lost_fd),
         cmocka_unit_test(test_life_guarding),
         cmocka_unit_test(test_comm_events),
         cmocka_unit_test(test_comm_passive_then_bus_off),
