@@ -98,7 +98,6 @@ static void forget_detected_errors(co_node_t *node)
     memset(node->rpdo_long, 0, sizeof node->rpdo_long);
     memset(node->rpdo_late, 0, sizeof node->rpdo_late);
     memset(node->hb_lost, 0, sizeof node->hb_lost);
-    node->rpdo_long_now = 0;
     node->life_lost = false;
     node->sync_length_error = false;
 }
@@ -289,7 +288,6 @@ static void on_pdo_error(co_pdo_t *pdo, uint16_t code, bool is_rpdo, uint16_t nu
         break;
     case CO_PDO_EMCY_LENGTH_EXCEEDED:
         map = node->rpdo_long;
-        node->rpdo_long_now = number;   /* applied right after: not yet a good one */
         break;
     case CO_PDO_EMCY_RPDO_TIMEOUT:
         map = node->rpdo_late;
@@ -306,17 +304,32 @@ static void on_pdo_error(co_pdo_t *pdo, uint16_t code, bool is_rpdo, uint16_t nu
     }
 }
 
+/* Whether RPDO n's last frame was longer than allowed. co_pdo tells 0x8220
+ * once, then applies every long frame without a word, so "received" alone
+ * cannot say the RPDO got a good frame: its channel's rx_error does (reset
+ * to 0 by a frame of the right length). (Before: a marker set by the error
+ * callback, which a second long frame, or a synchronous RPDO applied at the
+ * SYNC after another RPDO's error, took for a good frame and cleared
+ * 0x8220 too early.) */
+static bool rpdo_still_too_long(const co_pdo_t *pdo, uint16_t number)
+{
+    uint16_t slot = pdo->rpdo_of[number - 1u];
+    return slot != 0 && pdo->channels[slot - 1u].rx_error == CO_PDO_EMCY_LENGTH_EXCEEDED;
+}
+
 static void on_pdo_received(co_pdo_t *pdo, uint16_t number, void *user)
 {
-    (void)pdo;
     co_node_t *node = user;
     if (number >= 1 && number <= CO_PDO_MAX_NUMBER) {
         uint16_t bit = (uint16_t)(number - 1u);
         /* a frame of the mapped length ends the RPDO's length errors */
         rpdo_error_ends(node, node->rpdo_short, bit, CO_PDO_EMCY_LENGTH);
-        if (node->rpdo_long_now == number) {
-            node->rpdo_long_now = 0;
-        } else {
+        /* ... and a missed deadline: co_pdo tells RECEIVED_AGAIN only while
+         * it remembers the timeout, which leaving operational forgets (its
+         * stop_channel), so an RPDO back after pre-op -> operational would
+         * leave 0x8250 active for good */
+        rpdo_error_ends(node, node->rpdo_late, bit, CO_PDO_EMCY_RPDO_TIMEOUT);
+        if (!rpdo_still_too_long(pdo, number)) {
             rpdo_error_ends(node, node->rpdo_long, bit, CO_PDO_EMCY_LENGTH_EXCEEDED);
         }
     }

@@ -70,7 +70,6 @@ struct co_node {
     uint8_t rpdo_long[CO_NODE_PDO_BITMAP];      /* RPDOs in 0x8220 */
     uint8_t rpdo_late[CO_NODE_PDO_BITMAP];      /* RPDOs in 0x8250 */
     uint8_t hb_lost[128 / 8];                   /* consumed nodes lost (0x8130) */
-    uint16_t rpdo_long_now;                     /* RPDO whose 0x8220 was just told */
     bool life_lost;                             /* life guarding (0x8130) */
     bool sync_length_error;                     /* 0x8240 */
     bool overrun_told;                          /* 0x8110 sent at overrun_told_us */
