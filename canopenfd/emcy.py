@@ -31,7 +31,6 @@ from .decode_services import emcy_code_text, emcy_status_text, error_register_te
 from .errors import ConfigurationError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .line import Line
     from .node import LocalNode, RemoteNode
 
 __all__ = ["Emcy", "EmcyProducer", "EmcyConsumer", "LOG_SIZE"]

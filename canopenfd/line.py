@@ -68,6 +68,7 @@ class Line:
         self._frames = CallbackList(f"line {channel!r} frame")
         self._comm_events: List[CommEvent] = []
         self._emcys = CallbackList(f"line {channel!r} EMCY")
+        self._emcy_nodes: set = set()     # consumed for on_emcy(nodes=...)
         from .services import SyncService, TimeService
         #: SYNC producer and callbacks (see canopenfd.services).
         self.sync = SyncService(self)
@@ -166,8 +167,13 @@ class Line:
         with self._cond:
             if node_id not in self.nodes:
                 raise ConfigurationError(f"{self._where}: node {node_id} is not watched")
-            self._rt.command(lib.CO_CMD_HB_UNWATCH, self.index, node_id,
-                             what=f"remove_node({node_id}) on {self._where}")
+            what = f"remove_node({node_id}) on {self._where}"
+            node = self.nodes[node_id]
+            self._rt.command(lib.CO_CMD_HB_UNWATCH, self.index, node_id, what=what)
+            if node._guarded:
+                self._rt.guard(self.index, node_id, 0, 0, what)
+            if "_emcy" in node.__dict__ and node_id not in self._emcy_nodes:
+                self._rt.emcy_watch(self.index, node_id, False, what)
             del self.nodes[node_id]
 
     def __getitem__(self, node_id: int) -> RemoteNode:
@@ -210,6 +216,7 @@ class Line:
             node_id = check_node_id(node_id, f"on_emcy on {self._where}")
             self._rt.emcy_watch(self.index, node_id, True,
                                 f"EMCY of node {node_id} on {self._where}")
+            self._emcy_nodes.add(node_id)
         return self._emcys.add(callback)
 
     def on_frame(self, callback: Callable[[Frame], None]):

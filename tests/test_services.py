@@ -103,6 +103,7 @@ def test_emcy_classic_every_field_exact_bytes_and_reset(net, bus_name):
                                                "10 32 87 00 00 00 00 00"]
     assert not sent[0].fd
     first, second = got.wait_count(2)[:2]
+    assert isinstance(first, Emcy) and canopenfd.Emcy is Emcy
     assert (first.node, first.code, first.register, first.data, first.fd) == \
         (NODE, 0x2310, 0x83, b"\x01\x02\x00\x00\x00", False)
     assert first.occurred and not first.is_reset and not first.removed
@@ -159,7 +160,7 @@ def test_emcy_fd_every_field_repeated_and_removal(net, bus_name):
 def test_emcy_wait_returns_the_matching_emcy(net, bus_name):
     rig = Rig(net, bus_name, "fd", od=False)
     remote = rig.b.add_node(NODE)
-    remote.emcy            # consume from now on
+    assert not remote.emcy.log          # the first use: consumed from now on
     timer = threading.Timer(0.05, lambda: (rig.me.emcy.raise_error(0x1000),
                                            rig.me.emcy.raise_error(0x5000)))
     timer.start()
@@ -382,6 +383,20 @@ def test_guarding_rtr_toggle_started_and_lost(net, bus_name):
     events.wait_for(lambda calls: [c for c in calls if c[0] == GuardEvent.LOST], 2.0, "LOST")
     lost.wait_count(1)
     assert rig.wait_frames(0x709, 2, rtr=True)
+    assert absent.heartbeat_alive is False
+    # node 9 appears (a node with an OD answers guarding while its 0x1017 is 0)
+    net.open_line(bus_name, mode="classic").create_local_node(9, od=demo_od("classic"))
+    events.wait_for(lambda calls: (GuardEvent.RESUMED, NmtState.PRE_OPERATIONAL) in calls,
+                    2.0, "RESUMED")
+    assert absent.heartbeat_alive is True
+    rig.b.remove_node(9)                                # stops guarding it
+    start = rig.mark()
+    rig.b.send_frame(0x123, b"marker")
+    rig.wait_frames(0x123, 1, start=start)
+    time.sleep(scaled(0.05))                            # five guard times: no request
+    after = rig.frames.snapshot()[start:]
+    after = after[after.index(next(f for f in after if f.id == 0x123)):]
+    assert not [f for f in after if f.id == 0x709 and f.rtr]
 
 
 def test_guarding_wrong_use(net, bus_name):
