@@ -15,6 +15,7 @@ facade over it::
 __version__ = "0.1.0"
 
 from .decode import decode
+from .emcy import Emcy
 from .indications import ODRequest
 from .errors import (AbortError, CanopenFDError, ClosedError, CommandError, ConfigurationError,
                      InterfaceError)
@@ -32,7 +33,7 @@ __all__ = [
     "__version__",
     "AbortError", "CanopenFDError", "ClosedError", "CommandError", "ConfigurationError",
     "InterfaceError", "OdFileError", "OdValueError", "ObjectDictionary", "import_od", "LocalValue",
-    "Frame", "NmtCommand", "NmtState", "decode",
+    "Frame", "Emcy", "NmtCommand", "NmtState", "decode",
     "Network", "Line", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
     "UsdoAbortError", "UsdoTransfer", "SdoAbortError", "Transfer",
 ]

@@ -377,6 +377,58 @@ class Runtime:
                     result[node_id] = rc
         return result
 
+    # ------------------------------------------------------------ process data and errors
+    def _call(self, what: str, fn, *args) -> int:
+        """Call lib.fn(rt, *args) under the lock; a negative status raises."""
+        with self._lock:
+            rc = fn(self._live(what), *args)
+            if rc < 0:
+                self._raise(rc, what)
+        return rc
+
+    def emcy(self, line: int, fields: dict, clear: bool, what: str) -> int:
+        """Raise (or clear) an error of the local node's EMCY producer:
+        0 = sent or queued, 1 = already active, 2 = clear of an error not active."""
+        error = ffi.new("co_rt_emcy_t *")
+        for name, value in fields.items():
+            if name == "msef":
+                ffi.memmove(error.msef, bytes(value).ljust(5, b"\0"), 5)
+            else:
+                setattr(error, name, value)
+        return self._call(what, lib.co_rt_emcy, line, error, int(clear))
+
+    def emcy_state(self, line: int, what: str) -> dict:
+        out = ffi.new("co_rt_emcy_state_t *")
+        self._call(what, lib.co_rt_emcy_state, line, out)
+        return {name: getattr(out, name)
+                for name, _ in ffi.typeof("co_rt_emcy_state_t").fields}
+
+    def emcy_watch(self, line: int, node_id: int, watch: bool, what: str) -> None:
+        self._call(what, lib.co_rt_emcy_watch, line, node_id, int(watch))
+
+    def pdo_trigger(self, line: int, number: int, what: str) -> None:
+        self._call(what, lib.co_rt_pdo_trigger, line, number)
+
+    def pdo_trigger_object(self, line: int, index: int, sub: int, what: str) -> int:
+        return self._call(what, lib.co_rt_pdo_trigger_object, line, index, sub)
+
+    def pdo_listen(self, line: int, number: int, listen: bool, what: str) -> None:
+        self._call(what, lib.co_rt_pdo_listen, line, number, int(listen))
+
+    def sync_producer(self, line: int, period_us: int, window_us: int, overflow: int,
+                      what: str) -> None:
+        self._call(what, lib.co_rt_sync_producer, line, period_us, window_us, overflow)
+
+    def sync_listen(self, line: int, listen: bool, what: str) -> None:
+        self._call(what, lib.co_rt_sync_listen, line, int(listen))
+
+    def time_send(self, line: int, unix_us: int, what: str) -> None:
+        self._call(what, lib.co_rt_time_send, line, unix_us)
+
+    def guard(self, line: int, node_id: int, guard_ms: int, life_factor: int,
+              what: str) -> None:
+        self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)
+
     def host_receive(self, line: int, cframe) -> int:
         """Hand a frame to a host-driver line; returns the status (no raise:
         the caller is a bridge thread that decides what to do)."""
@@ -398,6 +450,18 @@ class Runtime:
         if rt == ffi.NULL:
             return lib.CO_RT_ERR_CLOSED
         return lib.co_rt_host_transmit(rt, line, frames, max_frames, timeout_ms)
+
+
+def decode_emcy(data: bytes, fd: bool) -> Optional[dict]:
+    """Every field of an EMCY (co_emcy_msg_t) as a dict, None when malformed."""
+    out = ffi.new("co_emcy_msg_t *")
+    decode = lib.co_emcy_decode_fd if fd else lib.co_emcy_decode_classic
+    if not decode(data, len(data), out):
+        return None
+    return {"code": out.code, "error_register": out.error_register,
+            "msef": bytes(ffi.buffer(out.msef, 5)), "logical_device": out.logical_device,
+            "spec_number": out.spec_number, "status": out.status,
+            "time_stamp": out.time_stamp}
 
 
 def now_us() -> int:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import enum
 import logging
 import threading
-from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, Iterable, List, Optional, Union
 
 from ._callbacks import CallbackList, Waiter
 from ._runtime import lib, now_us, status_text
@@ -18,6 +18,7 @@ from .node import LocalNode, RemoteNode, _remote_state, check_ms, check_node_id
 from .store import check_store
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .emcy import Emcy
     from .network import Network
     from .sdo import SdoClient
     from .usdo import UsdoClient
@@ -66,6 +67,13 @@ class Line:
         self._comm = CallbackList(f"line {channel!r} comm event")
         self._frames = CallbackList(f"line {channel!r} frame")
         self._comm_events: List[CommEvent] = []
+        self._emcys = CallbackList(f"line {channel!r} EMCY")
+        self._emcy_nodes: set = set()     # consumed for on_emcy(nodes=...)
+        from .services import SyncService, TimeService
+        #: SYNC producer and callbacks (see canopenfd.services).
+        self.sync = SyncService(self)
+        #: TIME transmit and callbacks.
+        self.time = TimeService(self)
 
     def __repr__(self) -> str:
         kind = "monitor " if self.monitor else ""
@@ -159,8 +167,13 @@ class Line:
         with self._cond:
             if node_id not in self.nodes:
                 raise ConfigurationError(f"{self._where}: node {node_id} is not watched")
-            self._rt.command(lib.CO_CMD_HB_UNWATCH, self.index, node_id,
-                             what=f"remove_node({node_id}) on {self._where}")
+            what = f"remove_node({node_id}) on {self._where}"
+            node = self.nodes[node_id]
+            self._rt.command(lib.CO_CMD_HB_UNWATCH, self.index, node_id, what=what)
+            if node._guarded:
+                self._rt.guard(self.index, node_id, 0, 0, what)
+            if "_emcy" in node.__dict__ and node_id not in self._emcy_nodes:
+                self._rt.emcy_watch(self.index, node_id, False, what)
             del self.nodes[node_id]
 
     def __getitem__(self, node_id: int) -> RemoteNode:
@@ -193,6 +206,18 @@ class Line:
     def on_comm_event(self, callback: Callable[[CommEvent], None]):
         """callback(CommEvent): bus-off, error passive, overflow, interface down/up..."""
         return self._comm.add(callback)
+
+    def on_emcy(self, callback: Callable[["Emcy"], None],
+                nodes: Optional[Iterable[int]] = None):
+        """callback(Emcy) for every EMCY the line consumes: those of the
+        nodes whose `node.emcy` was used, of the local node's 0x1028 entries,
+        and of `nodes` (node-ids this call starts consuming)."""
+        for node_id in (nodes or ()):
+            node_id = check_node_id(node_id, f"on_emcy on {self._where}")
+            self._rt.emcy_watch(self.index, node_id, True,
+                                f"EMCY of node {node_id} on {self._where}")
+            self._emcy_nodes.add(node_id)
+        return self._emcys.add(callback)
 
     def on_frame(self, callback: Callable[[Frame], None]):
         """callback(Frame) for every frame on the line, ours included (tx=True).
@@ -338,7 +363,7 @@ class Line:
 
     # ---------------------------------------------------------------- events
     def _handle(self, kind: int, node: int, a: int, b: int, frame: Optional[Frame],
-                time_us: int = 0) -> None:
+                time_us: int = 0, data: bytes = b"") -> None:
         """One runtime event for this line (dispatcher thread)."""
         run: Optional[Callable[[], None]] = None
         with self._cond:
@@ -382,12 +407,43 @@ class Line:
             elif kind == lib.CO_EV_STORE:
                 if self.local_node is not None:
                     run = self.local_node._event_store(a, b)
+            elif kind == lib.CO_EV_EMCY:
+                run = self._event_emcy(node, bool(a), data)
+            elif kind == lib.CO_EV_PDO:
+                if self.local_node is not None:
+                    run = self.local_node._event_pdo(a, data)
+            elif kind == lib.CO_EV_SYNC:
+                run = self.sync._event(a)
+            elif kind == lib.CO_EV_TIME:
+                run = self.time._event(a, b)
+            elif kind == lib.CO_EV_GUARD:
+                remote = self.nodes.get(node)
+                if remote is not None:
+                    run = remote._event_guard(a, b)
             elif kind == lib.CO_EV_COMMAND_FAILED:
                 log.warning("%s: command %d failed in the runtime: %s", self._where, a,
                             self._status_text(-b))
             self._cond.notify_all()
         if run is not None:
             run()
+
+    def _event_emcy(self, node: int, fd: bool, data: bytes) -> Optional[Callable[[], None]]:
+        from .emcy import Emcy
+        emcy = Emcy.decode(node, data, fd)
+        if emcy is None:
+            log.warning("%s: malformed EMCY of node %d ignored: %s", self._where, node,
+                        data.hex(" "))
+            return None
+        calls = [lambda: self._emcys.fire(emcy)]
+        remote = self.nodes.get(node)
+        consumer = remote.__dict__.get("_emcy") if remote is not None else None
+        if consumer is not None:
+            calls.insert(0, consumer._event(emcy))
+
+        def run() -> None:
+            for call in calls:
+                call()
+        return run
 
     def _wake(self) -> None:
         with self._cond:

@@ -212,6 +212,10 @@ class Network:
             log.debug("event %d for unknown line %d ignored", kind, ev.line)
             return
         frame = None
+        data = b""
         if kind == lib.CO_EV_FRAME:
             frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
-        line._handle(kind, ev.node, ev.a, ev.b, frame, ev.time_us)
+        elif kind in (lib.CO_EV_EMCY, lib.CO_EV_PDO):
+            # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
+            data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
+        line._handle(kind, ev.node, ev.a, ev.b, frame, ev.time_us, data)

@@ -29,6 +29,7 @@ STORE_STATUS = {0: "ok", 1: "empty", 2: "damaged", 3: "foreign", 4: "io-error", 
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
+    from .emcy import EmcyConsumer, EmcyProducer
     from .pdo import PdoMaps
     from .transfer import RemoteAccess, RemoteObjects
 
@@ -438,7 +439,40 @@ class LocalNode:
         from .pdo import pdo_maps
         return pdo_maps(self, "rpdo")
 
+    def trigger_pdo(self, key: Any) -> int:
+        """Tell the PDO service that entry `key` (index, (index, sub), name...)
+        changed: every event-driven TPDO (types 0, 254, 255) mapping it is
+        sent (respecting its inhibit time; in OPERATIONAL only). Returns how
+        many TPDOs map it."""
+        entry = self._entry(key)
+        where = f"trigger_pdo({key!r}) on {self._where}"
+        if not isinstance(entry, ODVariable):
+            raise ConfigurationError(f"{where}: {entry!r} is not a single entry; give the "
+                                     "sub-index")
+        if not self._booted:
+            raise ConfigurationError(f"{where}: the node is not booted yet")
+        return self.line._rt.pdo_trigger_object(self.line.index, entry.index, entry.subindex,
+                                                where)
+
+    # ---------------------------------------------------------------- EMCY
+    @property
+    def emcy(self) -> "EmcyProducer":
+        """The node's EMCY producer: `raise_error(code, ...)`, `clear(code)`,
+        `error_register`, `active` (see canopenfd.emcy)."""
+        producer = self.__dict__.get("_emcy")
+        if producer is None:
+            from .emcy import EmcyProducer
+            producer = self.__dict__["_emcy"] = EmcyProducer(self)
+        return producer
+
     # ---------------------------------------------------------------- events
+    def _event_pdo(self, number: int, data: bytes) -> Optional[Callable[[], None]]:
+        maps = self.__dict__.get("_pdo_maps", {}).get("rpdo")
+        pdo_map = maps.maps.get(number) if maps is not None else None
+        if pdo_map is None:
+            return None
+        return pdo_map._event_received(data)
+
     def _event_state(self, old: int, new: int) -> Callable[[], None]:
         old_s, new_s = _state(old), _state(new)
         self._history.push(new_s)
@@ -550,6 +584,8 @@ class RemoteNode:
         self._lost = CallbackList(f"node {node_id} heartbeat lost")
         self._started = CallbackList(f"node {node_id} heartbeat started")
         self._heartbeat = CallbackList(f"node {node_id} heartbeat")
+        self._guard_events = CallbackList(f"node {node_id} guarding")
+        self._guarded = False
 
     def __repr__(self) -> str:
         return f"<RemoteNode {self.node_id} on {self.line.channel!r}>"
@@ -718,6 +754,77 @@ class RemoteNode:
         boot-up, the first heartbeat, a state change, resumption after loss
         (not for every unchanged heartbeat: no Python code per frame)."""
         self._heartbeat.add(callback)
+
+    # ---------------------------------------------------------------- EMCY
+    @property
+    def emcy(self) -> "EmcyConsumer":
+        """The node's EMCYs (python-canopen's `node.emcy`): `add_callback(cb)`,
+        `log`, `active`, `wait(code, timeout)`. The line consumes them from
+        the first use on (see canopenfd.emcy)."""
+        with self.line._cond:
+            consumer = self.__dict__.get("_emcy")
+            if consumer is None:
+                from .emcy import EmcyConsumer
+                consumer = self.__dict__["_emcy"] = EmcyConsumer(self)
+            return consumer
+
+    # ---------------------------------------------------------------- guarding
+    def guard(self, guard_time_ms: int, life_time_factor: int) -> None:
+        """Node guarding (classic lines; CAN FD has no remote frames): a
+        remote frame on 0x700 + node-id every guard_time_ms, answered with the
+        node's state and a toggle bit; life_time_factor answers missed in a
+        row is "lost" (add_guard_callback). Guarding again changes the times."""
+        where = f"guard({guard_time_ms!r}, {life_time_factor!r}) of {self._where}"
+        if self.line.mode != "classic":
+            raise ConfigurationError(f"{where}: node guarding needs a classic line (CAN FD "
+                                     "has no remote frames); use the heartbeat "
+                                     "(heartbeat_timeout_ms)")
+        check_ms(guard_time_ms, "guard_time_ms", where)
+        if guard_time_ms == 0:
+            raise ConfigurationError(f"{where}: guard_time_ms must be 1..65535 (unguard() "
+                                     "stops guarding)")
+        if isinstance(life_time_factor, bool) or not isinstance(life_time_factor, int) or \
+                not 1 <= life_time_factor <= 255:
+            raise ConfigurationError(f"{where}: life_time_factor must be an int 1..255, got "
+                                     f"{life_time_factor!r}")
+        self.line._rt.guard(self.line.index, self.node_id, guard_time_ms, life_time_factor,
+                            where)
+        self._guarded = True
+
+    def unguard(self) -> None:
+        """Stop guarding the node."""
+        where = f"unguard() of {self._where}"
+        if self.line.mode != "classic":
+            raise ConfigurationError(f"{where}: node guarding needs a classic line")
+        self.line._rt.guard(self.line.index, self.node_id, 0, 0, where)
+        self._guarded = False
+
+    def add_guard_callback(self, callback: Callable[[str, NmtState], None]):
+        """callback(event, state): event a GuardEvent (a str: 'started',
+        'state-changed', 'lost', 'resumed', 'toggle-error', 'unexpected-state'),
+        state the NmtState the node answered (its last one for 'lost').
+        'lost' and 'resumed' also fire on_heartbeat_lost / on_heartbeat_started."""
+        return self._guard_events.add(callback)
+
+    def _event_guard(self, code: int, state_code: int) -> Optional[Callable[[], None]]:
+        from .services import GuardEvent
+        event = GuardEvent.from_code(code)
+        if event is None:
+            return None
+        state = _remote_state(state_code)
+        calls = [lambda: self._guard_events.fire(event, state)]
+        if event is GuardEvent.LOST:
+            self._alive = False
+            calls.append(self._lost.fire)
+        elif event in (GuardEvent.STARTED, GuardEvent.RESUMED):
+            self._alive = True
+            calls.append(self._started.fire)
+        if event in (GuardEvent.STARTED, GuardEvent.STATE_CHANGED, GuardEvent.RESUMED):
+            self._history.push(state)
+            if state != self._tracked:
+                self._tracked = state
+                calls.append(lambda: self._state_changed.fire(state))
+        return _chain(calls)
 
     # ---------------------------------------------------------------- PDO configuration
     @property

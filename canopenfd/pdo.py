@@ -31,16 +31,28 @@ still has the value read). The node checks again
 (SdoAbortError / UsdoAbortError, AbortError on the local node) whose message
 names the PDO and the step, also as `.pdo` and `.step`.
 
-Received PDOs are not delivered to Python yet (the runtime copies them into
-the local OD); `PdoMap.data` and `PdoVariable.raw` decode a PDO's bytes.
+Process data on the local node (the runtime sends and receives the PDOs
+itself; Python hears only what it asks for):
+
+    me.rpdo[1].add_callback(lambda pdo: print(pdo["Setpoint"].raw))
+    me.rpdo[1].wait_for_reception(timeout=1)   # returns the reception time
+    me[0x2200][1].raw = 7; me.tpdo[1].transmit()  # an event TPDO goes out now
+    me.trigger_pdo(0x2006)                      # every event TPDO mapping 0x2006
+
+Each reception of a listened RPDO sets its `data` (the mapped values, laid
+out as in the PDO) before the callbacks run, so `pdo["name"].raw` and
+`[v.raw for v in pdo]` give the received values; `PdoMap.data` and
+`PdoVariable.raw` decode any PDO's bytes.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
+import time
+from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple, Union
 
+from ._callbacks import CallbackList
 from .errors import AbortError, ConfigurationError
 from .od import ODArray, ODRecord, ODVariable, ObjectDictionary
 from .od.datatypes import DataType, decode
@@ -314,6 +326,11 @@ class PdoMap:
         self._map_changed = False
         # Communication values as read (sub -> value): read-only ones are not rewritten.
         self._read_values: Dict[int, Optional[int]] = {}
+        # Receptions (local RPDOs listened to): callbacks, count, last time.
+        self._callbacks: Optional[CallbackList] = None
+        self._received = 0
+        #: time.time() of the last reception (local RPDOs with callbacks or waits).
+        self.timestamp: Optional[float] = None
 
     # ------------------------------------------------------------ identity
     @property
@@ -463,6 +480,78 @@ class PdoMap:
     def is_periodic(self) -> bool:
         """python-canopen: synchronous PDOs (types 0..240) are periodic."""
         return self._trans_type is not None and self._trans_type <= 240
+
+    # ------------------------------------------------------------ process data
+    def _local_rpdo(self, what: str) -> None:
+        where = f"{self.where}: {what}"
+        if _is_remote(self.node):
+            raise ConfigurationError(
+                f"{where}: only the local node's RPDOs are delivered to Python; map the "
+                f"node's TPDO into an RPDO of the local node (line.local_node.rpdo[n]) and "
+                "listen there")
+        if not self.is_rpdo:
+            raise ConfigurationError(f"{where}: this is a TPDO; receptions are RPDOs")
+        if not self.node.booted:
+            raise ConfigurationError(f"{where}: the node is not booted yet")
+
+    def _listen(self, what: str) -> CallbackList:
+        self._local_rpdo(what)
+        line = self.node.line
+        with line._cond:
+            if self._callbacks is None:
+                if not self.map and not self._read_values:
+                    self.read()          # the mapping the OD has now, to decode
+                line._rt.pdo_listen(line.index, self.number, True, f"{self.where}: {what}")
+                self._callbacks = CallbackList(f"{self.where} reception")
+            return self._callbacks
+
+    def add_callback(self, callback: Callable[["PdoMap"], None]) -> Callable[["PdoMap"], None]:
+        """callback(pdo_map) on the dispatcher thread after each reception of
+        this RPDO of the local node, `data` holding the received values
+        (python-canopen's name)."""
+        return self._listen("add_callback").add(callback)
+
+    def remove_callback(self, callback: Callable[["PdoMap"], None]) -> None:
+        if self._callbacks is not None:
+            self._callbacks.remove(callback)
+
+    def wait_for_reception(self, timeout: Optional[float] = 10.0) -> float:
+        """Block until the RPDO is received after this call; returns the
+        reception time (time.time()). TimeoutError when none came in time."""
+        self._listen("wait_for_reception")
+        line = self.node.line
+        with line._cond:
+            start = self._received
+        line._waiter.wait(lambda: self._received > start, timeout,
+                          f"{self.where}: wait_for_reception", lambda: "no reception")
+        return self.timestamp  # type: ignore[return-value]
+
+    def _event_received(self, data: bytes) -> Optional[Callable[[], None]]:
+        """A reception (dispatcher thread, under the line's condition)."""
+        if len(data) != (self.length + 7) // 8:
+            try:                # the mapping changed (over the network): read it again
+                self.read()
+            except Exception:  # noqa: BLE001 - decoding is best effort; data still set
+                log.exception("%s: mapping could not be read again", self.where)
+        self.data = bytearray(data)
+        self._received += 1
+        self.timestamp = time.time()
+        callbacks = self._callbacks
+        return (lambda: callbacks.fire(self)) if callbacks else None
+
+    def transmit(self) -> None:
+        """Send this TPDO of the local node now (an application event: types
+        0, 254 and 255 take it, in OPERATIONAL); the values come from the
+        OD (`node[...].raw = ...` first). The error names why when it cannot."""
+        if _is_remote(self.node):
+            raise ConfigurationError(f"{self.where}: transmit() sends the local node's TPDOs; "
+                                     "a remote node sends its own")
+        if self.is_rpdo:
+            raise ConfigurationError(f"{self.where}: transmit() is for TPDOs")
+        if not self.node.booted:
+            raise ConfigurationError(f"{self.where}: the node is not booted yet")
+        line = self.node.line
+        line._rt.pdo_trigger(line.index, self.number, f"{self.where}: transmit()")
 
     # ------------------------------------------------------------ mapping
     def clear(self) -> None:
