@@ -29,6 +29,10 @@ CDEF_HEADERS = [
     "csrc/core/co_usdo.h",
     "csrc/core/co_emcy_codec.h",
     "csrc/core/co_emcy.h",
+    "csrc/core/co_pdo.h",
+    "csrc/core/co_sync.h",
+    "csrc/core/co_time.h",
+    "csrc/core/co_guard.h",
     "csrc/port/linux/co_runtime.h",
 ]
 SOURCE_DIRS = ["csrc/core", "csrc/drivers", "csrc/port/linux"]

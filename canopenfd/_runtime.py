@@ -346,6 +346,22 @@ class Runtime:
                 self._raise(rc, what)
         return {name: getattr(out, name) for name, _ in ffi.typeof("co_line_stats_t").fields}
 
+    def service_stats(self, line: int, what: str) -> dict:
+        """{service: {counter: value}} of co_rt_service_stats_t."""
+        out = ffi.new("co_rt_service_stats_t *")
+        with self._lock:
+            rc = lib.co_rt_service_stats(self._live(what), line, out)
+            if rc < 0:
+                self._raise(rc, what)
+        result = {}
+        for name, field in ffi.typeof("co_rt_service_stats_t").fields:
+            value = getattr(out, name)
+            if field.type.kind == "struct":
+                result[name] = {n: getattr(value, n) for n, _ in field.type.fields}
+            else:
+                result[name] = value
+        return result
+
     def local_state(self, line: int, what: str) -> Optional[int]:
         """The local node's state, None while the line has none (yet)."""
         with self._lock:

@@ -197,6 +197,14 @@ class Line:
         return self._rt.line_stats(self.index, f"stats of {self._where}")
 
     @property
+    def service_stats(self) -> Dict[str, Any]:
+        """Counters of the process-data and error services: {'pdo': {...},
+        'emcy': {...}, 'emcy_consumer', 'sync', 'time', 'guard_slave',
+        'guard_master': {...}, 'pdo_watched': n}; every frame a service
+        ignored is counted here by reason (zeros for services not running)."""
+        return self._rt.service_stats(self.index, f"service stats of {self._where}")
+
+    @property
     def comm_events(self) -> List[CommEvent]:
         """Communication events seen so far, oldest first (at most 1000 kept)."""
         with self._cond:

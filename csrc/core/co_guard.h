@@ -41,6 +41,7 @@ typedef struct co_guard_slave co_guard_slave_t;
 typedef void (*co_guard_life_fn)(co_guard_slave_t *slave, co_guard_life_event_t event,
                                  void *user);
 
+/* cffi:begin */
 typedef struct co_guard_slave_stats {
     uint32_t answered;            /* remote frames answered */
     uint32_t ignored_heartbeat;   /* not answered: the heartbeat producer is on */
@@ -48,6 +49,7 @@ typedef struct co_guard_slave_stats {
     uint32_t tx_failed;           /* answer refused by the tx queue (toggle unchanged) */
     uint32_t life_lost;           /* life guarding events */
 } co_guard_slave_stats_t;
+/* cffi:end */
 
 struct co_guard_slave {
     co_line_t *line;
@@ -130,6 +132,7 @@ typedef struct co_guard_master co_guard_master_t;
 typedef void (*co_guard_event_fn)(co_guard_master_t *master, uint8_t node_id,
                                   co_guard_event_t event, co_nmt_state_t state, void *user);
 
+/* cffi:begin */
 typedef struct co_guard_master_stats {
     uint32_t rtr_sent;
     uint32_t answers;               /* valid answers taken */
@@ -139,6 +142,7 @@ typedef struct co_guard_master_stats {
     uint32_t bad_state;             /* answers whose state is no NMT state */
     uint32_t tx_failed;             /* remote frame refused by the tx queue */
 } co_guard_master_stats_t;
+/* cffi:end */
 
 struct co_guard_master {
     co_line_t *line;

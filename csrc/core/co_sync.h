@@ -31,6 +31,7 @@ typedef void (*co_sync_window_fn)(co_sync_t *sync, void *user);
 typedef void (*co_sync_error_fn)(co_sync_t *sync, uint16_t emcy_code, uint8_t length,
                                  void *user);
 
+/* cffi:begin */
 typedef struct co_sync_stats {
     uint32_t produced;          /* SYNC frames queued by the producer */
     uint32_t received;          /* SYNC frames consumed */
@@ -40,6 +41,7 @@ typedef struct co_sync_stats {
     uint32_t outside_window;    /* co_sync_window_check() answered "late" */
     uint32_t subscribe_failed;  /* the SYNC CAN-ID could not be subscribed */
 } co_sync_stats_t;
+/* cffi:end */
 
 /* The four parameters, as in the OD. */
 typedef struct co_sync_config {

@@ -45,6 +45,7 @@ typedef struct co_time co_time_t;
 /* A time stamp was received (already decoded). */
 typedef void (*co_time_fn)(co_time_t *time, const co_time_of_day_t *tod, void *user);
 
+/* cffi:begin */
 typedef struct co_time_stats {
     uint32_t produced;          /* TIME frames queued */
     uint32_t received;          /* TIME frames delivered */
@@ -53,6 +54,7 @@ typedef struct co_time_stats {
     uint32_t send_refused;      /* co_time_send refused: not producer, NMT state, bad time, tx full */
     uint32_t subscribe_failed;  /* the TIME CAN-ID could not be subscribed */
 } co_time_stats_t;
+/* cffi:end */
 
 struct co_time {
     co_line_t *line;

@@ -587,3 +587,33 @@ int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_facto
     }
     return done(rt, status);
 }
+
+int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l || !out) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    memset(out, 0, sizeof *out);
+    pthread_mutex_lock(&rt->lock);
+    if (l->has_pdo) {
+        out->pdo = l->pdo.stats;
+    }
+    if (l->has_emcy) {
+        out->emcy = l->emcy.stats;
+    }
+    if (l->has_guard_slave) {
+        out->guard_slave = l->guard_slave.stats;
+    }
+    if (l->has_guard_master) {
+        out->guard_master = l->guard_master.stats;
+    }
+    out->emcy_consumer = l->emcy_consumer.stats;
+    out->sync = l->sync.stats;
+    out->time = l->time.stats;
+    for (int i = 0; i < l->watch_count; i++) {
+        out->pdo_watched += l->watch_frames[i];
+    }
+    pthread_mutex_unlock(&rt->lock);
+    return CO_RT_OK;
+}

@@ -10,6 +10,11 @@
 #include "../../core/co_hb.h"
 #include "../../core/co_od.h"
 #include "../../core/co_store.h"
+#include "../../core/co_emcy.h"
+#include "../../core/co_guard.h"
+#include "../../core/co_pdo.h"
+#include "../../core/co_sync.h"
+#include "../../core/co_time.h"
 
 /* cffi:begin */
 typedef struct co_rt co_rt_t;
@@ -317,6 +322,19 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
 int co_rt_sync_listen(co_rt_t *rt, int line, int listen);
 /* Send a TIME stamp (microseconds since 1970, UTC). */
 int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
+/* The counters of the line's process-data and error services (zeros for
+ * services the line does not run). */
+typedef struct co_rt_service_stats {
+    co_pdo_stats_t pdo;
+    co_emcy_stats_t emcy;             /* the local node's producer */
+    co_emcy_stats_t emcy_consumer;
+    co_sync_stats_t sync;
+    co_time_stats_t time;
+    co_guard_slave_stats_t guard_slave;
+    co_guard_master_stats_t guard_master;
+    uint32_t pdo_watched;             /* frames seen on the PDO CAN-IDs watched now */
+} co_rt_service_stats_t;
+int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */
 int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor);
 
