@@ -558,7 +558,7 @@ def _demo_process_data(say: Callable[..., None], manager_line: Line, manager: An
     device_line.sync.add_callback(
         lambda counter: setattr(device[_PROCESS_DATA][1], "raw", counter * 10))
     manager_line.sync.add_callback(lambda counter: last_sync.__setitem__(0, counter))
-    say(f"node 2   TPDO1 now synchronous (type 1); after each SYNC node 2 writes 10 x the "
+    say("node 2   TPDO1 now synchronous (type 1); after each SYNC node 2 writes 10 x the "
         "counter into Process data 1")
     say(f"node 1   SYNC every {_SYNC_PERIOD * 1000:g} ms, counter 1..{_SYNC_OVERFLOW}")
     manager_line.sync.start(_SYNC_PERIOD, overflow=_SYNC_OVERFLOW)
