@@ -46,11 +46,77 @@ def test_demo():
                  "upload: 1048576 bytes, ", "identical to what was sent"):
         assert text in out, f"{text!r} missing from the demo output:\n{out}"
     assert "MB/s" in out and "DIFFERENT" not in out
-    assert len(out.splitlines()) < 80            # the bulk frames are not printed
+    assert len(out.splitlines()) < 100           # the bulk frames are not printed
     assert "events lost" not in result.stderr
     # every line starts with a time stamp
     for line in out.strip().splitlines():
         float(line.split()[0])
+    check_demo_process_data(out, fd=True)
+
+
+def _after(out: str, marker: str) -> str:
+    """The rest of the demo line holding marker (it must be there)."""
+    lines = [line for line in out.splitlines() if marker in line]
+    assert len(lines) == 1, f"{marker!r} in {len(lines)} lines of:\n{out}"
+    return lines[0].split(marker, 1)[1]
+
+
+def check_demo_process_data(out: str, fd: bool) -> None:
+    """The demo's PDO, SYNC and EMCY part: values received equal the values
+    sent (64 bytes on fd lines, 8 on classic ones), synchronous PDOs follow
+    the SYNC counter, the EMCY is raised then removed with every field."""
+    count = 16 if fd else 2
+    assert f"maps Process data 1..{count} (UNSIGNED32): {count * 4} bytes" in out, out
+    sent = _after(out, f"TPDO1 transmit: Process data 1..{count} = ").split()
+    assert sent == [str(n * 1001) for n in range(1, count + 1)]
+    got = _after(out, f"RPDO1 from node 2: {count * 4} bytes, Process data 1..{count} = ")
+    assert got.split() == sent
+    assert "RPDO1 values equal what node 2 sent" in out
+    # four synchronous answers: SYNC counter 1..4, Process data 1 the value
+    # node 2 wrote at an earlier SYNC (10 x its counter), the rest as sent
+    syncs = [line.split("node 1   SYNC ", 1)[1] for line in out.splitlines()
+             if "-> RPDO1 from node 2" in line]
+    assert len(syncs) == 4, out
+    counters = [int(line.split()[0]) for line in syncs]
+    assert counters == [1, 2, 3, 4], out
+    values = [int(line.split("Process data 1 = ")[1].split(",")[0]) for line in syncs]
+    assert values[0] in (1001, 10) and all(v % 10 == 0 and v < 10 * c
+                                           for v, c in zip(values[1:], counters[1:])), out
+    assert all(line.endswith("unchanged") for line in syncs), out
+    assert "SYNC stopped; 4 synchronous PDOs shown" in out
+    # EMCY raised: every field on node 1's side, then removed
+    raised = _after(out, "node 1   EMCY from node 2: code 0x2310 current, device output "
+                         "side (current), register 0x83, ")
+    assert raised.startswith("data 01 02 00 00 00") and "removed" not in raised
+    if fd:
+        assert ("logical device 1, spec 301, priority 2, non-recoverable False, "
+                "occurred True, repeated False, time stamp 123456789") in raised
+        removed = _after(out, "node 1   EMCY from node 2: code 0x2310 current, device output "
+                              "side (current), register 0x00")
+        assert "occurred False" in removed and removed.endswith("error removed")
+    else:
+        assert "logical device" not in raised
+        removed = _after(out, "node 1   EMCY from node 2: code 0x0000 error reset")
+        assert removed.endswith("error removed")
+    assert "1 active; node 1 sees active [0x2310]" in out
+    assert "0 active; node 1 sees active []" in out
+    lines = out.splitlines()
+    assert lines.index(next(line for line in lines if "sees active [0x2310]" in line)) < \
+        lines.index(next(line for line in lines if "sees active []" in line))
+
+
+def test_demo_classic():
+    result = run("demo", "--classic", "--duration", "1.0")
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    assert "[FD" not in out
+    for text in ("boot-up node 2", "NMT start node 2", "node 2 heartbeat lost",
+                 "node 2 Vendor-ID = 0 (0x00000000)", "Setpoint reads back 123",
+                 "download: 65536 bytes, block, ", "node 2 holds identical bytes",
+                 "upload: 65536 bytes, block, ", "identical to what was sent"):
+        assert text in out, f"{text!r} missing from the classic demo output:\n{out}"
+    assert "events lost" not in result.stderr
+    check_demo_process_data(out, fd=False)
 
 
 def test_bad_node_id_exits_2():
