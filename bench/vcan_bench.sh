@@ -13,6 +13,9 @@
 #   --asan   run the sanitizer build of usdo_bench (build/bench/usdo_bench_asan)
 #
 #        bench/vcan_bench.sh --sdo [sdo_bench.py options] [IFACE]   (make -C bench sdo)
+#        bench/vcan_bench.sh --pdo [pdo_bench.py options] [IFACE]   (make -C bench pdo)
+#   PDO latency and a sustained stream (bench/pdo_bench.py, ours vs python-canopen)
+#   on an FD interface (MTU 72; --classic: MTU 16).
 #   classic SDO throughput instead (bench/sdo_bench.py: our client and python-canopen's,
 #   against our server and python-canopen's, next to raw_socketcan -c): IFACE (default
 #   vcan0) is a classic interface (MTU 16); everything after --sdo goes to sdo_bench.py.
@@ -37,9 +40,10 @@ main() {
     local root=$PWD iface=vcan0 a why missing=() here=0 raw=1 usdo=1 asan=0
     local raw_args=() usdo_args=() args=("$@") i=0
 
-    if [[ ${1:-} == --sdo ]]; then
+    if [[ ${1:-} == --sdo || ${1:-} == --pdo ]]; then
+        local kind=${1#--}
         shift
-        run_sdo "$root" "$@"
+        run_python_bench "$kind" "$root" "$@"
         return
     fi
 
@@ -131,10 +135,14 @@ main() {
     esac
 }
 
-# --sdo: build raw_socketcan, run bench/sdo_bench.py here (vcan + root) or in the VM.
-run_sdo() {
-    local root=$1 a iface=vcan0 py rc=0
-    shift
+# --sdo / --pdo: build the C helper (raw_socketcan / pdo_flood), run
+# bench/sdo_bench.py / bench/pdo_bench.py here (vcan + root) or in the VM.
+run_python_bench() {
+    local kind=$1 root=$2 a iface=vcan0 py rc=0 mtu=16 target=raw
+    shift 2
+    if [[ $kind == pdo ]]; then
+        mtu=72 target=pdo_flood
+    fi
     local skip=0
     for a in "$@"; do
         if ((skip)); then
@@ -142,29 +150,30 @@ run_sdo() {
             continue
         fi
         case $a in
-        -t | -e | -n | --sizes | --servers) skip=1 ;;
+        -t | -e | -n | -s | --sizes | --servers) skip=1 ;;
+        --classic) mtu=16 ;;
         -*) ;;
         *) iface=$a ;;
         esac
     done
     [[ $iface =~ ^[A-Za-z0-9_.-]{1,15}$ ]] || die "bad interface name '$iface'"
     py=$(command -v python3) || die "python3 not found"
-    echo "vcan_bench: building $root/build/bench/raw_socketcan" >&2
-    make -s -C "$root/bench" raw > /dev/null || die "build of raw_socketcan failed"
+    echo "vcan_bench: building $root/build/bench ($target)" >&2
+    make -s -C "$root/bench" "$target" > /dev/null || die "build of $target failed"
     if [[ ${CANOPENFD_IN_VM:-} == 1 ]] || bash tests/vm/have_vcan.sh 2> /dev/null; then
         if [[ ${CANOPENFD_IN_VM:-} != 1 ]] && ! ip link show dev "$iface" > /dev/null 2>&1; then
-            bash tests/vm/setup_vcan.sh --ifaces "$iface:16" || die "cannot create $iface"
+            bash tests/vm/setup_vcan.sh --ifaces "$iface:$mtu" || die "cannot create $iface"
         fi
         echo "(kernel $(uname -r), $(nproc) CPUs, $(cpu_name))"
-        exec python3 "$root/bench/sdo_bench.py" "$@"
+        exec python3 "$root/bench/${kind}_bench.py" "$@"
     fi
-    echo "vcan_bench: this kernel has no vcan: running bench/sdo_bench.py inside the qemu VM" \
-        "(tests/vm/run_in_vm.sh; TCG, far slower than the host)" >&2
+    echo "vcan_bench: this kernel has no vcan: running bench/${kind}_bench.py inside the qemu" \
+        "VM (tests/vm/run_in_vm.sh; TCG, far slower than the host)" >&2
     compiler_line
     echo "(host: $(cpu_name), $(nproc) CPUs, kernel $(uname -r))"
     CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-1200} \
-        bash tests/vm/run_in_vm.sh --ifaces "$iface:16" -- \
-        bash "$root/bench/vcan_bench.sh" --sdo "$@" || rc=$?
+        bash tests/vm/run_in_vm.sh --ifaces "$iface:$mtu" -- \
+        bash "$root/bench/vcan_bench.sh" "--$kind" "$@" || rc=$?
     case $rc in
     0) ;;
     124) die "the VM timed out (CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-1200} s)" ;;

@@ -36,8 +36,12 @@ def rig():
         peer = canopen.Network()
         peer.connect(interface="virtual", channel=channel)
         sniffer = can.Bus(interface="virtual", channel=channel)
+        remote = peer.add_node(NODE, canopen.ObjectDictionary())
+        # python-canopen waits 0.3 s per response by default: too short for a
+        # loaded CI machine (its client and our host line run in Python threads)
+        remote.sdo.RESPONSE_TIMEOUT = 3.0
         try:
-            yield node, peer.add_node(NODE, canopen.ObjectDictionary()), sniffer
+            yield node, remote, sniffer
         finally:
             peer.disconnect()
             sniffer.shutdown()
