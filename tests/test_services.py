@@ -366,6 +366,22 @@ def test_remote_pdo_from_od_defaults_29_bit_and_remove_node(net, bus_name, mode)
     assert len(raw) == 2
 
 
+def test_remote_pdo_wait_alone_watches_only_while_waiting(net, bus_name):
+    line = net.open_line(bus_name, mode="fd")
+    sender = net.open_line(bus_name, mode="fd")
+    pdo = line.add_node(NODE, od=pdo_od("fd")).rpdo[1]
+    with pytest.raises(TimeoutError, match="node 5 RPDO1: wait_for_reception"):
+        pdo.wait_for_reception(timeout=0.05)
+    assert line._pdo_watches == {}
+    timer = threading.Timer(0.05, sender.send_frame, (0x200 + NODE, b"\x07" * 12))
+    timer.start()
+    try:
+        pdo.wait_for_reception(timeout=scaled(2))
+    finally:
+        timer.join()
+    assert bytes(pdo.data) == b"\x07" * 12 and line._pdo_watches == {}
+
+
 def test_sync_producer_counter_and_synchronous_tpdo_only_in_operational(rig):
     tpdo = _configure(rig.me)
     tpdo.trans_type = 1                                  # every SYNC
