@@ -431,6 +431,11 @@ class Runtime:
     def pdo_listen(self, line: int, number: int, listen: bool, what: str) -> None:
         self._call(what, lib.co_rt_pdo_listen, line, number, int(listen))
 
+    def pdo_watch(self, line: int, can_id: int, watch: bool, what: str) -> None:
+        """Hear (CO_EV_PDO_FRAME) every data frame on can_id (bit 29: a 29-bit
+        id), e.g. another node's TPDO; watch=False stops."""
+        self._call(what, lib.co_rt_pdo_watch, line, can_id, int(watch))
+
     def sync_producer(self, line: int, period_us: int, window_us: int, overflow: int,
                       what: str) -> None:
         self._call(what, lib.co_rt_sync_producer, line, period_us, window_us, overflow)

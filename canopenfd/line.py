@@ -69,6 +69,8 @@ class Line:
         self._comm_events: List[CommEvent] = []
         self._emcys = CallbackList(f"line {channel!r} EMCY")
         self._emcy_nodes: set = set()     # consumed for on_emcy(nodes=...)
+        # Remote nodes' PDOs Python hears: CAN-ID (bit 29 = 29-bit) -> PdoMaps.
+        self._pdo_watches: Dict[int, List[Any]] = {}
         from .services import SyncService, TimeService
         #: SYNC producer and callbacks (see canopenfd.services).
         self.sync = SyncService(self)
@@ -174,6 +176,9 @@ class Line:
                 self._rt.guard(self.index, node_id, 0, 0, what)
             if "_emcy" in node.__dict__ and node_id not in self._emcy_nodes:
                 self._rt.emcy_watch(self.index, node_id, False, what)
+            for maps in node.__dict__.get("_pdo_maps", {}).values():
+                for pdo_map in maps.maps.values():
+                    pdo_map._stop_watch(what)
             del self.nodes[node_id]
 
     def __getitem__(self, node_id: int) -> RemoteNode:
@@ -420,6 +425,8 @@ class Line:
             elif kind == lib.CO_EV_PDO:
                 if self.local_node is not None:
                     run = self.local_node._event_pdo(a, data)
+            elif kind == lib.CO_EV_PDO_FRAME:
+                run = self._event_pdo_frame(a, frame)
             elif kind == lib.CO_EV_SYNC:
                 run = self.sync._event(a)
             elif kind == lib.CO_EV_TIME:
@@ -434,6 +441,43 @@ class Line:
             self._cond.notify_all()
         if run is not None:
             run()
+
+    def _pdo_watch(self, pdo_map: Any, can_id: int, what: str) -> None:
+        """pdo_map hears the frames on can_id (bit 29: 29-bit); the runtime
+        watches the id while at least one map does."""
+        with self._cond:
+            maps = self._pdo_watches.get(can_id)
+            if maps is None:
+                self._rt.pdo_watch(self.index, can_id, True, what)
+                maps = self._pdo_watches[can_id] = []
+            if pdo_map not in maps:
+                maps.append(pdo_map)
+
+    def _pdo_unwatch(self, pdo_map: Any, can_id: int, what: str) -> None:
+        with self._cond:
+            maps = self._pdo_watches.get(can_id)
+            if maps is None or pdo_map not in maps:
+                return
+            maps.remove(pdo_map)
+            if not maps:
+                del self._pdo_watches[can_id]
+                if not self.network.closed:
+                    self._rt.pdo_watch(self.index, can_id, False, what)
+
+    def _event_pdo_frame(self, can_id: int,
+                         frame: Optional[Frame]) -> Optional[Callable[[], None]]:
+        if frame is None:
+            return None
+        calls = [call for call in (m._event_frame(frame)
+                                   for m in list(self._pdo_watches.get(can_id, ())))
+                 if call is not None]
+        if not calls:
+            return None
+
+        def run() -> None:
+            for call in calls:
+                call()
+        return run
 
     def _event_emcy(self, node: int, fd: bool, data: bytes) -> Optional[Callable[[], None]]:
         from .emcy import Emcy

@@ -215,6 +215,8 @@ class Network:
         data = b""
         if kind == lib.CO_EV_FRAME:
             frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
+        elif kind == lib.CO_EV_PDO_FRAME:
+            frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
         elif kind in (lib.CO_EV_EMCY, lib.CO_EV_PDO):
             # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
             data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))

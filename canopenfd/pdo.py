@@ -43,6 +43,16 @@ Each reception of a listened RPDO sets its `data` (the mapped values, laid
 out as in the PDO) before the callbacks run, so `pdo["name"].raw` and
 `[v.raw for v in pdo]` give the received values; `PdoMap.data` and
 `PdoVariable.raw` decode any PDO's bytes.
+
+Process data of other nodes (heard by CAN-ID, co_rt_pdo_watch): a remote
+node's TPDOs (what it sends) and RPDOs (what others send it):
+
+    drive.tpdo.read()                         # COB-IDs and mappings from the node
+    drive.tpdo[1].add_callback(lambda pdo: print(pdo["Statusword"].raw))
+    drive.rpdo[1].wait_for_reception(timeout=1)
+
+Without read() (or a `cob_id` set here) the OD's COB-ID is used, with its
+mapping when none was made here.
 """
 
 from __future__ import annotations
@@ -329,8 +339,16 @@ class PdoMap:
         # Receptions (local RPDOs listened to): callbacks, count, last time.
         self._callbacks: Optional[CallbackList] = None
         self._received = 0
-        #: time.time() of the last reception (local RPDOs with callbacks or waits).
+        #: time.time() of the last reception (with callbacks or waits).
         self.timestamp: Optional[float] = None
+        #: Seconds between the last two receptions (None before the second).
+        self.period: Optional[float] = None
+        # Remote nodes' PDOs: the CAN-ID watched (bit 29 = 29-bit) and the
+        # waits in progress; frames shorter than the mapping are not delivered.
+        self._watched: Optional[int] = None
+        self._waits = 0
+        #: Frames heard on a remote PDO's CAN-ID too short for its mapping (ignored).
+        self.short_frames = 0
 
     # ------------------------------------------------------------ identity
     @property
@@ -420,6 +438,8 @@ class PdoMap:
             "cob_id", value, 0, 0x1FFFFFFF,
             "the CAN-ID 0..0x7FF (0..0x1FFFFFFF with extended=True; enabled/rtr_allowed "
             "are separate attributes)")
+        if value is not None:
+            self._retarget("cob_id")
 
     def _trans_type_expected(self) -> str:
         if not self.is_rpdo and self.mode == "classic":
@@ -484,17 +504,15 @@ class PdoMap:
     # ------------------------------------------------------------ process data
     def _local_rpdo(self, what: str) -> None:
         where = f"{self.where}: {what}"
-        if _is_remote(self.node):
-            raise ConfigurationError(
-                f"{where}: only the local node's RPDOs are delivered to Python; map the "
-                f"node's TPDO into an RPDO of the local node (line.local_node.rpdo[n]) and "
-                "listen there")
         if not self.is_rpdo:
-            raise ConfigurationError(f"{where}: this is a TPDO; receptions are RPDOs")
+            raise ConfigurationError(f"{where}: this is a TPDO of the local node; the "
+                                     "runtime sends it (receptions are RPDOs)")
         if not self.node.booted:
             raise ConfigurationError(f"{where}: the node is not booted yet")
 
     def _listen(self, what: str) -> CallbackList:
+        if _is_remote(self.node):
+            return self._watch(what)
         self._local_rpdo(what)
         line = self.node.line
         with line._cond:
@@ -505,26 +523,98 @@ class PdoMap:
                 self._callbacks = CallbackList(f"{self.where} reception")
             return self._callbacks
 
+    # A remote node's PDO: its frames are heard by CAN-ID (co_rt_pdo_watch).
+    def _frame_key(self) -> int:
+        return self._cob_id | (FRAME_29BIT if self.extended else 0)  # type: ignore[operator]
+
+    def _watch(self, what: str) -> CallbackList:
+        """Start hearing this remote PDO's CAN-ID (the COB-ID read or set;
+        else the OD's, with its mapping when none was made here)."""
+        line = self.node.line
+        with line._cond:
+            if self._callbacks is None:
+                self._callbacks = CallbackList(f"{self.where} reception")
+            if self._watched is None:
+                if self._cob_id is None:
+                    if not self.map:
+                        self.read(from_od=True)
+                    else:
+                        raw = self._from_od(self.com_index, 1, 4, "reading the COB-ID") or 0
+                        self._cob_id = raw & 0x1FFFFFFF
+                        self.extended = bool(raw & FRAME_29BIT)
+                        self.enabled = not raw & PDO_NOT_VALID
+                if not self.extended and self._cob_id > 0x7FF:  # type: ignore[operator]
+                    raise ConfigurationError(f"{self.where}: {what}: COB-ID 0x{self._cob_id:X} "
+                                             "is not an 11-bit CAN-ID (extended=False)")
+                key = self._frame_key()
+                line._pdo_watch(self, key, f"{self.where}: {what}")
+                self._watched = key
+            return self._callbacks
+
+    def _retarget(self, what: str) -> None:
+        """The COB-ID changed (read, save, cob_id =): hear the new CAN-ID."""
+        if self._watched is None or self._cob_id is None:
+            return
+        key = self._frame_key()
+        if key != self._watched and (self.extended or self._cob_id <= 0x7FF):
+            line = self.node.line
+            with line._cond:
+                line._pdo_watch(self, key, f"{self.where}: {what}")
+                line._pdo_unwatch(self, self._watched, f"{self.where}: {what}")
+                self._watched = key
+
+    def _stop_watch(self, what: str) -> None:
+        """Stop hearing the CAN-ID (no callback and no wait left, node removed)."""
+        if self._watched is not None:
+            line = self.node.line
+            with line._cond:
+                line._pdo_unwatch(self, self._watched, what)
+                self._watched = None
+
+    def _release(self, what: str) -> None:
+        if _is_remote(self.node) and not self._callbacks and self._waits == 0:
+            self._stop_watch(f"{self.where}: {what}")
+
     def add_callback(self, callback: Callable[["PdoMap"], None]) -> Callable[["PdoMap"], None]:
-        """callback(pdo_map) on the dispatcher thread after each reception of
-        this RPDO of the local node, `data` holding the received values
-        (python-canopen's name)."""
+        """callback(pdo_map) on the dispatcher thread after each reception,
+        `data` holding the received values (python-canopen's name). The
+        local node: its RPDOs. A remote node: its TPDOs (what it sends) and
+        its RPDOs (what others send it), heard by CAN-ID: the COB-ID read()
+        or set here, else the OD's (its default, with $NODEID), and the OD's
+        mapping when none was read or made here; a COB-ID changed later by
+        read(), save() or `cob_id =` is followed."""
         return self._listen("add_callback").add(callback)
 
     def remove_callback(self, callback: Callable[["PdoMap"], None]) -> None:
+        """Remove a callback; a remote PDO is no longer heard once no
+        callback and no wait is left."""
         if self._callbacks is not None:
             self._callbacks.remove(callback)
+            self._release("remove_callback")
 
     def wait_for_reception(self, timeout: Optional[float] = 10.0) -> float:
-        """Block until the RPDO is received after this call; returns the
+        """Block until the PDO is received after this call; returns the
         reception time (time.time()). TimeoutError when none came in time."""
-        self._listen("wait_for_reception")
         line = self.node.line
         with line._cond:
+            self._listen("wait_for_reception")
+            self._waits += 1
             start = self._received
-        line._waiter.wait(lambda: self._received > start, timeout,
-                          f"{self.where}: wait_for_reception", lambda: "no reception")
+        try:
+            line._waiter.wait(lambda: self._received > start, timeout,
+                              f"{self.where}: wait_for_reception", lambda: "no reception")
+        finally:
+            with line._cond:
+                self._waits -= 1
+                self._release("wait_for_reception")
         return self.timestamp  # type: ignore[return-value]
+
+    def _received_now(self) -> None:
+        now = time.time()
+        if self.timestamp is not None:
+            self.period = now - self.timestamp
+        self.timestamp = now
+        self._received += 1
 
     def _event_received(self, data: bytes) -> Optional[Callable[[], None]]:
         """A reception (dispatcher thread, under the line's condition)."""
@@ -534,8 +624,22 @@ class PdoMap:
             except Exception:  # noqa: BLE001 - decoding is best effort; data still set
                 log.exception("%s: mapping could not be read again", self.where)
         self.data = bytearray(data)
-        self._received += 1
-        self.timestamp = time.time()
+        self._received_now()
+        callbacks = self._callbacks
+        return (lambda: callbacks.fire(self)) if callbacks else None
+
+    def _event_frame(self, frame: Any) -> Optional[Callable[[], None]]:
+        """A frame on a watched remote PDO's CAN-ID (dispatcher thread, under
+        the line's condition): `data` = its first ceil(length / 8) bytes (all
+        of them while nothing is mapped)."""
+        need = (self.length + 7) // 8
+        if len(frame.data) < need:
+            self.short_frames += 1
+            log.debug("%s: frame of %d bytes on 0x%X, the mapping needs %d; ignored",
+                      self.where, len(frame.data), frame.id, need)
+            return None
+        self.data = bytearray(frame.data[:need] if self.map else frame.data)
+        self._received_now()
         callbacks = self._callbacks
         return (lambda: callbacks.fire(self)) if callbacks else None
 
@@ -699,6 +803,7 @@ class PdoMap:
                     continue
                 self._append(self._entry_variable(value))
         self._map_changed = False
+        self._retarget("read")
 
     def _entry_variable(self, value: int) -> PdoVariable:
         index, sub, bits = value >> 16, (value >> 8) & 0xFF, value & 0xFF
@@ -833,3 +938,4 @@ class PdoMap:
                 raise
         if self._map_changed:
             self._map_changed = False
+        self._retarget("save")

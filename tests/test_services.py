@@ -277,6 +277,111 @@ def test_tpdo_transmit_and_trigger_put_the_exact_bytes_on_the_bus(rig):
     assert rig.me.trigger_pdo("Demo UNSIGNED32") == 0     # mapped nowhere
 
 
+def test_remote_tpdo_and_rpdo_callbacks_hear_another_nodes_pdos(net, bus_name, rig):
+    """Line b hears node 5's TPDO (configuration read from the node) and the
+    RPDO others send to node 5 (which node 5's own RPDO still applies)."""
+    tpdo = _configure(rig.me)
+    tpdo.trans_type = 254
+    tpdo.save()
+    rpdo = rig.me.rpdo[1]
+    rpdo.read()
+    rpdo.clear()
+    rpdo.add_variable("Demo UNSIGNED32")
+    rpdo.add_variable("Demo record.Setpoint")
+    rpdo.cob_id = 0x200 + NODE
+    rpdo.enabled = True
+    rpdo.save()
+    rig.me.apply("start")
+    rig.me.wait_for_state("OPERATIONAL")
+    remote = rig.b.add_node(NODE, od=pdo_od(rig.mode))
+    remote.tpdo.read()                                   # over SDO / USDO from node 5
+    remote.rpdo.read()
+    heard, sent_to = Recorder(), Recorder()
+    remote.tpdo[1].add_callback(lambda pdo: heard(([v.raw for v in pdo], bytes(pdo.data),
+                                                   pdo["Demo UNSIGNED16"].raw)))
+    remote.rpdo[1].add_callback(lambda pdo: sent_to([v.raw for v in pdo]))
+    rig.me["Demo UNSIGNED16"].raw = 4660
+    rig.me["Demo record.Setpoint"].raw = -300
+    tpdo.transmit()
+    assert heard.wait_count(1)[0] == ([4660, -300], bytes.fromhex("3412d4fe"), 4660)
+    other = net.open_line(bus_name, mode=rig.mode)      # a third party writes node 5's RPDO
+    other.send_frame(0x200 + NODE, bytes.fromhex("78563412 feff"))
+    assert sent_to.wait_count(1)[0] == [0x12345678, -2]
+    deadline = time.monotonic() + scaled(2)
+    while rig.me["Demo record.Setpoint"].raw != -2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert rig.me["Demo record.Setpoint"].raw == -2      # the local RPDO still got it
+    # wait_for_reception, period; too short frames are not delivered
+    remote_tpdo = remote.tpdo[1]
+    timer = threading.Timer(0.05, tpdo.transmit)
+    timer.start()
+    try:
+        when = remote_tpdo.wait_for_reception(timeout=scaled(2))
+    finally:
+        timer.join()
+    assert abs(when - time.time()) < scaled(2) and remote_tpdo.period is not None
+    other.send_frame(0x180 + NODE, b"\x01")
+    other.send_frame(0x180 + NODE, bytes.fromhex("01020304"))
+    assert heard.wait_count(3)[2][0] == [0x0201, 0x0403]
+    assert remote_tpdo.short_frames == 1
+    # the last callback removed: the CAN-ID is no longer watched
+    for maps in (remote.tpdo, remote.rpdo):
+        for callback in list(maps[1]._callbacks._callbacks):
+            maps[1].remove_callback(callback)
+    assert rig.b._pdo_watches == {}
+    other.send_frame(0x180 + NODE, bytes.fromhex("05060708"))
+    rig.wait_frames(0x180 + NODE, 5)
+    time.sleep(scaled(0.05))
+    assert len(heard) == 3
+
+
+def test_remote_pdo_from_od_defaults_29_bit_and_remove_node(net, bus_name, mode):
+    """Without read(): the OD's COB-ID ($NODEID) and mapping; a COB-ID set
+    later is followed (29-bit here); remove_node stops hearing."""
+    line = net.open_line(bus_name, mode=mode)
+    sender = net.open_line(bus_name, mode=mode)
+    remote = line.add_node(NODE, od=pdo_od(mode))
+    raw = Recorder()
+    remote.tpdo[1].add_callback(lambda pdo: raw(bytes(pdo.data)))
+    assert remote.tpdo[1].cob_id == 0x180 + NODE and not remote.tpdo[1].enabled
+    sender.send_frame(0x180 + NODE, b"\xaa\xbb")
+    assert raw.wait_count(1)[0] == b"\xaa\xbb"           # nothing mapped: the whole frame
+    remote.tpdo[1].extended = True
+    remote.tpdo[1].cob_id = 0x1234567
+    assert list(line._pdo_watches) == [0x1234567 | (1 << 29)]
+    sender.send_frame(0x180 + NODE, b"\x01")                # not heard any more
+    sender.send_frame(0x1234567, b"\x11\x22\x33", extended=True)
+    assert raw.wait_count(2)[1] == b"\x11\x22\x33"
+    second = Recorder()
+    twin = net.open_line(bus_name, mode=mode).add_node(NODE, od=pdo_od(mode))
+    twin.tpdo[1].add_variable("Demo UNSIGNED8")          # a mapping made here, COB-ID from the OD
+    twin.tpdo[1].add_callback(lambda pdo: second(pdo["Demo UNSIGNED8"].raw))
+    sender.send_frame(0x180 + NODE, b"\x2a\x00")
+    assert second.wait_count(1)[0] == 0x2A
+    line.remove_node(NODE)
+    assert line._pdo_watches == {}
+    sender.send_frame(0x1234567, b"\x44", extended=True)
+    sender.send_frame(0x180 + NODE, b"\x2b")
+    assert second.wait_count(2)[1] == 0x2B
+    assert len(raw) == 2
+
+
+def test_remote_pdo_wait_alone_watches_only_while_waiting(net, bus_name):
+    line = net.open_line(bus_name, mode="fd")
+    sender = net.open_line(bus_name, mode="fd")
+    pdo = line.add_node(NODE, od=pdo_od("fd")).rpdo[1]
+    with pytest.raises(TimeoutError, match="node 5 RPDO1: wait_for_reception"):
+        pdo.wait_for_reception(timeout=0.05)
+    assert line._pdo_watches == {}
+    timer = threading.Timer(0.05, sender.send_frame, (0x200 + NODE, b"\x07" * 12))
+    timer.start()
+    try:
+        pdo.wait_for_reception(timeout=scaled(2))
+    finally:
+        timer.join()
+    assert bytes(pdo.data) == b"\x07" * 12 and line._pdo_watches == {}
+
+
 def test_sync_producer_counter_and_synchronous_tpdo_only_in_operational(rig):
     tpdo = _configure(rig.me)
     tpdo.trans_type = 1                                  # every SYNC
@@ -431,7 +536,8 @@ def test_wrong_use_of_sync_time_and_pdos(rig):
         rig.me.wait_for_state("OPERATIONAL")
         rig.me.tpdo[1].transmit()                        # COB-ID still invalid
     remote = rig.b.add_node(NODE, od=pdo_od(rig.mode))
-    with pytest.raises(ConfigurationError, match="local node's RPDOs"):
+    remote.tpdo[1].cob_id = 0x800                        # 12 bits, not extended
+    with pytest.raises(ConfigurationError, match="not an 11-bit CAN-ID"):
         remote.tpdo[1].add_callback(print)
     with pytest.raises(ConfigurationError, match="local node's TPDOs"):
         remote.tpdo[1].transmit()
