@@ -545,3 +545,17 @@ def test_wrong_use_of_sync_time_and_pdos(rig):
         rig.me.trigger_pdo(0x2200)
     with pytest.raises(KeyError):
         rig.me.trigger_pdo("No such entry")
+
+
+def test_a_line_without_local_node_hears_sync_with_and_without_counter(net, bus_name):
+    producer = net.open_line(bus_name, mode="fd")
+    tool = net.open_line(bus_name, mode="fd")
+    got = Recorder()
+    tool.sync.add_callback(got)
+    producer.sync.start(0.01, overflow=4)
+    try:
+        counters = got.wait_count(3)
+    finally:
+        producer.sync.stop()
+    assert all(1 <= c <= 4 for c in counters[:3]), counters
+    assert tool.service_stats["sync"]["bad_length"] == 0

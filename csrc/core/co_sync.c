@@ -116,7 +116,10 @@ static void on_sync_frame(co_line_t *line, const co_frame_t *frame, void *user)
         s->stats.ignored_state++;
         return;
     }
-    const uint8_t expected = s->config.overflow ? 1 : 0;
+    uint8_t expected = s->config.overflow ? 1 : 0;
+    if (s->any_counter && frame->len <= 1) {
+        expected = frame->len;   /* a tool's line: with or without counter */
+    }
     if (frame->len != expected) {
         s->stats.bad_length++;
         if (s->on_error) {
@@ -126,6 +129,11 @@ static void on_sync_frame(co_line_t *line, const co_frame_t *frame, void *user)
     }
     s->stats.received++;
     sync_event(s, expected ? frame->data[0] : 0);
+}
+
+void co_sync_accept_any_counter(co_sync_t *sync, bool accept)
+{
+    sync->any_counter = accept;
 }
 
 /* The consumer listens on the COB-ID's CAN-ID unless this node produces

@@ -66,6 +66,7 @@ struct co_sync {
     uint8_t next_counter;         /* counter of the next produced SYNC (1..overflow) */
     uint8_t last_counter;         /* counter of the last SYNC (0 = none / no data) */
     bool window_open;             /* a SYNC came less than window_us ago */
+    bool any_counter;             /* take SYNC of length 0 and 1 (no 0x1019 of our own) */
     uint64_t last_sync_us;
     co_timer_t producer_timer;
     co_timer_t window_timer;
@@ -120,6 +121,10 @@ void co_sync_set_error_indication(co_sync_t *sync, co_sync_error_fn fn, void *us
  * the window of the last SYNC: true without a window (0x1007 = 0) or while
  * it is open; false (counted in outside_window) otherwise. */
 bool co_sync_window_check(co_sync_t *sync);
+/* A consumer with no 0x1019 of its own (a tool's line, no local node) takes
+ * SYNC with or without the counter byte; off (the default), a length other
+ * than 0x1019 says is refused with CO_SYNC_EMCY_LENGTH, as CiA 301 wants. */
+void co_sync_accept_any_counter(co_sync_t *sync, bool accept);
 static inline bool co_sync_is_producer(const co_sync_t *sync)
 {
     return (sync->config.cob_id & CO_SYNC_PRODUCER_BIT) != 0;

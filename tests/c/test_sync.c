@@ -424,6 +424,27 @@ static void test_wrong_length(void **state)
     }
 }
 
+/* A tool's consumer (co_sync_accept_any_counter) takes SYNC with and
+ * without the counter; longer frames stay errors; switched off, the 0x1019
+ * rule is back. */
+static void test_accept_any_counter(void **state)
+{
+    fx_t *fx = *state;
+    static const uint8_t d[8] = {9, 1, 2, 3, 4, 5, 6, 7};
+    co_sync_accept_any_counter(&fx->sc, true);
+    inject(fx, 0x80, NULL, 0);
+    inject(fx, 0x80, d, 1);
+    inject(fx, 0x80, d, 2);
+    assert_int_equal(count_ev(fx, EV_SYNC, 'c'), 2);
+    assert_int_equal(nth_ev(fx, EV_SYNC, 'c', 0)->value, 0);
+    assert_int_equal(nth_ev(fx, EV_SYNC, 'c', 1)->value, 9);
+    assert_int_equal(fx->sc.stats.bad_length, 1);
+    co_sync_accept_any_counter(&fx->sc, false);
+    inject(fx, 0x80, d, 1);                      /* 0x1019 = 0: no counter expected */
+    assert_int_equal(count_ev(fx, EV_SYNC, 'c'), 2);
+    assert_int_equal(fx->sc.stats.bad_length, 2);
+}
+
 /* The window indication 0x1007 µs after each SYNC, produced and received;
  * window_check true before, false (counted) after. */
 static void test_window(void **state)
@@ -674,6 +695,7 @@ int main(void)
         BOTH(test_reload_applies),
         BOTH(test_consumer_resubscribes),
         BOTH(test_wrong_length),
+        BOTH(test_accept_any_counter),
         BOTH(test_window),
         BOTH(test_window_change_while_open),
         BOTH(test_nmt_states),

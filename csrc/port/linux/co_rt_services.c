@@ -120,6 +120,7 @@ bool rt_services_line_init(rt_line_t *l)
     /* Without a local node the line is a tool's: it hears SYNC, TIME and
      * EMCYs as a pre-operational node would. */
     co_sync_set_nmt_state(&l->sync, CO_NMT_PRE_OPERATIONAL);
+    co_sync_accept_any_counter(&l->sync, true);
     co_time_init(&l->time, &l->line, on_time, l);
     (void)co_time_set_cob_id(&l->time, CO_TIME_CONSUMER_BIT | CO_TIME_DEFAULT_COB_ID);
     co_time_set_nmt_state(&l->time, CO_NMT_PRE_OPERATIONAL);
@@ -201,6 +202,9 @@ int rt_services_node_attach(co_rt_t *rt, rt_line_t *l)
     s.emcy = &l->emcy;
     if (l->has_od) {
         /* the node's OD now says what SYNC, TIME and the consumer do */
+        if (od_has(l, 0x1005)) {
+            co_sync_accept_any_counter(&l->sync, false);   /* the node's 0x1019 rules */
+        }
         if ((od_has(l, 0x1005) && !co_sync_attach_od(&l->sync, &l->od)) ||
             (od_has(l, 0x1012) && !co_time_attach_od(&l->time, &l->od)) ||
             (od_has(l, 0x1028) && !co_emcy_consumer_attach_od(&l->emcy_consumer, &l->od))) {
@@ -244,6 +248,7 @@ void rt_services_node_detach(rt_line_t *l)
         l->has_emcy = false;
     }
     co_sync_detach_od(&l->sync);
+    co_sync_accept_any_counter(&l->sync, true);
     co_time_detach_od(&l->time);
     co_emcy_consumer_detach_od(&l->emcy_consumer);
     free(l->pdo_channels);
