@@ -202,9 +202,8 @@ int rt_services_node_attach(co_rt_t *rt, rt_line_t *l)
     s.emcy = &l->emcy;
     if (l->has_od) {
         /* the node's OD now says what SYNC, TIME and the consumer do */
-        if (od_has(l, 0x1005)) {
-            co_sync_accept_any_counter(&l->sync, false);   /* the node's 0x1019 rules */
-        }
+        /* the node's 0x1019 rules (missing = 0: SYNC without counter) */
+        co_sync_accept_any_counter(&l->sync, false);
         if ((od_has(l, 0x1005) && !co_sync_attach_od(&l->sync, &l->od)) ||
             (od_has(l, 0x1012) && !co_time_attach_od(&l->time, &l->od)) ||
             (od_has(l, 0x1028) && !co_emcy_consumer_attach_od(&l->emcy_consumer, &l->od))) {
