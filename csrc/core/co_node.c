@@ -1,5 +1,6 @@
 #include "co_node.h"
 
+#include "co_bits.h"
 #include "co_cob_id.h"
 
 #include <string.h>
@@ -102,17 +103,6 @@ static void forget_detected_errors(co_node_t *node)
     node->sync_length_error = false;
 }
 
-static bool bit_test(const uint8_t *map, uint16_t n) { return (map[n / 8u] >> (n % 8u)) & 1u; }
-
-static void bit_put(uint8_t *map, uint16_t n, bool on)
-{
-    if (on) {
-        map[n / 8u] = (uint8_t)(map[n / 8u] | (1u << (n % 8u)));
-    } else {
-        map[n / 8u] = (uint8_t)(map[n / 8u] & ~(1u << (n % 8u)));
-    }
-}
-
 static bool bits_any(const uint8_t *map, size_t size)
 {
     for (size_t i = 0; i < size; i++) {
@@ -167,10 +157,10 @@ static void life_guard_changed(co_node_t *node)
 
 void co_node_heartbeat_event(co_node_t *node, uint8_t node_id, bool lost)
 {
-    if (node_id == 0 || node_id > 127 || bit_test(node->hb_lost, node_id) == lost) {
+    if (node_id == 0 || node_id > 127 || co_bit_test(node->hb_lost, node_id) == lost) {
         return;
     }
-    bit_put(node->hb_lost, node_id, lost);
+    co_bit_put(node->hb_lost, node_id, lost);
     if (lost) {
         raise_error(node, CO_NODE_EMCY_LIFE_GUARD, node_id);
         co_node_error_behaviour(node, 1);
@@ -264,8 +254,8 @@ static void on_sync_error(co_sync_t *sync, uint16_t code, uint8_t length, void *
 /* An RPDO's error ends: its code is cleared once no RPDO has it. */
 static void rpdo_error_ends(co_node_t *node, uint8_t *map, uint16_t number, uint16_t code)
 {
-    if (bit_test(map, number)) {
-        bit_put(map, number, false);
+    if (co_bit_test(map, number)) {
+        co_bit_put(map, number, false);
         if (!bits_any(map, CO_NODE_PDO_BITMAP)) {
             clear_error(node, code);
         }
@@ -298,8 +288,8 @@ static void on_pdo_error(co_pdo_t *pdo, uint16_t code, bool is_rpdo, uint16_t nu
     default:
         return;
     }
-    if (!bit_test(map, bit)) {
-        bit_put(map, bit, true);
+    if (!co_bit_test(map, bit)) {
+        co_bit_put(map, bit, true);
         raise_error(node, code, number);
     }
 }

@@ -76,7 +76,7 @@ static void sid_mark(co_usdo_client_t *c, uint8_t sid, bool live)
 /* Round-robin over 1..255, skipping live IDs: a finished transfer's ID
  * comes back only after every other one was handed out. Never 0 while a
  * session is free (at most 254 are live then). */
-static uint8_t sid_alloc(co_usdo_client_t *c)
+static uint8_t sid_next(co_usdo_client_t *c)
 {
     unsigned k;
     for (k = 0; k < SID_MAX; k++) {
@@ -482,7 +482,7 @@ static void fall_back_to_segmented(co_usdo_client_session_t *ses)
     co_usdo_client_t *c = ses->client;
     c->stats.bulk_fallback++;
     sid_mark(c, ses->session_id, false);
-    ses->session_id = sid_alloc(c);
+    ses->session_id = sid_next(c);
     ses->req->session_id = ses->session_id;
     ses->mode = CO_USDO_MODE_SEGMENTED;
     ses->req->result_mode = CO_USDO_MODE_SEGMENTED;
@@ -564,7 +564,7 @@ static uint8_t open_session(co_usdo_client_t *c, co_usdo_request_t *req, const u
     ses->next_at = 0;
     ses->wait_space = false;
     memset(ses->answered, 0, sizeof ses->answered);
-    ses->session_id = sid_alloc(c);
+    ses->session_id = sid_next(c);
     req->abort = 0;
     req->abort_from_server = false;
     req->result_type = 0;

@@ -10,6 +10,8 @@
  * it is posted as events. */
 #include "co_rt_internal.h"
 
+#include "../../core/co_bits.h"
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -54,11 +56,9 @@ static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t eve
     }
 }
 
-static bool bit_test(const uint8_t *map, uint16_t n) { return (map[n / 8u] >> (n % 8u)) & 1u; }
-
 void rt_services_pdo_received(rt_line_t *l, uint16_t number)
 {
-    if (number == 0 || number > CO_PDO_MAX_NUMBER || !bit_test(l->pdo_listen, number - 1u)) {
+    if (number == 0 || number > CO_PDO_MAX_NUMBER || !co_bit_test(l->pdo_listen, number - 1u)) {
         return;
     }
     uint16_t slot = l->pdo.rpdo_of[number - 1u];
@@ -463,12 +463,7 @@ int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen)
     if (!l) {
         return CO_RT_ERR_STATE;
     }
-    uint16_t n = (uint16_t)(rpdo_number - 1);
-    if (listen) {
-        l->pdo_listen[n / 8u] = (uint8_t)(l->pdo_listen[n / 8u] | (1u << (n % 8u)));
-    } else {
-        l->pdo_listen[n / 8u] = (uint8_t)(l->pdo_listen[n / 8u] & ~(1u << (n % 8u)));
-    }
+    co_bit_put(l->pdo_listen, (uint16_t)(rpdo_number - 1), listen != 0);
     pthread_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
