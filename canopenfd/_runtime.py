@@ -346,6 +346,14 @@ class Runtime:
                 self._raise(rc, what)
         return {name: getattr(out, name) for name, _ in ffi.typeof("co_line_stats_t").fields}
 
+    def driver_stats(self, line: int, what: str) -> dict:
+        out = ffi.new("co_rt_driver_stats_t *")
+        with self._lock:
+            rc = lib.co_rt_driver_stats(self._live(what), line, out)
+            if rc < 0:
+                self._raise(rc, what)
+        return {name: getattr(out, name) for name, _ in ffi.typeof("co_rt_driver_stats_t").fields}
+
     def service_stats(self, line: int, what: str) -> dict:
         """{service: {counter: value}} of co_rt_service_stats_t."""
         out = ffi.new("co_rt_service_stats_t *")

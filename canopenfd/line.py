@@ -202,6 +202,14 @@ class Line:
         return self._rt.line_stats(self.index, f"stats of {self._where}")
 
     @property
+    def driver_stats(self) -> Dict[str, int]:
+        """Counters below the core: frames the kernel's socket buffer lost
+        (`kernel_drops`), error frames, sends put off or refused, interface
+        downs, frames and read/write calls on the socket (frames per call
+        tell how well I/O batches) and the runtime thread's wake-ups."""
+        return self._rt.driver_stats(self.index, f"driver stats of {self._where}")
+
+    @property
     def service_stats(self) -> Dict[str, Any]:
         """Counters of the process-data and error services: {'pdo': {...},
         'emcy': {...}, 'emcy_consumer', 'sync', 'time', 'guard_slave',

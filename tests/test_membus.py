@@ -590,3 +590,22 @@ def test_boot_later_lets_callbacks_see_the_first_transition(net, bus_name):
     changes.wait_value((NmtState.INITIALISING, NmtState.PRE_OPERATIONAL), start=seen)
     assert changes.snapshot()[seen] == (NmtState.PRE_OPERATIONAL, NmtState.INITIALISING)
     assert node.heartbeat_ms == 30
+
+
+def test_driver_stats_of_an_in_process_line(net, bus_name):
+    """line.driver_stats on a membus line: no socket, so its socket counters
+    stay zero, while the runtime thread's wake-ups are counted."""
+    line = net.open_line(bus_name)
+    other = net.open_line(bus_name)
+    before = line.driver_stats
+    assert set(before) == {"kernel_drops", "error_frames", "tx_deferred", "tx_refused",
+                           "iface_down", "host_pending", "rx_frames", "rx_calls", "tx_frames",
+                           "tx_calls", "loop_wakeups"}
+    other.send_frame(0x123, b"\x01")
+    deadline = time.monotonic() + wait(T)
+    while line.stats["rx_frames"] == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    after = line.driver_stats
+    assert after["loop_wakeups"] > before["loop_wakeups"]
+    assert line.stats["rx_frames"] >= 1
+    assert [k for k in after if k != "loop_wakeups" and after[k] != 0] == []

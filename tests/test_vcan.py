@@ -227,6 +227,26 @@ def test_usdo_large_transfers_over_vcan(ifaces, networks):
     assert back.result() == data[:128 << 10] and back.mode == "segmented"
 
 
+def test_driver_stats_count_the_socket_io(ifaces, networks):
+    """line.driver_stats: every frame of a bulk download written and read
+    through the socket, in batched calls, none lost by the kernel."""
+    import os
+    device = _usdo_device(networks, ifaces["fd"])
+    line = networks().open_line(ifaces["fd"], mode="fd")
+    before = line.driver_stats
+    data = os.urandom(64 << 10)
+    line.usdo.start_download(5, 0x2100, 0, data, mode="bulk", timeout=scaled(1)).result()
+    assert device[0x2100].data == data
+    sent, heard = line.driver_stats, device.line.driver_stats
+    segments = -(-len(data) // 60)
+    assert sent["tx_frames"] - before["tx_frames"] >= segments
+    assert 0 < sent["tx_calls"] - before["tx_calls"] <= sent["tx_frames"] - before["tx_frames"]
+    assert heard["rx_frames"] >= segments and 0 < heard["rx_calls"] <= heard["rx_frames"]
+    assert sent["loop_wakeups"] > before["loop_wakeups"]
+    assert sent["kernel_drops"] == heard["kernel_drops"] == 0
+    assert sent["tx_refused"] == heard["tx_refused"] == 0
+
+
 def test_usdo_broadcast_over_vcan(ifaces, networks):
     for node_id in (3, 4, 6):
         _usdo_device(networks, ifaces["fd"], node_id, domain=0)[0x1017].raw = node_id

@@ -438,6 +438,7 @@ co_sc_io_t co_sc_read(co_socketcan_t *sc, co_sc_rx_t *items, unsigned max, unsig
         if (n == (int)max) {
             sc->backlog = true;
         }
+        sc->stats.rx_calls += n > 0;
         for (int i = 0; i < n; i++) {
             decode_message(sc, &msgs[i], &frames[i], &items[*count]);
             *count += items[*count].has_frame || items[*count].event_count > 0;
@@ -499,6 +500,7 @@ co_sc_io_t co_sc_write(co_socketcan_t *sc, const co_frame_t *frames, unsigned co
         }
         *sent += (unsigned)done;
         sc->stats.tx_frames += (uint32_t)done;
+        sc->stats.tx_calls += done > 0;
     }
     return CO_SC_DONE;
 }

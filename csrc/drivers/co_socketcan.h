@@ -37,6 +37,9 @@ typedef struct co_sc_stats {
     uint32_t error_frames_other;  /* error frames with no comm event (bus errors...) */
     uint32_t kernel_drops;        /* frames the socket buffer lost (SO_RXQ_OVFL) */
     uint32_t tx_would_block;      /* writes refused with EAGAIN/ENOBUFS */
+    uint32_t rx_calls;            /* recvmmsg calls that returned frames (rx_frames / rx_calls:
+                                     frames per read, i.e. how well reads batch) */
+    uint32_t tx_calls;            /* sendmmsg calls that sent frames */
 } co_sc_stats_t;
 
 typedef struct co_socketcan {

@@ -235,6 +235,7 @@ struct co_rt {
     rt_tag_t wake_tag;
     rt_tag_t timer_tag;
     uint64_t armed_us;     /* deadline the timerfd holds */
+    uint32_t wakeups;      /* epoll_wait returns with something ready */
     int line_count;        /* published with release ordering after lines[] */
     rt_line_t *lines[RT_MAX_LINES];
     int bus_count;

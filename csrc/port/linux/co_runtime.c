@@ -961,6 +961,7 @@ static void *thread_main(void *arg)
         pthread_mutex_unlock(&rt->lock);
         int n = epoll_wait(rt->epfd, ready, RT_EPOLL_BATCH, -1);
         pthread_mutex_lock(&rt->lock);
+        rt->wakeups += n > 0;
         for (int i = 0; i < n; i++) {
             handle_ready(rt, &ready[i]);
         }
@@ -1616,7 +1617,12 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
                                   .error_frames = sc->error_frames,
                                   .tx_deferred = sc->tx_would_block,
                                   .tx_refused = l->sc.tx_refused,
-                                  .iface_down = l->sc.down_count};
+                                  .iface_down = l->sc.down_count,
+                                  .rx_frames = sc->rx_frames,
+                                  .rx_calls = sc->rx_calls,
+                                  .tx_frames = sc->tx_frames,
+                                  .tx_calls = sc->tx_calls,
+                                  .loop_wakeups = rt->wakeups};
     pthread_mutex_unlock(&rt->lock);
     pthread_mutex_lock(&l->host.lock);
     out->host_pending = co_queue_count(&l->host.out);

@@ -145,6 +145,11 @@ typedef struct co_rt_driver_stats {
     uint32_t tx_refused;         /* frames the kernel refused: dropped, reported as TX_OVERFLOW */
     uint32_t iface_down;         /* times the interface went down or away */
     uint32_t host_pending;       /* host lines: frames waiting for co_rt_host_transmit */
+    uint32_t rx_frames;          /* SocketCAN: frames read from the socket */
+    uint32_t rx_calls;           /* SocketCAN: reads that returned frames (frames per read) */
+    uint32_t tx_frames;          /* SocketCAN: frames written to the socket */
+    uint32_t tx_calls;           /* SocketCAN: writes that sent frames (frames per write) */
+    uint32_t loop_wakeups;       /* times the network's runtime thread woke (all its lines) */
 } co_rt_driver_stats_t;
 
 /* Object dictionary of the line's local node, defined before
