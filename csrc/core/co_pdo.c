@@ -99,6 +99,32 @@ static void report(co_pdo_t *pdo, const co_pdo_channel_t *ch, uint16_t code)
     }
 }
 
+static void tell_rx_error(co_pdo_t *pdo, const co_pdo_channel_t *ch, uint16_t code, bool active,
+                          co_pdo_rx_cause_t cause)
+{
+    if (pdo->ind != NULL && pdo->ind->rx_error_changed != NULL) {
+        pdo->ind->rx_error_changed(pdo, ch->number, code, active, cause, pdo->user);
+    }
+}
+
+/* The state is cleared before telling, so a callback sees it ended. */
+static void end_length_error(co_pdo_t *pdo, co_pdo_channel_t *ch, co_pdo_rx_cause_t cause)
+{
+    uint16_t code = ch->rx_error;
+    if (code != 0) {
+        ch->rx_error = 0;
+        tell_rx_error(pdo, ch, code, false, cause);
+    }
+}
+
+static void end_timeout(co_pdo_t *pdo, co_pdo_channel_t *ch, co_pdo_rx_cause_t cause)
+{
+    if (ch->timed_out) {
+        ch->timed_out = false;
+        tell_rx_error(pdo, ch, CO_PDO_EMCY_RPDO_TIMEOUT, false, cause);
+    }
+}
+
 static uint64_t ms_to_us(uint16_t ms)
 {
     return (uint64_t)ms * 1000u;
@@ -203,6 +229,7 @@ static void on_channel_timer(co_timer_t *timer, uint64_t now_us, void *user)
     ch->timed_out = true;
     pdo->stats.rx_timeouts++;
     report(pdo, ch, CO_PDO_EMCY_RPDO_TIMEOUT);
+    tell_rx_error(pdo, ch, CO_PDO_EMCY_RPDO_TIMEOUT, true, CO_PDO_RX_DEADLINE);
 }
 
 /* Queue every synchronous TPDO sampled at SYNC; the ones the tx queue
@@ -237,7 +264,8 @@ static void on_tx_space(co_line_t *line, void *user)
 
 /* ------------------------------------------------------------ runtime state */
 
-/* Forget timers and buffered data of a channel. */
+/* Forget timers and buffered data of a channel; its reception errors stay
+ * (they end by frames or reconfiguration, see rx_error_changed). */
 static void stop_channel(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     co_timer_cancel(co_line_timers(pdo->line), &ch->timer);
@@ -249,8 +277,6 @@ static void stop_channel(co_pdo_t *pdo, co_pdo_channel_t *ch)
     ch->has_data = false;
     ch->rx_pending = false;
     ch->monitoring = false;
-    ch->timed_out = false;
-    ch->rx_error = 0;
     ch->len = 0;
 }
 
@@ -473,6 +499,25 @@ static uint32_t check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t
     return is_map ? check_map(pdo, ch, e, value, length) : check_comm(pdo, ch, e, value, length);
 }
 
+/* After a write to a PDO's parameters: re-read it; an RPDO's reception
+ * errors end where they no longer apply (see rx_error_changed). Errors
+ * exist only while active, so "was active" needs no check. */
+static void reconfigure(co_pdo_t *pdo, co_pdo_channel_t *ch)
+{
+    uint32_t old_can_id = ch->can_id;
+    bool old_ext = ch->ext;
+    uint16_t old_bits = ch->bits;
+    bool same_frames;
+    configure(pdo, ch);
+    same_frames = ch->active && ch->can_id == old_can_id && ch->ext == old_ext;
+    if (!same_frames || ch->bits != old_bits) {
+        end_length_error(pdo, ch, CO_PDO_RX_RECONFIGURED);
+    }
+    if (!same_frames || ch->event_ms == 0) {
+        end_timeout(pdo, ch, CO_PDO_RX_RECONFIGURED);
+    }
+}
+
 static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin, void *user)
 {
     co_pdo_t *pdo = user;
@@ -482,7 +527,7 @@ static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t orig
     if (ch == NULL || origin == CO_ORIGIN_RESTORE) {
         return;   /* a reset re-reads everything: co_pdo_reload */
     }
-    configure(pdo, ch);
+    reconfigure(pdo, ch);
 }
 
 static const co_od_handler_t pdo_handler = {
@@ -501,12 +546,24 @@ static void apply(co_pdo_t *pdo, co_pdo_channel_t *ch, const uint8_t *data)
     }
 }
 
-/* A length error is reported once until a frame of the right length comes. */
-static void length_error(co_pdo_t *pdo, co_pdo_channel_t *ch, uint16_t code)
+/* A frame's length error (0 = none), told only when it differs from the
+ * one in force; a new error is told before the old one ends, so an error
+ * register fed from it does not drop in between. */
+static void length_seen(co_pdo_t *pdo, co_pdo_channel_t *ch, uint16_t code)
 {
-    if (ch->rx_error != code) {
-        ch->rx_error = code;
-        report(pdo, ch, code);
+    uint16_t old = ch->rx_error;
+    if (code == old) {
+        return;
+    }
+    if (code == 0) {
+        end_length_error(pdo, ch, CO_PDO_RX_FRAME);
+        return;
+    }
+    ch->rx_error = code;
+    report(pdo, ch, code);
+    tell_rx_error(pdo, ch, code, true, CO_PDO_RX_FRAME);
+    if (old != 0) {
+        tell_rx_error(pdo, ch, old, false, CO_PDO_RX_FRAME);
     }
 }
 
@@ -521,14 +578,14 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
     }
     if (f->len < need) {
         pdo->stats.rx_short++;
-        length_error(pdo, ch, CO_PDO_EMCY_LENGTH);
+        length_seen(pdo, ch, CO_PDO_EMCY_LENGTH);
         return;
     }
     if (f->len > allowed) {
         pdo->stats.rx_long++;
-        length_error(pdo, ch, CO_PDO_EMCY_LENGTH_EXCEEDED);
+        length_seen(pdo, ch, CO_PDO_EMCY_LENGTH_EXCEEDED);
     } else {
-        ch->rx_error = 0;
+        length_seen(pdo, ch, 0);
     }
     if (ch->event_ms != 0) {
         ch->monitoring = true;
@@ -536,8 +593,8 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
                        pdo->line->now_us + ms_to_us(ch->event_ms));
     }
     if (ch->timed_out) {
-        ch->timed_out = false;
         report(pdo, ch, CO_PDO_EMCY_RECEIVED_AGAIN);
+        end_timeout(pdo, ch, CO_PDO_RX_FRAME);
     }
     if (is_sync_type(ch->type)) {
         memcpy(ch->buf, f->data, need);   /* the latest frame before the SYNC wins */
@@ -825,8 +882,11 @@ void co_pdo_deinit(co_pdo_t *pdo)
         return;
     }
     for (i = 0; i < pdo->channel_count; i++) {
-        unmap(pdo, &pdo->channels[i]);
-        stop_channel(pdo, &pdo->channels[i]);
+        co_pdo_channel_t *ch = &pdo->channels[i];
+        unmap(pdo, ch);
+        stop_channel(pdo, ch);
+        ch->rx_error = 0;   /* forgotten untold: the integration is going too */
+        ch->timed_out = false;
     }
     co_timer_cancel(co_line_timers(pdo->line), &pdo->retry_timer);
     co_line_tx_space_unregister(pdo->line, on_tx_space, pdo);
@@ -844,6 +904,11 @@ void co_pdo_reload(co_pdo_t *pdo)
     }
     for (i = 0; i < pdo->channel_count; i++) {
         configure(pdo, &pdo->channels[i]);
+    }
+    /* a reload starts every RPDO over: errors under the old values end */
+    for (i = 0; i < pdo->channel_count; i++) {
+        end_length_error(pdo, &pdo->channels[i], CO_PDO_RX_RECONFIGURED);
+        end_timeout(pdo, &pdo->channels[i], CO_PDO_RX_RECONFIGURED);
     }
 }
 

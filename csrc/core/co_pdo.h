@@ -104,9 +104,9 @@ typedef struct co_pdo_channel {
     bool has_data;                  /* TPDO: buf holds data for an RTR */
     bool rx_pending;                /* RPDO: buf holds a frame for the next SYNC */
     bool monitoring;                /* RPDO: deadline armed (from the first reception) */
-    bool timed_out;                 /* RPDO: deadline missed, not received since */
+    bool timed_out;                 /* RPDO: deadline missed, not received since (0x8250) */
     bool sampling;                  /* TPDO: inside before_send */
-    uint16_t rx_error;              /* RPDO: length error reported last (0 = none) */
+    uint16_t rx_error;              /* RPDO: length error in force (0x8210/0x8220, 0 = none) */
     uint8_t len;                    /* bytes in buf */
     uint64_t inhibit_end_us;
     co_timer_t timer;               /* TPDO event timer / RPDO deadline */
@@ -116,10 +116,18 @@ typedef struct co_pdo_channel {
 
 typedef struct co_pdo co_pdo_t;
 
+/* Why an RPDO's reception error began or ended (rx_error_changed). */
+typedef enum co_pdo_rx_cause {
+    CO_PDO_RX_FRAME,            /* a frame's length, or a frame after a missed deadline */
+    CO_PDO_RX_DEADLINE,         /* no frame within the event time (sub 5) */
+    CO_PDO_RX_RECONFIGURED      /* its parameters were written or reloaded */
+} co_pdo_rx_cause_t;
+
 /* Callbacks to the integration; each may be NULL. pdo_number is 1..512. */
 typedef struct co_pdo_indications {
-    /* emcy_code: CO_PDO_EMCY_* (a length error is reported once until a
-     * frame of the right length arrives; RECEIVED_AGAIN ends a timeout). */
+    /* emcy_code: CO_PDO_EMCY_* (a length error is reported once until it
+     * ends; RECEIVED_AGAIN: a frame ended a timeout; rx_error_changed tells
+     * every start and end). */
     void (*error)(co_pdo_t *pdo, uint16_t emcy_code, bool is_rpdo, uint16_t pdo_number,
                   void *user);
     /* An RPDO's data were written into the OD (origin "pdo"). */
@@ -127,6 +135,17 @@ typedef struct co_pdo_indications {
     /* A TPDO is about to be sampled: refresh its mapped values now
      * (co_pdo_trigger of this TPDO is refused from inside). */
     void (*before_send)(co_pdo_t *pdo, uint16_t pdo_number, void *user);
+    /* RPDO n's error emcy_code (LENGTH or LENGTH_EXCEEDED: at most one of
+     * them, and RPDO_TIMEOUT) began (active) or ended, told once per edge
+     * after the change took effect. Frames end what frames started; a
+     * write to its parameters ends what no longer applies: everything when
+     * it stops working (COB-ID invalid, as the CiA 301 mapping procedure
+     * starts) or takes another CAN-ID, a length error when its mapped
+     * length changes, a timeout when its deadline is switched off;
+     * co_pdo_reload ends all. Leaving operational ends nothing (a frame
+     * after re-entering does). */
+    void (*rx_error_changed)(co_pdo_t *pdo, uint16_t rpdo_number, uint16_t emcy_code,
+                             bool active, co_pdo_rx_cause_t cause, void *user);
 } co_pdo_indications_t;
 
 typedef struct co_pdo_config {
@@ -167,10 +186,11 @@ bool co_pdo_need(const co_od_t *od, uint32_t *channel_count, uint32_t *item_coun
 bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_config_t *config);
 void co_pdo_deinit(co_pdo_t *pdo);
 /* Re-read every PDO's communication and mapping parameters (after a reset
- * loaded them); running timers and buffered data start over. */
+ * loaded them); running timers and buffered data start over, reception
+ * errors end (told). */
 void co_pdo_reload(co_pdo_t *pdo);
 /* NMT operational or not: leaving stops every timer and drops buffered
- * data; entering starts the TPDO event timers. */
+ * data (reception errors stay); entering starts the TPDO event timers. */
 void co_pdo_set_operational(co_pdo_t *pdo, bool operational);
 /* A SYNC was received (or produced); counter = its counter value, 0 when
  * the SYNC carries none. Applies buffered synchronous RPDOs, then samples

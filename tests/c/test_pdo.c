@@ -32,6 +32,15 @@ typedef struct err_rec {
     uint64_t t;
 } err_rec_t;
 
+typedef struct rx_rec {
+    uint16_t number;
+    uint16_t code;
+    bool active;
+    co_pdo_rx_cause_t cause;
+    bool rpdo_active;               /* co_pdo_is_active inside the callback */
+    uint64_t t;
+} rx_rec_t;
+
 typedef struct node {
     co_od_t od;
     co_od_entry_t *entries;
@@ -44,6 +53,8 @@ typedef struct node {
     bool ready;
     err_rec_t err[MAX_REC];
     int nerr;
+    rx_rec_t rx[MAX_REC];           /* rx_error_changed */
+    int nrx;
     uint16_t received[MAX_REC];
     uint64_t received_t[MAX_REC];
     int nreceived;
@@ -91,7 +102,19 @@ static void on_before_send(co_pdo_t *pdo, uint16_t number, void *user)
     }
 }
 
-static const co_pdo_indications_t indications = {on_error, on_received, on_before_send};
+static void on_rx_error(co_pdo_t *pdo, uint16_t number, uint16_t code, bool active,
+                        co_pdo_rx_cause_t cause, void *user)
+{
+    node_t *n = user;
+    if (n->nrx < MAX_REC) {
+        n->rx[n->nrx] = (rx_rec_t){number, code, active, cause,
+                                   co_pdo_is_active(pdo, true, number), n->line->now_us};
+    }
+    n->nrx++;
+}
+
+static const co_pdo_indications_t indications = {on_error, on_received, on_before_send,
+                                                 on_rx_error};
 
 static void def(node_t *n, uint16_t index, uint8_t sub, uint8_t obj, uint8_t type,
                 uint8_t access, uint16_t flags, uint64_t value)
@@ -668,6 +691,180 @@ static void test_length_errors_fd(void **state)
     fx_free(fx);
 }
 
+/* rx_error_changed record k of node n. */
+static void assert_rx(const node_t *n, int k, uint16_t number, uint16_t code, bool active,
+                      co_pdo_rx_cause_t cause)
+{
+    assert_true(k < n->nrx);
+    assert_int_equal(n->rx[k].number, number);
+    assert_int_equal(n->rx[k].code, code);
+    assert_int_equal(n->rx[k].active, active);
+    assert_int_equal(n->rx[k].cause, cause);
+}
+
+/* rx_error_changed for length errors: frames start and end them; disabling
+ * the RPDO ends its error (told once, the RPDO already off), re-mapping
+ * and re-enabling tell nothing more; leaving operational, writes that keep
+ * the RPDO's CAN-ID and length, refused writes and writes to another RPDO
+ * end nothing. A changed length error is told before the old one ends. */
+static void test_rx_error_ends_when_disabled(void **state)
+{
+    const uint8_t d[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, SMALL_ENTRIES);
+    node_t *b = &fx->b;
+    (void)state;
+    add_pdo(b, true, 1, 0x206, 254, 0, 0, 0, 8, rmap8, 4);
+    add_pdo(b, true, 2, 0x207, 254, 0, 0, 0, 8, rmap8, 4);
+    fx_finish(fx);
+    fx_operational(fx);
+    inject(fx, 0x206, 0, d, 5, MS(1));
+    assert_int_equal(b->nrx, 1);
+    assert_rx(b, 0, 1, CO_PDO_EMCY_LENGTH, true, CO_PDO_RX_FRAME);
+    assert_true(b->rx[0].rpdo_active);
+    assert_int_equal(b->rx[0].t, MS(1));
+    inject(fx, 0x206, 0, d, 5, MS(2));
+    /* none of these ends it */
+    co_pdo_set_operational(&b->pdo, false);
+    co_pdo_set_operational(&b->pdo, true);
+    assert_int_equal(net_write(b, 0x1600, 1, MAP(0x2002, 0, 32), 4), CO_ABORT_INVALID_VALUE);
+    assert_int_equal(net_write(b, 0x1400, 1, 0x206, 4), 0);
+    assert_int_equal(net_write(b, 0x1400, 2, 255, 1), 0);
+    assert_int_equal(net_write(b, 0x1400, 5, 500, 2), 0);
+    assert_int_equal(net_write(b, 0x1401, 1, INVALID | 0x207, 4), 0);
+    inject(fx, 0x206, 0, d, 5, MS(3));   /* still in force: not told again */
+    assert_int_equal(b->nrx, 1);
+    assert_int_equal(b->nerr, 1);
+    /* the CiA 301 procedure: invalidate ... */
+    assert_int_equal(net_write(b, 0x1400, 1, INVALID | 0x206, 4), 0);
+    assert_int_equal(b->nrx, 2);
+    assert_rx(b, 1, 1, CO_PDO_EMCY_LENGTH, false, CO_PDO_RX_RECONFIGURED);
+    assert_false(b->rx[1].rpdo_active);
+    /* ... re-map (2 bytes) and validate: nothing more to tell */
+    assert_int_equal(net_write(b, 0x1600, 0, 0, 1), 0);
+    assert_int_equal(net_write(b, 0x1600, 1, MAP(0x2001, 0, 16), 4), 0);
+    assert_int_equal(net_write(b, 0x1600, 0, 1, 1), 0);
+    assert_int_equal(net_write(b, 0x1400, 1, 0x206, 4), 0);
+    assert_int_equal(net_write(b, 0x1401, 1, 0x207, 4), 0);
+    assert_true(co_pdo_is_active(&b->pdo, true, 1));
+    assert_int_equal(b->nrx, 2);
+    /* the new length: short, long (the new error first), right */
+    inject(fx, 0x206, 0, d, 1, MS(4));
+    inject(fx, 0x206, 0, d, 3, MS(5));
+    inject(fx, 0x206, 0, d, 2, MS(6));
+    assert_int_equal(b->nrx, 6);
+    assert_rx(b, 2, 1, CO_PDO_EMCY_LENGTH, true, CO_PDO_RX_FRAME);
+    assert_rx(b, 3, 1, CO_PDO_EMCY_LENGTH_EXCEEDED, true, CO_PDO_RX_FRAME);
+    assert_rx(b, 4, 1, CO_PDO_EMCY_LENGTH, false, CO_PDO_RX_FRAME);
+    assert_rx(b, 5, 1, CO_PDO_EMCY_LENGTH_EXCEEDED, false, CO_PDO_RX_FRAME);
+    assert_int_equal(get(b, 0x2001, 0, 2), 0x0201);
+    /* an application write (no checks) that changes the mapped length of
+     * the working RPDO ends its length error too */
+    inject(fx, 0x206, 0, d, 3, MS(7));
+    assert_int_equal(b->nrx, 7);
+    put(b, 0x1600, 1, MAP(0x2002, 0, 32), 4);
+    assert_int_equal(b->nrx, 8);
+    assert_rx(b, 7, 1, CO_PDO_EMCY_LENGTH_EXCEEDED, false, CO_PDO_RX_RECONFIGURED);
+    assert_true(b->rx[7].rpdo_active);
+    /* RPDO 2 never was in error: disabling it tells nothing */
+    assert_int_equal(net_write(b, 0x1401, 1, INVALID | 0x207, 4), 0);
+    assert_int_equal(b->nrx, 8);
+    for (int k = 0; k < b->nrx; k++) {
+        assert_int_equal(b->rx[k].number, 1);
+    }
+    fx_free(fx);
+}
+
+/* rx_error_changed for the deadline: missed (DEADLINE), kept across leaving
+ * operational and a longer deadline, ended by the next frame (with
+ * RECEIVED_AGAIN on the error callback), by switching the deadline off and
+ * by disabling the RPDO. */
+static void test_rx_timeout_ends_when_disabled(void **state)
+{
+    const uint8_t d[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, SMALL_ENTRIES);
+    node_t *b = &fx->b;
+    (void)state;
+    add_pdo(b, true, 1, 0x206, 254, 0, 100, 0, 8, rmap8, 4);
+    fx_finish(fx);
+    fx_operational(fx);
+    inject(fx, 0x206, 0, d, 8, MS(1));
+    tu_run_until(&fx->tb, MS(101) - 1);
+    assert_int_equal(b->nrx, 0);
+    tu_run_until(&fx->tb, MS(101));
+    assert_int_equal(b->nrx, 1);
+    assert_rx(b, 0, 1, CO_PDO_EMCY_RPDO_TIMEOUT, true, CO_PDO_RX_DEADLINE);
+    assert_int_equal(b->rx[0].t, MS(101));
+    /* kept: pre-operational and back, a longer deadline */
+    co_pdo_set_operational(&b->pdo, false);
+    assert_int_equal(net_write(b, 0x1400, 5, 200, 2), 0);
+    co_pdo_set_operational(&b->pdo, true);
+    tu_run_until(&fx->tb, MS(400));
+    assert_int_equal(b->nrx, 1);
+    /* the next frame ends it */
+    inject(fx, 0x206, 0, d, 8, MS(400));
+    assert_int_equal(b->nrx, 2);
+    assert_rx(b, 1, 1, CO_PDO_EMCY_RPDO_TIMEOUT, false, CO_PDO_RX_FRAME);
+    assert_int_equal(b->nerr, 2);
+    assert_int_equal(b->err[1].code, CO_PDO_EMCY_RECEIVED_AGAIN);
+    tu_run_until(&fx->tb, MS(600));
+    assert_int_equal(b->nrx, 3);
+    assert_rx(b, 2, 1, CO_PDO_EMCY_RPDO_TIMEOUT, true, CO_PDO_RX_DEADLINE);
+    assert_int_equal(b->rx[2].t, MS(600));
+    /* no deadline any more: nothing to miss */
+    assert_int_equal(net_write(b, 0x1400, 5, 0, 2), 0);
+    assert_int_equal(b->nrx, 4);
+    assert_rx(b, 3, 1, CO_PDO_EMCY_RPDO_TIMEOUT, false, CO_PDO_RX_RECONFIGURED);
+    assert_true(b->rx[3].rpdo_active);
+    /* missed again, then the RPDO is disabled */
+    assert_int_equal(net_write(b, 0x1400, 5, 100, 2), 0);
+    inject(fx, 0x206, 0, d, 8, MS(601));
+    tu_run_until(&fx->tb, MS(701));
+    assert_int_equal(b->nrx, 5);
+    assert_rx(b, 4, 1, CO_PDO_EMCY_RPDO_TIMEOUT, true, CO_PDO_RX_DEADLINE);
+    assert_int_equal(net_write(b, 0x1400, 1, INVALID | 0x206, 4), 0);
+    assert_int_equal(b->nrx, 6);
+    assert_rx(b, 5, 1, CO_PDO_EMCY_RPDO_TIMEOUT, false, CO_PDO_RX_RECONFIGURED);
+    assert_false(b->rx[5].rpdo_active);
+    assert_int_equal(net_write(b, 0x1400, 1, 0x206, 4), 0);
+    tu_run_until(&fx->tb, MS(1000));
+    assert_int_equal(b->nrx, 6);
+    assert_int_equal(b->nerr, 4);   /* the error callback: no RECEIVED_AGAIN for it */
+    fx_free(fx);
+}
+
+/* co_pdo_reload ends every reception error (the RPDO working again);
+ * co_pdo_deinit forgets them untold. */
+static void test_rx_errors_end_at_reload(void **state)
+{
+    const uint8_t d[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, SMALL_ENTRIES);
+    node_t *b = &fx->b;
+    (void)state;
+    add_pdo(b, true, 1, 0x206, 254, 0, 100, 0, 8, rmap8, 4);
+    fx_finish(fx);
+    fx_operational(fx);
+    inject(fx, 0x206, 0, d, 8, MS(1));
+    tu_run_until(&fx->tb, MS(101));
+    inject(fx, 0x206, 0, d, 4, MS(102));   /* short: no reception for the deadline */
+    assert_int_equal(b->nrx, 2);
+    assert_rx(b, 0, 1, CO_PDO_EMCY_RPDO_TIMEOUT, true, CO_PDO_RX_DEADLINE);
+    assert_rx(b, 1, 1, CO_PDO_EMCY_LENGTH, true, CO_PDO_RX_FRAME);
+    co_pdo_reload(&b->pdo);
+    assert_int_equal(b->nrx, 4);
+    assert_rx(b, 2, 1, CO_PDO_EMCY_LENGTH, false, CO_PDO_RX_RECONFIGURED);
+    assert_rx(b, 3, 1, CO_PDO_EMCY_RPDO_TIMEOUT, false, CO_PDO_RX_RECONFIGURED);
+    assert_true(b->rx[3].rpdo_active);
+    co_pdo_reload(&b->pdo);
+    assert_int_equal(b->nrx, 4);
+    inject(fx, 0x206, 0, d, 4, MS(103));   /* told again: the reload forgot it */
+    assert_int_equal(b->nrx, 5);
+    assert_rx(b, 4, 1, CO_PDO_EMCY_LENGTH, true, CO_PDO_RX_FRAME);
+    co_pdo_deinit(&b->pdo);
+    b->ready = false;
+    assert_int_equal(b->nrx, 5);
+    fx_free(fx);
+}
+
 /* The CiA 301 mapping procedure over the OD write path, with every abort. */
 static void check_mapping_procedure(co_mode_t mode)
 {
@@ -1126,7 +1323,7 @@ static void disable_self(co_pdo_t *pdo, uint16_t number, void *user)
     assert_int_equal(co_od_put(&n->od, 0x1800, 1, v, 4), 0);
 }
 
-static const co_pdo_indications_t disabling = {on_error, on_received, disable_self};
+static const co_pdo_indications_t disabling = {on_error, on_received, disable_self, on_rx_error};
 
 static void test_before_send_disables(void **state)
 {
@@ -1180,6 +1377,9 @@ int main(void)
         cmocka_unit_test(test_rpdo_deadline),
         cmocka_unit_test(test_length_errors_classic),
         cmocka_unit_test(test_length_errors_fd),
+        cmocka_unit_test(test_rx_error_ends_when_disabled),
+        cmocka_unit_test(test_rx_timeout_ends_when_disabled),
+        cmocka_unit_test(test_rx_errors_end_at_reload),
         cmocka_unit_test(test_mapping_procedure_classic),
         cmocka_unit_test(test_mapping_procedure_fd),
         cmocka_unit_test(test_comm_parameter_aborts),
