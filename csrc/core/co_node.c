@@ -251,78 +251,50 @@ static void on_sync_error(co_sync_t *sync, uint16_t code, uint8_t length, void *
     }
 }
 
-/* An RPDO's error ends: its code is cleared once no RPDO has it. */
-static void rpdo_error_ends(co_node_t *node, uint8_t *map, uint16_t number, uint16_t code)
+/* The node's record of which RPDOs are in error `code`. */
+static uint8_t *rpdo_error_map(co_node_t *node, uint16_t code)
 {
-    if (co_bit_test(map, number)) {
-        co_bit_put(map, number, false);
-        if (!bits_any(map, CO_NODE_PDO_BITMAP)) {
-            clear_error(node, code);
-        }
+    switch (code) {
+    case CO_PDO_EMCY_LENGTH:
+        return node->rpdo_short;
+    case CO_PDO_EMCY_LENGTH_EXCEEDED:
+        return node->rpdo_long;
+    case CO_PDO_EMCY_RPDO_TIMEOUT:
+        return node->rpdo_late;
+    default:
+        return NULL;
     }
 }
 
-static void on_pdo_error(co_pdo_t *pdo, uint16_t code, bool is_rpdo, uint16_t number,
-                         void *user)
+/* An RPDO's error raises its code; the code is cleared once no RPDO has it
+ * (co_pdo tells every end: a good frame, the RPDO disabled, re-mapped or
+ * reloaded). */
+static void on_rpdo_error_changed(co_pdo_t *pdo, uint16_t number, uint16_t code, bool active,
+                                  co_pdo_rx_cause_t cause, void *user)
 {
     (void)pdo;
+    (void)cause;
     co_node_t *node = user;
-    if (!is_rpdo || number == 0 || number > CO_PDO_MAX_NUMBER) {
+    uint8_t *map = rpdo_error_map(node, code);
+    if (map == NULL || number == 0 || number > CO_PDO_MAX_NUMBER) {
         return;
     }
     uint16_t bit = (uint16_t)(number - 1u);
-    uint8_t *map = NULL;
-    switch (code) {
-    case CO_PDO_EMCY_LENGTH:
-        map = node->rpdo_short;
-        break;
-    case CO_PDO_EMCY_LENGTH_EXCEEDED:
-        map = node->rpdo_long;
-        break;
-    case CO_PDO_EMCY_RPDO_TIMEOUT:
-        map = node->rpdo_late;
-        break;
-    case CO_PDO_EMCY_RECEIVED_AGAIN:
-        rpdo_error_ends(node, node->rpdo_late, bit, CO_PDO_EMCY_RPDO_TIMEOUT);
-        return;
-    default:
+    if (co_bit_test(map, bit) == active) {
         return;
     }
-    if (!co_bit_test(map, bit)) {
-        co_bit_put(map, bit, true);
-        raise_error(node, code, number);
+    co_bit_put(map, bit, active);
+    if (active) {
+        raise_error(node, code, number);   /* classic: once per code; FD: per RPDO */
+    } else if (!bits_any(map, CO_NODE_PDO_BITMAP)) {
+        clear_error(node, code);
     }
-}
-
-/* Whether RPDO n's last frame was longer than allowed. co_pdo tells 0x8220
- * once, then applies every long frame without a word, so "received" alone
- * cannot say the RPDO got a good frame: its channel's rx_error does (reset
- * to 0 by a frame of the right length). (Before: a marker set by the error
- * callback, which a second long frame, or a synchronous RPDO applied at the
- * SYNC after another RPDO's error, took for a good frame and cleared
- * 0x8220 too early.) */
-static bool rpdo_still_too_long(const co_pdo_t *pdo, uint16_t number)
-{
-    uint16_t slot = pdo->rpdo_of[number - 1u];
-    return slot != 0 && pdo->channels[slot - 1u].rx_error == CO_PDO_EMCY_LENGTH_EXCEEDED;
 }
 
 static void on_pdo_received(co_pdo_t *pdo, uint16_t number, void *user)
 {
+    (void)pdo;
     co_node_t *node = user;
-    if (number >= 1 && number <= CO_PDO_MAX_NUMBER) {
-        uint16_t bit = (uint16_t)(number - 1u);
-        /* a frame of the mapped length ends the RPDO's length errors */
-        rpdo_error_ends(node, node->rpdo_short, bit, CO_PDO_EMCY_LENGTH);
-        /* ... and a missed deadline: co_pdo tells RECEIVED_AGAIN only while
-         * it remembers the timeout, which leaving operational forgets (its
-         * stop_channel), so an RPDO back after pre-op -> operational would
-         * leave 0x8250 active for good */
-        rpdo_error_ends(node, node->rpdo_late, bit, CO_PDO_EMCY_RPDO_TIMEOUT);
-        if (!rpdo_still_too_long(pdo, number)) {
-            rpdo_error_ends(node, node->rpdo_long, bit, CO_PDO_EMCY_LENGTH_EXCEEDED);
-        }
-    }
     if (node->ind && node->ind->pdo_received) {
         node->ind->pdo_received(node, number, node->user);
     }
@@ -338,9 +310,9 @@ static void on_pdo_before_send(co_pdo_t *pdo, uint16_t number, void *user)
 }
 
 const co_pdo_indications_t co_node_pdo_indications = {
-    .error = on_pdo_error,
     .received = on_pdo_received,
     .before_send = on_pdo_before_send,
+    .rx_error_changed = on_rpdo_error_changed,
 };
 
 void co_node_attach_services(co_node_t *node, const co_node_services_t *services)

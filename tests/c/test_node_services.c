@@ -694,6 +694,173 @@ static void test_two_rpdos_short(void **state)
     fx_free(fx);
 }
 
+/* 0x1001, the error register as the network reads it. */
+static uint8_t error_register_od(fx_t *fx)
+{
+    uint8_t v = 0xFF;
+    assert_true(co_od_get_u8(&fx->od, 0x1001, 0, &v));
+    return v;
+}
+
+/* An RPDO in 0x8210 switched off by the network (COB-ID bit 31, as the
+ * CiA 301 mapping procedure starts): the error reset goes out at once and
+ * 0x1001 drops the bit; re-mapping and validating it tell nothing more, the
+ * new mapping's errors are told as before. */
+static void test_rpdo_short_cleared_when_disabled(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, 0);
+    start(fx);
+    clear_log(fx);
+    rpdo(fx, RPDO1_ID, 3);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    assert_emcy(fx, 0, 0x8210, 0x11, 1);
+    assert_int_equal(error_register_od(fx), 0x11);
+    assert_int_equal(net_write(fx, 0x1400, 1, 0x80000000u | RPDO1_ID, 4), 0);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    assert_reset(fx, 1, 0x00);
+    assert_int_equal(error_register_od(fx), 0x00);
+    assert_false(co_emcy_is_active(&fx->emcy, 0x8210, 0));
+    assert_int_equal(co_emcy_active_count(&fx->emcy), 0);
+    rpdo(fx, RPDO1_ID, 3);                      /* off: not ours any more */
+    assert_int_equal(net_write(fx, 0x1600, 0, 0, 1), 0);
+    assert_int_equal(net_write(fx, 0x1600, 1, MAP(0x2004, 0, 16), 4), 0);
+    assert_int_equal(net_write(fx, 0x1600, 0, 1, 1), 0);
+    assert_int_equal(net_write(fx, 0x1400, 1, RPDO1_ID, 4), 0);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    rpdo(fx, RPDO1_ID, 1);
+    assert_int_equal(count(fx, EMCY_ID), 3);
+    assert_emcy(fx, 2, 0x8210, 0x11, 1);
+    rpdo(fx, RPDO1_ID, 2);
+    assert_int_equal(count(fx, EMCY_ID), 4);
+    assert_reset(fx, 3, 0x00);
+    assert_int_equal(error_register_od(fx), 0x00);
+    {
+        uint16_t v = 0;
+        assert_true(co_od_get_u16(&fx->od, 0x2004, 0, &v));
+        assert_int_equal(v, 0x0201);
+    }
+    fx_free(fx);
+}
+
+/* The same on an FD bus: the "removed" EMCY of 0x8210 (status 0, register 0). */
+static void test_rpdo_short_cleared_when_disabled_fd(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_FD, 0);
+    static const uint8_t raised[20] = {0x10, 0x82, 0x11, 0x01, 0x00, 0, 0, 0,
+                                       0x00, 0x2D, 0x01, 0x10, 0, 0, 0, 0, 0, 0, 0, 0};
+    static const uint8_t removed[20] = {0x10, 0x82, 0x00, 0x00, 0x00, 0, 0, 0,
+                                        0x00, 0x2D, 0x01, 0x00, 0, 0, 0, 0, 0, 0, 0, 0};
+    start(fx);
+    clear_log(fx);
+    rpdo(fx, RPDO1_ID, 2);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 0), EMCY_ID, raised, 20);
+    assert_int_equal(net_write(fx, 0x1400, 1, 0x80000000u | RPDO1_ID, 4), 0);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 1), EMCY_ID, removed, 20);
+    assert_int_equal(error_register_od(fx), 0x00);
+    fx_free(fx);
+}
+
+/* 0x8250: kept when the node goes pre-operational, cleared when the master
+ * then switches the RPDO off; validated again, it has no deadline until its
+ * first frame. Missed again, switching the deadline off (sub 5 = 0) clears
+ * it too. */
+static void test_rpdo_deadline_cleared_when_disabled(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, 0);
+    assert_int_equal(net_write(fx, 0x1400, 5, 100, 2), 0);
+    start(fx);
+    clear_log(fx);
+    rpdo(fx, RPDO1_ID, 4);
+    at(fx, MS(100));
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    assert_emcy(fx, 0, 0x8250, 0x11, 1);
+    assert_int_equal(error_register_od(fx), 0x11);
+    nmt(fx, CO_NMT_CMD_PRE_OPERATIONAL);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    assert_true(co_emcy_is_active(&fx->emcy, 0x8250, 0));
+    at(fx, MS(150));
+    assert_int_equal(net_write(fx, 0x1400, 1, 0x80000000u | RPDO1_ID, 4), 0);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    assert_reset(fx, 1, 0x00);
+    assert_true(fx->tb.log[tu_log_find_id(&fx->tb, EMCY_ID, 1)].t_us == MS(150));
+    assert_int_equal(error_register_od(fx), 0x00);
+    assert_false(co_emcy_is_active(&fx->emcy, 0x8250, 0));
+    assert_int_equal(net_write(fx, 0x1400, 1, RPDO1_ID, 4), 0);
+    start(fx);
+    at(fx, MS(500));
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    rpdo(fx, RPDO1_ID, 4);
+    at(fx, MS(600));
+    assert_int_equal(count(fx, EMCY_ID), 3);
+    assert_emcy(fx, 2, 0x8250, 0x11, 1);
+    assert_int_equal(net_write(fx, 0x1400, 5, 0, 2), 0);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 4);
+    assert_reset(fx, 3, 0x00);
+    assert_int_equal(error_register_od(fx), 0x00);
+    fx_free(fx);
+}
+
+/* Two RPDOs in 0x8210, one switched off: the error stays (no EMCY, 0x1001
+ * keeps the bit) until the other gets a good frame. */
+static void test_two_rpdos_short_one_disabled(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, 0);
+    start(fx);
+    clear_log(fx);
+    rpdo(fx, RPDO1_ID, 2);
+    rpdo(fx, RPDO2_ID, 1);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    assert_emcy(fx, 0, 0x8210, 0x11, 1);
+    assert_int_equal(net_write(fx, 0x1400, 1, 0x80000000u | RPDO1_ID, 4), 0);
+    step(fx);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    assert_true(co_emcy_is_active(&fx->emcy, 0x8210, 0));
+    assert_int_equal(error_register_od(fx), 0x11);
+    rpdo(fx, RPDO2_ID, 1);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    rpdo(fx, RPDO2_ID, 2);
+    assert_int_equal(count(fx, EMCY_ID), 2);
+    assert_reset(fx, 1, 0x00);
+    assert_int_equal(error_register_od(fx), 0x00);
+    assert_false(co_emcy_is_active(&fx->emcy, 0x8210, 0));
+    fx_free(fx);
+}
+
+/* 0x8220 then a short frame: 0x8210 is raised before 0x8220 is cleared (the
+ * register keeps its bit in between); a good frame clears 0x8210. */
+static void test_rpdo_long_then_short(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC, 0);
+    start(fx);
+    clear_log(fx);
+    rpdo(fx, RPDO1_ID, 6);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    assert_emcy(fx, 0, 0x8220, 0x11, 1);
+    rpdo(fx, RPDO1_ID, 2);
+    assert_int_equal(count(fx, EMCY_ID), 3);
+    assert_emcy(fx, 1, 0x8210, 0x11, 1);
+    assert_reset(fx, 2, 0x11);
+    assert_false(co_emcy_is_active(&fx->emcy, 0x8220, 0));
+    assert_true(co_emcy_is_active(&fx->emcy, 0x8210, 0));
+    rpdo(fx, RPDO1_ID, 4);
+    assert_int_equal(count(fx, EMCY_ID), 4);
+    assert_reset(fx, 3, 0x00);
+    assert_int_equal(co_emcy_active_count(&fx->emcy), 0);
+    fx_free(fx);
+}
+
 /* ============================================== 4. heartbeat / life guarding */
 
 /* Lost heartbeat of node 7 in operational with 0x1029:01 = behaviour. */
@@ -1088,6 +1255,11 @@ int main(void)
         cmocka_unit_test(test_sync_length_error),
         cmocka_unit_test(test_rpdo_long),
         cmocka_unit_test(test_two_rpdos_short),
+        cmocka_unit_test(test_rpdo_short_cleared_when_disabled),
+        cmocka_unit_test(test_rpdo_short_cleared_when_disabled_fd),
+        cmocka_unit_test(test_rpdo_deadline_cleared_when_disabled),
+        cmocka_unit_test(test_two_rpdos_short_one_disabled),
+        cmocka_unit_test(test_rpdo_long_then_short),
         cmocka_unit_test(test_heartbeat_lost_behaviour_0),
         cmocka_unit_test(test_heartbeat_lost_behaviour_1),
         cmocka_unit_test(test_heartbeat_lost_behaviour_2),
