@@ -840,7 +840,10 @@ static uint64_t flush_drivers(co_rt_t *rt, uint64_t now)
 
 static void arm_timer(co_rt_t *rt, uint64_t deadline, uint64_t now)
 {
-    if (deadline == rt->armed_us && deadline > now) {
+    /* A timer armed at or before the deadline stays: at worst it fires early
+     * and that turn arms the right one. Saves a syscall per turn while a
+     * transfer pushes its timeout later with every frame. */
+    if (rt->armed_us <= deadline && rt->armed_us > now) {
         return;
     }
     struct itimerspec spec;
