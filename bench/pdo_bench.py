@@ -35,7 +35,6 @@ import threading
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
 
 SENDER, RECEIVER = 1, 2
 COB_ID = 0x180 + SENDER
@@ -108,26 +107,39 @@ def latency(iface, mode, samples):
         def their(can_id, data, timestamp):
             got["theirs"][int.from_bytes(bytes(data[:4]), "little")] = time.perf_counter()
             events["theirs"].set()
-        rpdo.add_callback(ours)
-        theirs.connect(interface="socketcan", channel=iface, fd=fd,
-                       can_filters=[{"can_id": COB_ID, "can_mask": 0x7FF}])
+        # One receiver at a time, in alternating rounds: both in one process
+        # would race for the GIL at every PDO (python-canopen's notifier
+        # thread, woken first, would delay our dispatcher and vice versa).
         theirs.subscribe(COB_ID, their)
         ours_ms, theirs_ms, missed = [], [], {"ours": 0, "theirs": 0}
-        for i in range(1, samples + 1):
-            for event in events.values():
-                event.clear()
-            me[VALUE].raw = i
-            start = time.perf_counter()
-            tpdo.transmit()
-            for name, out in (("ours", ours_ms), ("theirs", theirs_ms)):
+        rounds = 4
+        for r in range(2 * rounds):
+            name, out = (("ours", ours_ms), ("theirs", theirs_ms))[r % 2]
+            if name == "ours":
+                rpdo.add_callback(ours)
+            else:
+                theirs.connect(interface="socketcan", channel=iface, fd=fd,
+                               can_filters=[{"can_id": COB_ID, "can_mask": 0x7FF}])
+            time.sleep(0.05)
+            first = (r // 2) * (samples // rounds) + 1
+            for i in range(first, first + samples // rounds):
+                events[name].clear()
+                me[VALUE].raw = i
+                start = time.perf_counter()
+                tpdo.transmit()
                 if events[name].wait(2.0) and i in got[name]:
                     out.append((got[name][i] - start) * 1000.0)
                 else:
                     missed[name] += 1
-            time.sleep(0.001)
+                time.sleep(0.001)
+            if name == "ours":
+                rpdo.remove_callback(ours)
+            else:
+                theirs.disconnect()
         return ours_ms, theirs_ms, missed
     finally:
-        theirs.disconnect()
+        if theirs.bus is not None:
+            theirs.disconnect()
         send_net.close()
         recv_net.close()
 

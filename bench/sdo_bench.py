@@ -10,8 +10,10 @@ Processes: the server under test runs in its own process (ours: a canopenfd
 local node 5 with the demo OD and a 16 MiB DOMAIN at 0x2100, served by the C
 runtime; theirs: python-canopen's LocalNode 7 with read/write callbacks, its
 python-can bus filtered to 0x607), one server at a time. Both clients run in
-this process (ours: a canopenfd classic line; theirs: a canopen.Network whose
-python-can bus is filtered to the two servers' responses).
+this process (ours: a canopenfd classic line, open for the whole run; theirs: a
+canopen.Network whose python-can bus is filtered to the two servers' responses,
+connected only for its own rows, since its notifier thread runs Python for each
+frame on 0x585 and would slow our rows otherwise).
 
 Every row runs transfers back to back for a time budget (-t, -e for expedited
 rows); a transfer still running at the end of the budget is cut (aborted) and
@@ -35,7 +37,6 @@ import threading
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
 
 OURS, THEIRS = 5, 7            # server node-ids
 U32_OURS, U32_THEIRS = 0x2007, 0x2000   # 4-byte expedited entries
@@ -176,6 +177,9 @@ class OurClient:
         self.line = self.net.open_line(iface, mode="classic")
         self.sdo = self.line.sdo
 
+    def open(self) -> None:
+        pass   # open from __init__ to the end: the "local" server lives on its Network
+
     def close(self) -> None:
         self.net.close()
 
@@ -228,12 +232,21 @@ class TheirClient:
     name = "python-canopen"
 
     def __init__(self, iface: str) -> None:
+        self.iface = iface
+        self.net = None
+        self.nodes = {}
+
+    def open(self) -> None:
+        """Connect for this client's own rows only: its python-can notifier
+        thread runs Python for every frame its filters pass, and our server
+        answers on 0x585 too, so while connected it would take CPU from our
+        client's block uploads (127 frames on 0x585 per sub-block)."""
         import canopen
+        self.close()   # a row that raised left it connected
         self.net = canopen.Network()
-        self.net.connect(interface="socketcan", channel=iface, can_filters=[
+        self.net.connect(interface="socketcan", channel=self.iface, can_filters=[
             {"can_id": 0x580 + OURS, "can_mask": 0x7FF},
             {"can_id": 0x580 + THEIRS, "can_mask": 0x7FF}])
-        self.nodes = {}
         for node in (OURS, THEIRS):
             remote = canopen.RemoteNode(node, canopen.ObjectDictionary())
             self.net.add_node(remote)
@@ -241,7 +254,10 @@ class TheirClient:
             self.nodes[node] = remote.sdo
 
     def close(self) -> None:
-        self.net.disconnect()
+        if self.net is not None:
+            self.net.disconnect()
+            self.net = None
+            self.nodes = {}
 
     def expedited(self, node, upload, deadline):
         sdo = self.nodes[node]
@@ -469,6 +485,7 @@ def main() -> int:
                                             timeout=TIMEOUT)
                 pair = []
                 for client in clients:
+                    client.open()
                     row = Row(client.name, node, op, mode, size)
                     if which == "local":
                         row.server_name = "ours, 1 thread"
@@ -485,6 +502,8 @@ def main() -> int:
                                 args.t)
                     if row.failed and not (node == THEIRS and mode == "block"):
                         status = 1
+                    if client is not clients[0]:
+                        client.close()
                     pair.append(row)
                 ours, theirs = pair
                 ratio = (f"{ours.kbps / theirs.kbps:.1f}x"
