@@ -338,21 +338,20 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
-    def line_stats(self, line: int, what: str) -> dict:
-        out = ffi.new("co_line_stats_t *")
+    def _counters(self, fetch, ctype: str, line: int, what: str) -> dict:
+        """{counter: value} of a flat stats struct filled by fetch(rt, line, out)."""
+        out = ffi.new(ctype + " *")
         with self._lock:
-            rc = lib.co_rt_line_stats(self._live(what), line, out)
+            rc = fetch(self._live(what), line, out)
             if rc < 0:
                 self._raise(rc, what)
-        return {name: getattr(out, name) for name, _ in ffi.typeof("co_line_stats_t").fields}
+        return {name: getattr(out, name) for name, _ in ffi.typeof(ctype).fields}
+
+    def line_stats(self, line: int, what: str) -> dict:
+        return self._counters(lib.co_rt_line_stats, "co_line_stats_t", line, what)
 
     def driver_stats(self, line: int, what: str) -> dict:
-        out = ffi.new("co_rt_driver_stats_t *")
-        with self._lock:
-            rc = lib.co_rt_driver_stats(self._live(what), line, out)
-            if rc < 0:
-                self._raise(rc, what)
-        return {name: getattr(out, name) for name, _ in ffi.typeof("co_rt_driver_stats_t").fields}
+        return self._counters(lib.co_rt_driver_stats, "co_rt_driver_stats_t", line, what)
 
     def service_stats(self, line: int, what: str) -> dict:
         """{service: {counter: value}} of co_rt_service_stats_t."""
