@@ -644,8 +644,9 @@ static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
         pdo->stats.rtr_refused++;   /* nothing sampled at a SYNC yet */
         return true;
     }
-    pdo->stats.rtr_answered++;
-    transmit(pdo, ch);
+    if (transmit(pdo, ch)) {
+        pdo->stats.rtr_answered++;   /* a full tx queue counts in tx_failed instead */
+    }
     if (is_event_type(ch->type)) {
         ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
         arm_event_timer(pdo, ch);

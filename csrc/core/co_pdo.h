@@ -72,7 +72,9 @@ typedef struct co_pdo_stats {
     uint32_t rx_not_operational;    /* RPDO / RTR frames while not operational */
     uint32_t rx_timeouts;           /* RPDO deadlines missed */
     uint32_t rtr_answered;
-    uint32_t rtr_refused;           /* RTR on a TPDO that does not allow it (bit 30, type) */
+    uint32_t rtr_refused;           /* RTR on a type 252 TPDO before its first SYNC sample;
+                                       an RTR no TPDO allows (bit 30 set) is the line's
+                                       rx_rtr */
     uint32_t config_invalid;        /* a valid COB-ID whose PDO cannot work (mapping, type, id) */
     uint32_t id_conflicts;          /* an RPDO COB-ID another RPDO or service already takes */
 } co_pdo_stats_t;
