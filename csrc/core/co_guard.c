@@ -362,6 +362,7 @@ bool co_guard_master_receive(co_line_t *line, const co_frame_t *frame, void *use
     }
     if (frame->len == 1 && frame->data[0] == CO_NMT_INITIALISING) {
         n->expected_toggle = 0;   /* reset communication: its toggle starts at 0 */
+        n->toggle_known = true;
         return false;             /* the boot-up is the heartbeat consumer's to report */
     }
     if (frame->len != 1) {
@@ -373,6 +374,12 @@ bool co_guard_master_receive(co_line_t *line, const co_frame_t *frame, void *use
     if (!is_guard_state(state)) {
         m->stats.bad_state++;
         return true;
+    }
+    if (!n->toggle_known) {
+        /* A node guarded before (by us or another master) goes on toggling
+         * from where it was: its first answer tells where that is. */
+        n->expected_toggle = toggle;
+        n->toggle_known = true;
     }
     if (toggle != n->expected_toggle) {
         /* Not taken as an answer (it counts as missed, as in CANopenNode);

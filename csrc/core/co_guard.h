@@ -119,6 +119,7 @@ typedef struct co_guard_node {
     uint16_t guard_time_ms;
     uint8_t life_time_factor;       /* 0 counts as 1 */
     uint8_t expected_toggle;        /* 0 or CO_GUARD_TOGGLE_BIT */
+    bool toggle_known;              /* false from guard() until the first answer or boot-up */
     uint8_t missed;                 /* guard periods in a row without a valid answer */
     bool waiting;                   /* remote frame sent, no valid answer since */
     uint8_t state;                  /* last answered state, CO_NMT_UNKNOWN */

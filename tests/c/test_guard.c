@@ -505,9 +505,6 @@ static void test_master_malformed(void **state)
     static const uint8_t two[2] = {0x05, 0};
     assert_int_equal(co_guard_master_guard(&fx->gm, 9, 1000, 2), CO_GUARD_OK);
     step(fx, 0);
-    inject(fx, 0x709, &wrong_toggle, 1);
-    assert_int_equal(fx->gm.stats.toggle_errors, 1);
-    assert_int_equal(nth_ev(fx, EV_GUARD, CO_GUARD_TOGGLE_ERROR, 0)->state, CO_NMT_OPERATIONAL);
     inject(fx, 0x709, &bad_state, 1);
     inject(fx, 0x709, &zero_t, 1);
     assert_int_equal(fx->gm.stats.bad_state, 2);
@@ -517,9 +514,16 @@ static void test_master_malformed(void **state)
     assert_int_equal(fx->m->stats.hb_bad_state, 0);
     assert_int_equal(fx->m->stats.hb_bad_length, 0);
     assert_int_equal(co_guard_master_monitor(&fx->gm, 9), CO_GUARD_MONITOR_OFF);
-    inject(fx, 0x709, &ok, 1);
+    inject(fx, 0x709, &ok, 1);                 /* the first answer: toggle 0 adopted */
     assert_int_equal(co_guard_master_monitor(&fx->gm, 9), CO_GUARD_MONITOR_ACTIVE);
     assert_int_equal(fx->gm.stats.answers, 1);
+    inject(fx, 0x709, &ok, 1);                 /* toggle 0 again: 0x80 expected */
+    assert_int_equal(fx->gm.stats.toggle_errors, 1);
+    assert_int_equal(nth_ev(fx, EV_GUARD, CO_GUARD_TOGGLE_ERROR, 0)->state, CO_NMT_OPERATIONAL);
+    assert_int_equal(fx->gm.stats.answers, 1);
+    inject(fx, 0x709, &wrong_toggle, 1);       /* 0x85: the toggle it expects now */
+    assert_int_equal(fx->gm.stats.answers, 2);
+    assert_int_equal(fx->gm.stats.toggle_errors, 1);
     /* node 10 is not guarded: the consumer sees its frames as before */
     inject(fx, 0x70A, &wrong_toggle, 1);
     assert_int_equal(fx->m->stats.hb_bad_state, 1);
@@ -554,6 +558,29 @@ static void test_master_bootup_resets_toggle(void **state)
     assert_int_equal(fx->gm.stats.toggle_errors, 0);
     assert_int_equal(fx->gm.stats.answers, 11);
     assert_int_equal(count_ev(fx, EV_GUARD, CO_GUARD_LOST), 0);
+}
+
+/* Guarding of a node guarded before (unguard, guard again; or another master
+ * before us): the node toggles on from where it was, and the first answer
+ * sets what the master expects: no toggle error, answers alternate after. */
+static void test_master_adopts_toggle_of_node_guarded_before(void **state)
+{
+    fx_t *fx = *state;
+    assert_int_equal(co_guard_master_guard(&fx->gm, ID_S, 100, 3), CO_GUARD_OK);
+    run_until(fx, MS(50));                       /* one answer: 0x7F, the node's next 0xFF */
+    assert_int_equal(fx->gm.stats.answers, 1);
+    co_guard_master_unguard(&fx->gm, ID_S);
+    run_until(fx, MS(500));
+    assert_int_equal(co_guard_master_guard(&fx->gm, ID_S, 100, 3), CO_GUARD_OK);
+    run_until(fx, MS(500) + MS(100) * 5 + MS(50)); /* 0xFF 0x7F 0xFF 0x7F 0xFF 0x7F */
+    {
+        static const uint8_t with_toggle = 0xFF;
+        tu_assert_logged(&fx->tb, answer(fx, 1), 0x705, &with_toggle, 1);
+    }
+    assert_int_equal(fx->gm.stats.answers, 7);
+    assert_int_equal(fx->gm.stats.toggle_errors, 0);
+    assert_int_equal(count_ev(fx, EV_GUARD, CO_GUARD_TOGGLE_ERROR), 0);
+    assert_int_equal(co_guard_master_monitor(&fx->gm, ID_S), CO_GUARD_MONITOR_ACTIVE);
 }
 
 /* Expected state: one UNEXPECTED_STATE when the answers differ, again after
@@ -674,6 +701,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_master_never_answers, setup, teardown),
         cmocka_unit_test_setup_teardown(test_master_malformed, setup, teardown),
         cmocka_unit_test_setup_teardown(test_master_bootup_resets_toggle, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_master_adopts_toggle_of_node_guarded_before, setup,
+                                        teardown),
         cmocka_unit_test_setup_teardown(test_master_expected_state, setup, teardown),
         cmocka_unit_test_setup_teardown(test_master_api, setup, teardown),
         cmocka_unit_test(test_fd_refused),
