@@ -246,6 +246,17 @@ class EmcyProducer:
         return self._state()["sent"]
 
     @property
+    def history(self) -> List[int]:
+        """0x1003, the pre-defined error field, newest first: the error code in
+        the low 16 bits, the first two manufacturer-specific bytes above it
+        (what a network read of 0x1003 gives). Empty when the OD has no 0x1003;
+        a network write of 0 to 0x1003:00 clears it."""
+        if 0x1003 not in self.node.od:
+            return []
+        count = self.node[(0x1003, 0)].raw
+        return [self.node[(0x1003, sub)].raw for sub in range(1, count + 1)]
+
+    @property
     def dropped(self) -> int:
         """EMCYs lost because the wait queue was full."""
         return self._state()["dropped"]

@@ -14,7 +14,7 @@ import time
 import pytest
 
 import canopenfd
-from canopenfd import ConfigurationError, NmtState
+from canopenfd import ConfigurationError, NmtState, SdoAbortError
 from canopenfd.emcy import Emcy
 from canopenfd.od import DataType, ODArray, ODRecord, ODVariable, demo_od
 from canopenfd.services import GuardEvent
@@ -122,6 +122,35 @@ def test_emcy_classic_every_field_exact_bytes_and_reset(net, bus_name):
     assert [e.code for e in remote.emcy.log] == [0x2310, 0x3210, 0]
     assert on_line.wait_count(3) == got.snapshot()
     assert (me.emcy.error_register, me.emcy.active) == (0x05, 1)
+
+
+def test_emcy_history_0x1003_newest_first_and_cleared_over_the_network(net, bus_name):
+    """me.emcy.history reads 0x1003 as the producer keeps it (code | msef[0..1]
+    << 16, newest first, at most the entries the OD has); a network write of 0
+    to 0x1003:00 clears it, anything else is refused."""
+    od = pdo_od("classic")
+    history = ODArray("Pre-defined error field", 0x1003)
+    history.add_member(ODVariable("Number of errors", 0x1003, 0, U8, "rw", 0))
+    for sub in range(1, 4):
+        history.add_member(ODVariable(f"Standard error field {sub}", 0x1003, sub, U32, "ro", 0))
+    od.add_object(history)
+    a = net.open_line(bus_name, mode="classic")
+    me = a.create_local_node(NODE, od=od)
+    tool = net.open_line(bus_name, mode="classic").add_node(NODE)
+    assert me.emcy.history == []
+    me.emcy.raise_error(0x2310, b"\x01\x02")
+    me.emcy.raise_error(0x3210)
+    me.emcy.clear(0x2310)                      # clearing adds nothing to the history
+    assert me.emcy.history == [0x3210, 0x02012310]
+    for code in (0x4210, 0x5000):
+        me.emcy.raise_error(code, b"\xAA")
+    assert me.emcy.history == [0x00AA5000, 0x00AA4210, 0x3210]   # three entries in this OD
+    assert tool.sdo.upload((0x1003, 1)) == (0x00AA5000).to_bytes(4, "little")
+    with pytest.raises(SdoAbortError) as caught:
+        tool.sdo.download((0x1003, 0), b"\x02")
+    assert caught.value.code == 0x06090030
+    tool.sdo.download((0x1003, 0), b"\x00")
+    assert me.emcy.history == []
 
 
 def test_emcy_fd_every_field_repeated_and_removal(net, bus_name):
