@@ -979,3 +979,17 @@ bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
     uint16_t slot = slot_of(pdo, is_rpdo, number);
     return slot != 0 && pdo->channels[slot - 1u].active;
 }
+
+bool co_pdo_pack_values(const co_pdo_t *pdo, bool is_rpdo, uint16_t number, uint8_t *data,
+                        uint8_t *len)
+{
+    uint16_t slot = slot_of(pdo, is_rpdo, number);
+    if (slot == 0) {
+        return false;
+    }
+    const co_pdo_channel_t *ch = &pdo->channels[slot - 1u];
+    memset(data, 0, CO_FRAME_MAX_DATA);
+    co_pdo_map_pack(pdo->od, ch->map, ch->map_count, ch->bits, data);
+    *len = (uint8_t)((ch->bits + 7u) / 8u);
+    return true;
+}

@@ -210,6 +210,11 @@ bool co_pdo_trigger(co_pdo_t *pdo, uint16_t tpdo_number);
 uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub);
 /* Active = configured and usable (independent of the NMT state). */
 bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number);
+/* The mapped values of a PDO as the OD holds them now, laid out as its
+ * mapping says (data: CO_FRAME_MAX_DATA bytes, zeroed past the mapping);
+ * *len = the mapped bytes. False when the PDO does not exist. */
+bool co_pdo_pack_values(const co_pdo_t *pdo, bool is_rpdo, uint16_t number, uint8_t *data,
+                        uint8_t *len);
 static inline const co_pdo_stats_t *co_pdo_stats(const co_pdo_t *pdo) { return &pdo->stats; }
 
 #endif

@@ -348,6 +348,22 @@ static void check_event_pair(co_mode_t mode)
     assert_int_equal(co_pdo_stats(&fx->a.pdo)->tx_frames, 1);
     assert_int_equal(co_pdo_stats(&fx->b.pdo)->rx_frames, 1);
     assert_int_equal(fx->b.nerr, 0);
+    /* the values as each OD holds them, laid out by the mapping: b's dummy
+     * byte reads 0, a's TPDO is what went out */
+    {
+        uint8_t data[CO_FRAME_MAX_DATA], len = 0;
+        const uint8_t applied[8] = {0xA1, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12, 0x00};
+        memset(data, 0xEE, sizeof data);
+        assert_true(co_pdo_pack_values(&fx->b.pdo, true, 1, data, &len));
+        assert_int_equal(len, 8);
+        assert_memory_equal(data, applied, 8);
+        assert_int_equal(data[8], 0);
+        assert_true(co_pdo_pack_values(&fx->a.pdo, false, 1, data, &len));
+        assert_int_equal(len, 8);
+        assert_memory_equal(data, expect, 8);
+        assert_false(co_pdo_pack_values(&fx->b.pdo, true, 2, data, &len));
+        assert_false(co_pdo_pack_values(&fx->b.pdo, false, 1, data, &len));
+    }
     /* an unknown TPDO number or an RPDO number is refused */
     assert_false(co_pdo_trigger(&fx->a.pdo, 2));
     assert_false(co_pdo_trigger(&fx->a.pdo, 0));

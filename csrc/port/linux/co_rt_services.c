@@ -61,17 +61,12 @@ void rt_services_pdo_received(rt_line_t *l, uint16_t number)
     if (number == 0 || number > CO_PDO_MAX_NUMBER || !co_bit_test(l->pdo_listen, number - 1u)) {
         return;
     }
-    uint16_t slot = l->pdo.rpdo_of[number - 1u];
-    if (slot == 0) {
-        return;
-    }
     /* the values as now in the OD, laid out as the mapping says */
-    const co_pdo_channel_t *ch = &l->pdo.channels[slot - 1u];
     co_frame_t frame;
     memset(&frame, 0, sizeof frame);
-    co_pdo_map_pack(&l->od, ch->map, ch->map_count, ch->bits, frame.data);
-    frame.len = (uint8_t)((ch->bits + 7u) / 8u);
-    rt_post(l, CO_EV_PDO, l->node.nmt.node_id, number, 0, &frame);
+    if (co_pdo_pack_values(&l->pdo, true, number, frame.data, &frame.len)) {
+        rt_post(l, CO_EV_PDO, l->node.nmt.node_id, number, 0, &frame);
+    }
 }
 
 #define WATCH_EXT 0x20000000u   /* bit 29 of a COB-ID: 29-bit CAN-ID */
