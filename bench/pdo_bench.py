@@ -9,9 +9,11 @@ our stack and python-canopen side by side in one run.
 0x181, the 4-byte "Demo UNSIGNED32", event-driven, transmit() per sample);
 node 2 (a second canopenfd Network, i.e. another runtime thread) receives it
 as RPDO 1 and its Python callback records the time; python-canopen's Network
-(subscribed to 0x181) in the same process records its callback's time. The
-figure is time.perf_counter() from just before transmit() to each callback:
-median and 99th percentile over SAMPLES (one PDO in flight at a time).
+(subscribed to 0x181) in the same process records its callback's time. One
+receiver listens at a time, in alternating rounds (both at once would race for
+the GIL at every PDO). The figure is time.perf_counter() from just before
+transmit() to each callback: median and 99th percentile over SAMPLES (one PDO
+in flight at a time).
 
 (b) Sustained stream: bench/pdo_flood (C) sends PDOs on 0x181 as fast as the
 interface takes them for SECONDS (every frame numbered); two receiver
