@@ -569,11 +569,9 @@ static void test_rpdo_deadline(void **state)
     fx_free(fx);
 }
 
-/* The deadline error stays cleared-able across an NMT state change: the RPDO
- * that comes back after pre-operational -> operational ends it too. */
-static void test_rpdo_deadline_across_state_change(void **state)
+/* RPDO 1 with a 100 ms deadline, one frame at 0, missed at 100 ms: 0x8250 sent. */
+static fx_t *rpdo_deadline_missed(void)
 {
-    (void)state;
     fx_t *fx = fx_new(CO_MODE_CLASSIC, 0);
     assert_int_equal(net_write(fx, 0x1400, 5, 100, 2), 0);
     start(fx);
@@ -582,6 +580,15 @@ static void test_rpdo_deadline_across_state_change(void **state)
     at(fx, MS(100));
     assert_int_equal(count(fx, EMCY_ID), 1);
     assert_emcy(fx, 0, 0x8250, 0x11, 1);
+    return fx;
+}
+
+/* The deadline error stays cleared-able across an NMT state change: the RPDO
+ * that comes back after pre-operational -> operational ends it too. */
+static void test_rpdo_deadline_across_state_change(void **state)
+{
+    (void)state;
+    fx_t *fx = rpdo_deadline_missed();
     nmt(fx, CO_NMT_CMD_PRE_OPERATIONAL);
     start(fx);
     at(fx, MS(150));
@@ -774,14 +781,7 @@ static void test_rpdo_short_cleared_when_disabled_fd(void **state)
 static void test_rpdo_deadline_cleared_when_disabled(void **state)
 {
     (void)state;
-    fx_t *fx = fx_new(CO_MODE_CLASSIC, 0);
-    assert_int_equal(net_write(fx, 0x1400, 5, 100, 2), 0);
-    start(fx);
-    clear_log(fx);
-    rpdo(fx, RPDO1_ID, 4);
-    at(fx, MS(100));
-    assert_int_equal(count(fx, EMCY_ID), 1);
-    assert_emcy(fx, 0, 0x8250, 0x11, 1);
+    fx_t *fx = rpdo_deadline_missed();
     assert_int_equal(error_register_od(fx), 0x11);
     nmt(fx, CO_NMT_CMD_PRE_OPERATIONAL);
     assert_int_equal(count(fx, EMCY_ID), 1);
