@@ -779,6 +779,7 @@ static void configure(co_sdo_channel_t *ch)
     bool want;
     if (ch->state == CO_SDO_CH_ACTIVE) {
         ch->reconfig = true;
+        s->reconfig_waiting = true;
         return;
     }
     ch->reconfig = false;
@@ -813,10 +814,14 @@ static void configure(co_sdo_channel_t *ch)
 static void apply_pending(co_sdo_server_t *s)
 {
     uint8_t i;
+    if (!s->reconfig_waiting) {
+        return;   /* the common case: no scan of up to 128 channels per frame */
+    }
+    s->reconfig_waiting = false;   /* set again by a channel still inside a co_od call */
     for (i = 0; i < s->channel_count; i++) {
         co_sdo_channel_t *ch = &s->channels[i];
-        if (ch->reconfig && ch->state != CO_SDO_CH_ACTIVE) {
-            configure(ch);
+        if (ch->reconfig) {
+            configure(ch);   /* still inside its co_od call: flags it again */
         }
     }
 }

@@ -136,6 +136,7 @@ struct co_sdo_server {
     uint8_t blksize;              /* offered in block downloads */
     bool crc;                     /* CRC support announced */
     bool od_hooked;
+    bool reconfig_waiting;        /* some channel's reconfig is set */
     uint64_t timeout_us;
     co_sdo_server_stats_t stats;
 };

@@ -2621,6 +2621,26 @@ static void test_second_channel_via_1201(void **state)
     assert_all_idle(fx);
 }
 
+/* A channel that writes its own COB-ID answers on the old CAN-ID, then takes
+ * the new one (the change waits for its own co_od call to end), and a later
+ * frame on another channel finds nothing left waiting. */
+static void test_channel_changes_its_own_cob_id(void **state)
+{
+    fx_t *fx = *state;
+    enable_channel1(fx);
+    use_channel(fx, REQ1, RSP1);
+    req_mux(fx, 0x23, 0x1201, 1, 0x80000000u | REQ1);   /* disable myself */
+    expect_mux(fx, 0x60, 0x1201, 1, 0);                 /* answered on RSP1 */
+    assert_false(fx->ch[1].valid);
+    assert_false(fx->ch[1].reconfig);
+    assert_false(fx->srv.reconfig_waiting);
+    req_mux(fx, 0x40, 0x2000, 0, 0);                     /* channel 1 is gone */
+    expect_none(fx);
+    use_channel(fx, REQ0, RSP0);
+    exp_read_ok(fx, 0x2000, 0, (const uint8_t *)"\x11", 1);
+    assert_all_idle(fx);
+}
+
 /* An open transfer on a channel whose COB-ID changes ends: the object
  * dictionary is told, nothing is sent (the channel is gone). */
 static void test_channel_reset_on_cob_id_change(void **state)
@@ -2908,6 +2928,7 @@ int main(void)
         T(test_segmented_faults),
         T(test_split_deferral),
         T(test_second_channel_via_1201),
+        T(test_channel_changes_its_own_cob_id),
         T(test_channel_reset_on_cob_id_change),
         T(test_refresh_and_deinit),
         T(test_random_frames_never_wedge),
