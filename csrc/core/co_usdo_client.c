@@ -75,7 +75,7 @@ static void sid_mark(co_usdo_client_t *c, uint8_t sid, bool live)
 
 /* Round-robin over 1..255, skipping live IDs: a finished transfer's ID
  * comes back only after every other one was handed out. Never 0 while a
- * session is free (at most 254 are live then). */
+ * session is unused (at most 254 are live then). */
 static uint8_t sid_next(co_usdo_client_t *c)
 {
     unsigned k;
