@@ -251,7 +251,7 @@ class EmcyProducer:
         the low 16 bits, the first two manufacturer-specific bytes above it
         (what a network read of 0x1003 gives). Empty when the OD has no 0x1003;
         a network write of 0 to 0x1003:00 clears it."""
-        if 0x1003 not in self.node.od:
+        if self.node.od is None or 0x1003 not in self.node.od:
             return []
         count = self.node[(0x1003, 0)].raw
         return [self.node[(0x1003, sub)].raw for sub in range(1, count + 1)]

@@ -458,7 +458,7 @@ class LocalNode:
     @property
     def emcy(self) -> "EmcyProducer":
         """The node's EMCY producer: `raise_error(code, ...)`, `clear(code)`,
-        `error_register`, `active` (see canopenfd.emcy)."""
+        `error_register`, `active`, `history` (see canopenfd.emcy)."""
         producer = self.__dict__.get("_emcy")
         if producer is None:
             from .emcy import EmcyProducer

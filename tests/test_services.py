@@ -151,6 +151,8 @@ def test_emcy_history_0x1003_newest_first_and_cleared_over_the_network(net, bus_
     assert caught.value.code == 0x06090030
     tool.sdo.download((0x1003, 0), b"\x00")
     assert me.emcy.history == []
+    bare = net.open_line(bus_name, mode="classic").create_local_node(NODE + 1)   # no OD
+    assert bare.od is None and bare.emcy.history == []
 
 
 def test_emcy_fd_every_field_repeated_and_removal(net, bus_name):
