@@ -519,24 +519,34 @@ static void test_rpdo_short_classic(void **state)
     fx_free(fx);
 }
 
+/* FD 0x8210 of RPDO 1: the 20-byte EMCY raised (spec 301, status occurred)
+ * and its "removed" EMCY (status 0, register 0). */
+static const uint8_t fd_short_raised[20] = {0x10, 0x82, 0x11, 0x01, 0x00, 0, 0, 0,
+                                            0x00, 0x2D, 0x01, 0x10, 0, 0, 0, 0, 0, 0, 0, 0};
+static const uint8_t fd_short_removed[20] = {0x10, 0x82, 0x00, 0x00, 0x00, 0, 0, 0,
+                                             0x00, 0x2D, 0x01, 0x00, 0, 0, 0, 0, 0, 0, 0, 0};
+
+/* An FD node whose RPDO 1 got a 2-byte frame: 0x8210 raised, exact bytes. */
+static fx_t *fd_rpdo_short_raised(void)
+{
+    fx_t *fx = fx_new(CO_MODE_FD, 0);
+    start(fx);
+    clear_log(fx);
+    rpdo(fx, RPDO1_ID, 2);
+    assert_int_equal(count(fx, EMCY_ID), 1);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 0), EMCY_ID, fd_short_raised, 20);
+    return fx;
+}
+
 /* The same on an FD bus: the 20-byte EMCY (spec 301, status occurred), and
  * its "removed" EMCY (status 0, register 0). */
 static void test_rpdo_short_fd(void **state)
 {
     (void)state;
-    fx_t *fx = fx_new(CO_MODE_FD, 0);
-    static const uint8_t raised[20] = {0x10, 0x82, 0x11, 0x01, 0x00, 0, 0, 0,
-                                       0x00, 0x2D, 0x01, 0x10, 0, 0, 0, 0, 0, 0, 0, 0};
-    static const uint8_t removed[20] = {0x10, 0x82, 0x00, 0x00, 0x00, 0, 0, 0,
-                                        0x00, 0x2D, 0x01, 0x00, 0, 0, 0, 0, 0, 0, 0, 0};
-    start(fx);
-    clear_log(fx);
-    rpdo(fx, RPDO1_ID, 2);
-    assert_int_equal(count(fx, EMCY_ID), 1);
-    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 0), EMCY_ID, raised, 20);
+    fx_t *fx = fd_rpdo_short_raised();
     rpdo(fx, RPDO1_ID, 4);
     assert_int_equal(count(fx, EMCY_ID), 2);
-    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 1), EMCY_ID, removed, 20);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 1), EMCY_ID, fd_short_removed, 20);
     assert_int_equal(od_u32(fx, 0x2002), 0x04030201u);
     fx_free(fx);
 }
@@ -756,20 +766,11 @@ static void test_rpdo_short_cleared_when_disabled(void **state)
 static void test_rpdo_short_cleared_when_disabled_fd(void **state)
 {
     (void)state;
-    fx_t *fx = fx_new(CO_MODE_FD, 0);
-    static const uint8_t raised[20] = {0x10, 0x82, 0x11, 0x01, 0x00, 0, 0, 0,
-                                       0x00, 0x2D, 0x01, 0x10, 0, 0, 0, 0, 0, 0, 0, 0};
-    static const uint8_t removed[20] = {0x10, 0x82, 0x00, 0x00, 0x00, 0, 0, 0,
-                                        0x00, 0x2D, 0x01, 0x00, 0, 0, 0, 0, 0, 0, 0, 0};
-    start(fx);
-    clear_log(fx);
-    rpdo(fx, RPDO1_ID, 2);
-    assert_int_equal(count(fx, EMCY_ID), 1);
-    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 0), EMCY_ID, raised, 20);
+    fx_t *fx = fd_rpdo_short_raised();
     assert_int_equal(net_write(fx, 0x1400, 1, 0x80000000u | RPDO1_ID, 4), 0);
     step(fx);
     assert_int_equal(count(fx, EMCY_ID), 2);
-    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 1), EMCY_ID, removed, 20);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, EMCY_ID, 1), EMCY_ID, fd_short_removed, 20);
     assert_int_equal(error_register_od(fx), 0x00);
     fx_free(fx);
 }
