@@ -329,7 +329,7 @@ def _c_enum(prefix):
 
 @pytest.mark.skipif(not _HEADER.exists(), reason="needs the source tree (csrc/core/co_usdo.h)")
 def test_usdo_tables_match_the_c_codec():
-    decode_module = importlib.import_module("canopenfd.decode")
+    decode_module = importlib.import_module("canopenfd.decode.usdo")
 
     commands = _c_enum("CO_USDO_CS_")
     assert commands, "no command specifiers found in co_usdo.h"

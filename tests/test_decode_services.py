@@ -1,6 +1,6 @@
 """The frame decoder's SYNC, TIME, EMCY, PDO and node guarding texts
-(canopenfd.decode_services, through canopenfd.decode), PDOs decoded by an
-EDS's mapping, and `canopenfd monitor --od`."""
+(canopenfd.decode), PDOs decoded by an EDS's mapping, and `canopenfd monitor
+--od`."""
 
 from __future__ import annotations
 
@@ -17,9 +17,8 @@ import pytest
 from helpers import run_cli, scaled
 
 from canopenfd import Frame
-from canopenfd.decode import Decoder, decode, describe, meaning
-from canopenfd.decode_services import (PdoMap, emcy_code_text,
-                                       error_register_text, parse_emcy)
+from canopenfd.decode import (Decoder, PdoMap, decode, describe, emcy_code_text,
+                              error_register_text, meaning, parse_emcy)
 from canopenfd.od import DataType, TimeOfDay, encode, import_od
 
 try:
