@@ -15,7 +15,8 @@ import time
 import pytest
 
 from canopenfd.cli import main
-from canopenfd.cli_usdo import ProgressBar, parse_key, parse_type
+from canopenfd.cli.common import parse_key
+from canopenfd.cli.transfer import ProgressBar, parse_type
 from canopenfd.od import DataType, demo_od, export_eds
 from helpers import Recorder, scaled
 
@@ -235,7 +236,7 @@ def test_progress_bar_on_a_terminal_redraws_in_place():
 def test_upload_streams_progress_callbacks_from_the_runtime(server, cli, tmp_path,
                                                             monkeypatch):
     """The bar is the transfer's progress callback: it sees growing counts."""
-    import canopenfd.cli_usdo as cli_usdo
+    from canopenfd.cli import transfer as cli_transfer
 
     seen = Recorder()
 
@@ -244,7 +245,7 @@ def test_upload_streams_progress_callbacks_from_the_runtime(server, cli, tmp_pat
             seen(moved)
             super().__call__(moved)
 
-    monkeypatch.setattr(cli_usdo, "ProgressBar", Spy)
+    monkeypatch.setattr(cli_transfer, "ProgressBar", Spy)
     server[DOMAIN].data = os.urandom(MiB)
     assert cli("upload", "5", "0x2100", str(tmp_path / "copy.bin"), "--progress")[0] == 0
     counts = seen.snapshot()

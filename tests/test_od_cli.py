@@ -11,7 +11,7 @@ import sys
 import pytest
 from helpers import package_env, scaled
 
-from canopenfd.cli_od import main as od_main
+from canopenfd.cli.od import main as od_main
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "od")
 HOSTILE = os.path.join(DATA, "hostile")

@@ -10,8 +10,7 @@ or ``builtin:fd`` / ``builtin:classic`` for the built-in demo dictionary.
   counts as one), 0 otherwise (warnings are printed, they do not fail).
 
 A FILE that does not exist is a usage error (exit 2, one line on stderr),
-like the other commands' bad arguments. Wire it into the main parser with
-`add_od_parser(subparsers)`.
+like the other commands' bad arguments.
 """
 
 from __future__ import annotations
@@ -21,20 +20,17 @@ import os
 import sys
 from typing import Any, List, Optional, Sequence
 
-from .errors import CanopenFDError
-from .od import (DataType, ODVariable, ObjectDictionary, OdFileError, TimeDifference,
-                 TimeOfDay, demo_od, import_od)
-
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_USAGE = 2
+from ..errors import CanopenFDError
+from ..od import (DataType, ODVariable, ObjectDictionary, OdFileError, TimeDifference,
+                  TimeOfDay, demo_od, import_od)
+from .common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, print_error
 
 _BUILTIN = "builtin:"
 _NAME_WIDTH = 40
 _VALUE_WIDTH = 26
 
 
-def add_od_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parsers(subparsers: Any) -> argparse.ArgumentParser:
     """Register `od show FILE` and `od check FILE` on the main parser's
     subparsers; the handler is set as `func` (the main parser's convention)."""
     parser = subparsers.add_parser(
@@ -220,21 +216,17 @@ def cmd_od_check(args: argparse.Namespace) -> int:
     return EXIT_FAILED if errors else EXIT_OK
 
 
-# ------------------------------------------------------------------ standalone
+# ------------------------------------------------------------------ on its own
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """`python -m canopenfd.cli_od show|check FILE` (before `od` is wired into
-    the main CLI, and for tests)."""
+    """`od show|check FILE ...` without the rest of the command line (tests):
+    argv is what follows `canopenfd od`."""
     parser = argparse.ArgumentParser(prog="canopenfd")
     sub = parser.add_subparsers(dest="cmd", metavar="COMMAND")
     sub.required = True
-    add_od_parser(sub)
+    add_parsers(sub)
     args = parser.parse_args(["od", *(sys.argv[1:] if argv is None else argv)])
     try:
         return args.func(args)
     except CanopenFDError as exc:
-        print(f"canopenfd: error: {exc}", file=sys.stderr)
+        print_error(str(exc))
         return EXIT_USAGE
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

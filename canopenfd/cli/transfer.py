@@ -15,11 +15,7 @@ time"`, `"Identity object.Vendor-ID"`) and values are typed by the file.
 
 Exit status: 0 done, 1 the transfer failed (an abort: ours, such as a
 timeout, or the server's), 2 a bad argument (one line on stderr, never a
-traceback). `main` may hand in a Network (`args.network`): the commands then
-open their line on it instead of a Network of their own (tests, embedding).
-
-Helpers used by `canopenfd device` live here too: `parse_key` (INDEX[:SUB]
-or a name) and `parse_domain` (--domain INDEX[:SUB]=BYTES).
+traceback).
 """
 
 from __future__ import annotations
@@ -29,7 +25,6 @@ import contextlib
 import datetime as _dt
 import math
 import os
-import re
 import stat
 import struct
 import sys
@@ -38,32 +33,23 @@ import threading
 import time
 from typing import Any, Callable, Dict, Iterator, Optional, TextIO, Tuple
 
-from . import cli as _cli
-from .errors import CanopenFDError
-from .od import (DataType, ODArray, ODRecord, ODVariable, ObjectDictionary, OdFileError,
-                 OdValueError, TimeDifference, TimeOfDay, demo_od, import_od)
-from .od import decode as _decode
-from .od import encode as _encode
-from .errors import AbortError
-from .transfer import Transfer
+from ..errors import AbortError, CanopenFDError
+from ..od import (DataType, ODVariable, ObjectDictionary, OdFileError, OdValueError,
+                  TimeDifference, TimeOfDay, demo_od, import_od)
+from ..od import decode as _decode
+from ..od import encode as _encode
+from ..transfer import Transfer
+from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, builtin_od_kind,
+                     command_line, parse_key, print_error)
 
 #: download modes: 'bulk' on fd lines (USDO), 'block' on classic lines (SDO)
 MODES = ("auto", "expedited", "segmented", "bulk", "block")
-
-EXIT_OK = 0
-EXIT_FAILED = 1
 
 DEFAULT_CLIENT_ID = 127
 DEFAULT_TIMEOUT_S = 1.0
 EXPEDITED_MAX = 56          # bytes an expedited USDO transfer carries
 TRANSFER_MAX = 0xFFFFFFFE   # bytes a transfer moves at most
 _WAIT_SLICE_S = 0.1         # result() in slices: Ctrl-C works, a late done event costs <= this
-
-_KEY_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})(?:(?::|sub)(?:0x)?([0-9a-f]{1,2}))?$",
-                     re.IGNORECASE)
-_SIZE_RE = re.compile(r"^(0x[0-9a-f]+|\d+)\s*(k|kib|m|mib|g|gib|b)?$", re.IGNORECASE)
-_SIZE_UNITS = {None: 1, "b": 1, "k": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mib": 1 << 20,
-               "g": 1 << 30, "gib": 1 << 30}
 
 # --type names besides the CiA 301 ones (UNSIGNED32, VISIBLE_STRING, ...).
 _TYPE_ALIASES: Dict[str, DataType] = {
@@ -86,19 +72,17 @@ _TYPE_HINT = "U8..U64, I8..I64, BOOLEAN, REAL32, REAL64, VISIBLE_STRING, OCTET_S
 _TRUE = ("1", "true", "on", "yes")
 _FALSE = ("0", "false", "off", "no")
 
-Entry = Tuple[int, int, Optional[ODVariable]]
-
 
 # ------------------------------------------------------------------ parser
-def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser], None]) -> None:
-    """Register read, write, download and upload on the main parser's
-    subparsers (`line_options` adds --channel, --interface, ...)."""
+def add_parsers(subparsers: Any) -> None:
+    """Register read, write, download and upload on the main parser's subparsers."""
     key_help = "entry: INDEX[:SUB] in hex (0x1018:1), or a name from --od"
 
-    def common(p: argparse.ArgumentParser) -> None:
-        line_options(p)
+    def transfer_options(p: argparse.ArgumentParser) -> None:
+        add_line_options(p)
         p.add_argument("--client-id", type=int, default=DEFAULT_CLIENT_ID, metavar="N",
-                       help=f"our USDO client node-id 1..127 (default {DEFAULT_CLIENT_ID}; fd lines only)")
+                       help=f"our USDO client node-id 1..127 (default {DEFAULT_CLIENT_ID}; "
+                            "fd lines only)")
         p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
                        help="how long to wait for each answer of the server (default "
                             f"{DEFAULT_TIMEOUT_S:g}; with NODE 0 how long to collect answers)")
@@ -106,16 +90,18 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
                        help="the remote node's EDS/DCF/XDD/XDC (or builtin:fd): names for "
                             "INDEX, and typed values")
 
-    p = sub.add_parser("read", help="read one entry of a node (USDO, or SDO with --classic) and print it")
+    p = subparsers.add_parser("read", help="read one entry of a node (USDO, or SDO with "
+                                           "--classic) and print it")
     p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("--type", metavar="T",
                    help=f"print the value as this type ({_TYPE_HINT}); default: the type "
                         "from --od, else raw hex bytes")
-    common(p)
+    transfer_options(p)
     p.set_defaults(func=cmd_read)
 
-    p = sub.add_parser("write", help="write one entry of a node (USDO, or SDO with --classic)")
+    p = subparsers.add_parser("write", help="write one entry of a node (USDO, or SDO with "
+                                            "--classic)")
     p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("value", metavar="VALUE",
@@ -123,10 +109,11 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
                         "DOMAIN as hex bytes ('01 02 ff' or 0102ff)")
     p.add_argument("--type", metavar="T",
                    help=f"the value's type ({_TYPE_HINT}); default: the type from --od")
-    common(p)
+    transfer_options(p)
     p.set_defaults(func=cmd_write)
 
-    p = sub.add_parser("download", help="send a file's contents to an entry (USDO, or SDO with --classic)")
+    p = subparsers.add_parser("download", help="send a file's contents to an entry (USDO, "
+                                               "or SDO with --classic)")
     p.add_argument("node", metavar="NODE", help="node-id 1..127")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to send")
@@ -136,67 +123,36 @@ def add_usdo_parsers(sub: Any, line_options: Callable[[argparse.ArgumentParser],
                         "segmented below 1 KiB, block above); bulk is USDO's, block SDO's")
     p.add_argument("--progress", action="store_true",
                    help="show the progress bar on stderr even when it is no terminal")
-    common(p)
+    transfer_options(p)
     p.set_defaults(func=cmd_download)
 
-    p = sub.add_parser("upload", help="read an entry into a file (USDO, or SDO with --classic)")
+    p = subparsers.add_parser("upload", help="read an entry into a file (USDO, or SDO with "
+                                             "--classic)")
     p.add_argument("node", metavar="NODE", help="node-id 1..127")
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to write (replaced once complete)")
     p.add_argument("--progress", action="store_true",
                    help="show the progress on stderr even when it is no terminal")
-    common(p)
+    transfer_options(p)
     p.set_defaults(func=cmd_upload)
 
 
 # ------------------------------------------------------------------ argument parsing
-def _usage(text: str) -> Exception:
-    return _cli.UsageError(text)
-
-
 def parse_node(text: str, broadcast: bool) -> int:
     """NODE: 1..127 (decimal or 0x hex), 0 = broadcast when allowed."""
     try:
         node = int(text.strip(), 16) if text.strip().lower().startswith("0x") \
             else int(text.strip(), 10)
     except ValueError:
-        raise _usage(f"NODE {text!r} is not a node-id (1..127"
-                     f"{', 0 = every node' if broadcast else ''})") from None
+        raise UsageError(f"NODE {text!r} is not a node-id (1..127"
+                         f"{', 0 = every node' if broadcast else ''})") from None
     if node == 0 and not broadcast:
-        raise _usage("NODE 0 (broadcast) works only with read and write: give a node-id "
-                     "1..127")
+        raise UsageError("NODE 0 (broadcast) works only with read and write: give a node-id "
+                         "1..127")
     if not 0 <= node <= 127:
-        raise _usage(f"NODE {node} outside 0..127 (0 = every node)" if broadcast
-                     else f"NODE {node} outside 1..127")
+        raise UsageError(f"NODE {node} outside 0..127 (0 = every node)" if broadcast
+                         else f"NODE {node} outside 1..127")
     return node
-
-
-def parse_key(text: str, od: Optional[ObjectDictionary], what: str = "INDEX") -> Entry:
-    """(index, sub, the OD's entry or None) of INDEX[:SUB] in hex, or with an
-    OD of a name ('Producer heartbeat time', 'Identity object.Vendor-ID')."""
-    text = text.strip()
-    match = _KEY_RE.match(text)
-    if od is not None:
-        try:
-            entry = od[text]
-        except KeyError:
-            entry = None
-        if isinstance(entry, ODVariable):
-            return entry.index, entry.subindex, entry
-        if isinstance(entry, (ODRecord, ODArray)) and not match:
-            first = min([s for s in entry.subindices if s > 0] or [1])
-            raise _usage(f"{what} {text!r} is the {entry.object_type.name} 0x{entry.index:04X}: "
-                         f"give a sub-index, e.g. 0x{entry.index:04X}:{first:X} or "
-                         f"'{entry.name}.{entry[first].name}'")
-    if match:
-        index = int(match.group(1), 16)
-        sub = int(match.group(2), 16) if match.group(2) is not None else 0
-        return index, sub, od.get_variable(index, sub) if od is not None else None
-    if od is not None:
-        raise _usage(f"{what} {text!r}: no such name in the object dictionary, and not "
-                     "INDEX[:SUB] in hex (like 0x1018:1)")
-    raise _usage(f"{what} {text!r} is not INDEX[:SUB] in hex (like 0x1018:1 or 1017); "
-                 "names need --od FILE")
 
 
 def parse_type(text: str) -> DataType:
@@ -212,35 +168,7 @@ def parse_type(text: str) -> DataType:
     try:
         return DataType.parse(int(name, 0))
     except (ValueError, OdValueError):
-        raise _usage(f"--type {text!r} is not a data type: give {_TYPE_HINT}") from None
-
-
-def parse_size(text: str, what: str) -> int:
-    """BYTES: decimal or 0x hex, optional K/KiB, M/MiB, G/GiB (powers of 1024)."""
-    match = _SIZE_RE.match(text.strip())
-    if not match:
-        raise _usage(f"{what}: {text!r} is not a size (like 1048576, 0x100000, 512K or 16M)")
-    number = int(match.group(1), 0)
-    unit = match.group(2).lower() if match.group(2) else None
-    return number * _SIZE_UNITS[unit]
-
-
-def parse_domain(text: str, od: ObjectDictionary) -> Tuple[int, int, int]:
-    """--domain INDEX[:SUB]=BYTES: (index, sub, capacity) of a DOMAIN entry of od."""
-    key, sep, size_text = text.rpartition("=")
-    if not sep or not key.strip():
-        raise _usage(f"--domain {text!r}: expected INDEX[:SUB]=BYTES, like 0x2100=16M")
-    index, sub, variable = parse_key(key, od, "--domain")
-    if variable is None:
-        raise _usage(f"--domain {text}: 0x{index:04X}:{sub:02X} is not in the object "
-                     "dictionary")
-    if variable.data_type != DataType.DOMAIN:
-        raise _usage(f"--domain {text}: {variable.where} {variable.qualname} is "
-                     f"{variable.data_type.name}, not a DOMAIN")
-    capacity = parse_size(size_text, f"--domain {text}")
-    if not 0 < capacity < 1 << 32:
-        raise _usage(f"--domain {text}: {capacity} bytes outside 1..4 GiB - 1")
-    return index, sub, capacity
+        raise UsageError(f"--type {text!r} is not a data type: give {_TYPE_HINT}") from None
 
 
 def _parse_int(dtype: DataType, text: str) -> int:
@@ -466,45 +394,37 @@ def _load_od(spec: Optional[str], node: int) -> Optional[ObjectDictionary]:
     """--od FILE (the remote node's dictionary) or builtin:fd / builtin:classic."""
     if spec is None:
         return None
-    if spec.startswith("builtin:"):
-        kind = spec[len("builtin:"):]
-        if kind not in ("fd", "classic"):
-            raise _usage(f"--od {spec}: the built-in dictionaries are builtin:fd and "
-                         "builtin:classic")
+    kind = builtin_od_kind(spec)
+    if kind is not None:
         return demo_od(kind, node_id=node or None)
     try:
         return import_od(spec, node_id=node or None)
     except OdFileError as exc:
-        raise _usage(f"--od {exc}") from None
+        raise UsageError(f"--od {exc}") from None
     except OSError as exc:
-        raise _usage(f"--od {spec}: {exc.strerror or exc}") from None
+        raise UsageError(f"--od {spec}: {exc.strerror or exc}") from None
 
 
 def _check_common(args: argparse.Namespace, node: int) -> None:
     if args.classic and node == 0:
-        raise _usage(f"NODE 0 (broadcast) is USDO's: classic SDO talks to one node at a time")
+        raise UsageError(f"NODE 0 (broadcast) is USDO's: classic SDO talks to one node at a time")
     if not 1 <= args.client_id <= 127:
-        raise _usage(f"--client-id {args.client_id} outside 1..127")
+        raise UsageError(f"--client-id {args.client_id} outside 1..127")
     if node == args.client_id and not args.classic:
-        raise _usage(f"NODE {node} is our own USDO client id: give the server's node-id, "
-                     "or another --client-id")
+        raise UsageError(f"NODE {node} is our own USDO client id: give the server's node-id, "
+                         "or another --client-id")
     if not (0 < args.timeout <= 3600):
-        raise _usage(f"--timeout {args.timeout:g} s outside (0, 3600]")
+        raise UsageError(f"--timeout {args.timeout:g} s outside (0, 3600]")
 
 
 @contextlib.contextmanager
 def _client_line(args: argparse.Namespace) -> Iterator[Any]:
     """The fd line named by the line options, our USDO client on it as
     --client-id; closed at the end (unless the network was handed in)."""
-    owned: list = []
-    net = _cli._network(args)
-    try:
-        line = _cli._open_line(net, args, owned)
+    with command_line(args) as line:
         if line.mode == "fd":
             _client(line).client_id = args.client_id
         yield line
-    finally:
-        _cli._shutdown(_cli._owned(net, args), owned)
 
 
 def _client(line: Any) -> Any:
@@ -533,7 +453,7 @@ def _failed(exc: AbortError) -> int:
     text = str(exc)
     if isinstance(exc.__cause__, OSError):
         text += f" ({exc.__cause__.strerror or exc.__cause__})"
-    print(f"canopenfd: error: {text}", file=sys.stderr)
+    print_error(text)
     return EXIT_FAILED
 
 
@@ -570,7 +490,7 @@ def _broadcast_report(answers: Dict[int, Any], window: float,
                       show: Callable[[Any], str]) -> int:
     """One line per answering node; exit 1 when none answered or all refused."""
     if not answers:
-        print(f"canopenfd: error: no node answered within {window:g} s", file=sys.stderr)
+        print_error(f"no node answered within {window:g} s")
         return EXIT_FAILED
     for node in sorted(answers):
         answer = answers[node]
@@ -589,19 +509,19 @@ def _encode_value(args: argparse.Namespace, index: int, sub: int,
         try:
             return _encode(dtype, parse_value(dtype, args.value)), dtype
         except OdValueError as exc:
-            raise _usage(f"VALUE {args.value!r} is no {dtype.name}: {exc}") from None
+            raise UsageError(f"VALUE {args.value!r} is no {dtype.name}: {exc}") from None
     if variable is None:
         if args.od is not None:
-            raise _usage(f"write {place}: the entry is not in {args.od}, so VALUE has no "
-                         "type: give --type (--type DOMAIN for raw hex bytes)")
-        raise _usage(f"write {place}: VALUE needs a type: give --type or --od "
-                     "(--type DOMAIN for raw hex bytes)")
+            raise UsageError(f"write {place}: the entry is not in {args.od}, so VALUE has no "
+                             "type: give --type (--type DOMAIN for raw hex bytes)")
+        raise UsageError(f"write {place}: VALUE needs a type: give --type or --od "
+                         "(--type DOMAIN for raw hex bytes)")
     dtype = variable.data_type
     try:
         return variable.encode_raw(parse_value(dtype, args.value)), dtype
     except OdValueError as exc:
-        raise _usage(f"VALUE {args.value!r} for {variable.where} {variable.qualname} "
-                     f"({dtype.name}): {exc.problem}") from None
+        raise UsageError(f"VALUE {args.value!r} for {variable.where} {variable.qualname} "
+                         f"({dtype.name}): {exc.problem}") from None
 
 
 def cmd_write(args: argparse.Namespace) -> int:
@@ -611,8 +531,8 @@ def cmd_write(args: argparse.Namespace) -> int:
     index, sub, variable = parse_key(args.key, od)
     data, dtype = _encode_value(args, index, sub, variable)
     if node == 0 and len(data) > EXPEDITED_MAX:
-        raise _usage(f"write to every node (NODE 0): {len(data)} bytes, a broadcast "
-                     f"carries at most {EXPEDITED_MAX}")
+        raise UsageError(f"write to every node (NODE 0): {len(data)} bytes, a broadcast "
+                         f"carries at most {EXPEDITED_MAX}")
     with _client_line(args) as line:
         try:
             if node == 0:
@@ -657,19 +577,19 @@ def cmd_download(args: argparse.Namespace) -> int:
     try:
         source = open(args.file, "rb")
     except OSError as exc:
-        raise _usage(f"FILE {args.file}: {exc.strerror or exc}") from None
+        raise UsageError(f"FILE {args.file}: {exc.strerror or exc}") from None
     with source:
         info = os.fstat(source.fileno())
         if not stat.S_ISREG(info.st_mode):
-            raise _usage(f"FILE {args.file} is not a regular file (its size must be known "
-                         "before the transfer)")
+            raise UsageError(f"FILE {args.file} is not a regular file (its size must be known "
+                             "before the transfer)")
         size = info.st_size
         if size > TRANSFER_MAX:
-            raise _usage(f"FILE {args.file}: {size} bytes; a transfer moves at most "
-                         f"{TRANSFER_MAX}")
+            raise UsageError(f"FILE {args.file}: {size} bytes; a transfer moves at most "
+                             f"{TRANSFER_MAX}")
         if args.mode == "expedited" and size > EXPEDITED_MAX:
-            raise _usage(f"--mode expedited carries at most {EXPEDITED_MAX} bytes; "
-                         f"{args.file} has {size}")
+            raise UsageError(f"--mode expedited carries at most {EXPEDITED_MAX} bytes; "
+                             f"{args.file} has {size}")
         bar = ProgressBar("download", size) if _show_progress(args) else None
         try:
             with _client_line(args) as line:
@@ -703,14 +623,14 @@ def _output_file(path: str) -> Iterator[Any]:
     FILE itself when it exists and is no regular file (a device, a FIFO)."""
     folder = os.path.dirname(os.path.abspath(path))
     if os.path.isdir(path):
-        raise _usage(f"FILE {path} is a directory")
+        raise UsageError(f"FILE {path} is a directory")
     if not os.path.isdir(folder):
-        raise _usage(f"FILE {path}: directory {folder} does not exist")
+        raise UsageError(f"FILE {path}: directory {folder} does not exist")
     if os.path.exists(path) and not stat.S_ISREG(os.stat(path).st_mode):
         try:
             target = open(path, "wb")
         except OSError as exc:
-            raise _usage(f"FILE {path}: {exc.strerror or exc}") from None
+            raise UsageError(f"FILE {path}: {exc.strerror or exc}") from None
         with target:
             yield target
         return
@@ -718,7 +638,7 @@ def _output_file(path: str) -> Iterator[Any]:
         handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.",
                                              suffix=".part")
     except OSError as exc:
-        raise _usage(f"FILE {path}: {exc.strerror or exc}") from None
+        raise UsageError(f"FILE {path}: {exc.strerror or exc}") from None
     done = False
     try:
         with os.fdopen(handle, "wb") as target:
