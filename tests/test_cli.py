@@ -150,6 +150,38 @@ def test_nmt_and_monitor_on_in_process_and_virtual_buses():
     assert result.returncode == 0, result.stderr
 
 
+def _cli_actions():
+    """(command path, argparse action) of every argument of every command."""
+    import argparse
+
+    from canopenfd.cli import build_parser
+
+    def walk(parser, path):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, child in action.choices.items():
+                    yield from walk(child, path + (name,))
+            else:
+                yield path, action
+
+    return list(walk(build_parser(), ()))
+
+
+def test_every_argument_has_a_help_text():
+    missing = [" ".join(path + (action.option_strings[-1] if action.option_strings
+                                else action.dest,))
+               for path, action in _cli_actions() if not action.help]
+    assert missing == []
+
+
+def test_timeout_help_mentions_node_0_only_where_node_0_is_allowed():
+    timeouts = {path[0]: action.help for path, action in _cli_actions()
+                if "--timeout" in action.option_strings and path[0] != "nmt"}
+    assert set(timeouts) == {"read", "write", "download", "upload"}
+    for command, text in timeouts.items():
+        assert ("NODE 0" in text) == (command in ("read", "write")), (command, text)
+
+
 def test_main_in_process(capsys):
     from canopenfd.cli import main
 

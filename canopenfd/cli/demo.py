@@ -19,7 +19,9 @@ from .common import EXIT_FAILED, EXIT_OK, Printer, UsageError
 
 def add_parsers(subparsers: Any) -> None:
     p = subparsers.add_parser("demo", help="two nodes on an in-process CAN FD bus (no hardware)")
-    p.add_argument("--duration", type=float, default=3.0, metavar="SECONDS")
+    p.add_argument("--duration", type=float, default=3.0, metavar="SECONDS",
+                   help="how long the NMT and heartbeat part runs before the USDO/SDO and "
+                        "process-data parts (default 3)")
     p.add_argument("--classic", action="store_true",
                    help="classic CAN bus instead (SDO, 8-byte PDOs, classic EMCY)")
     p.set_defaults(func=cmd_demo)

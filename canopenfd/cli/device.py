@@ -23,7 +23,8 @@ _SIZE_UNITS = {None: 1, "b": 1, "k": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mib
 def add_parsers(subparsers: Any) -> None:
     p = subparsers.add_parser("device", help="run a local node until interrupted")
     add_line_options(p)
-    p.add_argument("--node-id", type=int, required=True)
+    p.add_argument("--node-id", type=int, required=True, metavar="N",
+                   help="the node's node-id 1..127")
     p.add_argument("--od", metavar="FILE",
                    help="object dictionary to serve: an EDS, DCF, XDD or XDC file, or "
                         "builtin:fd / builtin:classic (default: the built-in demo dictionary "
@@ -38,7 +39,8 @@ def add_parsers(subparsers: Any) -> None:
                    help="keep DOMAIN entry INDEX[:SUB] (hex, or a name) in memory of BYTES "
                         "(like 16M, 512K, 0x100000), so USDO/SDO uploads and downloads reach "
                         "it; repeatable (the built-in fd dictionary has 0x2100 = 16M already)")
-    p.add_argument("--duration", type=float, metavar="SECONDS")
+    p.add_argument("--duration", type=float, metavar="SECONDS",
+                   help="stop after SECONDS (default: run until Ctrl-C)")
     p.set_defaults(func=cmd_device)
 
 

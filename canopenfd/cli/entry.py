@@ -21,7 +21,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="canopenfd", description="CANopen FD / classic CANopen tools")
     parser.add_argument("--version", action="version", version=f"canopenfd {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log to stderr")
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="log the stack's messages (debug level) to stderr")
     sub = parser.add_subparsers(dest="cmd", metavar="COMMAND")
     sub.required = True
     for group in COMMAND_GROUPS:

@@ -20,7 +20,8 @@ def add_parsers(subparsers: Any) -> None:
                    help="object dictionary (EDS, DCF, XDD or XDC) of node NODE: its PDOs "
                         "are shown as name=value by their mapping; NODE may be left out when "
                         "the file names its node-id (DCF, XDC); repeatable, one per node")
-    p.add_argument("--duration", type=float, metavar="SECONDS")
+    p.add_argument("--duration", type=float, metavar="SECONDS",
+                   help="stop after SECONDS (default: run until Ctrl-C)")
     p.add_argument("--count", type=int, metavar="N", help="stop after N frames")
     p.set_defaults(func=cmd_monitor)
 

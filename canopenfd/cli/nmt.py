@@ -22,11 +22,14 @@ _NMT_CHOICES = {
 
 def add_parsers(subparsers: Any) -> None:
     p = subparsers.add_parser("nmt", help="send one NMT command")
-    p.add_argument("command", choices=list(_NMT_CHOICES))
-    p.add_argument("target", metavar="NODE|all", help="node-id 1..127, or all")
+    p.add_argument("command", choices=list(_NMT_CHOICES),
+                   help="start (operational), stop, preop (pre-operational), reset-node "
+                        "or reset-comm (reset communication)")
+    p.add_argument("target", metavar="NODE|all",
+                   help="node-id 1..127, or all (or 0) for every node")
     add_line_options(p)
     p.add_argument("--timeout", type=float, default=2.0, metavar="SECONDS",
-                   help="how long to wait for the frame to go out")
+                   help="how long to wait for the frame to go out (default 2)")
     p.set_defaults(func=cmd_nmt)
 
 

@@ -45,9 +45,11 @@ def add_parsers(subparsers: Any) -> argparse.ArgumentParser:
         action.add_argument("file", metavar="FILE",
                             help="EDS, DCF, XDD or XDC file, or builtin:fd / builtin:classic")
         action.add_argument("--node-id", type=int, metavar="N",
-                            help="resolve $NODEID with this node-id (default: the DCF/XDC's)")
+                            help="resolve $NODEID with this node-id 1..127 (default: the "
+                                 "DCF/XDC's)")
         action.add_argument("--mode", choices=("fd", "classic"),
-                            help="the kind of line the device is for (default: guessed)")
+                            help="the kind of line the device is for (default: guessed from "
+                                 "the file; builtin:fd / builtin:classic name it)")
         action.set_defaults(func=cmd_od_show if name == "show" else cmd_od_check)
     return parser
 

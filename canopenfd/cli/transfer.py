@@ -77,44 +77,51 @@ _FALSE = ("0", "false", "off", "no")
 def add_parsers(subparsers: Any) -> None:
     """Register read, write, download and upload on the main parser's subparsers."""
     key_help = "entry: INDEX[:SUB] in hex (0x1018:1), or a name from --od"
+    unicast_help = "node-id 1..127 (decimal or 0x hex)"
+    broadcast_help = ("node-id 1..127 (decimal or 0x hex), or 0: every node (USDO "
+                      "broadcast, not with --classic)")
+    answer_help = ("how long to wait for each answer of the server (default "
+                   f"{DEFAULT_TIMEOUT_S:g})")
+    window_help = ("how long to wait for each answer of the server (default "
+                   f"{DEFAULT_TIMEOUT_S:g}; with NODE 0 how long to collect the answers)")
 
-    def transfer_options(p: argparse.ArgumentParser) -> None:
+    def transfer_options(p: argparse.ArgumentParser, timeout_help: str, od_use: str) -> None:
         add_line_options(p)
         p.add_argument("--client-id", type=int, default=DEFAULT_CLIENT_ID, metavar="N",
                        help=f"our USDO client node-id 1..127 (default {DEFAULT_CLIENT_ID}; "
                             "fd lines only)")
         p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
-                       help="how long to wait for each answer of the server (default "
-                            f"{DEFAULT_TIMEOUT_S:g}; with NODE 0 how long to collect answers)")
+                       help=timeout_help)
         p.add_argument("--od", metavar="FILE",
-                       help="the remote node's EDS/DCF/XDD/XDC (or builtin:fd): names for "
-                            "INDEX, and typed values")
+                       help="the remote node's EDS/DCF/XDD/XDC, or builtin:fd / "
+                            f"builtin:classic: {od_use}")
 
     p = subparsers.add_parser("read", help="read one entry of a node (USDO, or SDO with "
                                            "--classic) and print it")
-    p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
+    p.add_argument("node", metavar="NODE", help=broadcast_help)
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("--type", metavar="T",
                    help=f"print the value as this type ({_TYPE_HINT}); default: the type "
                         "from --od, else raw hex bytes")
-    transfer_options(p)
+    transfer_options(p, window_help, "names for INDEX, and the value's type")
     p.set_defaults(func=cmd_read)
 
     p = subparsers.add_parser("write", help="write one entry of a node (USDO, or SDO with "
                                             "--classic)")
-    p.add_argument("node", metavar="NODE", help="node-id 1..127, or 0: every node (broadcast)")
+    p.add_argument("node", metavar="NODE", help=broadcast_help)
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("value", metavar="VALUE",
-                   help="integers in decimal or 0x hex, strings as text, OCTET_STRING / "
-                        "DOMAIN as hex bytes ('01 02 ff' or 0102ff)")
+                   help="integers in decimal or 0x hex, booleans true/false, strings as "
+                        "text, OCTET_STRING / DOMAIN as hex bytes ('01 02 ff' or 0102ff), "
+                        "TIME_OF_DAY like 2024-05-01T12:00:00, TIME_DIFFERENCE in ms")
     p.add_argument("--type", metavar="T",
                    help=f"the value's type ({_TYPE_HINT}); default: the type from --od")
-    transfer_options(p)
+    transfer_options(p, window_help, "names for INDEX, and the value's type")
     p.set_defaults(func=cmd_write)
 
     p = subparsers.add_parser("download", help="send a file's contents to an entry (USDO, "
                                                "or SDO with --classic)")
-    p.add_argument("node", metavar="NODE", help="node-id 1..127")
+    p.add_argument("node", metavar="NODE", help=unicast_help)
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to send")
     p.add_argument("--mode", choices=list(MODES), default="auto",
@@ -123,17 +130,18 @@ def add_parsers(subparsers: Any) -> None:
                         "segmented below 1 KiB, block above); bulk is USDO's, block SDO's")
     p.add_argument("--progress", action="store_true",
                    help="show the progress bar on stderr even when it is no terminal")
-    transfer_options(p)
+    transfer_options(p, answer_help, "names for INDEX")
     p.set_defaults(func=cmd_download)
 
     p = subparsers.add_parser("upload", help="read an entry into a file (USDO, or SDO with "
                                              "--classic)")
-    p.add_argument("node", metavar="NODE", help="node-id 1..127")
+    p.add_argument("node", metavar="NODE", help=unicast_help)
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to write (replaced once complete)")
     p.add_argument("--progress", action="store_true",
-                   help="show the progress on stderr even when it is no terminal")
-    transfer_options(p)
+                   help="show the progress (bytes, rate) on stderr even when it is no "
+                        "terminal")
+    transfer_options(p, answer_help, "names for INDEX")
     p.set_defaults(func=cmd_upload)
 
 
