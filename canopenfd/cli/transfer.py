@@ -427,8 +427,9 @@ def _check_common(args: argparse.Namespace, node: int) -> None:
 
 @contextlib.contextmanager
 def _client_line(args: argparse.Namespace) -> Iterator[Any]:
-    """The fd line named by the line options, our USDO client on it as
-    --client-id; closed at the end (unless the network was handed in)."""
+    """The line named by the line options (our USDO client on it as
+    --client-id on fd lines); closed at the end (unless the network was
+    handed in)."""
     with command_line(args) as line:
         if line.mode == "fd":
             _client(line).client_id = args.client_id
@@ -545,12 +546,12 @@ def cmd_write(args: argparse.Namespace) -> int:
         try:
             if node == 0:
                 transfer = _client(line).start_download(0, index, sub, data, mode="expedited",
-                                                    data_type=int(dtype),
-                                                    timeout=args.timeout)
+                                                        data_type=int(dtype),
+                                                        timeout=args.timeout)
             else:
                 transfer = _client(line).start_download(node, index, sub, data,
-                                                    data_type=int(dtype),
-                                                    timeout=args.timeout)
+                                                        data_type=int(dtype),
+                                                        timeout=args.timeout)
             result = _wait(transfer)
         except AbortError as exc:
             return _failed(exc)
@@ -606,8 +607,8 @@ def cmd_download(args: argparse.Namespace) -> int:
                     bar.start()
                 try:
                     transfer = _client(line).start_download(node, index, sub, source,
-                                                        mode=args.mode, timeout=args.timeout,
-                                                        progress=bar)
+                                                            mode=args.mode, timeout=args.timeout,
+                                                            progress=bar)
                     _wait(transfer)
                 except AbortError as exc:
                     if bar is not None:
@@ -697,7 +698,7 @@ def cmd_upload(args: argparse.Namespace) -> int:
                 bar.start()
             try:
                 transfer = _client(line).start_upload(node, index, sub, file=target,
-                                                  timeout=args.timeout, progress=bar)
+                                                      timeout=args.timeout, progress=bar)
                 _wait(transfer)
             except AbortError as exc:
                 if bar is not None:
