@@ -175,6 +175,7 @@ static inline void co_line_set_time(co_line_t *line, uint64_t now_us)
     }
 }
 
+static inline co_mode_t co_line_mode(const co_line_t *line) { return line->mode; }
 static inline co_timer_list_t *co_line_timers(co_line_t *line) { return &line->timers; }
 
 #endif
