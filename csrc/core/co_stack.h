@@ -42,7 +42,6 @@
 
 #include <stddef.h>
 
-/* cffi:begin */
 /* What a co_stack call says when it refuses. */
 typedef enum co_stack_status {
     CO_STACK_OK = 0,
@@ -70,7 +69,6 @@ typedef enum co_stack_part {
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
     CO_STACK_PART_CLIENT = 12    /* SDO client channels (classic) or USDO sessions (fd) */
 } co_stack_part_t;
-/* cffi:end */
 
 typedef struct co_stack co_stack_t;
 
@@ -251,6 +249,7 @@ static inline co_guard_master_t *co_stack_guard_master(co_stack_t *s)
 {
     return s->has_guard_master ? &s->guard_master : NULL;
 }
+static inline bool co_stack_has_node(const co_stack_t *s) { return s->has_node; }
 static inline co_node_t *co_stack_node(co_stack_t *s) { return s->has_node ? &s->node : NULL; }
 static inline co_od_t *co_stack_od(co_stack_t *s) { return s->has_node ? s->od : NULL; }
 static inline co_store_t *co_stack_store(co_stack_t *s) { return s->has_store ? &s->store : NULL; }
