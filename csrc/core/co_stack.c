@@ -120,9 +120,21 @@ static uint8_t hb_entries_of(const co_stack_line_config_t *c)
                                        : (uint8_t)CO_STACK_DEFAULT_HB_ENTRIES;
 }
 
+/* Whether this build runs lines of that kind (co_stack.h: CO_CONFIG_*); the
+ * constant conditions let a one-kind build drop the other kind's services. */
+static bool mode_built(co_mode_t mode)
+{
+    return mode == CO_MODE_FD ? CO_CONFIG_FD != 0 : CO_CONFIG_CLASSIC != 0;
+}
+
+static bool is_fd(const co_line_t *line)
+{
+    return CO_CONFIG_FD && (!CO_CONFIG_CLASSIC || co_line_mode(line) == CO_MODE_FD);
+}
+
 static uint8_t guarded_of(const co_line_t *line, const co_stack_line_config_t *c)
 {
-    return (c && co_line_mode(line) == CO_MODE_CLASSIC) ? c->guarded_nodes : 0;
+    return (c && !is_fd(line)) ? c->guarded_nodes : 0;
 }
 
 static void line_plan(const co_line_t *line, const co_stack_line_config_t *c, plan_t *p)
@@ -180,7 +192,7 @@ static bool node_sizes(const co_line_t *line, const co_stack_node_config_t *c, n
         n->store_capacity = c->store_image_capacity ? c->store_image_capacity
                                                     : co_store_image_need(c->od);
     }
-    if (co_line_mode(line) == CO_MODE_FD) {
+    if (is_fd(line)) {
         n->servers = c->server_sessions ? c->server_sessions
                                         : (uint32_t)CO_STACK_DEFAULT_SERVER_SESSIONS;
         n->server_scratch = co_usdo_server_scratch_need(c->od);
@@ -193,8 +205,7 @@ static bool node_sizes(const co_line_t *line, const co_stack_node_config_t *c, n
 
 static size_t server_entry_size(const co_line_t *line)
 {
-    return co_line_mode(line) == CO_MODE_FD ? sizeof(co_usdo_session_t)
-                                            : sizeof(co_sdo_channel_t);
+    return is_fd(line) ? sizeof(co_usdo_session_t) : sizeof(co_sdo_channel_t);
 }
 
 static void node_plan(const co_line_t *line, const node_sizes_t *n, bool has_od, plan_t *p)
@@ -228,8 +239,7 @@ size_t co_stack_node_need(const co_line_t *line, const co_stack_node_config_t *c
 
 static size_t client_entry_size(const co_line_t *line)
 {
-    return co_line_mode(line) == CO_MODE_FD ? sizeof(co_usdo_client_session_t)
-                                            : sizeof(co_sdo_client_channel_t);
+    return is_fd(line) ? sizeof(co_usdo_client_session_t) : sizeof(co_sdo_client_channel_t);
 }
 
 size_t co_stack_client_need(const co_line_t *line, const co_stack_client_config_t *config)
@@ -301,7 +311,7 @@ static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t eve
 
 static void line_undo(co_stack_t *s)
 {
-    if (s->has_guard_master) {
+    if (CO_CONFIG_CLASSIC && s->has_guard_master) {
         co_hb_consumer_set_filter(&s->hb_consumer, NULL, NULL);
         co_guard_master_deinit(&s->guard_master);
         s->has_guard_master = false;
@@ -318,7 +328,7 @@ co_stack_status_t co_stack_init(co_stack_t *stack, co_line_t *line,
                                 const co_stack_line_config_t *config,
                                 co_stack_allocator_t allocator)
 {
-    if (!stack || !line || !allocator.allocate) {
+    if (!stack || !line || !allocator.allocate || !mode_built(co_line_mode(line))) {
         return CO_STACK_ERR_ARGUMENT;
     }
     memset(stack, 0, sizeof *stack);
@@ -355,8 +365,8 @@ co_stack_status_t co_stack_init(co_stack_t *stack, co_line_t *line,
                                              : NULL;
             if (guarded && !nodes) {
                 status = CO_STACK_ERR_NO_MEMORY;
-            } else if (!guarded || co_guard_master_init(&s->guard_master, line, nodes, guarded,
-                                                        on_guard, s)) {
+            } else if (!guarded || (CO_CONFIG_CLASSIC && co_guard_master_init(&s->guard_master, line, nodes, guarded,
+                                                        on_guard, s))) {
                 if (guarded) {
                     /* the master takes its nodes' answers before the consumer */
                     co_hb_consumer_set_filter(&s->hb_consumer, co_guard_master_receive,
@@ -381,10 +391,10 @@ static bool od_has(const co_stack_t *s, uint16_t index)
 /* Undo co_stack_node_init, part by part (each flag says what is running). */
 static void node_undo(co_stack_t *s)
 {
-    if (s->has_sdo_client && s->sdo_client.od) {
+    if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
         co_stack_client_deinit(s);   /* bound to the node's OD */
     }
-    if (s->has_guard_slave) {
+    if (CO_CONFIG_CLASSIC && s->has_guard_slave) {
         co_guard_slave_deinit(&s->guard_slave);
         s->has_guard_slave = false;
     }
@@ -402,11 +412,11 @@ static void node_undo(co_stack_t *s)
     co_time_detach_od(&s->time);
     co_time_set_nmt_state(&s->time, CO_NMT_PRE_OPERATIONAL);
     co_emcy_consumer_detach_od(&s->emcy_consumer);
-    if (s->has_usdo_server) {
+    if (CO_CONFIG_FD && s->has_usdo_server) {
         co_usdo_server_deinit(&s->usdo_server);
         s->has_usdo_server = false;
     }
-    if (s->has_sdo_server) {
+    if (CO_CONFIG_CLASSIC && s->has_sdo_server) {
         co_sdo_server_deinit(&s->sdo_server);
         s->has_sdo_server = false;
     }
@@ -429,13 +439,13 @@ static co_stack_status_t serve_od(co_stack_t *s, const node_sizes_t *n)
     if (!table || !scratch) {
         return fail(s, CO_STACK_PART_SERVER, CO_STACK_ERR_NO_MEMORY);
     }
-    if (co_line_mode(s->line) == CO_MODE_FD) {
+    if (is_fd(s->line)) {
         co_usdo_server_config_t config = {.sessions = table,
                                           .session_count = (uint8_t)n->servers,
                                           .scratch = scratch,
                                           .scratch_size = n->server_scratch};
         s->has_usdo_server = co_usdo_server_init(&s->usdo_server, s->line, s->od, &config);
-    } else {
+    } else if (CO_CONFIG_CLASSIC) {
         co_sdo_server_config_t config = {.channels = table,
                                          .channel_count = (uint8_t)n->servers,
                                          .scratch = scratch,
@@ -537,7 +547,7 @@ static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_con
             status = start_pdo(s, n);
             services.pdo = &s->pdo;
         }
-        if (status == CO_STACK_OK && co_line_mode(s->line) == CO_MODE_CLASSIC) {
+        if (CO_CONFIG_CLASSIC && status == CO_STACK_OK && !is_fd(s->line)) {
             s->has_guard_slave = co_guard_slave_init(&s->guard_slave, s->line, &s->node.nmt,
                                                      co_node_guard_life, &s->node);
             if (!s->has_guard_slave || !co_guard_slave_attach_od(&s->guard_slave, s->od)) {
@@ -620,7 +630,7 @@ co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_
     if (s->has_usdo_client || s->has_sdo_client) {
         return fail(s, CO_STACK_PART_CLIENT, CO_STACK_ERR_STATE);
     }
-    bool fd = co_line_mode(s->line) == CO_MODE_FD;
+    bool fd = is_fd(s->line);
     if (fd && (config->node_id < 1 || config->node_id > 127)) {
         return fail(s, CO_STACK_PART_CLIENT, CO_STACK_ERR_ARGUMENT);
     }
@@ -634,7 +644,7 @@ co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_
                                      .node_id = config->node_id,
                                      .timeout_ms = config->timeout_ms};
         s->has_usdo_client = co_usdo_client_init(&s->usdo_client, s->line, &c);
-    } else {
+    } else if (CO_CONFIG_CLASSIC) {
         /* a local node's 0x1280.. channels come with it */
         co_sdo_client_config_t c = {.channels = table,
                                     .channel_count = config->sessions,
@@ -651,11 +661,11 @@ co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_
 
 void co_stack_client_deinit(co_stack_t *stack)
 {
-    if (stack->has_usdo_client) {
+    if (CO_CONFIG_FD && stack->has_usdo_client) {
         co_usdo_client_deinit(&stack->usdo_client);
         stack->has_usdo_client = false;
     }
-    if (stack->has_sdo_client) {
+    if (CO_CONFIG_CLASSIC && stack->has_sdo_client) {
         co_sdo_client_deinit(&stack->sdo_client);
         stack->has_sdo_client = false;
     }

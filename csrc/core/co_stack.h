@@ -42,6 +42,17 @@
 
 #include <stddef.h>
 
+/* Which kinds of line the stack is built for (both by default). A build for
+ * one kind links none of the other's services (SDO server/client and
+ * guarding for classic lines, USDO server/client for fd lines); a line of
+ * the other kind is refused with CO_STACK_ERR_ARGUMENT. */
+#ifndef CO_CONFIG_CLASSIC
+#define CO_CONFIG_CLASSIC 1
+#endif
+#ifndef CO_CONFIG_FD
+#define CO_CONFIG_FD 1
+#endif
+
 /* What a co_stack call says when it refuses. */
 typedef enum co_stack_status {
     CO_STACK_OK = 0,
@@ -276,7 +287,13 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
     return s->has_sdo_client ? &s->sdo_client : NULL;
 }
 
-/* ---- compile-time bound of a node's memory, for static builds:
+/* ---- compile-time bounds, for static builds: a line's memory from its
+ * configuration (guarded_nodes counts on classic lines only), */
+#define CO_STACK_LINE_MEMORY(hb_entries, guarded_nodes)                                 \
+    (CO_STACK_BLOCK(sizeof(co_hb_entry_t) * (hb_entries)) +                             \
+     ((guarded_nodes) ? CO_STACK_BLOCK(sizeof(co_guard_node_t) * (guarded_nodes)) : 0u))
+
+/* ---- and a node's, for static builds:
  * pdo_channels / map_items as co_pdo_need says for the OD (RPDOs + TPDOs,
  * and their mapping sub-entries), largest_entry = the OD's largest
  * entry size in bytes (co_od_entry_t.size), store_image = co_store_image_need (0 without a
