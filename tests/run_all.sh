@@ -49,6 +49,9 @@ status=0
 say "C unit tests (plain, then ASan+UBSan)"
 make -C tests/c 2>&1 | tee "$RESULTS/c-tests.txt"
 [ "${PIPESTATUS[0]}" = 0 ] || status=1
+# The C-only example device; built here because the vcan lane runs it and
+# the VM sees the tree read-only (tests/test_c_example.py checks it).
+make -s -C examples/c linux || status=1
 
 # ---------------------------------------------------------------- 3. pytest
 # The venv's pytest (not `python -m pytest`) so the installed package is

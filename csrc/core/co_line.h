@@ -148,6 +148,19 @@ void co_line_tx_space_unregister(co_line_t *line, co_tx_space_fn fn, void *user)
 bool co_line_receive(co_line_t *line, const co_frame_t *frame);
 /* Driver side: next frame to transmit, false when none. */
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out);
+/* Driver side: the next frame to transmit without taking it (a driver that
+ * may be refused by its controller takes it with co_line_tx_pop once sent);
+ * false when none. */
+static inline bool co_line_tx_peek(const co_line_t *line, co_frame_t *out)
+{
+    const co_frame_t *f = co_queue_peek(&line->tx);
+    if (f) {
+        *out = *f;
+    }
+    return f != NULL;
+}
+/* Frames waiting in the tx queue. */
+static inline uint32_t co_line_tx_count(const co_line_t *line) { return co_queue_count(&line->tx); }
 /* Driver side: report a communication-state change. */
 void co_line_comm_event(co_line_t *line, co_comm_event_t event);
 
@@ -175,6 +188,8 @@ static inline void co_line_set_time(co_line_t *line, uint64_t now_us)
     }
 }
 
+static inline co_mode_t co_line_mode(const co_line_t *line) { return line->mode; }
+static inline uint64_t co_line_now(const co_line_t *line) { return line->now_us; }
 static inline co_timer_list_t *co_line_timers(co_line_t *line) { return &line->timers; }
 
 #endif

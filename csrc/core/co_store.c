@@ -525,3 +525,12 @@ bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend
         return false;
     return true;
 }
+
+void co_store_deinit(co_store_t *s)
+{
+    if (s->od) {
+        co_od_unsubscribe(s->od, &save_handler, s);
+        co_od_unsubscribe(s->od, &restore_handler, s);
+        s->od = NULL;
+    }
+}

@@ -60,6 +60,8 @@ uint32_t co_store_image_need(const co_od_t *od);
  * on a bad argument, an unsealed OD, a small buffer or no subscription room. */
 bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend, void *user,
                    uint8_t *buffer, uint32_t buffer_size);
+/* Unhook 0x1010/0x1011 (the OD outlives the store). */
+void co_store_deinit(co_store_t *s);
 /* 0x1010: save the CO_STORE entries of the groups in group_mask (the other
  * groups keep what was saved before). 0 or an abort code. */
 uint32_t co_store_save(co_store_t *s, uint8_t group_mask);

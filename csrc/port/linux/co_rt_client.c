@@ -56,10 +56,8 @@ typedef struct rt_req {
 typedef struct rt_client {
     bool fd;                           /* USDO (fd line) or SDO (classic line) */
     bool closing;                      /* freeing: done() posts nothing */
-    co_usdo_client_t usdo;
-    co_usdo_client_session_t usdo_sessions[RT_USDO_CLIENT_SESSIONS];
-    co_sdo_client_t sdo;
-    co_sdo_client_channel_t sdo_channels[RT_SDO_CLIENT_CHANNELS];
+    co_usdo_client_t *usdo;            /* the stack's client of the line's kind */
+    co_sdo_client_t *sdo;
     rt_req_t reqs[RT_CLIENT_REQUESTS];
 } rt_client_t;
 
@@ -233,19 +231,17 @@ static void req_clear(rt_req_t *r)
     r->fd = -1;
 }
 
-static bool client_init(rt_client_t *c, rt_line_t *l, uint8_t node_id)
+/* The stack's client: USDO sessions on fd lines, SDO channels on classic
+ * lines (the local node's 0x1280.. channels first when it serves an OD). */
+static co_stack_status_t client_init(rt_client_t *c, rt_line_t *l, uint8_t node_id)
 {
-    if (c->fd) {
-        co_usdo_client_config_t config = {.sessions = c->usdo_sessions,
-                                          .session_count = RT_USDO_CLIENT_SESSIONS,
-                                          .node_id = node_id};
-        return co_usdo_client_init(&c->usdo, &l->line, &config);
-    }
-    /* OD-bound channels (0x1280..) when the local node serves an OD */
-    co_sdo_client_config_t config = {.channels = c->sdo_channels,
-                                     .channel_count = RT_SDO_CLIENT_CHANNELS,
-                                     .od = (l->has_od && l->od.sealed) ? &l->od : NULL};
-    return co_sdo_client_init(&c->sdo, &l->line, &config);
+    co_stack_client_config_t config = {
+        .sessions = c->fd ? RT_USDO_CLIENT_SESSIONS : RT_SDO_CLIENT_CHANNELS,
+        .node_id = node_id};
+    co_stack_status_t status = co_stack_client_init(&l->stack, &config);
+    c->usdo = co_stack_usdo_client(&l->stack);
+    c->sdo = co_stack_sdo_client(&l->stack);
+    return status;
 }
 
 /* Under rt->lock: the line's client, created on first use. */
@@ -267,10 +263,13 @@ static rt_client_t *client_of(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
         c->reqs[i].line = l;
         c->reqs[i].fd = -1;
     }
-    if (!client_init(c, l, node_id)) {
+    co_stack_status_t status = client_init(c, l, node_id);
+    if (status != CO_STACK_OK) {
         free(c);
-        rt_set_error(rt, "line %d: %s client could not start (CAN-IDs 0x581..0x5FF taken?)",
-                     l->index, l->line.mode == CO_MODE_FD ? "USDO" : "SDO");
+        rt_set_error(rt, "line %d: %s client could not start (%s)", l->index,
+                     l->line.mode == CO_MODE_FD ? "USDO" : "SDO",
+                     status == CO_STACK_ERR_NO_MEMORY ? "no memory"
+                                                      : "CAN-IDs 0x581..0x5FF taken?");
         return NULL;
     }
     l->client = c;
@@ -284,11 +283,7 @@ void rt_client_free(rt_line_t *l)
         return;
     }
     c->closing = true;
-    if (c->fd) {
-        co_usdo_client_deinit(&c->usdo);
-    } else {
-        co_sdo_client_deinit(&c->sdo);
-    }
+    co_stack_client_deinit(&l->stack);
     for (uint32_t i = 0; i < RT_CLIENT_REQUESTS; i++) {
         req_clear(&c->reqs[i]);
     }
@@ -441,9 +436,9 @@ int co_rt_usdo_client(co_rt_t *rt, int line, int node_id)
     pthread_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     if (l->client) {
-        if (l->client->usdo.node_id != node_id) {
+        if (l->client->usdo->node_id != node_id) {
             rt_set_error(rt, "line %d: the USDO client already runs as node %d", line,
-                         l->client->usdo.node_id);
+                         l->client->usdo->node_id);
             status = CO_RT_ERR_STATE;
         }
     } else if (!client_of(rt, l, (uint8_t)node_id)) {
@@ -470,8 +465,8 @@ int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *
         status = c ? CO_RT_ERR_FULL : CO_RT_ERR_STATE;
     } else {
         co_line_set_time(&l->line, co_rt_now_us());
-        uint32_t code = c->fd ? co_usdo_client_start(&c->usdo, &r->core.usdo)
-                              : co_sdo_client_start(&c->sdo, &r->core.sdo);
+        uint32_t code = c->fd ? co_usdo_client_start(c->usdo, &r->core.usdo)
+                              : co_sdo_client_start(c->sdo, &r->core.sdo);
         if (code == 0) {
             r->used = true;
             r->running = true;
@@ -500,9 +495,9 @@ static void cancel(rt_line_t *l, rt_req_t *r, uint32_t code)
     rt_client_t *c = l->client;
     co_line_set_time(&l->line, co_rt_now_us());
     if (c->fd) {
-        co_usdo_client_cancel(&c->usdo, &r->core.usdo, (uint8_t)code);
+        co_usdo_client_cancel(c->usdo, &r->core.usdo, (uint8_t)code);
     } else {
-        co_sdo_client_cancel(&c->sdo, &r->core.sdo, code);
+        co_sdo_client_cancel(c->sdo, &r->core.sdo, code);
     }
 }
 

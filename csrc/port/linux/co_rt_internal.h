@@ -6,6 +6,7 @@
 
 #include "co_runtime.h"
 
+#include "../../core/co_stack.h"
 #include "../../core/co_node.h"
 #include "../../core/co_od.h"
 #include "../../core/co_store.h"
@@ -34,19 +35,13 @@ enum {
     RT_EPOLL_BATCH = 32,
     RT_ERROR_SIZE = 256,
     RT_CHANNEL_SIZE = 64,
-    RT_HB_ENTRIES = 127,
     RT_INDICATIONS = 16,          /* key ranges with Python indications */
     RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
-    /* node, store, servers, process-data and error services (16),
-     * indications, domains, app store (2) */
-    RT_OD_SUBSCRIPTIONS = 16 + RT_INDICATIONS + RT_DOMAINS + 2,
+    /* the stack's parts, indications, domains, app store (2) */
+    RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2,
     RT_GUARD_NODES = 32,          /* remote nodes guarded by a classic line */
-    RT_EMCY_QUEUE = 16,           /* EMCYs waiting for the inhibit time */
-    RT_EMCY_ACTIVE = 32,          /* errors active at once */
-    RT_EMCY_HISTORY = 254,        /* 0x1003 / 0x1032 entries at most */
     RT_PDO_WATCHES = 64,          /* CAN-IDs of other nodes' PDOs Python hears */
-    RT_REQUESTS = 32,             /* network accesses waiting on Python at once */
-    RT_USDO_SESSIONS = 8
+    RT_REQUESTS = 32              /* network accesses waiting on Python at once */
 };
 
 #define RT_REOPEN_US 500000u       /* retry period for a vanished interface */
@@ -133,15 +128,16 @@ typedef struct rt_line {
     int driver;
     bool monitor;
     bool allow_operational;
-    bool has_node;
     char channel[RT_CHANNEL_SIZE];
     co_line_t line;
     co_frame_t *rx_slots;
     co_frame_t *tx_slots;
     uint32_t rx_seen;      /* rx frames already posted as CO_EV_FRAME */
-    co_hb_consumer_t hb;
-    co_hb_entry_t hb_entries[RT_HB_ENTRIES];
-    co_node_t node;
+    /* The line's services and its local node, assembled by the core
+     * (co_stack): heartbeat consumer, SYNC, TIME, EMCY consumer, guarding
+     * master; the node with its EMCY producer, PDOs, guarding slave and
+     * SDO/USDO server; the client. */
+    co_stack_t stack;
     /* The local node's object dictionary (co_rt_od_define) and its store. */
     bool has_od;
     co_od_t od;
@@ -156,27 +152,8 @@ typedef struct rt_line {
     char *store_path;                /* file store, or NULL */
     rt_app_store_t app_store;        /* application store (instead of a file) */
     co_store_file_t *store_file;
-    uint8_t *store_buffer;
-    co_store_t store;
-    /* fd lines: the node's OD served over USDO. */
-    bool has_usdo;
-    co_usdo_server_t usdo;
-    co_usdo_session_t usdo_sessions[RT_USDO_SESSIONS];
-    uint8_t *usdo_scratch;
-    /* classic lines: the node's OD served over SDO (default channel and
-     * 0x1201.. channels of the OD). */
-    bool has_sdo;
-    co_sdo_server_t sdo;
-    co_sdo_channel_t *sdo_channels;
-    uint8_t *sdo_scratch;
     struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
     /* Process data and errors (co_rt_services.c). Per line: */
-    co_sync_t sync;
-    co_time_t time;
-    co_emcy_consumer_t emcy_consumer;
-    bool has_guard_master;           /* classic lines */
-    co_guard_master_t guard_master;
-    co_guard_node_t guard_nodes[RT_GUARD_NODES];
     bool sync_events;                /* Python hears every SYNC */
     /* PDOs of other nodes that Python hears (CO_EV_PDO_FRAME): CAN-ID, with
      * bit 29 for a 29-bit one; watch_of maps an 11-bit id to its slot + 1. */
@@ -185,18 +162,7 @@ typedef struct rt_line {
     uint8_t watch_count;
     uint8_t watch_of[CO_LINE_ID_MAP_SIZE];
     /* ... and per local node: */
-    bool has_emcy;
-    co_emcy_t emcy;
-    co_emcy_msg_t emcy_queue[RT_EMCY_QUEUE];
-    co_emcy_active_t emcy_active[RT_EMCY_ACTIVE];
-    uint32_t emcy_history[RT_EMCY_HISTORY];
-    bool has_pdo;                    /* the node has an OD */
-    co_pdo_t pdo;
-    co_pdo_channel_t *pdo_channels;
-    co_pdo_map_item_t *pdo_items;
     uint8_t pdo_listen[CO_PDO_MAX_NUMBER / 8];   /* RPDOs Python listens to */
-    bool has_guard_slave;
-    co_guard_slave_t guard_slave;
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -283,6 +249,14 @@ static inline bool rt_has_store(const rt_line_t *l)
     return l->store_path != NULL || l->app_store.enabled;
 }
 
+static inline bool rt_has_node(const rt_line_t *l)
+{
+    return co_stack_has_node(&l->stack);
+}
+
+/* Memory of the stack's parts (co_runtime.c): from the heap, at set-up only. */
+extern const co_stack_allocator_t rt_heap;
+
 /* co_rt_od.c */
 void rt_od_release(rt_line_t *l);
 /* Park a network access until the application answers (CO_EV_OD_REQUEST
@@ -294,17 +268,22 @@ void rt_od_drop_requests(rt_line_t *l);
 void rt_od_free_domains(rt_line_t *l);
 
 /* co_rt_services.c: process data and errors. */
+/* Before the stack: hear watched PDO frames before any service takes them. */
+bool rt_services_line_watch(rt_line_t *l);
+/* The stack's line indications that post to Python. */
+extern const co_stack_indications_t rt_services_indications;
+/* After the stack: Python hears SYNC through a listener. */
 bool rt_services_line_init(rt_line_t *l);
-/* The node's services, after its OD (if any) was attached; before boot. */
-int rt_services_node_attach(co_rt_t *rt, rt_line_t *l);
+/* A node that could not be created: forget what Python listened to. */
 void rt_services_node_detach(rt_line_t *l);
-void rt_services_free(rt_line_t *l);
 /* RPDO n was applied: posted to Python when it listens to it. */
 void rt_services_pdo_received(rt_line_t *l, uint16_t number);
 
 /* co_rt_store.c: the application store. */
-/* Open the store over the sealed OD and hook 0x1010/0x1011 (node attach). */
-int rt_app_store_open(co_rt_t *rt, rt_line_t *l, co_store_t **store);
+/* Stage buffers sized for the sealed OD (node attach); the image capacity
+ * the store needs is put in *capacity. */
+int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity);
+extern const co_store_backend_t rt_app_store_backend;
 /* Subscribed after the node: network saves wait until the image persisted. */
 bool rt_app_store_hook(rt_line_t *l);
 /* The application's answer to a persist request: commit or drop the image;

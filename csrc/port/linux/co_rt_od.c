@@ -70,7 +70,7 @@ int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t cou
     }
     pthread_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
-    if (l->has_node || l->has_od) {
+    if (rt_has_node(l) || l->has_od) {
         rt_set_error(rt, "line %d: the object dictionary must be defined once, before the local "
                   "node", line);
         status = CO_RT_ERR_STATE;
@@ -244,7 +244,7 @@ int co_rt_od_domain(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint32_t
 /* Under rt->lock: the line's served OD, or NULL with the reason set. */
 static co_od_t *served_od(co_rt_t *rt, rt_line_t *l)
 {
-    if (!l->has_node || !l->has_od) {
+    if (!rt_has_node(l) || !l->has_od) {
         rt_set_error(rt, "line %d has no local node serving an object dictionary", l->index);
         return NULL;
     }
@@ -294,7 +294,7 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
         co_line_set_time(&l->line, co_rt_now_us());
         rt_domain_t *d = domain_of(l, index, sub);
         const co_od_entry_t *e = co_od_find(od, index, sub);
-        if (e && l->has_emcy && kept_by_emcy(index, sub)) {
+        if (e && (co_stack_emcy(&l->stack) != NULL) && kept_by_emcy(index, sub)) {
             /* a wrong value is told as such first, as for any entry */
             result = (int)co_od_check_value(od, e, data, length);
             if (result == 0) {
@@ -326,7 +326,7 @@ static co_store_t *served_store(co_rt_t *rt, rt_line_t *l)
                   l->index);
         return NULL;
     }
-    return &l->store;
+    return co_stack_store(&l->stack);
 }
 
 static int store_call(co_rt_t *rt, int line, int group_mask, bool save)
@@ -367,7 +367,7 @@ int co_rt_store_status(co_rt_t *rt, int line)
         return CO_RT_ERR_ARGUMENT;
     }
     pthread_mutex_lock(&rt->lock);
-    int result = served_store(rt, l) ? (int)l->node.store_status : CO_RT_ERR_STATE;
+    int result = served_store(rt, l) ? (int)co_stack_node(&l->stack)->store_status : CO_RT_ERR_STATE;
     pthread_mutex_unlock(&rt->lock);
     return result;
 }
@@ -398,7 +398,7 @@ uint32_t rt_od_park(rt_line_t *l, co_od_xfer_t *xfer, uint32_t key, const uint8_
         r->value = value;
         r->length = length;
         r->generation = (uint16_t)(r->generation + 1u);
-        if (!rt_post(l, CO_EV_OD_REQUEST, l->node.nmt.node_id, key, token_of(l, i, kind),
+        if (!rt_post(l, CO_EV_OD_REQUEST, co_stack_node(&l->stack)->nmt.node_id, key, token_of(l, i, kind),
                      NULL)) {
             r->xfer = NULL;   /* nobody would ever answer it */
             return CO_ABORT_NO_RESOURCE;
@@ -539,8 +539,8 @@ int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort)
         }
         co_line_set_time(&l->line, co_rt_now_us());
         /* whichever server parked it (the other does not know the xfer) */
-        if (!(l->has_usdo && co_usdo_server_resume(&l->usdo, xfer, abort)) && l->has_sdo) {
-            co_sdo_server_resume(&l->sdo, xfer, abort);
+        if (!((co_stack_usdo_server(&l->stack) != NULL) && co_usdo_server_resume(co_stack_usdo_server(&l->stack), xfer, abort)) && (co_stack_sdo_server(&l->stack) != NULL)) {
+            co_sdo_server_resume(co_stack_sdo_server(&l->stack), xfer, abort);
         }
         status = CO_RT_OK;
     }

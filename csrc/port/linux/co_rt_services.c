@@ -17,10 +17,9 @@
 
 /* ---------------------------------------------------------------- events */
 
-static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t *msg,
-                    void *user)
+static void on_emcy(co_stack_t *stack, uint8_t node_id, const co_emcy_msg_t *msg, void *user)
 {
-    (void)c;
+    (void)stack;
     rt_line_t *l = user;
     co_frame_t frame;
     memset(&frame, 0, sizeof frame);
@@ -30,9 +29,9 @@ static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t 
     rt_post(l, CO_EV_EMCY, node_id, fd ? 1u : 0u, msg->code, &frame);
 }
 
-static void on_time(co_time_t *t, const co_time_of_day_t *tod, void *user)
+static void on_time(co_stack_t *stack, const co_time_of_day_t *tod, void *user)
 {
-    (void)t;
+    (void)stack;
     rt_post(user, CO_EV_TIME, 0, tod->ms, tod->days, NULL);
 }
 
@@ -44,16 +43,26 @@ static void on_sync(uint8_t counter, void *user)
     }
 }
 
-static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t event,
+static void on_guard(co_stack_t *stack, uint8_t node_id, co_guard_event_t event,
                      co_nmt_state_t state, void *user)
 {
-    (void)m;
-    rt_line_t *l = user;
-    rt_post(l, CO_EV_GUARD, node_id, (uint32_t)event, (uint32_t)state, NULL);
-    if (l->has_node && (event == CO_GUARD_LOST || event == CO_GUARD_RESUMED)) {
-        /* a guarded node is a monitored node: its loss is a communication error */
-        co_node_heartbeat_event(&l->node, node_id, event == CO_GUARD_LOST);
-    }
+    (void)stack;
+    rt_post(user, CO_EV_GUARD, node_id, (uint32_t)event, (uint32_t)state, NULL);
+}
+
+/* Boot-ups, states and heartbeat losses of every node (local node or not);
+ * the stack tells the node itself. */
+static void on_heartbeat(co_stack_t *stack, uint8_t node_id, co_hb_event_t event,
+                         co_nmt_state_t state, void *user)
+{
+    (void)stack;
+    rt_post(user, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
+}
+
+static void on_comm(co_stack_t *stack, co_comm_event_t event, void *user)
+{
+    (void)stack;
+    rt_post(user, CO_EV_COMM, 0, (uint32_t)event, 0, NULL);
 }
 
 void rt_services_pdo_received(rt_line_t *l, uint16_t number)
@@ -64,8 +73,8 @@ void rt_services_pdo_received(rt_line_t *l, uint16_t number)
     /* the values as now in the OD, laid out as the mapping says */
     co_frame_t frame;
     memset(&frame, 0, sizeof frame);
-    if (co_pdo_pack_values(&l->pdo, true, number, frame.data, &frame.len)) {
-        rt_post(l, CO_EV_PDO, l->node.nmt.node_id, number, 0, &frame);
+    if (co_pdo_pack_values(co_stack_pdo(&l->stack), true, number, frame.data, &frame.len)) {
+        rt_post(l, CO_EV_PDO, co_stack_node(&l->stack)->nmt.node_id, number, 0, &frame);
     }
 }
 
@@ -104,160 +113,28 @@ static bool on_watched(co_line_t *line, const co_frame_t *frame, void *user)
 
 /* ---------------------------------------------------------------- set-up */
 
+bool rt_services_line_watch(rt_line_t *l)
+{
+    return co_line_subscribe_other(&l->line, on_watched, l);
+}
+
+const co_stack_indications_t rt_services_indications = {
+    .heartbeat = on_heartbeat,
+    .emcy = on_emcy,
+    .time = on_time,
+    .guard = on_guard,
+    .comm = on_comm,
+};
+
 bool rt_services_line_init(rt_line_t *l)
 {
-    if (!co_line_subscribe_other(&l->line, on_watched, l)) {
-        return false;
-    }
-    if (!co_sync_init(&l->sync, &l->line) || !co_sync_add_listener(&l->sync, on_sync, l)) {
-        return false;
-    }
-    /* Without a local node the line is a tool's: it hears SYNC, TIME and
-     * EMCYs as a pre-operational node would. */
-    co_sync_set_nmt_state(&l->sync, CO_NMT_PRE_OPERATIONAL);
-    co_sync_accept_any_counter(&l->sync, true);
-    co_time_init(&l->time, &l->line, on_time, l);
-    (void)co_time_set_cob_id(&l->time, CO_TIME_CONSUMER_BIT | CO_TIME_DEFAULT_COB_ID);
-    co_time_set_nmt_state(&l->time, CO_NMT_PRE_OPERATIONAL);
-    if (!co_emcy_consumer_init(&l->emcy_consumer, &l->line, on_emcy, l)) {
-        return false;
-    }
-    if (l->line.mode == CO_MODE_CLASSIC) {
-        if (!co_guard_master_init(&l->guard_master, &l->line, l->guard_nodes, RT_GUARD_NODES,
-                                  on_guard, l)) {
-            return false;
-        }
-        co_hb_consumer_set_filter(&l->hb, co_guard_master_receive, &l->guard_master);
-        l->has_guard_master = true;
-    }
-    return true;
+    return co_sync_add_listener(co_stack_sync(&l->stack), on_sync, l);
 }
 
-static int emcy_start(co_rt_t *rt, rt_line_t *l)
-{
-    co_emcy_config_t config = {.queue = l->emcy_queue,
-                               .queue_capacity = RT_EMCY_QUEUE,
-                               .active = l->emcy_active,
-                               .active_capacity = RT_EMCY_ACTIVE,
-                               .history = l->emcy_history,
-                               .history_capacity = RT_EMCY_HISTORY};
-    if (!co_emcy_init(&l->emcy, &l->line, l->node.nmt.node_id, &config)) {
-        rt_set_error(rt, "line %d: EMCY producer could not start", l->index);
-        return CO_RT_ERR_STATE;
-    }
-    l->has_emcy = true;
-    if (l->has_od && !co_emcy_attach_od(&l->emcy, &l->od)) {
-        rt_set_error(rt, "line %d: EMCY producer cannot use the OD (handler table full)",
-                     l->index);
-        return CO_RT_ERR_FULL;
-    }
-    return CO_RT_OK;
-}
-
-static int pdo_start(co_rt_t *rt, rt_line_t *l)
-{
-    uint32_t channels = 0, items = 0;
-    if (!co_pdo_need(&l->od, &channels, &items)) {
-        rt_set_error(rt, "line %d: the OD's PDO entries cannot be used", l->index);
-        return CO_RT_ERR_ARGUMENT;
-    }
-    l->pdo_channels = calloc(channels ? channels : 1u, sizeof *l->pdo_channels);
-    l->pdo_items = calloc(items ? items : 1u, sizeof *l->pdo_items);
-    if (!l->pdo_channels || !l->pdo_items) {
-        rt_set_error(rt, "line %d: no memory for %u PDOs", l->index, (unsigned)channels);
-        return CO_RT_ERR_NO_MEMORY;
-    }
-    co_pdo_config_t config = {.channels = l->pdo_channels,
-                              .channel_count = channels,
-                              .items = l->pdo_items,
-                              .item_count = items,
-                              .ind = &co_node_pdo_indications,
-                              .user = &l->node};
-    if (!co_pdo_init(&l->pdo, &l->line, &l->od, &config)) {
-        rt_set_error(rt, "line %d: PDO service could not start (handler tables full?)",
-                     l->index);
-        return CO_RT_ERR_STATE;
-    }
-    l->has_pdo = true;
-    return CO_RT_OK;
-}
-
-static bool od_has(const rt_line_t *l, uint16_t index)
-{
-    return l->has_od && co_od_has_index(&l->od, index);
-}
-
-int rt_services_node_attach(co_rt_t *rt, rt_line_t *l)
-{
-    co_node_services_t s = {.sync = &l->sync, .time = &l->time};
-    int status = emcy_start(rt, l);
-    if (status != CO_RT_OK) {
-        return status;
-    }
-    s.emcy = &l->emcy;
-    if (l->has_od) {
-        /* the node's OD now says what SYNC, TIME and the consumer do */
-        /* the node's 0x1019 rules (missing = 0: SYNC without counter) */
-        co_sync_accept_any_counter(&l->sync, false);
-        if ((od_has(l, 0x1005) && !co_sync_attach_od(&l->sync, &l->od)) ||
-            (od_has(l, 0x1012) && !co_time_attach_od(&l->time, &l->od)) ||
-            (od_has(l, 0x1028) && !co_emcy_consumer_attach_od(&l->emcy_consumer, &l->od))) {
-            rt_set_error(rt, "line %d: SYNC/TIME/EMCY entries of the OD cannot be used "
-                         "(handler table full?)", l->index);
-            return CO_RT_ERR_FULL;
-        }
-        status = pdo_start(rt, l);
-        if (status != CO_RT_OK) {
-            return status;
-        }
-        s.pdo = &l->pdo;
-        if (l->line.mode == CO_MODE_CLASSIC) {
-            if (!co_guard_slave_init(&l->guard_slave, &l->line, &l->node.nmt,
-                                     co_node_guard_life, &l->node) ||
-                !co_guard_slave_attach_od(&l->guard_slave, &l->od)) {
-                rt_set_error(rt, "line %d: node guarding slave could not start", l->index);
-                return CO_RT_ERR_STATE;
-            }
-            l->has_guard_slave = true;
-            s.guard = &l->guard_slave;
-        }
-    }
-    co_node_attach_services(&l->node, &s);
-    return CO_RT_OK;
-}
-
-/* Undo rt_services_node_attach (a node that could not be created). */
+/* A node that could not be created: nothing of it is listened to. */
 void rt_services_node_detach(rt_line_t *l)
 {
-    if (l->has_guard_slave) {
-        co_guard_slave_deinit(&l->guard_slave);
-        l->has_guard_slave = false;
-    }
-    if (l->has_pdo) {
-        co_pdo_deinit(&l->pdo);
-        l->has_pdo = false;
-    }
-    if (l->has_emcy) {
-        co_emcy_deinit(&l->emcy);
-        l->has_emcy = false;
-    }
-    co_sync_detach_od(&l->sync);
-    co_sync_accept_any_counter(&l->sync, true);
-    co_time_detach_od(&l->time);
-    co_emcy_consumer_detach_od(&l->emcy_consumer);
-    free(l->pdo_channels);
-    free(l->pdo_items);
-    l->pdo_channels = NULL;
-    l->pdo_items = NULL;
     memset(l->pdo_listen, 0, sizeof l->pdo_listen);
-}
-
-void rt_services_free(rt_line_t *l)
-{
-    free(l->pdo_channels);
-    free(l->pdo_items);
-    l->pdo_channels = NULL;
-    l->pdo_items = NULL;
 }
 
 /* ---------------------------------------------------------------- API */
@@ -270,7 +147,7 @@ static rt_line_t *node_line(co_rt_t *rt, int line, const char *what)
         return NULL;
     }
     pthread_mutex_lock(&rt->lock);
-    if (!l->has_node) {
+    if (!rt_has_node(l)) {
         pthread_mutex_unlock(&rt->lock);
         rt_set_error(rt, "line %d: %s needs a local node", line, what);
         return NULL;
@@ -303,15 +180,15 @@ int co_rt_emcy(co_rt_t *rt, int line, const co_rt_emcy_t *error, int clear)
                            .time_stamp = error->time_stamp};
     memcpy(err.msef, error->msef, sizeof err.msef);
     co_line_set_time(&l->line, co_rt_now_us());
-    co_emcy_result_t r = clear ? co_emcy_clear(&l->emcy, &err) : co_emcy_raise(&l->emcy, &err);
+    co_emcy_result_t r = clear ? co_emcy_clear(co_stack_emcy(&l->stack), &err) : co_emcy_raise(co_stack_emcy(&l->stack), &err);
     if (r == CO_EMCY_BAD_ARGUMENT) {
         rt_set_error(rt, "line %d: EMCY 0x%04X refused: code 0, priority %u > 7 or time "
                      "stamp above 48 bits", line, error->code, (unsigned)error->priority);
         return done(rt, CO_RT_ERR_ARGUMENT);
     }
     if (r == CO_EMCY_TABLE_FULL) {
-        rt_set_error(rt, "line %d: EMCY 0x%04X refused: %d errors are active already", line,
-                     error->code, RT_EMCY_ACTIVE);
+        rt_set_error(rt, "line %d: EMCY 0x%04X refused: %u errors are active already", line,
+                     error->code, (unsigned)co_stack_emcy(&l->stack)->active_capacity);
         return done(rt, CO_RT_ERR_FULL);
     }
     return done(rt, (int)r);
@@ -326,10 +203,10 @@ int co_rt_emcy_state(co_rt_t *rt, int line, co_rt_emcy_state_t *out)
     if (!l) {
         return CO_RT_ERR_STATE;
     }
-    *out = (co_rt_emcy_state_t){.error_register = co_emcy_error_register(&l->emcy),
-                                .active = co_emcy_active_count(&l->emcy),
-                                .sent = l->emcy.stats.sent,
-                                .dropped = l->emcy.stats.dropped};
+    *out = (co_rt_emcy_state_t){.error_register = co_emcy_error_register(co_stack_emcy(&l->stack)),
+                                .active = co_emcy_active_count(co_stack_emcy(&l->stack)),
+                                .sent = co_stack_emcy(&l->stack)->stats.sent,
+                                .dropped = co_stack_emcy(&l->stack)->stats.dropped};
     pthread_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
@@ -347,8 +224,8 @@ int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch)
     pthread_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     if (!watch) {
-        co_emcy_consumer_unwatch(&l->emcy_consumer, (uint8_t)node_id);
-    } else if (!co_emcy_consumer_watch(&l->emcy_consumer, (uint8_t)node_id)) {
+        co_emcy_consumer_unwatch(co_stack_emcy_consumer(&l->stack), (uint8_t)node_id);
+    } else if (!co_emcy_consumer_watch(co_stack_emcy_consumer(&l->stack), (uint8_t)node_id)) {
         rt_set_error(rt, "line %d: cannot consume the EMCY of node %d (CAN-ID 0x%X taken?)",
                      line, node_id, 0x80 + node_id);
         status = CO_RT_ERR_STATE;
@@ -360,7 +237,7 @@ int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch)
 static rt_line_t *pdo_line(co_rt_t *rt, int line)
 {
     rt_line_t *l = node_line(rt, line, "a PDO");
-    if (l && !l->has_pdo) {
+    if (l && !(co_stack_pdo(&l->stack) != NULL)) {
         pthread_mutex_unlock(&rt->lock);
         rt_set_error(rt, "line %d: the local node has no object dictionary, so no PDOs", line);
         return NULL;
@@ -376,12 +253,12 @@ int co_rt_pdo_trigger(co_rt_t *rt, int line, int tpdo_number)
     }
     co_line_set_time(&l->line, co_rt_now_us());
     if (tpdo_number < 1 || tpdo_number > CO_PDO_MAX_NUMBER ||
-        !co_pdo_trigger(&l->pdo, (uint16_t)tpdo_number)) {
+        !co_pdo_trigger(co_stack_pdo(&l->stack), (uint16_t)tpdo_number)) {
         rt_set_error(rt, "line %d: TPDO %d not sent: %s", line, tpdo_number,
                      tpdo_number < 1 || tpdo_number > CO_PDO_MAX_NUMBER ? "numbers are 1..512"
-                     : !co_pdo_is_active(&l->pdo, false, (uint16_t)tpdo_number)
+                     : !co_pdo_is_active(co_stack_pdo(&l->stack), false, (uint16_t)tpdo_number)
                          ? "it does not exist or is not valid (COB-ID bit 31, mapping)"
-                     : l->node.nmt.state != CO_NMT_OPERATIONAL
+                     : co_stack_node(&l->stack)->nmt.state != CO_NMT_OPERATIONAL
                          ? "the node is not operational"
                          : "its transmission type takes no events (0, 254 or 255 do)");
         return done(rt, CO_RT_ERR_STATE);
@@ -400,7 +277,7 @@ int co_rt_pdo_trigger_object(co_rt_t *rt, int line, int index, int sub)
         return rt_argument_error(rt, "line %d: no object %X:%X", line, index, sub);
     }
     co_line_set_time(&l->line, co_rt_now_us());
-    uint32_t n = co_pdo_trigger_object(&l->pdo, (uint16_t)index, (uint8_t)sub);
+    uint32_t n = co_pdo_trigger_object(co_stack_pdo(&l->stack), (uint16_t)index, (uint8_t)sub);
     return done(rt, (int)n);
 }
 
@@ -485,9 +362,9 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
     }
     pthread_mutex_lock(&rt->lock);
     co_line_set_time(&l->line, co_rt_now_us());
-    uint32_t id = l->sync.config.cob_id & 0x7FFu;
+    uint32_t id = co_stack_sync(&l->stack)->config.cob_id & 0x7FFu;
     uint32_t cob_id = period_us ? (id | CO_SYNC_PRODUCER_BIT) : id;
-    if (l->sync.od) {
+    if (co_stack_sync(&l->stack)->od) {
         /* 0x1019 may change only while 0x1006 is 0 (CiA 301): stop first */
         uint32_t abort = od_put_u32(l, 0x1006, 0, 4);
         if (!abort && co_od_has_index(&l->od, 0x1019)) {
@@ -512,7 +389,7 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
                                    .period_us = period_us,
                                    .window_us = window_us,
                                    .overflow = (uint8_t)overflow};
-        co_sync_configure(&l->sync, &config);
+        co_sync_configure(co_stack_sync(&l->stack), &config);
     }
     return done(rt, CO_RT_OK);
 }
@@ -537,15 +414,15 @@ int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us)
     }
     pthread_mutex_lock(&rt->lock);
     co_line_set_time(&l->line, co_rt_now_us());
-    if (!l->time.od && !(l->time.cob_id & CO_TIME_PRODUCER_BIT)) {
+    if (!co_stack_time(&l->stack)->od && !(co_stack_time(&l->stack)->cob_id & CO_TIME_PRODUCER_BIT)) {
         /* a line without the node's 0x1012: the application is the producer */
-        (void)co_time_set_cob_id(&l->time, l->time.cob_id | CO_TIME_PRODUCER_BIT);
+        (void)co_time_set_cob_id(co_stack_time(&l->stack), co_stack_time(&l->stack)->cob_id | CO_TIME_PRODUCER_BIT);
     }
-    if (!co_time_send_unix_us(&l->time, unix_us)) {
+    if (!co_time_send_unix_us(co_stack_time(&l->stack), unix_us)) {
         rt_set_error(rt, "line %d: TIME not sent: %s", line,
-                     !(l->time.cob_id & CO_TIME_PRODUCER_BIT)
+                     !(co_stack_time(&l->stack)->cob_id & CO_TIME_PRODUCER_BIT)
                          ? "the node's 0x1012 does not make it the TIME producer (bit 30)"
-                     : !l->time.nmt_active ? "the node is stopped"
+                     : !co_stack_time(&l->stack)->nmt_active ? "the node is stopped"
                                            : "time before 1984 or the tx queue is full");
         return done(rt, CO_RT_ERR_STATE);
     }
@@ -558,7 +435,7 @@ int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_facto
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    if (!l->has_guard_master) {
+    if (!(co_stack_guard_master(&l->stack) != NULL)) {
         return rt_argument_error(rt, "line %d: node guarding needs a classic line (CAN FD "
                                  "has no remote frames)", line);
     }
@@ -572,8 +449,8 @@ int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_facto
     co_line_set_time(&l->line, co_rt_now_us());
     int status = CO_RT_OK;
     if (guard_ms == 0) {
-        co_guard_master_unguard(&l->guard_master, (uint8_t)node_id);
-    } else if (co_guard_master_guard(&l->guard_master, (uint8_t)node_id, (uint16_t)guard_ms,
+        co_guard_master_unguard(co_stack_guard_master(&l->stack), (uint8_t)node_id);
+    } else if (co_guard_master_guard(co_stack_guard_master(&l->stack), (uint8_t)node_id, (uint16_t)guard_ms,
                                      (uint8_t)life_factor) != CO_GUARD_OK) {
         rt_set_error(rt, "line %d: cannot guard node %d (%d nodes guarded already)", line,
                      node_id, RT_GUARD_NODES);
@@ -590,21 +467,21 @@ int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
     }
     memset(out, 0, sizeof *out);
     pthread_mutex_lock(&rt->lock);
-    if (l->has_pdo) {
-        out->pdo = l->pdo.stats;
+    if (co_stack_pdo(&l->stack)) {
+        out->pdo = co_stack_pdo(&l->stack)->stats;
     }
-    if (l->has_emcy) {
-        out->emcy = l->emcy.stats;
+    if (co_stack_emcy(&l->stack)) {
+        out->emcy = co_stack_emcy(&l->stack)->stats;
     }
-    if (l->has_guard_slave) {
-        out->guard_slave = l->guard_slave.stats;
+    if (co_stack_guard_slave(&l->stack)) {
+        out->guard_slave = co_stack_guard_slave(&l->stack)->stats;
     }
-    if (l->has_guard_master) {
-        out->guard_master = l->guard_master.stats;
+    if (co_stack_guard_master(&l->stack)) {
+        out->guard_master = co_stack_guard_master(&l->stack)->stats;
     }
-    out->emcy_consumer = l->emcy_consumer.stats;
-    out->sync = l->sync.stats;
-    out->time = l->time.stats;
+    out->emcy_consumer = co_stack_emcy_consumer(&l->stack)->stats;
+    out->sync = co_stack_sync(&l->stack)->stats;
+    out->time = co_stack_time(&l->stack)->stats;
     for (int i = 0; i < l->watch_count; i++) {
         out->pdo_watched += l->watch_frames[i];
     }

@@ -41,7 +41,7 @@ static co_store_status_t app_save(void *user, const uint8_t *image, uint32_t len
     return CO_STORE_OK;
 }
 
-static const co_store_backend_t app_backend = {.save = app_save, .load = app_load};
+const co_store_backend_t rt_app_store_backend = {.save = app_save, .load = app_load};
 
 /* The staged image is now the application's: loads use it from now on. */
 static void commit(rt_app_store_t *a)
@@ -70,7 +70,7 @@ uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
 
 /* ---------------------------------------------------------------- node attach */
 
-int rt_app_store_open(co_rt_t *rt, rt_line_t *l, co_store_t **store)
+int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity_out)
 {
     rt_app_store_t *a = &l->app_store;
     uint32_t need = co_store_image_need(&l->od);
@@ -80,18 +80,13 @@ int rt_app_store_open(co_rt_t *rt, rt_line_t *l, co_store_t **store)
     if (committed) {
         a->committed = committed;
     }
-    l->store_buffer = malloc(2u * (size_t)capacity);
     a->staged = malloc(capacity ? capacity : 1u);
-    if (!committed || !l->store_buffer || !a->staged) {
+    if (!committed || !a->staged) {
         rt_set_error(rt, "line %d: no memory for the parameter store", l->index);
         return CO_RT_ERR_NO_MEMORY;
     }
     a->staged_capacity = capacity;
-    if (!co_store_init(&l->store, &l->od, &app_backend, l, l->store_buffer, 2u * capacity)) {
-        rt_set_error(rt, "line %d: the parameter store cannot hook 0x1010/0x1011", l->index);
-        return CO_RT_ERR_FULL;
-    }
-    *store = &l->store;
+    *capacity_out = capacity ? capacity : 1u;
     return CO_RT_OK;
 }
 
@@ -145,7 +140,7 @@ int co_rt_store_application(co_rt_t *rt, int line, const uint8_t *image, uint32_
     }
     pthread_mutex_lock(&rt->lock);
     int result = CO_RT_OK;
-    if (!l->has_od || l->has_node || rt_has_store(l)) {
+    if (!l->has_od || rt_has_node(l) || rt_has_store(l)) {
         rt_set_error(rt, "line %d: an application store comes once, after the object "
                      "dictionary (defined without a store file) and before the node", line);
         result = CO_RT_ERR_STATE;

@@ -198,27 +198,6 @@ static rt_line_t *line_of(co_line_t *line)
     return (rt_line_t *)(void *)((char *)line - offsetof(rt_line_t, line));
 }
 
-static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
-{
-    (void)line;
-    rt_line_t *l = user;
-    rt_post(l, CO_EV_COMM, 0, (uint32_t)event, 0, NULL);
-    if (l->has_node) {
-        co_node_comm_event(&l->node, event);   /* EMCY, error behaviour */
-    }
-}
-
-static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t event,
-                         co_nmt_state_t state, void *user)
-{
-    (void)c;
-    rt_line_t *l = user;
-    rt_post(l, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
-    if (l->has_node && (event == CO_HB_LOST || event == CO_HB_STARTED)) {
-        co_node_heartbeat_event(&l->node, node_id, event == CO_HB_LOST);
-    }
-}
-
 static void on_node_state(co_node_t *node, co_nmt_state_t old_state, co_nmt_state_t new_state,
                           void *user)
 {
@@ -240,8 +219,8 @@ static bool on_allow_operational(co_node_t *node, void *user)
 static void post_store_status(rt_line_t *l)
 {
     if (rt_has_store(l)) {
-        rt_post(l, CO_EV_STORE, l->node.nmt.node_id, (uint32_t)l->node.store_status,
-             l->store.records_skipped, NULL);
+        rt_post(l, CO_EV_STORE, co_stack_node(&l->stack)->nmt.node_id, (uint32_t)co_stack_node(&l->stack)->store_status,
+             co_stack_store(&l->stack)->records_skipped, NULL);
     }
 }
 
@@ -258,7 +237,7 @@ static void on_od_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t or
     (void)od;
     if (origin == CO_ORIGIN_NETWORK || origin == CO_ORIGIN_PDO) {
         rt_line_t *l = user;
-        rt_post(l, CO_EV_OD_CHANGED, l->node.nmt.node_id, e->key, (uint32_t)origin, NULL);
+        rt_post(l, CO_EV_OD_CHANGED, co_stack_node(&l->stack)->nmt.node_id, e->key, (uint32_t)origin, NULL);
     }
 }
 
@@ -353,7 +332,7 @@ static const char *command_name(int kind)
 
 static int need_node(co_rt_t *rt, const rt_line_t *l, int kind)
 {
-    if (l->has_node) {
+    if (rt_has_node(l)) {
         return CO_RT_OK;
     }
     rt_set_error(rt, "line %d has no local node (%s needs one)", l->index, command_name(kind));
@@ -365,83 +344,32 @@ static int need_node(co_rt_t *rt, const rt_line_t *l, int kind)
 static void od_forget(rt_line_t *l)
 {
     rt_od_drop_requests(l);
-    if (l->has_usdo) {
-        co_usdo_server_deinit(&l->usdo);
-        l->has_usdo = false;
-    }
-    free(l->usdo_scratch);
-    l->usdo_scratch = NULL;
-    if (l->has_sdo) {
-        co_sdo_server_deinit(&l->sdo);
-        l->has_sdo = false;
-    }
-    free(l->sdo_channels);
-    free(l->sdo_scratch);
-    l->sdo_channels = NULL;
-    l->sdo_scratch = NULL;
     rt_od_release(l);
     free(l->store_file);
-    free(l->store_buffer);
     l->store_file = NULL;
-    l->store_buffer = NULL;
     rt_app_store_free(l);
     rt_od_free_domains(l);
     l->has_od = false;
 }
 
-/* classic lines: serve the OD over SDO on the default channel and on every
- * server channel the OD describes (0x1201..0x127F). */
-static int sdo_serve(co_rt_t *rt, rt_line_t *l)
+static void *heap_allocate(void *user, size_t size)
 {
-    uint32_t count = 1;
-    for (uint32_t index = CO_SDO_SERVER_PARAM + 1; index <= CO_SDO_SERVER_PARAM_LAST; index++) {
-        count += co_od_has_index(&l->od, (uint16_t)index) ? 1u : 0u;
-    }
-    uint32_t need = co_sdo_server_scratch_need(&l->od);
-    l->sdo_channels = calloc(count, sizeof *l->sdo_channels);
-    l->sdo_scratch = malloc((size_t)need * count);
-    if (!l->sdo_channels || !l->sdo_scratch) {
-        rt_set_error(rt, "line %d: no memory for the SDO server", l->index);
-        return CO_RT_ERR_NO_MEMORY;
-    }
-    co_sdo_server_config_t config = {.channels = l->sdo_channels,
-                                     .channel_count = (uint8_t)count,
-                                     .scratch = l->sdo_scratch,
-                                     .scratch_size = need};
-    if (!co_sdo_server_init(&l->sdo, &l->line, &l->od, &config)) {
-        rt_set_error(rt, "line %d: SDO server could not start (CAN-IDs 0x600/0x580 + node-id "
-                     "taken?)", l->index);
-        return CO_RT_ERR_STATE;
-    }
-    co_sdo_server_refresh(&l->sdo);   /* the node-id is set by now */
-    l->has_sdo = true;
-    return CO_RT_OK;
+    (void)user;
+    return malloc(size);
 }
 
-/* fd lines: serve the OD over USDO. */
-static int usdo_serve(co_rt_t *rt, rt_line_t *l)
+static void heap_release(void *user, void *memory, size_t size)
 {
-    uint32_t need = co_usdo_server_scratch_need(&l->od);
-    l->usdo_scratch = malloc((size_t)need * RT_USDO_SESSIONS + 1u);
-    if (!l->usdo_scratch) {
-        rt_set_error(rt, "line %d: no memory for the USDO server", l->index);
-        return CO_RT_ERR_NO_MEMORY;
-    }
-    co_usdo_server_config_t config = {.sessions = l->usdo_sessions,
-                                      .session_count = RT_USDO_SESSIONS,
-                                      .scratch = l->usdo_scratch,
-                                      .scratch_size = need};
-    if (!co_usdo_server_init(&l->usdo, &l->line, &l->od, &config)) {
-        rt_set_error(rt, "line %d: USDO server could not start (CAN-IDs 0x601..0x67F taken?)",
-                  l->index);
-        return CO_RT_ERR_STATE;
-    }
-    l->has_usdo = true;
-    return CO_RT_OK;
+    (void)user;
+    (void)size;
+    free(memory);
 }
 
-/* Seal the defined OD with the node-id, open the store, hook the services. */
-static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
+const co_stack_allocator_t rt_heap = {heap_allocate, heap_release, NULL};
+
+/* Seal the defined OD with the node-id and prepare its store backend. */
+static int prepare_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id,
+                      co_stack_node_config_t *config)
 {
     if (l->od.sealed) {
         rt_set_error(rt, "line %d: object dictionary already served by a node", l->index);
@@ -452,64 +380,90 @@ static int node_attach_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
                   "(UNSIGNED8)", l->index, l->od.refused_index);
         return CO_RT_ERR_ARGUMENT;
     }
-    co_store_t *store = NULL;
+    config->od = &l->od;
     if (l->store_path) {
-        uint32_t need = 2 * co_store_image_need(&l->od);
         l->store_file = calloc(1, sizeof *l->store_file);
-        l->store_buffer = malloc(need);
-        if (!l->store_file || !l->store_buffer) {
-            rt_set_error(rt, "line %d: no memory for the parameter store", l->index);
-            return CO_RT_ERR_NO_MEMORY;
+        if (!l->store_file || !co_store_file_init(l->store_file, l->store_path)) {
+            rt_set_error(rt, "line %d: store %s cannot be used (no memory or path too long)",
+                         l->index, l->store_path);
+            return l->store_file ? CO_RT_ERR_ARGUMENT : CO_RT_ERR_NO_MEMORY;
         }
-        if (!co_store_file_init(l->store_file, l->store_path) ||
-            !co_store_init(&l->store, &l->od, co_store_file_backend(), l->store_file,
-                           l->store_buffer, need)) {
-            rt_set_error(rt, "line %d: store %s cannot be used (path too long?)", l->index,
-                      l->store_path);
-            return CO_RT_ERR_ARGUMENT;
-        }
-        store = &l->store;
+        config->store_backend = co_store_file_backend();
+        config->store_user = l->store_file;
     } else if (l->app_store.enabled) {
-        int status = rt_app_store_open(rt, l, &store);
+        int status = rt_app_store_open(rt, l, &config->store_image_capacity);
         if (status != CO_RT_OK) {
             return status;
         }
+        config->store_backend = &rt_app_store_backend;
+        config->store_user = l;
     }
-    if (!co_node_attach_od(&l->node, &l->od, store, &l->hb) ||
-        !co_od_subscribe(&l->od, 0x0000, 0, 0xFFFF, 0xFF, &od_observer, l) ||
+    return CO_RT_OK;
+}
+
+static int stack_error(co_rt_t *rt, const rt_line_t *l, co_stack_status_t status)
+{
+    co_stack_part_t part = co_stack_failed_part(&l->stack);
+    const char *name = co_stack_part_name(part);
+    switch (status) {
+    case CO_STACK_ERR_NO_MEMORY:
+        rt_set_error(rt, "line %d: no memory for the %s", l->index, name);
+        return CO_RT_ERR_NO_MEMORY;
+    case CO_STACK_ERR_OD:
+        rt_set_error(rt, "line %d: the OD cannot be used by the %s", l->index, name);
+        return CO_RT_ERR_ARGUMENT;
+    case CO_STACK_ERR_TAKEN:
+        rt_set_error(rt, "line %d: %s could not start (CAN-IDs or OD handler table taken)",
+                     l->index, name);
+        return CO_RT_ERR_FULL;
+    default:
+        rt_set_error(rt, "line %d: %s could not be set up (status %d)", l->index, name,
+                     (int)status);
+        return status == CO_STACK_ERR_ARGUMENT ? CO_RT_ERR_ARGUMENT : CO_RT_ERR_STATE;
+    }
+}
+
+/* Hooks of the runtime on the node's OD: Python hears changed entries, and
+ * network saves into an application store wait until it persisted. */
+static int hook_od(co_rt_t *rt, rt_line_t *l)
+{
+    if (!co_od_subscribe(&l->od, 0x0000, 0, 0xFFFF, 0xFF, &od_observer, l) ||
         (l->app_store.enabled && !rt_app_store_hook(l))) {
         rt_set_error(rt, "line %d: object dictionary handler table full", l->index);
         return CO_RT_ERR_FULL;
     }
-    return l->line.mode == CO_MODE_FD ? usdo_serve(rt, l) : sdo_serve(rt, l);
+    return CO_RT_OK;
 }
 
 static int cmd_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
-    if (l->has_node) {
-        rt_set_error(rt, "line %d already has local node %u", l->index, l->node.nmt.node_id);
+    if (rt_has_node(l)) {
+        rt_set_error(rt, "line %d already has local node %u", l->index,
+                     co_stack_node(&l->stack)->nmt.node_id);
         return CO_RT_ERR_STATE;
     }
-    if (!co_node_init(&l->node, &l->line, (uint8_t)cmd->a, (uint16_t)cmd->b,
-                      &node_indications, l)) {
-        rt_set_error(rt, "line %d: node %u could not be set up", l->index, (unsigned)cmd->a);
-        return CO_RT_ERR_STATE;
-    }
-    int status = l->has_od ? node_attach_od(rt, l, (uint8_t)cmd->a) : CO_RT_OK;
+    co_stack_node_config_t config = {.node_id = (uint8_t)cmd->a,
+                                     .heartbeat_ms = (uint16_t)cmd->b,
+                                     .ind = &node_indications,
+                                     .user = l};
+    int status = l->has_od ? prepare_od(rt, l, (uint8_t)cmd->a, &config) : CO_RT_OK;
     if (status == CO_RT_OK) {
-        status = rt_services_node_attach(rt, l);
+        co_stack_status_t s = co_stack_node_init(&l->stack, &config);
+        status = s == CO_STACK_OK ? CO_RT_OK : stack_error(rt, l, s);
+    }
+    if (status == CO_RT_OK && l->has_od) {
+        status = hook_od(rt, l);
     }
     if (status != CO_RT_OK) {
         /* Leave the line as it was before the node: usable for a new try. */
         rt_services_node_detach(l);
-        co_node_deinit(&l->node);
+        co_stack_node_deinit(&l->stack);
         if (l->has_od) {
             od_forget(l);
         }
         return status;
     }
-    l->has_node = true;
-    co_node_boot(&l->node);
+    co_stack_boot(&l->stack);
     post_store_status(l);
     return CO_RT_OK;
 }
@@ -525,7 +479,7 @@ static int cmd_queued(co_rt_t *rt, const rt_line_t *l, bool queued)
 
 static int cmd_hb_watch(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
-    co_hb_config_result_t r = co_hb_consumer_watch(&l->hb, (uint8_t)cmd->a, (uint16_t)cmd->b);
+    co_hb_config_result_t r = co_hb_consumer_watch(co_stack_hb_consumer(&l->stack), (uint8_t)cmd->a, (uint16_t)cmd->b);
     if (r == CO_HB_CONFIG_OK) {
         return CO_RT_OK;
     }
@@ -538,7 +492,7 @@ static int cmd_hb_watch(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 static uint8_t od_consumer_entries(const rt_line_t *l)
 {
     uint8_t count = 0;
-    if (l->has_node && l->has_od) {
+    if (rt_has_node(l) && l->has_od) {
         co_od_get_u8(&l->od, 0x1016, 0, &count);
     }
     return count;
@@ -548,16 +502,16 @@ static uint8_t od_consumer_entries(const rt_line_t *l)
  * keep monitoring (the line just stops telling Python). */
 static void hb_unwatch(rt_line_t *l, uint8_t node_id)
 {
-    for (uint8_t i = od_consumer_entries(l); i < l->hb.capacity; i++) {
-        if (l->hb.entries[i].node_id == node_id) {
-            co_hb_consumer_set_entry(&l->hb, i, 0);
+    for (uint8_t i = od_consumer_entries(l); i < co_stack_hb_consumer(&l->stack)->capacity; i++) {
+        if (co_stack_hb_consumer(&l->stack)->entries[i].node_id == node_id) {
+            co_hb_consumer_set_entry(co_stack_hb_consumer(&l->stack), i, 0);
         }
     }
 }
 
 static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
-    co_nmt_t *local = l->has_node ? &l->node.nmt : NULL;
+    co_nmt_t *local = rt_has_node(l) ? &co_stack_node(&l->stack)->nmt : NULL;
     switch (cmd->kind) {
     case CO_CMD_NODE_CREATE:
         return cmd_node_create(rt, l, cmd);
@@ -571,7 +525,7 @@ static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
         return need_node(rt, l, cmd->kind);
     case CO_CMD_HEARTBEAT_TIME:
         if (local) {
-            co_node_set_heartbeat(&l->node, (uint16_t)cmd->a);
+            co_node_set_heartbeat(co_stack_node(&l->stack), (uint16_t)cmd->a);
         }
         return need_node(rt, l, cmd->kind);
     case CO_CMD_HB_WATCH:
@@ -990,6 +944,9 @@ static void close_fd(int fd)
 
 static void line_free(rt_line_t *l)
 {
+    /* the services first: their deinit still sees the OD and the domains */
+    rt_client_free(l);
+    co_stack_deinit(&l->stack);
     co_sc_close(&l->sc.sock);
     pthread_mutex_destroy(&l->host.lock);
     pthread_cond_destroy(&l->host.ready);
@@ -998,14 +955,8 @@ static void line_free(rt_line_t *l)
     free(l->od_pool);
     free(l->store_path);
     free(l->store_file);
-    free(l->store_buffer);
     rt_app_store_free(l);
-    rt_client_free(l);
-    rt_services_free(l);
     rt_od_free_domains(l);
-    free(l->usdo_scratch);
-    free(l->sdo_channels);
-    free(l->sdo_scratch);
     free(l->rx_slots);
     free(l->tx_slots);
     free(l);
@@ -1210,10 +1161,17 @@ static bool line_init_core(rt_line_t *l, const co_rt_line_config_t *c)
                            .rx_slots = l->rx_slots, .rx_capacity = rx,
                            .tx_slots = l->tx_slots, .tx_capacity = tx};
     co_line_init(&l->line, &lc);
-    co_line_set_comm_indication(&l->line, on_comm, l);
+    /* Watched PDO frames are offered before any service takes them. */
+    if (!rt_services_line_watch(l)) {
+        return false;
+    }
+    co_stack_line_config_t config = {
+        .guarded_nodes = c->mode == CO_MODE_CLASSIC ? RT_GUARD_NODES : 0,
+        .ind = &rt_services_indications,
+        .user = l};
     /* Every line watches boot-ups and heartbeats, local node or not. */
-    co_hb_consumer_init(&l->hb, &l->line, l->hb_entries, RT_HB_ENTRIES, on_heartbeat, l);
-    return rt_services_line_init(l);
+    return co_stack_init(&l->stack, &l->line, &config, rt_heap) == CO_STACK_OK &&
+           rt_services_line_init(l);
 }
 
 static rt_line_t *line_new(co_rt_t *rt, const co_rt_line_config_t *c)
@@ -1640,7 +1598,7 @@ int co_rt_local_state(co_rt_t *rt, int line)
         return CO_RT_ERR_ARGUMENT;
     }
     pthread_mutex_lock(&rt->lock);
-    int state = l->has_node ? (int)co_node_state(&l->node) : CO_RT_ERR_STATE;
+    int state = rt_has_node(l) ? (int)co_node_state(co_stack_node(&l->stack)) : CO_RT_ERR_STATE;
     pthread_mutex_unlock(&rt->lock);
     return state;
 }
@@ -1655,7 +1613,7 @@ int co_rt_remote_state(co_rt_t *rt, int line, int node_id)
         return rt_argument_error(rt, "node-id %d outside 1..127", node_id);
     }
     pthread_mutex_lock(&rt->lock);
-    int state = l->hb.last_state[node_id];
+    int state = co_stack_hb_consumer(&l->stack)->last_state[node_id];
     pthread_mutex_unlock(&rt->lock);
     return state;
 }

@@ -1,0 +1,711 @@
+/* co_stack: sizing, set-up and wiring of a line's services and its local
+ * node over caller memory (see co_stack.h). */
+#include "co_stack.h"
+
+#include <string.h>
+
+enum { OWNER_LINE = 0, OWNER_NODE = 1, OWNER_CLIENT = 2 };
+
+/* ---------------------------------------------------------------- arena */
+
+static void *arena_allocate(void *user, size_t size)
+{
+    co_stack_arena_t *a = user;
+    size_t block = CO_STACK_BLOCK(size);
+    if (block < size || block > a->size - a->used) {
+        return NULL;
+    }
+    void *memory = a->base + a->used;
+    a->used += block;
+    if (a->used > a->peak) {
+        a->peak = a->used;
+    }
+    return memory;
+}
+
+static void arena_release(void *user, void *memory, size_t size)
+{
+    co_stack_arena_t *a = user;
+    size_t block = CO_STACK_BLOCK(size);
+    if ((unsigned char *)memory + block == a->base + a->used) {
+        a->used -= block;   /* only the last block comes back */
+    }
+}
+
+void co_stack_arena_init(co_stack_arena_t *arena, void *memory, size_t size)
+{
+    /* the first block starts aligned: skip to the boundary */
+    size_t skip = (size_t)(-(uintptr_t)memory) & (CO_STACK_ALIGN - 1u);
+    arena->base = (unsigned char *)memory + (skip < size ? skip : size);
+    arena->size = skip < size ? size - skip : 0;
+    arena->used = 0;
+    arena->peak = 0;
+}
+
+co_stack_allocator_t co_stack_arena_allocator(co_stack_arena_t *arena)
+{
+    co_stack_allocator_t a = {.allocate = arena_allocate, .release = arena_release,
+                              .user = arena};
+    return a;
+}
+
+/* ---------------------------------------------------------------- blocks */
+
+/* A block for `owner`, zeroed; NULL when the allocator or the table is out. */
+static void *take(co_stack_t *s, uint8_t owner, size_t size)
+{
+    if (s->block_count >= CO_STACK_MAX_BLOCKS) {
+        return NULL;
+    }
+    size_t bytes = size ? size : 1u;
+    void *memory = s->alloc.allocate(s->alloc.user, bytes);
+    if (!memory) {
+        return NULL;
+    }
+    memset(memory, 0, bytes);
+    s->blocks[s->block_count++] = (co_stack_block_t){.memory = memory, .size = bytes,
+                                                     .owner = owner};
+    return memory;
+}
+
+/* Give back every block of `owner`, the newest first. */
+static void give_back(co_stack_t *s, uint8_t owner)
+{
+    uint8_t kept = 0;
+    for (uint8_t i = s->block_count; i-- > 0;) {
+        co_stack_block_t b = s->blocks[i];
+        if (b.owner == owner && s->alloc.release) {
+            s->alloc.release(s->alloc.user, b.memory, b.size);
+        }
+    }
+    for (uint8_t i = 0; i < s->block_count; i++) {
+        if (s->blocks[i].owner != owner) {
+            s->blocks[kept++] = s->blocks[i];
+        }
+    }
+    s->block_count = kept;
+}
+
+static co_stack_status_t fail(co_stack_t *s, co_stack_part_t part, co_stack_status_t status)
+{
+    s->failed = part;
+    return status;
+}
+
+/* ---------------------------------------------------------------- sizing */
+
+/* What one part-group asks of the allocator, in the order it asks. */
+typedef struct plan {
+    size_t sizes[12];
+    uint8_t count;
+} plan_t;
+
+static void plan_add(plan_t *p, size_t size)
+{
+    p->sizes[p->count++] = size ? size : 1u;
+}
+
+static size_t plan_total(const plan_t *p)
+{
+    size_t total = 0;
+    for (uint8_t i = 0; i < p->count; i++) {
+        total += CO_STACK_BLOCK(p->sizes[i]);
+    }
+    return total;
+}
+
+static uint8_t hb_entries_of(const co_stack_line_config_t *c)
+{
+    return (c && c->heartbeat_entries) ? c->heartbeat_entries
+                                       : (uint8_t)CO_STACK_DEFAULT_HB_ENTRIES;
+}
+
+/* Whether this build runs lines of that kind (co_stack.h: CO_CONFIG_*); the
+ * constant conditions let a one-kind build drop the other kind's services. */
+static bool mode_built(co_mode_t mode)
+{
+    return mode == CO_MODE_FD ? CO_CONFIG_FD != 0 : CO_CONFIG_CLASSIC != 0;
+}
+
+static bool is_fd(const co_line_t *line)
+{
+    return CO_CONFIG_FD && (!CO_CONFIG_CLASSIC || co_line_mode(line) == CO_MODE_FD);
+}
+
+static uint8_t guarded_of(const co_line_t *line, const co_stack_line_config_t *c)
+{
+    return (c && !is_fd(line)) ? c->guarded_nodes : 0;
+}
+
+static void line_plan(const co_line_t *line, const co_stack_line_config_t *c, plan_t *p)
+{
+    p->count = 0;
+    plan_add(p, sizeof(co_hb_entry_t) * hb_entries_of(c));
+    if (guarded_of(line, c)) {
+        plan_add(p, sizeof(co_guard_node_t) * guarded_of(line, c));
+    }
+}
+
+size_t co_stack_line_need(const co_line_t *line, const co_stack_line_config_t *config)
+{
+    plan_t p;
+    line_plan(line, config, &p);
+    return plan_total(&p);
+}
+
+/* The node's sizes, resolved from its configuration and OD. */
+typedef struct node_sizes {
+    uint16_t emcy_queue;
+    uint16_t emcy_active;
+    uint8_t emcy_history;
+    uint32_t pdo_channels;
+    uint32_t pdo_items;
+    uint32_t store_capacity;     /* per image; 0 = no store */
+    uint32_t servers;            /* USDO sessions or SDO channels */
+    uint32_t server_scratch;     /* per session / channel */
+} node_sizes_t;
+
+/* SDO channels a classic node serves: the default one plus 0x1201..0x127F. */
+static uint32_t sdo_channel_count(const co_od_t *od)
+{
+    uint32_t count = 1;
+    for (uint32_t index = CO_SDO_SERVER_PARAM + 1; index <= CO_SDO_SERVER_PARAM_LAST; index++) {
+        count += co_od_has_index(od, (uint16_t)index) ? 1u : 0u;
+    }
+    return count;
+}
+
+static bool node_sizes(const co_line_t *line, const co_stack_node_config_t *c, node_sizes_t *n)
+{
+    memset(n, 0, sizeof *n);
+    n->emcy_queue = c->emcy_queue ? c->emcy_queue : (uint16_t)CO_STACK_DEFAULT_EMCY_QUEUE;
+    n->emcy_active = c->emcy_active ? c->emcy_active : (uint16_t)CO_STACK_DEFAULT_EMCY_ACTIVE;
+    n->emcy_history = c->emcy_history ? c->emcy_history
+                                      : (uint8_t)CO_STACK_DEFAULT_EMCY_HISTORY;
+    if (!c->od) {
+        return true;
+    }
+    if (!co_pdo_need(c->od, &n->pdo_channels, &n->pdo_items)) {
+        return false;
+    }
+    if (c->store_backend) {
+        n->store_capacity = c->store_image_capacity ? c->store_image_capacity
+                                                    : co_store_image_need(c->od);
+    }
+    if (is_fd(line)) {
+        n->servers = c->server_sessions ? c->server_sessions
+                                        : (uint32_t)CO_STACK_DEFAULT_SERVER_SESSIONS;
+        n->server_scratch = co_usdo_server_scratch_need(c->od);
+    } else {
+        n->servers = sdo_channel_count(c->od);
+        n->server_scratch = co_sdo_server_scratch_need(c->od);
+    }
+    return true;
+}
+
+static size_t server_entry_size(const co_line_t *line)
+{
+    return is_fd(line) ? sizeof(co_usdo_session_t) : sizeof(co_sdo_channel_t);
+}
+
+static void node_plan(const co_line_t *line, const node_sizes_t *n, bool has_od, plan_t *p)
+{
+    p->count = 0;
+    plan_add(p, sizeof(co_emcy_msg_t) * n->emcy_queue);
+    plan_add(p, sizeof(co_emcy_active_t) * n->emcy_active);
+    plan_add(p, sizeof(uint32_t) * n->emcy_history);
+    if (!has_od) {
+        return;
+    }
+    if (n->store_capacity) {
+        plan_add(p, 2u * (size_t)n->store_capacity);
+    }
+    plan_add(p, server_entry_size(line) * n->servers);
+    plan_add(p, (size_t)n->server_scratch * n->servers + 1u);
+    plan_add(p, sizeof(co_pdo_channel_t) * n->pdo_channels);
+    plan_add(p, sizeof(co_pdo_map_item_t) * n->pdo_items);
+}
+
+size_t co_stack_node_need(const co_line_t *line, const co_stack_node_config_t *config)
+{
+    node_sizes_t n;
+    plan_t p;
+    if (!line || !config || !node_sizes(line, config, &n)) {
+        return 0;
+    }
+    node_plan(line, &n, config->od != NULL, &p);
+    return plan_total(&p);
+}
+
+static size_t client_entry_size(const co_line_t *line)
+{
+    return is_fd(line) ? sizeof(co_usdo_client_session_t) : sizeof(co_sdo_client_channel_t);
+}
+
+size_t co_stack_client_need(const co_line_t *line, const co_stack_client_config_t *config)
+{
+    return (line && config) ? CO_STACK_BLOCK(client_entry_size(line) * config->sessions) : 0;
+}
+
+/* ---------------------------------------------------------------- wiring */
+
+static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t event,
+                         co_nmt_state_t state, void *user)
+{
+    (void)c;
+    co_stack_t *s = user;
+    if (s->ind && s->ind->heartbeat) {
+        s->ind->heartbeat(s, node_id, event, state, s->user);
+    }
+    if (s->has_node && (event == CO_HB_LOST || event == CO_HB_STARTED)) {
+        co_node_heartbeat_event(&s->node, node_id, event == CO_HB_LOST);
+    }
+}
+
+static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
+{
+    (void)line;
+    co_stack_t *s = user;
+    if (s->ind && s->ind->comm) {
+        s->ind->comm(s, event, s->user);
+    }
+    if (s->has_node) {
+        co_node_comm_event(&s->node, event);   /* EMCY, error behaviour */
+    }
+}
+
+static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t *msg,
+                    void *user)
+{
+    (void)c;
+    co_stack_t *s = user;
+    if (s->ind && s->ind->emcy) {
+        s->ind->emcy(s, node_id, msg, s->user);
+    }
+}
+
+static void on_time(co_time_t *t, const co_time_of_day_t *tod, void *user)
+{
+    (void)t;
+    co_stack_t *s = user;
+    if (s->ind && s->ind->time) {
+        s->ind->time(s, tod, s->user);
+    }
+}
+
+static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t event,
+                     co_nmt_state_t state, void *user)
+{
+    (void)m;
+    co_stack_t *s = user;
+    if (s->ind && s->ind->guard) {
+        s->ind->guard(s, node_id, event, state, s->user);
+    }
+    if (s->has_node && (event == CO_GUARD_LOST || event == CO_GUARD_RESUMED)) {
+        /* a guarded node is a monitored node: its loss is a communication error */
+        co_node_heartbeat_event(&s->node, node_id, event == CO_GUARD_LOST);
+    }
+}
+
+/* ---------------------------------------------------------------- the line */
+
+static void line_undo(co_stack_t *s)
+{
+    if (CO_CONFIG_CLASSIC && s->has_guard_master) {
+        co_hb_consumer_set_filter(&s->hb_consumer, NULL, NULL);
+        co_guard_master_deinit(&s->guard_master);
+        s->has_guard_master = false;
+    }
+    co_emcy_consumer_deinit(&s->emcy_consumer);
+    co_time_deinit(&s->time);
+    co_sync_deinit(&s->sync);
+    co_line_set_comm_indication(s->line, NULL, NULL);
+    co_hb_consumer_deinit(&s->hb_consumer);
+    give_back(s, OWNER_LINE);
+}
+
+co_stack_status_t co_stack_init(co_stack_t *stack, co_line_t *line,
+                                const co_stack_line_config_t *config,
+                                co_stack_allocator_t allocator)
+{
+    if (!stack || !line || !allocator.allocate || !mode_built(co_line_mode(line))) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    memset(stack, 0, sizeof *stack);
+    co_stack_t *s = stack;
+    s->line = line;
+    s->alloc = allocator;
+    s->ind = config ? config->ind : NULL;
+    s->user = config ? config->user : NULL;
+    uint8_t entries = hb_entries_of(config);
+    co_hb_entry_t *hb_entries = take(s, OWNER_LINE, sizeof *hb_entries * entries);
+    if (!hb_entries) {
+        return fail(s, CO_STACK_PART_HEARTBEAT, CO_STACK_ERR_NO_MEMORY);
+    }
+    if (!co_hb_consumer_init(&s->hb_consumer, line, hb_entries, entries, on_heartbeat, s)) {
+        give_back(s, OWNER_LINE);
+        return fail(s, CO_STACK_PART_HEARTBEAT, CO_STACK_ERR_TAKEN);
+    }
+    co_line_set_comm_indication(line, on_comm, s);
+    co_stack_part_t part = CO_STACK_PART_SYNC;
+    co_stack_status_t status = CO_STACK_ERR_TAKEN;
+    if (co_sync_init(&s->sync, line)) {
+        /* Without a local node the line is a tool's: it hears SYNC, TIME and
+         * EMCYs as a pre-operational node would, SYNC with or without counter. */
+        co_sync_set_nmt_state(&s->sync, CO_NMT_PRE_OPERATIONAL);
+        co_sync_accept_any_counter(&s->sync, true);
+        co_time_init(&s->time, line, on_time, s);
+        (void)co_time_set_cob_id(&s->time, CO_TIME_CONSUMER_BIT | CO_TIME_DEFAULT_COB_ID);
+        co_time_set_nmt_state(&s->time, CO_NMT_PRE_OPERATIONAL);
+        part = CO_STACK_PART_EMCY_CONSUMER;
+        if (co_emcy_consumer_init(&s->emcy_consumer, line, on_emcy, s)) {
+            uint8_t guarded = guarded_of(line, config);
+            part = CO_STACK_PART_GUARD_MASTER;
+            co_guard_node_t *nodes = guarded ? take(s, OWNER_LINE, sizeof *nodes * guarded)
+                                             : NULL;
+            if (guarded && !nodes) {
+                status = CO_STACK_ERR_NO_MEMORY;
+            } else if (!guarded || (CO_CONFIG_CLASSIC && co_guard_master_init(&s->guard_master, line, nodes, guarded,
+                                                        on_guard, s))) {
+                if (guarded) {
+                    /* the master takes its nodes' answers before the consumer */
+                    co_hb_consumer_set_filter(&s->hb_consumer, co_guard_master_receive,
+                                              &s->guard_master);
+                    s->has_guard_master = true;
+                }
+                return CO_STACK_OK;
+            }
+        }
+    }
+    line_undo(s);
+    return fail(s, part, status);
+}
+
+/* ---------------------------------------------------------------- the node */
+
+static bool od_has(const co_stack_t *s, uint16_t index)
+{
+    return s->od && co_od_has_index(s->od, index);
+}
+
+/* Undo co_stack_node_init, part by part (each flag says what is running). */
+static void node_undo(co_stack_t *s)
+{
+    if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
+        co_stack_client_deinit(s);   /* bound to the node's OD */
+    }
+    if (CO_CONFIG_CLASSIC && s->has_guard_slave) {
+        co_guard_slave_deinit(&s->guard_slave);
+        s->has_guard_slave = false;
+    }
+    if (s->has_pdo) {
+        co_pdo_deinit(&s->pdo);
+        s->has_pdo = false;
+    }
+    if (s->has_emcy) {
+        co_emcy_deinit(&s->emcy);
+        s->has_emcy = false;
+    }
+    co_sync_detach_od(&s->sync);
+    co_sync_accept_any_counter(&s->sync, true);
+    co_sync_set_nmt_state(&s->sync, CO_NMT_PRE_OPERATIONAL);
+    co_time_detach_od(&s->time);
+    co_time_set_nmt_state(&s->time, CO_NMT_PRE_OPERATIONAL);
+    co_emcy_consumer_detach_od(&s->emcy_consumer);
+    if (CO_CONFIG_FD && s->has_usdo_server) {
+        co_usdo_server_deinit(&s->usdo_server);
+        s->has_usdo_server = false;
+    }
+    if (CO_CONFIG_CLASSIC && s->has_sdo_server) {
+        co_sdo_server_deinit(&s->sdo_server);
+        s->has_sdo_server = false;
+    }
+    if (s->has_store) {
+        co_store_deinit(&s->store);
+        s->has_store = false;
+    }
+    if (s->has_node) {
+        co_node_deinit(&s->node);
+        s->has_node = false;
+    }
+    s->od = NULL;
+    give_back(s, OWNER_NODE);
+}
+
+static co_stack_status_t serve_od(co_stack_t *s, const node_sizes_t *n)
+{
+    void *table = take(s, OWNER_NODE, server_entry_size(s->line) * n->servers);
+    uint8_t *scratch = take(s, OWNER_NODE, (size_t)n->server_scratch * n->servers + 1u);
+    if (!table || !scratch) {
+        return fail(s, CO_STACK_PART_SERVER, CO_STACK_ERR_NO_MEMORY);
+    }
+    if (is_fd(s->line)) {
+        co_usdo_server_config_t config = {.sessions = table,
+                                          .session_count = (uint8_t)n->servers,
+                                          .scratch = scratch,
+                                          .scratch_size = n->server_scratch};
+        s->has_usdo_server = co_usdo_server_init(&s->usdo_server, s->line, s->od, &config);
+    } else if (CO_CONFIG_CLASSIC) {
+        co_sdo_server_config_t config = {.channels = table,
+                                         .channel_count = (uint8_t)n->servers,
+                                         .scratch = scratch,
+                                         .scratch_size = n->server_scratch};
+        s->has_sdo_server = co_sdo_server_init(&s->sdo_server, s->line, s->od, &config);
+        if (s->has_sdo_server) {
+            co_sdo_server_refresh(&s->sdo_server);   /* the node-id is set by now */
+        }
+    }
+    return (s->has_usdo_server || s->has_sdo_server)
+               ? CO_STACK_OK : fail(s, CO_STACK_PART_SERVER, CO_STACK_ERR_TAKEN);
+}
+
+static co_stack_status_t start_emcy(co_stack_t *s, const node_sizes_t *n)
+{
+    co_emcy_config_t config = {
+        .queue = take(s, OWNER_NODE, sizeof(co_emcy_msg_t) * n->emcy_queue),
+        .queue_capacity = n->emcy_queue,
+        .active = take(s, OWNER_NODE, sizeof(co_emcy_active_t) * n->emcy_active),
+        .active_capacity = n->emcy_active,
+        .history = take(s, OWNER_NODE, sizeof(uint32_t) * n->emcy_history),
+        .history_capacity = n->emcy_history};
+    if (!config.queue || !config.active || !config.history) {
+        return fail(s, CO_STACK_PART_EMCY, CO_STACK_ERR_NO_MEMORY);
+    }
+    s->has_emcy = co_emcy_init(&s->emcy, s->line, s->node.nmt.node_id, &config);
+    if (!s->has_emcy) {
+        return fail(s, CO_STACK_PART_EMCY, CO_STACK_ERR_ARGUMENT);
+    }
+    return (s->od && !co_emcy_attach_od(&s->emcy, s->od))
+               ? fail(s, CO_STACK_PART_EMCY, CO_STACK_ERR_TAKEN) : CO_STACK_OK;
+}
+
+static co_stack_status_t start_pdo(co_stack_t *s, const node_sizes_t *n)
+{
+    co_pdo_config_t config = {
+        .channels = take(s, OWNER_NODE, sizeof(co_pdo_channel_t) * n->pdo_channels),
+        .channel_count = n->pdo_channels,
+        .items = take(s, OWNER_NODE, sizeof(co_pdo_map_item_t) * n->pdo_items),
+        .item_count = n->pdo_items,
+        .ind = &co_node_pdo_indications,
+        .user = &s->node};
+    if (!config.channels || !config.items) {
+        return fail(s, CO_STACK_PART_PDO, CO_STACK_ERR_NO_MEMORY);
+    }
+    s->has_pdo = co_pdo_init(&s->pdo, s->line, s->od, &config);
+    return s->has_pdo ? CO_STACK_OK : fail(s, CO_STACK_PART_PDO, CO_STACK_ERR_TAKEN);
+}
+
+/* The OD now says what SYNC, TIME and the EMCY consumer of the line do. */
+static co_stack_status_t bind_line_services(co_stack_t *s)
+{
+    co_sync_accept_any_counter(&s->sync, false);   /* the node's 0x1019 rules */
+    if (od_has(s, 0x1005) && !co_sync_attach_od(&s->sync, s->od)) {
+        return fail(s, CO_STACK_PART_SYNC, CO_STACK_ERR_TAKEN);
+    }
+    if (od_has(s, 0x1012) && !co_time_attach_od(&s->time, s->od)) {
+        return fail(s, CO_STACK_PART_TIME, CO_STACK_ERR_TAKEN);
+    }
+    if (od_has(s, 0x1028) && !co_emcy_consumer_attach_od(&s->emcy_consumer, s->od)) {
+        return fail(s, CO_STACK_PART_EMCY_CONSUMER, CO_STACK_ERR_TAKEN);
+    }
+    return CO_STACK_OK;
+}
+
+static co_stack_status_t start_od_parts(co_stack_t *s, const co_stack_node_config_t *c,
+                                        const node_sizes_t *n)
+{
+    if (n->store_capacity) {
+        uint32_t size = 2u * n->store_capacity;
+        uint8_t *buffer = take(s, OWNER_NODE, size);
+        if (!buffer) {
+            return fail(s, CO_STACK_PART_STORE, CO_STACK_ERR_NO_MEMORY);
+        }
+        s->has_store = co_store_init(&s->store, s->od, c->store_backend, c->store_user, buffer,
+                                     size);
+        if (!s->has_store) {
+            return fail(s, CO_STACK_PART_STORE, CO_STACK_ERR_TAKEN);
+        }
+    }
+    if (!co_node_attach_od(&s->node, s->od, s->has_store ? &s->store : NULL, &s->hb_consumer)) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_TAKEN);
+    }
+    return serve_od(s, n);
+}
+
+static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_config_t *c,
+                                          const node_sizes_t *n)
+{
+    co_node_services_t services = {.sync = &s->sync, .time = &s->time};
+    co_stack_status_t status = s->od ? start_od_parts(s, c, n) : CO_STACK_OK;
+    if (status == CO_STACK_OK) {
+        status = start_emcy(s, n);
+    }
+    services.emcy = &s->emcy;
+    if (status == CO_STACK_OK && s->od) {
+        status = bind_line_services(s);
+        if (status == CO_STACK_OK) {
+            status = start_pdo(s, n);
+            services.pdo = &s->pdo;
+        }
+        if (CO_CONFIG_CLASSIC && status == CO_STACK_OK && !is_fd(s->line)) {
+            s->has_guard_slave = co_guard_slave_init(&s->guard_slave, s->line, &s->node.nmt,
+                                                     co_node_guard_life, &s->node);
+            if (!s->has_guard_slave || !co_guard_slave_attach_od(&s->guard_slave, s->od)) {
+                status = fail(s, CO_STACK_PART_GUARD_SLAVE, CO_STACK_ERR_TAKEN);
+            }
+            services.guard = &s->guard_slave;
+        }
+    }
+    if (status == CO_STACK_OK) {
+        co_node_attach_services(&s->node, &services);
+    }
+    return status;
+}
+
+co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_config_t *config)
+{
+    if (!stack || !stack->line || !config) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    co_stack_t *s = stack;
+    s->failed = CO_STACK_PART_NONE;
+    if (s->has_node) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
+    }
+    if (config->node_id < 1 || config->node_id > 127 ||
+        (config->store_backend && !config->od)) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_ARGUMENT);
+    }
+    if (config->od && !config->od->sealed) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
+    }
+    node_sizes_t n;
+    if (config->od && (config->od->mode != co_line_mode(s->line) ||
+                       !node_sizes(s->line, config, &n))) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_OD);
+    }
+    if (!config->od) {
+        (void)node_sizes(s->line, config, &n);
+    }
+    if (!co_node_init(&s->node, s->line, config->node_id, config->heartbeat_ms, config->ind,
+                      config->user)) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
+    }
+    s->has_node = true;
+    s->od = config->od;
+    co_stack_status_t status = start_node_parts(s, config, &n);
+    if (status != CO_STACK_OK) {
+        co_stack_part_t part = s->failed;
+        node_undo(s);
+        s->failed = part;
+    }
+    return status;
+}
+
+co_stack_status_t co_stack_boot(co_stack_t *stack)
+{
+    if (!stack || !stack->has_node) {
+        return CO_STACK_ERR_STATE;
+    }
+    co_node_boot(&stack->node);
+    return CO_STACK_OK;
+}
+
+void co_stack_node_deinit(co_stack_t *stack)
+{
+    if (stack && stack->has_node) {
+        node_undo(stack);
+    }
+}
+
+/* ---------------------------------------------------------------- the client */
+
+co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_config_t *config)
+{
+    if (!stack || !stack->line || !config || config->sessions < 1 || config->sessions > 128) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    co_stack_t *s = stack;
+    s->failed = CO_STACK_PART_NONE;
+    if (s->has_usdo_client || s->has_sdo_client) {
+        return fail(s, CO_STACK_PART_CLIENT, CO_STACK_ERR_STATE);
+    }
+    bool fd = is_fd(s->line);
+    if (fd && (config->node_id < 1 || config->node_id > 127)) {
+        return fail(s, CO_STACK_PART_CLIENT, CO_STACK_ERR_ARGUMENT);
+    }
+    void *table = take(s, OWNER_CLIENT, client_entry_size(s->line) * config->sessions);
+    if (!table) {
+        return fail(s, CO_STACK_PART_CLIENT, CO_STACK_ERR_NO_MEMORY);
+    }
+    if (fd) {
+        co_usdo_client_config_t c = {.sessions = table,
+                                     .session_count = config->sessions,
+                                     .node_id = config->node_id,
+                                     .timeout_ms = config->timeout_ms};
+        s->has_usdo_client = co_usdo_client_init(&s->usdo_client, s->line, &c);
+    } else if (CO_CONFIG_CLASSIC) {
+        /* a local node's 0x1280.. channels come with it */
+        co_sdo_client_config_t c = {.channels = table,
+                                    .channel_count = config->sessions,
+                                    .od = s->has_node ? s->od : NULL,
+                                    .timeout_ms = config->timeout_ms};
+        s->has_sdo_client = co_sdo_client_init(&s->sdo_client, s->line, &c);
+    }
+    if (!s->has_usdo_client && !s->has_sdo_client) {
+        give_back(s, OWNER_CLIENT);
+        return fail(s, CO_STACK_PART_CLIENT, CO_STACK_ERR_TAKEN);
+    }
+    return CO_STACK_OK;
+}
+
+void co_stack_client_deinit(co_stack_t *stack)
+{
+    if (CO_CONFIG_FD && stack->has_usdo_client) {
+        co_usdo_client_deinit(&stack->usdo_client);
+        stack->has_usdo_client = false;
+    }
+    if (CO_CONFIG_CLASSIC && stack->has_sdo_client) {
+        co_sdo_client_deinit(&stack->sdo_client);
+        stack->has_sdo_client = false;
+    }
+    give_back(stack, OWNER_CLIENT);
+}
+
+/* ---------------------------------------------------------------- all */
+
+void co_stack_deinit(co_stack_t *stack)
+{
+    if (!stack || !stack->line) {
+        return;
+    }
+    co_stack_client_deinit(stack);
+    co_stack_node_deinit(stack);
+    line_undo(stack);
+    stack->line = NULL;
+}
+
+co_stack_part_t co_stack_failed_part(const co_stack_t *stack)
+{
+    return stack->failed;
+}
+
+const char *co_stack_part_name(co_stack_part_t part)
+{
+    switch (part) {
+    case CO_STACK_PART_NONE: return "nothing";
+    case CO_STACK_PART_HEARTBEAT: return "heartbeat consumer";
+    case CO_STACK_PART_SYNC: return "SYNC";
+    case CO_STACK_PART_TIME: return "TIME";
+    case CO_STACK_PART_EMCY_CONSUMER: return "EMCY consumer";
+    case CO_STACK_PART_GUARD_MASTER: return "node guarding master";
+    case CO_STACK_PART_NODE: return "local node";
+    case CO_STACK_PART_STORE: return "parameter store";
+    case CO_STACK_PART_EMCY: return "EMCY producer";
+    case CO_STACK_PART_PDO: return "PDO service";
+    case CO_STACK_PART_GUARD_SLAVE: return "node guarding slave";
+    case CO_STACK_PART_SERVER: return "SDO/USDO server";
+    case CO_STACK_PART_CLIENT: return "SDO/USDO client";
+    }
+    return "unknown part";
+}

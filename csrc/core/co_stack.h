@@ -1,0 +1,314 @@
+/* co_stack: the portable assembly of what a CAN line and its local node run.
+ *
+ * A line's services (heartbeat consumer, SYNC, TIME, EMCY consumer, node
+ * guarding master on classic lines, an SDO or USDO client) and, once a local
+ * node is added, everything that node runs (NMT slave and heartbeat
+ * producer, its object dictionary and store, EMCY producer, PDOs, the SDO
+ * server channels or USDO server sessions, the guarding slave on classic
+ * lines), set up over memory the caller gives and wired together the CiA
+ * way: NMT state to every service, SYNC to the PDOs, detected errors to
+ * EMCY, communication errors to 0x1029, resets to a reload.
+ *
+ * Memory comes from an allocator the caller provides: a bump arena over a
+ * static buffer (co_stack_arena_*) for builds that know their memory at
+ * compile time (co_stack_line_need / co_stack_node_need say how much, and
+ * CO_STACK_NODE_MEMORY bounds it from counts), or any allocate/release
+ * pair for builds that size at run time. It is used only while a part is
+ * set up; nothing is allocated while frames flow.
+ *
+ * Typical use (see examples/c/):
+ *   co_stack_init(&stack, &line, &line_config, allocator);
+ *   co_stack_node_init(&stack, &node_config);   // OD sealed with the node-id
+ *   co_stack_boot(&stack);                      // boot-up, pre-operational
+ *   for (;;) { feed frames with co_line_receive; co_line_process(&line, now);
+ *              send what co_line_tx_pop gives }
+ */
+#ifndef CO_STACK_H
+#define CO_STACK_H
+
+#include "co_emcy.h"
+#include "co_guard.h"
+#include "co_hb.h"
+#include "co_node.h"
+#include "co_od.h"
+#include "co_pdo.h"
+#include "co_sdo_client.h"
+#include "co_sdo_server.h"
+#include "co_store.h"
+#include "co_sync.h"
+#include "co_time.h"
+#include "co_usdo_client.h"
+#include "co_usdo_server.h"
+
+#include <stddef.h>
+
+/* Which kinds of line the stack is built for (both by default). A build for
+ * one kind links none of the other's services (SDO server/client and
+ * guarding for classic lines, USDO server/client for fd lines); a line of
+ * the other kind is refused with CO_STACK_ERR_ARGUMENT. */
+#ifndef CO_CONFIG_CLASSIC
+#define CO_CONFIG_CLASSIC 1
+#endif
+#ifndef CO_CONFIG_FD
+#define CO_CONFIG_FD 1
+#endif
+
+/* What a co_stack call says when it refuses. */
+typedef enum co_stack_status {
+    CO_STACK_OK = 0,
+    CO_STACK_ERR_ARGUMENT = 1,   /* a bad configuration value (node-id, counts, NULL) */
+    CO_STACK_ERR_NO_MEMORY = 2,  /* the allocator gave nothing */
+    CO_STACK_ERR_STATE = 3,      /* wrong moment: a node exists already, none exists,
+                                    the OD is not sealed, a client runs already */
+    CO_STACK_ERR_OD = 4,         /* the OD cannot be used (mode, PDO entries) */
+    CO_STACK_ERR_TAKEN = 5       /* a CAN-ID range, handler or indication table is full */
+} co_stack_status_t;
+
+/* The part a refused call was setting up (co_stack_failed_part). */
+typedef enum co_stack_part {
+    CO_STACK_PART_NONE = 0,
+    CO_STACK_PART_HEARTBEAT = 1,
+    CO_STACK_PART_SYNC = 2,
+    CO_STACK_PART_TIME = 3,
+    CO_STACK_PART_EMCY_CONSUMER = 4,
+    CO_STACK_PART_GUARD_MASTER = 5,
+    CO_STACK_PART_NODE = 6,
+    CO_STACK_PART_STORE = 7,
+    CO_STACK_PART_EMCY = 8,
+    CO_STACK_PART_PDO = 9,
+    CO_STACK_PART_GUARD_SLAVE = 10,
+    CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_CLIENT = 12    /* SDO client channels (classic) or USDO sessions (fd) */
+} co_stack_part_t;
+
+typedef struct co_stack co_stack_t;
+
+/* Memory for the parts: allocate returns storage aligned for any type (or
+ * NULL); release (may be NULL) gets back what a part no longer needs, in
+ * reverse order of allocation when a set-up is undone. */
+typedef struct co_stack_allocator {
+    void *(*allocate)(void *user, size_t size);
+    void (*release)(void *user, void *memory, size_t size);
+    void *user;
+} co_stack_allocator_t;
+
+/* A bump arena over caller memory: the allocator of static builds. A
+ * release gives memory back only when it is the last block handed out. */
+typedef struct co_stack_arena {
+    unsigned char *base;
+    size_t size;
+    size_t used;
+    size_t peak;                 /* most bytes ever in use */
+} co_stack_arena_t;
+
+enum {
+    CO_STACK_ALIGN = 8,          /* every block starts on this boundary */
+    CO_STACK_MAX_BLOCKS = 24,    /* blocks a stack holds at once */
+    /* OD handler subscriptions the node's parts take at most (node, store,
+     * SDO/USDO server and client, EMCY, SYNC, TIME, EMCY consumer, PDO,
+     * guarding slave): an OD served by a stack needs at least this many
+     * subscription slots besides the application's own. */
+    CO_STACK_OD_SUBSCRIPTIONS = 16,
+    CO_STACK_DEFAULT_HB_ENTRIES = 127,
+    CO_STACK_DEFAULT_SERVER_SESSIONS = 8,    /* fd lines: USDO server sessions */
+    CO_STACK_DEFAULT_EMCY_QUEUE = 16,
+    CO_STACK_DEFAULT_EMCY_ACTIVE = 32,
+    CO_STACK_DEFAULT_EMCY_HISTORY = 254
+};
+
+/* Rounds a block size up as the arena and the sizing functions do. */
+#define CO_STACK_BLOCK(bytes) ((((size_t)(bytes)) + CO_STACK_ALIGN - 1u) / CO_STACK_ALIGN * \
+                               CO_STACK_ALIGN)
+
+void co_stack_arena_init(co_stack_arena_t *arena, void *memory, size_t size);
+co_stack_allocator_t co_stack_arena_allocator(co_stack_arena_t *arena);
+
+/* Indications of the line's services (each may be NULL). They run inside
+ * co_line_process (or co_line_receive's caller's context for comm events). */
+typedef struct co_stack_indications {
+    /* a node's boot-up, state change, heartbeat started or lost */
+    void (*heartbeat)(co_stack_t *stack, uint8_t node_id, co_hb_event_t event,
+                      co_nmt_state_t state, void *user);
+    /* an EMCY of a consumed node */
+    void (*emcy)(co_stack_t *stack, uint8_t node_id, const co_emcy_msg_t *msg, void *user);
+    /* a TIME object */
+    void (*time)(co_stack_t *stack, const co_time_of_day_t *tod, void *user);
+    /* node guarding master (classic lines) */
+    void (*guard)(co_stack_t *stack, uint8_t node_id, co_guard_event_t event,
+                  co_nmt_state_t state, void *user);
+    /* the line's communication events (bus-off, overflow, ...) */
+    void (*comm)(co_stack_t *stack, co_comm_event_t event, void *user);
+} co_stack_indications_t;
+
+typedef struct co_stack_line_config {
+    uint8_t heartbeat_entries;   /* heartbeat consumer entries (0x1016 + watched), 0 = 127 */
+    uint8_t guarded_nodes;       /* classic lines: nodes the guarding master guards (0 = none) */
+    const co_stack_indications_t *ind;   /* may be NULL */
+    void *user;
+} co_stack_line_config_t;
+
+typedef struct co_stack_node_config {
+    uint8_t node_id;             /* 1..127 */
+    uint16_t heartbeat_ms;       /* 0x1017 without an OD */
+    co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL */
+    /* Parameters saved through this backend (NULL: defaults only; needs the OD). */
+    const co_store_backend_t *store_backend;
+    void *store_user;
+    uint32_t store_image_capacity;   /* bytes per image, 0 = co_store_image_need(od) */
+    /* fd lines: USDO server sessions, 0 = CO_STACK_DEFAULT_SERVER_SESSIONS.
+     * classic lines: the default SDO channel plus one per 0x1201..0x127F
+     * object of the OD (this field is not used). */
+    uint8_t server_sessions;
+    uint16_t emcy_queue;         /* EMCYs waiting for the inhibit time, 0 = 16 */
+    uint16_t emcy_active;        /* errors active at once, 0 = 32 */
+    uint8_t emcy_history;        /* 0x1003 entries at most, 0 = 254 */
+    const co_node_indications_t *ind;   /* the node's (may be NULL) */
+    void *user;
+} co_stack_node_config_t;
+
+typedef struct co_stack_client_config {
+    uint8_t sessions;            /* USDO sessions (fd) / SDO channels (classic), 1..128 */
+    uint8_t node_id;             /* fd lines: our USDO client node-id 1..127 */
+    uint32_t timeout_ms;         /* default per-frame timeout, 0 = 1000 */
+} co_stack_client_config_t;
+
+/* A block the stack holds (what it gives back at deinit). */
+typedef struct co_stack_block {
+    void *memory;
+    size_t size;
+    uint8_t owner;               /* the line, the node or the client */
+} co_stack_block_t;
+
+/* The parts live here; read them through the accessors below (NULL when a
+ * part does not run), never write the fields. */
+struct co_stack {
+    co_line_t *line;
+    co_stack_allocator_t alloc;
+    const co_stack_indications_t *ind;
+    void *user;
+    co_stack_part_t failed;
+    uint8_t block_count;
+    co_stack_block_t blocks[CO_STACK_MAX_BLOCKS];
+    /* the line's services */
+    co_hb_consumer_t hb_consumer;
+    co_sync_t sync;
+    co_time_t time;
+    co_emcy_consumer_t emcy_consumer;
+    bool has_guard_master;
+    co_guard_master_t guard_master;
+    /* the local node */
+    bool has_node;
+    co_node_t node;
+    co_od_t *od;
+    bool has_store;
+    co_store_t store;
+    bool has_emcy;
+    co_emcy_t emcy;
+    bool has_pdo;
+    co_pdo_t pdo;
+    bool has_guard_slave;
+    co_guard_slave_t guard_slave;
+    bool has_usdo_server;
+    co_usdo_server_t usdo_server;
+    bool has_sdo_server;
+    co_sdo_server_t sdo_server;
+    /* the client */
+    bool has_usdo_client;
+    co_usdo_client_t usdo_client;
+    bool has_sdo_client;
+    co_sdo_client_t sdo_client;
+};
+
+/* ---- sizing (bytes the allocator is asked for, alignment included) */
+size_t co_stack_line_need(const co_line_t *line, const co_stack_line_config_t *config);
+/* The node's need depends on its OD (PDO count, largest entry, store image). */
+size_t co_stack_node_need(const co_line_t *line, const co_stack_node_config_t *config);
+size_t co_stack_client_need(const co_line_t *line, const co_stack_client_config_t *config);
+
+/* ---- set-up; each returns CO_STACK_OK or says why not (and which part,
+ * co_stack_failed_part), leaving the stack as it was before the call. */
+co_stack_status_t co_stack_init(co_stack_t *stack, co_line_t *line,
+                                const co_stack_line_config_t *config,
+                                co_stack_allocator_t allocator);
+/* The line's local node (the line's node-id becomes node_id). Nothing is
+ * sent until co_stack_boot. */
+co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_config_t *config);
+/* Power-on of the node: parameters loaded, boot-up sent, pre-operational. */
+co_stack_status_t co_stack_boot(co_stack_t *stack);
+/* Undo co_stack_node_init (the client goes too when it was bound to the
+ * node's OD). */
+void co_stack_node_deinit(co_stack_t *stack);
+/* The SDO (classic) or USDO (fd) client; on classic lines with a node that
+ * has an OD, its 0x1280.. channels come first. */
+co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_config_t *config);
+void co_stack_client_deinit(co_stack_t *stack);
+/* Everything, memory given back. */
+void co_stack_deinit(co_stack_t *stack);
+co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
+const char *co_stack_part_name(co_stack_part_t part);
+
+/* ---- the parts (NULL when not running) */
+static inline co_line_t *co_stack_line(co_stack_t *s) { return s->line; }
+static inline co_hb_consumer_t *co_stack_hb_consumer(co_stack_t *s) { return &s->hb_consumer; }
+static inline co_sync_t *co_stack_sync(co_stack_t *s) { return &s->sync; }
+static inline co_time_t *co_stack_time(co_stack_t *s) { return &s->time; }
+static inline co_emcy_consumer_t *co_stack_emcy_consumer(co_stack_t *s)
+{
+    return &s->emcy_consumer;
+}
+static inline co_guard_master_t *co_stack_guard_master(co_stack_t *s)
+{
+    return s->has_guard_master ? &s->guard_master : NULL;
+}
+static inline bool co_stack_has_node(const co_stack_t *s) { return s->has_node; }
+static inline co_node_t *co_stack_node(co_stack_t *s) { return s->has_node ? &s->node : NULL; }
+static inline co_od_t *co_stack_od(co_stack_t *s) { return s->has_node ? s->od : NULL; }
+static inline co_store_t *co_stack_store(co_stack_t *s) { return s->has_store ? &s->store : NULL; }
+static inline co_emcy_t *co_stack_emcy(co_stack_t *s) { return s->has_emcy ? &s->emcy : NULL; }
+static inline co_pdo_t *co_stack_pdo(co_stack_t *s) { return s->has_pdo ? &s->pdo : NULL; }
+static inline co_guard_slave_t *co_stack_guard_slave(co_stack_t *s)
+{
+    return s->has_guard_slave ? &s->guard_slave : NULL;
+}
+static inline co_usdo_server_t *co_stack_usdo_server(co_stack_t *s)
+{
+    return s->has_usdo_server ? &s->usdo_server : NULL;
+}
+static inline co_sdo_server_t *co_stack_sdo_server(co_stack_t *s)
+{
+    return s->has_sdo_server ? &s->sdo_server : NULL;
+}
+static inline co_usdo_client_t *co_stack_usdo_client(co_stack_t *s)
+{
+    return s->has_usdo_client ? &s->usdo_client : NULL;
+}
+static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
+{
+    return s->has_sdo_client ? &s->sdo_client : NULL;
+}
+
+/* ---- compile-time bounds, for static builds: a line's memory from its
+ * configuration (guarded_nodes counts on classic lines only), */
+#define CO_STACK_LINE_MEMORY(hb_entries, guarded_nodes)                                 \
+    (CO_STACK_BLOCK(sizeof(co_hb_entry_t) * (hb_entries)) +                             \
+     ((guarded_nodes) ? CO_STACK_BLOCK(sizeof(co_guard_node_t) * (guarded_nodes)) : 0u))
+
+/* ---- and a node's, for static builds:
+ * pdo_channels / map_items as co_pdo_need says for the OD (RPDOs + TPDOs,
+ * and their mapping sub-entries), largest_entry = the OD's largest
+ * entry size in bytes (co_od_entry_t.size), store_image = co_store_image_need (0 without a
+ * store), servers = USDO sessions (fd) or SDO channels (classic) the node
+ * serves. co_stack_node_need never exceeds it for such an OD (tested). */
+#define CO_STACK_NODE_MEMORY(pdo_channels, map_items, largest_entry, store_image, servers) \
+    (CO_STACK_BLOCK(sizeof(co_emcy_msg_t) * CO_STACK_DEFAULT_EMCY_QUEUE) +                  \
+     CO_STACK_BLOCK(sizeof(co_emcy_active_t) * CO_STACK_DEFAULT_EMCY_ACTIVE) +              \
+     CO_STACK_BLOCK(sizeof(uint32_t) * CO_STACK_DEFAULT_EMCY_HISTORY) +                     \
+     CO_STACK_BLOCK(sizeof(co_pdo_channel_t) * ((pdo_channels) ? (pdo_channels) : 1)) +     \
+     CO_STACK_BLOCK(sizeof(co_pdo_map_item_t) * ((map_items) ? (map_items) : 1)) +          \
+     CO_STACK_BLOCK(2u * (size_t)(store_image)) +                                            \
+     CO_STACK_BLOCK((sizeof(co_usdo_session_t) > sizeof(co_sdo_channel_t)                   \
+                         ? sizeof(co_usdo_session_t) : sizeof(co_sdo_channel_t)) *          \
+                    (servers)) +                                                             \
+     CO_STACK_BLOCK(((size_t)(largest_entry) + CO_SDO_SERVER_BUFFER) * (servers) + 1u))
+
+#endif
