@@ -39,12 +39,12 @@
 #include <unistd.h>
 
 #include "bench_util.h"
-#include "co_line.h"
-#include "co_membus.h"
-#include "co_od.h"
-#include "co_usdo.h"
-#include "co_usdo_client.h"
-#include "co_usdo_server.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_membus.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_usdo.h"
+#include "canopenfd/co_usdo_client.h"
+#include "canopenfd/co_usdo_server.h"
 
 #if defined(__linux__) && !defined(USDO_BENCH_NO_SOCKETCAN)
 #define HAVE_SOCKETCAN 1
@@ -55,7 +55,7 @@
 #include <linux/can.h>
 #include <linux/can/raw.h>
 
-#include "co_socketcan.h"
+#include "canopenfd/co_socketcan.h"
 #else
 #define HAVE_SOCKETCAN 0
 #endif

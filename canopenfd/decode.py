@@ -208,7 +208,7 @@ def _guarding_reply(node_id: int, code: int) -> str:
 
 
 # ------------------------------------------------------------------ USDO
-# Wire format: csrc/core/co_usdo.h (the codec, source of truth) and
+# Wire format: csrc/include/canopenfd/co_usdo.h (the codec, source of truth) and
 # docs/protocol-notes.md. The CAN-ID's low 7 bits name the sender, byte 0 the
 # addressee (0 = broadcast), byte 1 is the command specifier, byte 2 the
 # session-ID; sub-index (byte 3) comes before the index (bytes 4-5, LE).

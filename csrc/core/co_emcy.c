@@ -1,4 +1,4 @@
-#include "co_emcy.h"
+#include "canopenfd/co_emcy.h"
 
 #include <string.h>
 

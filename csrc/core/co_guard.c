@@ -1,5 +1,5 @@
 /* Node guarding and life guarding (see co_guard.h). */
-#include "co_guard.h"
+#include "canopenfd/co_guard.h"
 
 #include <string.h>
 

@@ -1,4 +1,4 @@
-#include "co_hb.h"
+#include "canopenfd/co_hb.h"
 
 #include <string.h>
 

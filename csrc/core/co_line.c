@@ -1,4 +1,4 @@
-#include "co_line.h"
+#include "canopenfd/co_line.h"
 
 #include <string.h>
 

@@ -1,4 +1,4 @@
-#include "co_nmt.h"
+#include "canopenfd/co_nmt.h"
 
 bool co_nmt_command_is_valid(uint8_t command)
 {

@@ -1,4 +1,4 @@
-#include "co_node.h"
+#include "canopenfd/co_node.h"
 
 #include "co_bits.h"
 #include "co_cob_id.h"

@@ -19,7 +19,7 @@
  *
  * Values are byte arrays: nothing here casts a pool pointer to a wider type,
  * numbers go through the explicit little-endian helpers below. */
-#include "co_od.h"
+#include "canopenfd/co_od.h"
 
 #include <string.h>
 

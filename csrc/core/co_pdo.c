@@ -1,5 +1,5 @@
 /* PDO service (see co_pdo.h). */
-#include "co_pdo.h"
+#include "canopenfd/co_pdo.h"
 
 #include <string.h>
 

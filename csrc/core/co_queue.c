@@ -1,4 +1,4 @@
-#include "co_queue.h"
+#include "canopenfd/co_queue.h"
 
 void co_queue_init(co_frame_queue_t *q, co_frame_t *slots, uint32_t capacity)
 {

@@ -35,12 +35,12 @@
  *    timeout runs out once; a second expiry without a segment aborts.
  *  - AUTO: a block initiate refused with 0x05040001 is done once more
  *    without block (segmented download / normal upload). */
+#include "canopenfd/co_sdo_client.h"
+
 #include "co_cob_id.h"
-#include "co_sdo_client.h"
+#include "co_crc.h"
 
 #include <string.h>
-
-#include "co_crc.h"
 
 enum {
     NODE_MAX = 127,

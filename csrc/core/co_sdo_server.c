@@ -40,12 +40,12 @@
  *    127 -> 0x05040002, an ack above the segments sent -> 0x05040003, CRC
  *    mismatch -> 0x05040004 (download: checked only when both sides
  *    announced CRC support; upload: sent whenever we support it). */
+#include "canopenfd/co_sdo_server.h"
+
 #include "co_cob_id.h"
-#include "co_sdo_server.h"
+#include "co_crc.h"
 
 #include <string.h>
-
-#include "co_crc.h"
 
 enum answer {
     ANSWER_NONE = 0,

@@ -1,6 +1,7 @@
 /* SYNC producer and consumer (see co_sync.h). */
+#include "canopenfd/co_sync.h"
+
 #include "co_cob_id.h"
-#include "co_sync.h"
 
 #include <string.h>
 

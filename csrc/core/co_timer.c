@@ -1,4 +1,4 @@
-#include "co_timer.h"
+#include "canopenfd/co_timer.h"
 
 #include <stddef.h>
 

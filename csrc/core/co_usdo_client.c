@@ -18,7 +18,7 @@
  *    tells the server the data was not taken (the server ignores it).
  *  - AUTO: a bulk initiate refused with 0x13 (the server has no bulk) is
  *    retried once as a segmented download with a fresh session-ID. */
-#include "co_usdo_client.h"
+#include "canopenfd/co_usdo_client.h"
 
 #include <string.h>
 

@@ -33,7 +33,7 @@
  *    segment (0x08) is answered (0x28). A wrong counter (lost, repeated or
  *    reordered segment) aborts with 0x14 once.
  *  - An abort is never answered with an abort. */
-#include "co_usdo_server.h"
+#include "canopenfd/co_usdo_server.h"
 
 #include <string.h>
 

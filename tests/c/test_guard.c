@@ -6,7 +6,7 @@
  * frame and answer: CAN-ID, flags, length, bytes, time. */
 #include "test_od_util.h"
 
-#include "co_guard.h"
+#include "canopenfd/co_guard.h"
 
 #define MS(x) ((uint64_t)(x) * TU_MS)
 #define ID_S 5

@@ -8,7 +8,7 @@
 #include "test_od_util.h"
 
 #include "co_cob_id.h"
-#include "co_pdo.h"
+#include "canopenfd/co_pdo.h"
 
 #define ID_A 5
 #define ID_B 6

@@ -18,9 +18,9 @@
 
 #include "co_cob_id.h"
 #include "co_crc.h"
-#include "co_sdo.h"
-#include "co_sdo_client.h"
-#include "co_sdo_server.h"
+#include "canopenfd/co_sdo.h"
+#include "canopenfd/co_sdo_client.h"
+#include "canopenfd/co_sdo_server.h"
 
 #define NSRV 3
 #define X 0x40                    /* scripted server */

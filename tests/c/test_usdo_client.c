@@ -13,9 +13,9 @@
  * hand from the research notes (§2.4-2.9), not with the codec. */
 #include "test_od_util.h"
 
-#include "co_usdo.h"
-#include "co_usdo_client.h"
-#include "co_usdo_server.h"
+#include "canopenfd/co_usdo.h"
+#include "canopenfd/co_usdo_client.h"
+#include "canopenfd/co_usdo_server.h"
 
 #define C 0x10
 #define REQ_ID (0x600u + C)

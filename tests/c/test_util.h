@@ -15,14 +15,14 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "co_frame.h"
-#include "co_queue.h"
-#include "co_timer.h"
-#include "co_line.h"
-#include "co_nmt.h"
-#include "co_hb.h"
-#include "co_node.h"
-#include "co_membus.h"
+#include "canopenfd/co_frame.h"
+#include "canopenfd/co_queue.h"
+#include "canopenfd/co_timer.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_hb.h"
+#include "canopenfd/co_node.h"
+#include "canopenfd/co_membus.h"
 
 #define TU_QUEUE 256          /* rx and tx slots of every test line */
 #define TU_MAX_LINES 4        /* processed lines on a test bus */

@@ -10,8 +10,6 @@
  * it is posted as events. */
 #include "co_rt_internal.h"
 
-#include "../../core/co_bits.h"
-
 #include <stdlib.h>
 #include <string.h>
 
@@ -58,7 +56,7 @@ static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t eve
 
 void rt_services_pdo_received(rt_line_t *l, uint16_t number)
 {
-    if (number == 0 || number > CO_PDO_MAX_NUMBER || !co_bit_test(l->pdo_listen, number - 1u)) {
+    if (number == 0 || number > CO_PDO_MAX_NUMBER || !l->pdo_listen[number - 1u]) {
         return;
     }
     /* the values as now in the OD, laid out as the mapping says */
@@ -458,7 +456,7 @@ int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen)
     if (!l) {
         return CO_RT_ERR_STATE;
     }
-    co_bit_put(l->pdo_listen, (uint16_t)(rpdo_number - 1), listen != 0);
+    l->pdo_listen[rpdo_number - 1] = listen != 0;
     pthread_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }

@@ -4,9 +4,9 @@
 #ifndef CO_LINE_H
 #define CO_LINE_H
 
-#include "co_frame.h"
-#include "co_queue.h"
-#include "co_timer.h"
+#include "canopenfd/co_frame.h"
+#include "canopenfd/co_queue.h"
+#include "canopenfd/co_timer.h"
 
 /* cffi:begin */
 typedef enum co_mode {

@@ -3,7 +3,7 @@
 #ifndef CO_QUEUE_H
 #define CO_QUEUE_H
 
-#include "co_frame.h"
+#include "canopenfd/co_frame.h"
 
 typedef struct co_frame_queue {
     co_frame_t *slots;

@@ -27,9 +27,9 @@
 #ifndef CO_USDO_SERVER_H
 #define CO_USDO_SERVER_H
 
-#include "co_line.h"
-#include "co_od.h"
-#include "co_usdo.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_usdo.h"
 
 enum { CO_USDO_SERVER_DEFAULT_TIMEOUT_MS = 1000 };
 

@@ -10,7 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "co_line.h"
+#include "canopenfd/co_line.h"
 
 /* cffi:begin */
 /* CiA 301 data type indices. */

@@ -35,9 +35,9 @@
 #ifndef CO_USDO_CLIENT_H
 #define CO_USDO_CLIENT_H
 
-#include "co_buffer.h"
-#include "co_line.h"
-#include "co_usdo.h"
+#include "canopenfd/co_buffer.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_usdo.h"
 
 enum {
     CO_USDO_CLIENT_DEFAULT_TIMEOUT_MS = 1000,
