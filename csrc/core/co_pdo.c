@@ -1,9 +1,10 @@
 /* PDO service (see co_pdo.h). */
 #include "canopenfd/co_pdo.h"
 
-#include <string.h>
-
+#include "canopenfd/co_assert.h"
 #include "co_cob_id.h"   /* co_cob_id_restricted: CiA 301's restricted CAN-IDs */
+
+#include <string.h>
 
 #define COB_INVALID 0x80000000u
 #define COB_NO_RTR 0x40000000u
@@ -41,10 +42,16 @@ static uint16_t slot_of(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
     return is_rpdo ? pdo->rpdo_of[number - 1u] : pdo->tpdo_of[number - 1u];
 }
 
+/* The channel of a slot taken from the number or CAN-ID tables (0 = none). */
+static co_pdo_channel_t *channel_at(const co_pdo_t *pdo, uint16_t slot)
+{
+    CO_ASSERT(slot <= pdo->channel_count);
+    return slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+}
+
 static co_pdo_channel_t *channel_of(co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    uint16_t slot = slot_of(pdo, is_rpdo, number);
-    return slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+    return channel_at(pdo, slot_of(pdo, is_rpdo, number));
 }
 
 /* The channel an index of 0x1400..0x1BFF belongs to. */
@@ -626,8 +633,7 @@ static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
     if (f->flags & CO_FRAME_EXT) {
         ch = find_ext(pdo, false, f->id);
     } else {
-        uint16_t slot = pdo->rtr_map[f->id];
-        ch = slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+        ch = channel_at(pdo, pdo->rtr_map[f->id]);
     }
     if (ch == NULL) {
         return false;
@@ -665,8 +671,7 @@ static bool on_other(co_line_t *line, const co_frame_t *f, void *user)
     if (f->flags & CO_FRAME_EXT) {
         ch = pdo->ext_rpdos != 0 ? find_ext(pdo, true, f->id) : NULL;
     } else {
-        uint16_t slot = pdo->rx_map[f->id];
-        ch = slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+        ch = channel_at(pdo, pdo->rx_map[f->id]);
     }
     if (ch == NULL) {
         pdo->stats.rx_not_ours++;
@@ -976,18 +981,17 @@ uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
 
 bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    uint16_t slot = slot_of(pdo, is_rpdo, number);
-    return slot != 0 && pdo->channels[slot - 1u].active;
+    const co_pdo_channel_t *ch = channel_at(pdo, slot_of(pdo, is_rpdo, number));
+    return ch != NULL && ch->active;
 }
 
 bool co_pdo_pack_values(const co_pdo_t *pdo, bool is_rpdo, uint16_t number, uint8_t *data,
                         uint8_t *len)
 {
-    uint16_t slot = slot_of(pdo, is_rpdo, number);
-    if (slot == 0) {
+    const co_pdo_channel_t *ch = channel_at(pdo, slot_of(pdo, is_rpdo, number));
+    if (ch == NULL) {
         return false;
     }
-    const co_pdo_channel_t *ch = &pdo->channels[slot - 1u];
     memset(data, 0, CO_FRAME_MAX_DATA);
     co_pdo_map_pack(pdo->od, ch->map, ch->map_count, ch->bits, data);
     *len = (uint8_t)((ch->bits + 7u) / 8u);
