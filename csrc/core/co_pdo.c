@@ -81,7 +81,7 @@ static uint32_t check_type(const co_pdo_t *pdo, bool is_rpdo, uint8_t type)
         return CO_ABORT_INVALID_VALUE;   /* reserved */
     }
     if ((type == CO_PDO_TYPE_RTR_SYNC || type == CO_PDO_TYPE_RTR_EVENT) &&
-        (is_rpdo || pdo->line->mode == CO_MODE_FD)) {
+        (is_rpdo || co_line_mode(pdo->line) == CO_MODE_FD)) {
         return CO_ABORT_INVALID_VALUE;   /* RTR-only: classic TPDOs only */
     }
     return 0;
@@ -177,7 +177,7 @@ static void arm_event_timer(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     if (ch->event_ms != 0 && is_event_type(ch->type)) {
         co_timer_start(co_line_timers(pdo->line), &ch->timer,
-                       pdo->line->now_us + ms_to_us(ch->event_ms));
+                       co_line_now(pdo->line) + ms_to_us(ch->event_ms));
     }
 }
 
@@ -190,14 +190,14 @@ static void send_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
         return;
     }
     transmit(pdo, ch);
-    ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
+    ch->inhibit_end_us = co_line_now(pdo->line) + (uint64_t)ch->inhibit_100us * 100u;
     arm_event_timer(pdo, ch);
 }
 
 /* An event for a 254/255 TPDO: sent now, or when the inhibit time ends. */
 static void tpdo_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
-    if (ch->inhibit_100us != 0 && pdo->line->now_us < ch->inhibit_end_us) {
+    if (ch->inhibit_100us != 0 && co_line_now(pdo->line) < ch->inhibit_end_us) {
         if (!ch->event_pending) {
             ch->event_pending = true;
             pdo->stats.tx_inhibited++;
@@ -266,7 +266,7 @@ static void on_retry(co_timer_t *timer, uint64_t now_us, void *user)
 static void on_tx_space(co_line_t *line, void *user)
 {
     co_pdo_t *pdo = user;
-    co_timer_start(co_line_timers(line), &pdo->retry_timer, line->now_us);
+    co_timer_start(co_line_timers(line), &pdo->retry_timer, co_line_now(line));
 }
 
 /* ------------------------------------------------------------ runtime state */
@@ -367,14 +367,14 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
     if (ch->is_rpdo) {
         if (ch->ext) {
             pdo->ext_rpdos++;
-        } else if (pdo->rx_map[ch->can_id] != 0 || pdo->line->id_map[ch->can_id] != 0) {
+        } else if (pdo->rx_map[ch->can_id] != 0 || co_line_id_taken(pdo->line, ch->can_id)) {
             pdo->stats.id_conflicts++;
             return;
         } else {
             pdo->rx_map[ch->can_id] = slot;
         }
     } else {
-        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && pdo->line->mode == CO_MODE_CLASSIC;
+        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && co_line_mode(pdo->line) == CO_MODE_CLASSIC;
         if (ch->rtr_allowed && !ch->ext && pdo->rtr_map[ch->can_id] == 0) {
             pdo->rtr_map[ch->can_id] = slot;
         }
@@ -427,7 +427,7 @@ static uint32_t check_comm(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entr
         if (ch->is_rpdo && !(cob & COB_EXT)) {
             uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
             if ((pdo->rx_map[id] != 0 && pdo->rx_map[id] != slot) ||
-                pdo->line->id_map[id] != 0) {
+                co_line_id_taken(pdo->line, id)) {
                 return CO_ABORT_INVALID_VALUE;   /* another RPDO or service takes it */
             }
         }
@@ -578,7 +578,7 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
 {
     uint8_t need = (uint8_t)((ch->bits + 7u) / 8u);
     /* fd lines send the mapped bytes rounded up to an FD length */
-    uint8_t allowed = pdo->line->mode == CO_MODE_FD ? co_fd_len_round(need) : need;
+    uint8_t allowed = co_line_mode(pdo->line) == CO_MODE_FD ? co_fd_len_round(need) : need;
     if (!pdo->operational) {
         pdo->stats.rx_not_operational++;
         return;
@@ -597,7 +597,7 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
     if (ch->event_ms != 0) {
         ch->monitoring = true;
         co_timer_start(co_line_timers(pdo->line), &ch->timer,
-                       pdo->line->now_us + ms_to_us(ch->event_ms));
+                       co_line_now(pdo->line) + ms_to_us(ch->event_ms));
     }
     if (ch->timed_out) {
         report(pdo, ch, CO_PDO_EMCY_RECEIVED_AGAIN);
@@ -627,7 +627,7 @@ static co_pdo_channel_t *find_ext(co_pdo_t *pdo, bool is_rpdo, uint32_t id)
 static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
 {
     co_pdo_channel_t *ch;
-    if (pdo->line->mode != CO_MODE_CLASSIC) {
+    if (co_line_mode(pdo->line) != CO_MODE_CLASSIC) {
         return false;   /* fd lines have no remote frames for PDOs */
     }
     if (f->flags & CO_FRAME_EXT) {
@@ -654,7 +654,7 @@ static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
         pdo->stats.rtr_answered++;   /* a full tx queue counts in tx_failed instead */
     }
     if (is_event_type(ch->type)) {
-        ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
+        ch->inhibit_end_us = co_line_now(pdo->line) + (uint64_t)ch->inhibit_100us * 100u;
         arm_event_timer(pdo, ch);
     }
     return true;
@@ -847,7 +847,7 @@ bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_confi
     uint32_t channels, items;
     setup_t s;
     if (pdo == NULL || line == NULL || config == NULL || !co_pdo_need(od, &channels, &items) ||
-        od->mode != line->mode || config->channel_count < channels ||
+        od->mode != co_line_mode(line) || config->channel_count < channels ||
         config->item_count < items || (channels > 0 && config->channels == NULL) ||
         (items > 0 && config->items == NULL)) {
         return false;

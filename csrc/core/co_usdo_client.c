@@ -39,7 +39,7 @@ static co_timer_list_t *timers_of(const co_usdo_client_session_t *ses)
 
 static uint64_t now_of(const co_usdo_client_t *c)
 {
-    return c->line->now_us;
+    return co_line_now(c->line);
 }
 
 static uint64_t timeout_of(const co_usdo_client_session_t *ses)
@@ -291,14 +291,6 @@ static void send_upload_segment_request(co_usdo_client_session_t *ses)
 
 /* ------------------------------------------------------------ bulk */
 
-/* Send while the tx queue is below 3/4 full: a quarter stays for other
- * services (heartbeat, PDOs, other transfers' answers). */
-static bool tx_room(const co_usdo_client_t *c)
-{
-    const co_frame_queue_t *q = &c->line->tx;
-    return co_queue_count(q) < q->capacity - q->capacity / 4u;
-}
-
 static void wait_space(co_usdo_client_session_t *ses)
 {
     if (!ses->wait_space) {
@@ -352,7 +344,7 @@ static void bulk_run(co_usdo_client_session_t *ses)
         ses->next_at = now + ses->period_us;
     }
     while (budget > 0) {
-        if (!tx_room(c)) {
+        if (co_line_tx_room(c->line) == 0) {
             wait_space(ses);
             break;
         }
@@ -878,7 +870,7 @@ bool co_usdo_client_init(co_usdo_client_t *c, co_line_t *line, const co_usdo_cli
     uint8_t i;
     if (c == NULL || line == NULL || cfg == NULL || cfg->sessions == NULL ||
         cfg->session_count == 0 || cfg->node_id == 0 || cfg->node_id > NODE_MAX ||
-        line->mode != CO_MODE_FD) {
+        co_line_mode(line) != CO_MODE_FD) {
         return false;
     }
     memset(c, 0, sizeof *c);

@@ -69,6 +69,16 @@ static void test_timer_cancelled_on_another_list_is_caught(void **state)
     assert_false(co_timer_is_armed(&t));
 }
 
+static void test_line_id_beyond_11_bits_is_caught(void **state)
+{
+    static tu_line_t l;
+    volatile uint32_t id = 0x800;   /* unknown to the compiler: no bounds warning */
+    (void)state;
+    tu_line_init(&l, CO_MODE_CLASSIC, false);
+    assert_false(co_line_id_taken(&l.line, 0x7FF));
+    expect_assert_failure(co_line_id_taken(&l.line, id));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -76,6 +86,7 @@ int main(void)
         cmocka_unit_test(test_queue_at_past_the_count_is_caught),
         cmocka_unit_test(test_corrupt_queue_is_caught),
         cmocka_unit_test(test_timer_cancelled_on_another_list_is_caught),
+        cmocka_unit_test(test_line_id_beyond_11_bits_is_caught),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

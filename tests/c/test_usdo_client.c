@@ -248,7 +248,7 @@ static void server_build(fx_t *fx, srv_t *s, uint8_t id, co_line_t *line, uint32
     s->fx = fx;
     s->id = id;
     s->line = line;
-    line->node_id = id;   /* the server reads its node-id from the line */
+    co_line_set_node_id(line, id);   /* the server reads its node-id from the line */
     s->dom_cap = dom_cap;
     s->dom = calloc(1, dom_cap);
     assert_non_null(s->dom);
@@ -348,7 +348,7 @@ static void step(fx_t *fx, uint64_t now)
             (void)co_line_process(&tb->lines[i]->line, now);
         moved = co_membus_transfer(&tb->bus, NULL, NULL);
         if (fx->observe != NULL) {
-            while (co_queue_pop(&tb->sniffer.line.rx, &f))
+            while (co_line_rx_pop(&tb->sniffer.line, &f))
                 fx->observe(fx, &f);
         } else {
             tu_drain_sniffer(tb);

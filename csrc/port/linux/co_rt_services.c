@@ -22,7 +22,7 @@ static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t 
     rt_line_t *l = user;
     co_frame_t frame;
     memset(&frame, 0, sizeof frame);
-    bool fd = l->line.mode == CO_MODE_FD;
+    bool fd = co_line_mode(&l->line) == CO_MODE_FD;
     frame.len = (uint8_t)(fd ? co_emcy_encode_fd(msg, frame.data, sizeof frame.data)
                              : co_emcy_encode_classic(msg, frame.data, sizeof frame.data));
     rt_post(l, CO_EV_EMCY, node_id, fd ? 1u : 0u, msg->code, &frame);
@@ -120,7 +120,7 @@ bool rt_services_line_init(rt_line_t *l)
     if (!co_emcy_consumer_init(&l->emcy_consumer, &l->line, on_emcy, l)) {
         return false;
     }
-    if (l->line.mode == CO_MODE_CLASSIC) {
+    if (co_line_mode(&l->line) == CO_MODE_CLASSIC) {
         if (!co_guard_master_init(&l->guard_master, &l->line, l->guard_nodes, RT_GUARD_NODES,
                                   on_guard, l)) {
             return false;
@@ -209,7 +209,7 @@ int rt_services_node_attach(co_rt_t *rt, rt_line_t *l)
             return status;
         }
         s.pdo = &l->pdo;
-        if (l->line.mode == CO_MODE_CLASSIC) {
+        if (co_line_mode(&l->line) == CO_MODE_CLASSIC) {
             if (!co_guard_slave_init(&l->guard_slave, &l->line, &l->node.nmt,
                                      co_node_guard_life, &l->node) ||
                 !co_guard_slave_attach_od(&l->guard_slave, &l->od)) {
