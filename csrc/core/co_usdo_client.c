@@ -20,6 +20,8 @@
  *    retried once as a segmented download with a fresh session-ID. */
 #include "canopenfd/co_usdo_client.h"
 
+#include "co_bits.h"
+
 #include <string.h>
 
 enum {
@@ -60,17 +62,12 @@ static void arm_timeout(co_usdo_client_session_t *ses)
 
 static bool sid_live(const co_usdo_client_t *c, uint8_t sid)
 {
-    return ((c->live_sid[sid >> 5] >> (sid & 31u)) & 1u) != 0;
+    return co_bit32_test(c->live_sid, sid);
 }
 
 static void sid_mark(co_usdo_client_t *c, uint8_t sid, bool live)
 {
-    uint32_t bit = 1u << (sid & 31u);
-    if (live) {
-        c->live_sid[sid >> 5] |= bit;
-    } else {
-        c->live_sid[sid >> 5] &= ~bit;
-    }
+    co_bit32_put(c->live_sid, sid, live);
 }
 
 /* Round-robin over 1..255, skipping live IDs: a finished transfer's ID
@@ -88,16 +85,6 @@ static uint8_t sid_next(co_usdo_client_t *c)
         }
     }
     return 0;
-}
-
-static bool bit_test(const uint32_t *bits, uint8_t n)
-{
-    return ((bits[n >> 5] >> (n & 31u)) & 1u) != 0;
-}
-
-static void bit_set(uint32_t *bits, uint8_t n)
-{
-    bits[n >> 5] |= 1u << (n & 31u);
 }
 
 static bool is_broadcast(const co_usdo_client_session_t *ses)
@@ -709,7 +696,7 @@ static void on_broadcast_answer(co_usdo_client_session_t *ses, uint8_t node,
     bool takes = req->upload ? (m->cs == CO_USDO_CS_UPLOAD_EXPEDITED_RSP ||
                                 m->cs == CO_USDO_CS_UPLOAD_INITIATE_RSP)
                              : m->cs == CO_USDO_CS_DOWNLOAD_EXPEDITED_RSP;
-    if (bit_test(ses->answered, node)) {
+    if (co_bit32_test(ses->answered, node)) {
         c->stats.rx_duplicate++;
         return;
     }
@@ -739,7 +726,7 @@ static void on_broadcast_answer(co_usdo_client_session_t *ses, uint8_t node,
     if (m->cs == CO_USDO_CS_UPLOAD_INITIATE_RSP) {
         send_abort(ses, node, code);   /* that server holds an open upload */
     }
-    bit_set(ses->answered, node);
+    co_bit32_put(ses->answered, node, true);
     req->answers++;
     if (req->answer != NULL) {
         req->answer(req, node, code, type, data, len);   /* last use of ses */
