@@ -2,7 +2,7 @@
  * broken internal contracts through it. This binary builds the core with
  * CO_ASSERT going to cmocka (test_assert_hook.h), breaks documented
  * preconditions on purpose and expects each to be caught. */
-#include "test_util.h"
+#include "test_od_util.h"
 
 #ifdef NDEBUG
 #error "the C tests run with assertions on"
@@ -79,6 +79,28 @@ static void test_line_id_beyond_11_bits_is_caught(void **state)
     expect_assert_failure(co_line_id_taken(&l.line, id));
 }
 
+/* The scratch a transfer collects into shrinks under it (a caller changed
+ * what co_od_xfer_init was given): the chunk that would overrun is caught. */
+static void test_od_scratch_changed_during_a_transfer_is_caught(void **state)
+{
+    co_od_entry_t entries[1];
+    uint8_t pool[8];
+    co_od_subscription_t subs[1];
+    co_od_t od;
+    co_od_xfer_t x;
+    uint8_t scratch[8];
+    const uint8_t value[4] = {1, 2, 3, 4};
+    co_od_def_t d = tu_od_def(0x2000, 0, VAR, U32, RW, 0, 4);
+    (void)state;
+    co_od_init(&od, CO_MODE_CLASSIC, entries, 1, pool, sizeof pool, subs, 1);
+    assert_int_equal(co_od_add(&od, &d), CO_OD_ADDED);
+    assert_true(co_od_seal(&od, 1));
+    co_od_xfer_init(&x, scratch, sizeof scratch);
+    assert_int_equal(co_od_write_begin(&od, &x, 0x2000, 0, 4), 0);
+    x.scratch_size = 2;
+    expect_assert_failure(co_od_write_chunk(&x, value, 4));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -87,6 +109,7 @@ int main(void)
         cmocka_unit_test(test_corrupt_queue_is_caught),
         cmocka_unit_test(test_timer_cancelled_on_another_list_is_caught),
         cmocka_unit_test(test_line_id_beyond_11_bits_is_caught),
+        cmocka_unit_test(test_od_scratch_changed_during_a_transfer_is_caught),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
