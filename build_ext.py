@@ -20,21 +20,24 @@ ROOT = os.path.dirname(os.path.abspath(__file__))
 
 # Headers whose cffi blocks make up the cdef, in dependency order.
 CDEF_HEADERS = [
-    "csrc/core/co_frame.h",
-    "csrc/core/co_line.h",
-    "csrc/core/co_nmt.h",
-    "csrc/core/co_hb.h",
-    "csrc/core/co_od.h",
-    "csrc/core/co_store.h",
-    "csrc/core/co_usdo.h",
-    "csrc/core/co_emcy_codec.h",
-    "csrc/core/co_emcy.h",
-    "csrc/core/co_pdo.h",
-    "csrc/core/co_sync.h",
-    "csrc/core/co_time.h",
-    "csrc/core/co_guard.h",
-    "csrc/port/linux/co_runtime.h",
+    "csrc/include/canopenfd/co_frame.h",
+    "csrc/include/canopenfd/co_line.h",
+    "csrc/include/canopenfd/co_nmt.h",
+    "csrc/include/canopenfd/co_hb.h",
+    "csrc/include/canopenfd/co_od.h",
+    "csrc/include/canopenfd/co_store.h",
+    "csrc/include/canopenfd/co_usdo.h",
+    "csrc/include/canopenfd/co_emcy_codec.h",
+    "csrc/include/canopenfd/co_emcy.h",
+    "csrc/include/canopenfd/co_pdo.h",
+    "csrc/include/canopenfd/co_sync.h",
+    "csrc/include/canopenfd/co_time.h",
+    "csrc/include/canopenfd/co_guard.h",
+    "csrc/include/canopenfd/co_runtime.h",
 ]
+# Public headers: csrc/include/canopenfd (included as "canopenfd/co_x.h"); the
+# internal ones sit beside their sources and are found there.
+INCLUDE_DIRS = ["csrc/include"]
 SOURCE_DIRS = ["csrc/core", "csrc/drivers", "csrc/port/linux"]
 
 _BLOCK = re.compile(r"/\*\s*cffi:begin\s*\*/(.*?)/\*\s*cffi:end\s*\*/", re.S)
@@ -72,9 +75,9 @@ def make_builder(absolute_paths):
     builder.cdef(cdef_text())
     builder.set_source(
         "canopenfd._core",
-        "".join(f'#include "{os.path.basename(h)}"\n' for h in CDEF_HEADERS),
+        "".join(f'#include "canopenfd/{os.path.basename(h)}"\n' for h in CDEF_HEADERS),
         sources=_paths(c_sources(), absolute_paths),
-        include_dirs=_paths(SOURCE_DIRS, absolute_paths),
+        include_dirs=_paths(INCLUDE_DIRS, absolute_paths),
         # C99 for the core; the Linux files define _GNU_SOURCE themselves.
         extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra"],
         libraries=["pthread"],

@@ -16,11 +16,11 @@
 #include <time.h>
 
 #include "bench_util.h"
-#include "co_frame.h"
-#include "co_hb.h"
-#include "co_line.h"
-#include "co_membus.h"
-#include "co_timer.h"
+#include "canopenfd/co_frame.h"
+#include "canopenfd/co_hb.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_membus.h"
+#include "canopenfd/co_timer.h"
 
 #define QUEUE 512
 #define TIMERS 10000

@@ -17,7 +17,7 @@
 #include <time.h>
 
 #include "bench_util.h"
-#include "co_od.h"
+#include "canopenfd/co_od.h"
 
 #define ENTRIES 10000
 #define KEYS 4096          /* random keys per batch (fits in cache like a real OD) */

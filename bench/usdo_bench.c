@@ -39,12 +39,12 @@
 #include <unistd.h>
 
 #include "bench_util.h"
-#include "co_line.h"
-#include "co_membus.h"
-#include "co_od.h"
-#include "co_usdo.h"
-#include "co_usdo_client.h"
-#include "co_usdo_server.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_membus.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_usdo.h"
+#include "canopenfd/co_usdo_client.h"
+#include "canopenfd/co_usdo_server.h"
 
 #if defined(__linux__) && !defined(USDO_BENCH_NO_SOCKETCAN)
 #define HAVE_SOCKETCAN 1
@@ -55,7 +55,7 @@
 #include <linux/can.h>
 #include <linux/can/raw.h>
 
-#include "co_socketcan.h"
+#include "canopenfd/co_socketcan.h"
 #else
 #define HAVE_SOCKETCAN 0
 #endif
@@ -380,7 +380,7 @@ static bool rig_init(rig_t *r, const char *bus)
     r->poll_cap_us = POLL_CAP_US;
     side_init(&r->srv);
     side_init(&r->cli);
-    r->srv.line.node_id = SERVER_NODE;   /* the server reads its node-id from the line */
+    co_line_set_node_id(&r->srv.line, SERVER_NODE);   /* the server reads it from the line */
     build_od(r);
 
     memset(&scfg, 0, sizeof scfg);
@@ -471,9 +471,8 @@ static void wire_check(wire_check_t *w, const co_frame_t *f)
 static void sock_read(side_t *s, wire_check_t *w)
 {
     co_sc_rx_t items[CO_SC_BATCH];
-    const co_frame_queue_t *rx = &s->line.rx;
-    while (rx->count < rx->capacity) {
-        uint32_t room = rx->capacity - rx->count;
+    uint32_t room;
+    while ((room = co_line_rx_free(&s->line)) > 0) {
         unsigned got = 0, i;
         uint8_t e;
         co_sc_io_t res = co_sc_read(&s->sc, items, room < CO_SC_BATCH ? room : CO_SC_BATCH,
@@ -505,19 +504,18 @@ static void sock_read(side_t *s, wire_check_t *w)
 static uint64_t sock_flush(side_t *s, uint64_t now)
 {
     co_frame_t batch[CO_SC_BATCH];
-    const co_frame_queue_t *tx = &s->line.tx;
     if (s->want_out) {
         return CO_TIME_NEVER;
     }
     if (now < s->retry_at) {
         return s->retry_at;
     }
-    while (tx->count > 0) {
+    while (co_line_tx_count(&s->line) > 0) {
         unsigned n, sent = 0, i;
         co_frame_t f;
         co_sc_io_t res;
-        for (n = 0; n < CO_SC_BATCH && n < tx->count; n++) {
-            batch[n] = tx->slots[(tx->head + n) % tx->capacity];
+        for (n = 0; n < CO_SC_BATCH && n < co_line_tx_count(&s->line); n++) {
+            batch[n] = *co_line_tx_at(&s->line, n);
         }
         res = co_sc_write(&s->sc, batch, n, &sent);
         for (i = 0; i < sent; i++) {

@@ -67,8 +67,8 @@ ABORT_TEXT = {
 
 
 #: One-byte USDO (CiA 1301) abort codes and their meaning; values and evidence in
-#: docs/protocol-notes.md and co_usdo_abort_t (csrc/core/co_usdo.h). 0x71..0xFF are
-#: reserved by CiA.
+#: docs/protocol-notes.md and co_usdo_abort_t (csrc/include/canopenfd/co_usdo.h).
+#: 0x71..0xFF are reserved by CiA.
 USDO_ABORT_TEXT = {
     0x10: "unknown error",
     0x11: "USDO protocol error",

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite, from a fresh Debian machine with Python and gcc:
 #   1. installs what it needs (Debian packages when root, a venv with the package + test deps),
-#   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer,
+#   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer (plus the
+#      core's clang check and Cortex-M cross build),
 #   3. pytest over the in-process bus and python-can's virtual bus,
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
 #      otherwise inside a small qemu VM booted with a stock Debian kernel (tests/vm/).
@@ -18,7 +19,9 @@ rm -f "$RESULTS"/*.xml "$RESULTS"/*.txt
 say() { printf '\n=== %s ===\n' "$*"; }
 
 # ---------------------------------------------------------------- 1. setup
-debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2)
+# gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c).
+debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2
+                 gcc-arm-none-eabi libnewlib-arm-none-eabi)
 have_vcan=0
 if bash tests/vm/have_vcan.sh; then have_vcan=1; else
     debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)
@@ -46,7 +49,7 @@ say "python environment ($VENV)"
 status=0
 
 # ---------------------------------------------------------------- 2. C tests
-say "C unit tests (plain, then ASan+UBSan)"
+say "C unit tests (plain, then ASan+UBSan; clang check, Cortex-M cross build)"
 make -C tests/c 2>&1 | tee "$RESULTS/c-tests.txt"
 [ "${PIPESTATUS[0]}" = 0 ] || status=1
 # The C-only example device; built here because the vcan lane runs it and

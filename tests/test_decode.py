@@ -315,7 +315,7 @@ def test_usdo_python_can_message():
 
 # The C codec is the source of truth: its command specifiers, layouts (with
 # their minimum lengths) and abort codes must all be known here.
-_HEADER = Path(__file__).resolve().parents[1] / "csrc" / "core" / "co_usdo.h"
+_HEADER = Path(__file__).resolve().parents[1] / "csrc" / "include" / "canopenfd" / "co_usdo.h"
 _LAYOUT_NAMES = {"MUX": "mux", "EXPEDITED": "expedited", "INITIATE": "initiate",
                  "SEGMENT": "segment", "LAST": "last", "COUNTER": "counter", "END": "end",
                  "ABORT": "abort", "BULK_ACCEPT": "bulk accept"}
@@ -327,7 +327,7 @@ def _c_enum(prefix):
             for name, value in re.findall(rf"\b{prefix}(\w+)\s*=\s*(0x[0-9A-Fa-f]+)", text)}
 
 
-@pytest.mark.skipif(not _HEADER.exists(), reason="needs the source tree (csrc/core/co_usdo.h)")
+@pytest.mark.skipif(not _HEADER.exists(), reason="needs the source tree (csrc/include/canopenfd/co_usdo.h)")
 def test_usdo_tables_match_the_c_codec():
     decode_module = importlib.import_module("canopenfd.decode.usdo")
 

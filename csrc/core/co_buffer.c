@@ -1,5 +1,5 @@
 /* Memory buffer source/sink (see co_buffer.h). */
-#include "co_buffer.h"
+#include "canopenfd/co_buffer.h"
 
 #include <string.h>
 

@@ -18,7 +18,7 @@
 #ifndef CO_COB_ID_H
 #define CO_COB_ID_H
 
-#include "co_od.h"
+#include "canopenfd/co_od.h"
 
 /* Which rule an entry follows. */
 typedef enum co_cob_id_kind {

@@ -1,4 +1,4 @@
-#include "co_emcy.h"
+#include "canopenfd/co_emcy.h"
 
 #include <string.h>
 
@@ -96,7 +96,7 @@ static bool cob_id_valid(uint32_t cob_id)
 static void transmit(co_emcy_t *e, const co_emcy_msg_t *msg)
 {
     uint8_t data[CO_EMCY_FD_LEN];
-    size_t len = e->line->mode == CO_MODE_FD ? co_emcy_encode_fd(msg, data, sizeof data)
+    size_t len = co_line_mode(e->line) == CO_MODE_FD ? co_emcy_encode_fd(msg, data, sizeof data)
                                              : co_emcy_encode_classic(msg, data, sizeof data);
     co_frame_t frame;
     bool ext = (e->cob_id & CO_EMCY_COB_ID_FRAME) != 0;
@@ -117,7 +117,7 @@ static void transmit(co_emcy_t *e, const co_emcy_msg_t *msg)
     }
     e->stats.sent++;
     e->has_sent = true;
-    e->last_sent_us = e->line->now_us;
+    e->last_sent_us = co_line_now(e->line);
 }
 
 static uint64_t next_allowed(const co_emcy_t *e)
@@ -143,7 +143,7 @@ static void pump(co_emcy_t *e)
     }
     while (e->queue_count > 0 && e->may_send) {
         uint64_t at = next_allowed(e);
-        if (at > e->line->now_us) {
+        if (at > co_line_now(e->line)) {
             co_timer_start(co_line_timers(e->line), &e->timer, at);
             return;
         }
@@ -168,7 +168,7 @@ static void submit(co_emcy_t *e, const co_emcy_msg_t *msg)
         e->stats.suppressed++;
         return;
     }
-    if (e->queue_count == 0 && e->may_send && next_allowed(e) <= e->line->now_us) {
+    if (e->queue_count == 0 && e->may_send && next_allowed(e) <= co_line_now(e->line)) {
         transmit(e, msg);
         return;
     }
@@ -225,7 +225,7 @@ static void history_push(co_emcy_t *e, uint32_t value)
 
 static bool is_fd(const co_emcy_t *e)
 {
-    return e->line->mode == CO_MODE_FD;
+    return co_line_mode(e->line) == CO_MODE_FD;
 }
 
 static bool error_ok(const co_emcy_error_t *err)
@@ -627,8 +627,9 @@ static bool on_other_frame(co_line_t *line, const co_frame_t *frame, void *user)
             continue;
         }
         co_emcy_msg_t msg;
-        bool ok = line->mode == CO_MODE_FD ? co_emcy_decode_fd(frame->data, frame->len, &msg)
-                                           : co_emcy_decode_classic(frame->data, frame->len, &msg);
+        bool ok = co_line_mode(line) == CO_MODE_FD
+                      ? co_emcy_decode_fd(frame->data, frame->len, &msg)
+                      : co_emcy_decode_classic(frame->data, frame->len, &msg);
         if (!ok) {
             c->stats.rx_bad_length++;
             return true;

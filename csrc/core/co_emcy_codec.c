@@ -1,4 +1,4 @@
-#include "co_emcy_codec.h"
+#include "canopenfd/co_emcy_codec.h"
 
 #include <string.h>
 

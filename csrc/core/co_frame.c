@@ -1,4 +1,4 @@
-#include "co_frame.h"
+#include "canopenfd/co_frame.h"
 
 #include <string.h>
 

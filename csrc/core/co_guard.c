@@ -1,5 +1,5 @@
 /* Node guarding and life guarding (see co_guard.h). */
-#include "co_guard.h"
+#include "canopenfd/co_guard.h"
 
 #include <string.h>
 
@@ -51,10 +51,10 @@ static void on_life_timer(co_timer_t *timer, uint64_t now_us, void *user)
 /* Life guarding runs from now on (after a remote frame or new times). */
 static void restart_life(co_guard_slave_t *s)
 {
-    co_timer_cancel(&s->line->timers, &s->life_timer);
+    co_timer_cancel(co_line_timers(s->line), &s->life_timer);
     uint64_t life = life_time_us(s);
     if (s->guarded && life > 0) {
-        co_timer_start(&s->line->timers, &s->life_timer, s->line->now_us + life);
+        co_timer_start(co_line_timers(s->line), &s->life_timer, co_line_now(s->line) + life);
     } else {
         resolve(s);   /* nothing watched any more */
     }
@@ -64,7 +64,7 @@ static void restart_life(co_guard_slave_t *s)
  * when it becomes active again. */
 static void stop_guarding(co_guard_slave_t *s)
 {
-    co_timer_cancel(&s->line->timers, &s->life_timer);
+    co_timer_cancel(co_line_timers(s->line), &s->life_timer);
     s->guarded = false;
     s->toggle = false;
     resolve(s);
@@ -109,7 +109,7 @@ bool co_guard_slave_init(co_guard_slave_t *slave, co_line_t *line, co_nmt_t *nmt
     slave->on_life = on_life;
     slave->user = user;
     co_timer_init(&slave->life_timer, on_life_timer, slave);
-    if (line->mode != CO_MODE_CLASSIC) {
+    if (co_line_mode(line) != CO_MODE_CLASSIC) {
         return false;
     }
     return co_line_subscribe_other(line, on_remote_frame, slave);
@@ -118,7 +118,7 @@ bool co_guard_slave_init(co_guard_slave_t *slave, co_line_t *line, co_nmt_t *nmt
 void co_guard_slave_deinit(co_guard_slave_t *slave)
 {
     co_guard_slave_detach_od(slave);
-    co_timer_cancel(&slave->line->timers, &slave->life_timer);
+    co_timer_cancel(co_line_timers(slave->line), &slave->life_timer);
     co_line_unsubscribe_other(slave->line, on_remote_frame, slave);
 }
 
@@ -253,7 +253,7 @@ static void on_guard_timer(co_timer_t *timer, uint64_t now_us, void *user)
     if (!co_timer_is_armed(timer)) {
         uint64_t period = (uint64_t)n->guard_time_ms * 1000u;
         uint64_t next = timer->deadline_us + period;
-        co_timer_start(&m->line->timers, timer, next > now_us ? next : now_us + period);
+        co_timer_start(co_line_timers(m->line), timer, next > now_us ? next : now_us + period);
     }
 }
 
@@ -271,13 +271,13 @@ bool co_guard_master_init(co_guard_master_t *master, co_line_t *line, co_guard_n
                                      .expected_state = CO_NMT_UNKNOWN};
         co_timer_init(&nodes[i].timer, on_guard_timer, &nodes[i]);
     }
-    return line->mode == CO_MODE_CLASSIC;
+    return co_line_mode(line) == CO_MODE_CLASSIC;
 }
 
 void co_guard_master_deinit(co_guard_master_t *master)
 {
     for (uint8_t i = 0; i < master->capacity; i++) {
-        co_timer_cancel(&master->line->timers, &master->nodes[i].timer);
+        co_timer_cancel(co_line_timers(master->line), &master->nodes[i].timer);
         master->nodes[i].node_id = 0;
     }
 }
@@ -291,11 +291,11 @@ co_guard_result_t co_guard_master_guard(co_guard_master_t *master, uint8_t node_
     if (guard_time_ms == 0) {
         return CO_GUARD_BAD_TIME;
     }
-    if (master->line->mode != CO_MODE_CLASSIC) {
+    if (co_line_mode(master->line) != CO_MODE_CLASSIC) {
         return CO_GUARD_NO_ROOM;   /* no table on an fd line: nothing can be guarded */
     }
     co_guard_node_t *n = node_of(master, node_id);
-    uint64_t first = master->line->now_us;
+    uint64_t first = co_line_now(master->line);
     if (n) {
         first += (uint64_t)guard_time_ms * 1000u;   /* new times: next request one period on */
     } else {
@@ -312,7 +312,7 @@ co_guard_result_t co_guard_master_guard(co_guard_master_t *master, uint8_t node_
     }
     n->guard_time_ms = guard_time_ms;
     n->life_time_factor = life_time_factor;
-    co_timer_start(&master->line->timers, &n->timer, first);
+    co_timer_start(co_line_timers(master->line), &n->timer, first);
     return CO_GUARD_OK;
 }
 
@@ -320,7 +320,7 @@ void co_guard_master_unguard(co_guard_master_t *master, uint8_t node_id)
 {
     co_guard_node_t *n = node_of(master, node_id);
     if (n) {
-        co_timer_cancel(&master->line->timers, &n->timer);
+        co_timer_cancel(co_line_timers(master->line), &n->timer);
         *n = (co_guard_node_t){.owner = master, .state = CO_NMT_UNKNOWN,
                                .expected_state = CO_NMT_UNKNOWN, .timer = n->timer};
     }

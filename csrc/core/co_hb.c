@@ -1,4 +1,4 @@
-#include "co_hb.h"
+#include "canopenfd/co_hb.h"
 
 #include <string.h>
 
@@ -36,7 +36,7 @@ static void on_producer_timer(co_timer_t *timer, uint64_t now_us, void *user)
      * does not shift every later heartbeat; after a long stall restart from now. */
     uint64_t period = (uint64_t)p->time_ms * 1000u;
     uint64_t next = timer->deadline_us + period;
-    co_timer_start(&p->line->timers, timer, next > now_us ? next : now_us + period);
+    co_timer_start(co_line_timers(p->line), timer, next > now_us ? next : now_us + period);
 }
 
 void co_hb_producer_init(co_hb_producer_t *p, co_line_t *line, co_nmt_t *nmt)
@@ -50,16 +50,16 @@ void co_hb_producer_init(co_hb_producer_t *p, co_line_t *line, co_nmt_t *nmt)
 void co_hb_producer_set_time(co_hb_producer_t *p, uint16_t time_ms)
 {
     p->time_ms = time_ms;
-    co_timer_cancel(&p->line->timers, &p->timer);
+    co_timer_cancel(co_line_timers(p->line), &p->timer);
     if (time_ms > 0) {
-        co_timer_start(&p->line->timers, &p->timer,
-                       p->line->now_us + (uint64_t)time_ms * 1000u);
+        co_timer_start(co_line_timers(p->line), &p->timer,
+                       co_line_now(p->line) + (uint64_t)time_ms * 1000u);
     }
 }
 
 void co_hb_producer_stop(co_hb_producer_t *p)
 {
-    co_timer_cancel(&p->line->timers, &p->timer);
+    co_timer_cancel(co_line_timers(p->line), &p->timer);
 }
 
 /* ---------------------------------------------------------------- consumer */
@@ -98,8 +98,8 @@ static void monitor_heartbeat(co_hb_consumer_t *c, co_hb_entry_t *e, co_nmt_stat
         emit(c, e->node_id, CO_HB_STARTED, state);
     }
     if (e->time_ms > 0) {
-        co_timer_start(&c->line->timers, &e->timer,
-                       c->line->now_us + (uint64_t)e->time_ms * 1000u);
+        co_timer_start(co_line_timers(c->line), &e->timer,
+                       co_line_now(c->line) + (uint64_t)e->time_ms * 1000u);
     }
 }
 
@@ -111,15 +111,15 @@ static void on_heartbeat_frame(co_line_t *line, const co_frame_t *frame, void *u
     }
     uint8_t node_id = (uint8_t)(frame->id - CO_NMT_EC_COB_ID_BASE);
     if (node_id == 0) {
-        line->stats.hb_bad_node++;
+        co_line_count_rejected(line, CO_LINE_HB_BAD_NODE);
         return;
     }
     if (frame->len != 1) {
-        line->stats.hb_bad_length++;
+        co_line_count_rejected(line, CO_LINE_HB_BAD_LENGTH);
         return;
     }
     if (!co_hb_state_is_valid(frame->data[0])) {
-        line->stats.hb_bad_state++;
+        co_line_count_rejected(line, CO_LINE_HB_BAD_STATE);
         return;
     }
     co_nmt_state_t state = (co_nmt_state_t)frame->data[0];
@@ -132,7 +132,7 @@ static void on_heartbeat_frame(co_line_t *line, const co_frame_t *frame, void *u
          * real heartbeat (its producer may not be configured yet). */
         emit(c, node_id, CO_HB_BOOTUP, state);
         if (e) {
-            co_timer_cancel(&line->timers, &e->timer);
+            co_timer_cancel(co_line_timers(line), &e->timer);
             e->monitor = CO_HB_MONITOR_OFF;
         }
         return;
@@ -167,7 +167,7 @@ bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *en
 void co_hb_consumer_deinit(co_hb_consumer_t *c)
 {
     for (uint8_t i = 0; i < c->capacity; i++) {
-        co_timer_cancel(&c->line->timers, &c->entries[i].timer);
+        co_timer_cancel(co_line_timers(c->line), &c->entries[i].timer);
     }
     co_line_unsubscribe(c->line, on_heartbeat_frame, c);
 }
@@ -195,19 +195,19 @@ co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t inde
                 return CO_HB_CONFIG_DUPLICATE;
             }
             /* An entry with time 0 only watches states: it gives way. */
-            co_timer_cancel(&c->line->timers, &other->timer);
+            co_timer_cancel(co_line_timers(c->line), &other->timer);
             *other = (co_hb_entry_t){.owner = c, .timer = other->timer};
         }
     }
     uint16_t time_ms = node_id ? (uint16_t)(value & 0xFFFFu) : 0;
-    co_timer_cancel(&c->line->timers, &e->timer);
+    co_timer_cancel(co_line_timers(c->line), &e->timer);
     if (node_id != 0 && node_id == e->node_id && e->monitor == CO_HB_MONITOR_ACTIVE) {
         /* Same node, new time: monitoring goes on, the new time counts from
          * now (a heartbeat may never come again, so do not wait for one). */
         e->time_ms = time_ms;
         if (time_ms > 0) {
-            co_timer_start(&c->line->timers, &e->timer,
-                           c->line->now_us + (uint64_t)time_ms * 1000u);
+            co_timer_start(co_line_timers(c->line), &e->timer,
+                           co_line_now(c->line) + (uint64_t)time_ms * 1000u);
         }
         return CO_HB_CONFIG_OK;
     }

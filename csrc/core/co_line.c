@@ -1,4 +1,4 @@
-#include "co_line.h"
+#include "canopenfd/co_line.h"
 
 #include <string.h>
 
@@ -24,6 +24,36 @@ void co_line_set_comm_indication(co_line_t *line, co_comm_fn fn, void *user)
 {
     line->on_comm = fn;
     line->comm_user = user;
+}
+
+void co_line_set_node_id(co_line_t *line, uint8_t node_id)
+{
+    line->node_id = node_id;
+}
+
+void co_line_count_rejected(co_line_t *line, co_line_reject_t reason)
+{
+    co_line_stats_t *s = &line->stats;
+    switch (reason) {
+    case CO_LINE_NMT_BAD_LENGTH:
+        s->nmt_bad_length++;
+        break;
+    case CO_LINE_NMT_BAD_COMMAND:
+        s->nmt_bad_command++;
+        break;
+    case CO_LINE_NMT_BAD_NODE:
+        s->nmt_bad_node++;
+        break;
+    case CO_LINE_HB_BAD_LENGTH:
+        s->hb_bad_length++;
+        break;
+    case CO_LINE_HB_BAD_STATE:
+        s->hb_bad_state++;
+        break;
+    case CO_LINE_HB_BAD_NODE:
+        s->hb_bad_node++;
+        break;
+    }
 }
 
 void co_line_comm_event(co_line_t *line, co_comm_event_t event)
@@ -113,6 +143,11 @@ bool co_line_receive(co_line_t *line, const co_frame_t *frame)
     line->stats.rx_overflow++;
     co_line_comm_event(line, CO_COMM_RX_OVERFLOW);
     return false;
+}
+
+bool co_line_rx_pop(co_line_t *line, co_frame_t *out)
+{
+    return co_queue_pop(&line->rx, out);
 }
 
 bool co_line_tx_space_register(co_line_t *line, co_tx_space_fn fn, void *user)
@@ -250,6 +285,7 @@ static void dispatch(co_line_t *line, const co_frame_t *frame)
         dispatch_other(line, frame);
         return;
     }
+    CO_ASSERT(line->id_map[frame->id] <= line->receiver_count);
     const co_receiver_t *r = &line->receivers[line->id_map[frame->id] - 1];
     r->fn(line, frame, r->user);
 }

@@ -1,4 +1,4 @@
-#include "co_nmt.h"
+#include "canopenfd/co_nmt.h"
 
 bool co_nmt_command_is_valid(uint8_t command)
 {
@@ -96,17 +96,17 @@ static void on_nmt_frame(co_line_t *line, const co_frame_t *frame, void *user)
 {
     co_nmt_t *nmt = user;
     if (frame->len != 2) {
-        line->stats.nmt_bad_length++;
+        co_line_count_rejected(line, CO_LINE_NMT_BAD_LENGTH);
         return;
     }
     uint8_t command = frame->data[0];
     uint8_t node_id = frame->data[1];
     if (!co_nmt_command_is_valid(command)) {
-        line->stats.nmt_bad_command++;
+        co_line_count_rejected(line, CO_LINE_NMT_BAD_COMMAND);
         return;
     }
     if (node_id > 127) {
-        line->stats.nmt_bad_node++;
+        co_line_count_rejected(line, CO_LINE_NMT_BAD_NODE);
         return;
     }
     if (node_id == 0 || node_id == nmt->node_id) {

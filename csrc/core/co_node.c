@@ -1,4 +1,4 @@
-#include "co_node.h"
+#include "canopenfd/co_node.h"
 
 #include "co_bits.h"
 #include "co_cob_id.h"
@@ -206,9 +206,9 @@ void co_node_comm_event(co_node_t *node, co_comm_event_t event)
          * overload does not add an EMCY flood; tx overflow gets none: the
          * EMCY could not be sent either */
         if (!node->overrun_told ||
-            node->line->now_us - node->overrun_told_us >= CO_NODE_OVERRUN_QUIET_US) {
+            co_line_now(node->line) - node->overrun_told_us >= CO_NODE_OVERRUN_QUIET_US) {
             node->overrun_told = true;
-            node->overrun_told_us = node->line->now_us;
+            node->overrun_told_us = co_line_now(node->line);
             raise_error(node, CO_NODE_EMCY_CAN_OVERRUN, 0);
             clear_error(node, CO_NODE_EMCY_CAN_OVERRUN);
         }
@@ -452,7 +452,7 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
     }
     co_hb_producer_init(&node->heartbeat, line, &node->nmt);
     node->heartbeat.time_ms = heartbeat_ms;
-    line->node_id = node_id;
+    co_line_set_node_id(line, node_id);
     return true;
 }
 
@@ -471,7 +471,7 @@ void co_node_deinit(co_node_t *node)
     }
     co_hb_producer_stop(&node->heartbeat);
     co_nmt_deinit(&node->nmt);
-    node->line->node_id = 0;
+    co_line_set_node_id(node->line, 0);
 }
 
 void co_node_boot(co_node_t *node)

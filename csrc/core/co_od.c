@@ -19,7 +19,9 @@
  *
  * Values are byte arrays: nothing here casts a pool pointer to a wider type,
  * numbers go through the explicit little-endian helpers below. */
-#include "co_od.h"
+#include "canopenfd/co_od.h"
+
+#include "canopenfd/co_assert.h"
 
 #include <string.h>
 
@@ -857,12 +859,15 @@ uint32_t co_od_read_chunk(co_od_xfer_t *xfer, uint8_t *buf, uint32_t cap, uint32
         return CO_ABORT_GENERAL;
     }
     const co_od_entry_t *e = xfer->entry;
+    CO_ASSERT(xfer->od != NULL && e != NULL);   /* set when the read began */
     bool known = xfer->total != CO_OD_SIZE_UNKNOWN;
     uint32_t room = known ? xfer->total - xfer->offset : UINT32_MAX - xfer->offset;
     if (cap > room) {
         cap = room;
     }
     if (e->type != CO_TYPE_DOMAIN) {
+        /* the snapshot taken at begin fits the scratch (checked there) */
+        CO_ASSERT(xfer->offset + cap <= xfer->scratch_size);
         copy_bytes(buf, cap ? xfer->scratch + xfer->offset : NULL, cap);
         *n = cap;
         xfer->offset += cap;
@@ -943,6 +948,7 @@ uint32_t co_od_write_chunk(co_od_xfer_t *xfer, const uint8_t *data, uint32_t n)
         return CO_ABORT_GENERAL;
     }
     const co_od_entry_t *e = xfer->entry;
+    CO_ASSERT(xfer->od != NULL && e != NULL);   /* set when the write began */
     uint32_t limit = xfer->total != CO_OD_SIZE_UNKNOWN ? xfer->total : UINT32_MAX;
     if (e->type != CO_TYPE_DOMAIN && e->size < limit) {
         limit = e->size;
@@ -954,6 +960,8 @@ uint32_t co_od_write_chunk(co_od_xfer_t *xfer, const uint8_t *data, uint32_t n)
         return finish(xfer, CO_ABORT_GENERAL, true);
     }
     if (e->type != CO_TYPE_DOMAIN) {
+        /* n is within the entry's size, which begin checked against the scratch */
+        CO_ASSERT(xfer->offset + n <= xfer->scratch_size);
         copy_bytes(n ? xfer->scratch + xfer->offset : NULL, data, n);
         xfer->offset += n;
         return 0;

@@ -1,9 +1,10 @@
 /* PDO service (see co_pdo.h). */
-#include "co_pdo.h"
+#include "canopenfd/co_pdo.h"
+
+#include "canopenfd/co_assert.h"
+#include "co_cob_id.h"   /* co_cob_id_restricted: CiA 301's restricted CAN-IDs */
 
 #include <string.h>
-
-#include "co_cob_id.h"   /* co_cob_id_restricted: CiA 301's restricted CAN-IDs */
 
 #define COB_INVALID 0x80000000u
 #define COB_NO_RTR 0x40000000u
@@ -41,10 +42,16 @@ static uint16_t slot_of(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
     return is_rpdo ? pdo->rpdo_of[number - 1u] : pdo->tpdo_of[number - 1u];
 }
 
+/* The channel of a slot taken from the number or CAN-ID tables (0 = none). */
+static co_pdo_channel_t *channel_at(const co_pdo_t *pdo, uint16_t slot)
+{
+    CO_ASSERT(slot <= pdo->channel_count);
+    return slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+}
+
 static co_pdo_channel_t *channel_of(co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    uint16_t slot = slot_of(pdo, is_rpdo, number);
-    return slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+    return channel_at(pdo, slot_of(pdo, is_rpdo, number));
 }
 
 /* The channel an index of 0x1400..0x1BFF belongs to. */
@@ -74,7 +81,7 @@ static uint32_t check_type(const co_pdo_t *pdo, bool is_rpdo, uint8_t type)
         return CO_ABORT_INVALID_VALUE;   /* reserved */
     }
     if ((type == CO_PDO_TYPE_RTR_SYNC || type == CO_PDO_TYPE_RTR_EVENT) &&
-        (is_rpdo || pdo->line->mode == CO_MODE_FD)) {
+        (is_rpdo || co_line_mode(pdo->line) == CO_MODE_FD)) {
         return CO_ABORT_INVALID_VALUE;   /* RTR-only: classic TPDOs only */
     }
     return 0;
@@ -170,7 +177,7 @@ static void arm_event_timer(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     if (ch->event_ms != 0 && is_event_type(ch->type)) {
         co_timer_start(co_line_timers(pdo->line), &ch->timer,
-                       pdo->line->now_us + ms_to_us(ch->event_ms));
+                       co_line_now(pdo->line) + ms_to_us(ch->event_ms));
     }
 }
 
@@ -183,14 +190,14 @@ static void send_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
         return;
     }
     transmit(pdo, ch);
-    ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
+    ch->inhibit_end_us = co_line_now(pdo->line) + (uint64_t)ch->inhibit_100us * 100u;
     arm_event_timer(pdo, ch);
 }
 
 /* An event for a 254/255 TPDO: sent now, or when the inhibit time ends. */
 static void tpdo_event(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
-    if (ch->inhibit_100us != 0 && pdo->line->now_us < ch->inhibit_end_us) {
+    if (ch->inhibit_100us != 0 && co_line_now(pdo->line) < ch->inhibit_end_us) {
         if (!ch->event_pending) {
             ch->event_pending = true;
             pdo->stats.tx_inhibited++;
@@ -259,7 +266,7 @@ static void on_retry(co_timer_t *timer, uint64_t now_us, void *user)
 static void on_tx_space(co_line_t *line, void *user)
 {
     co_pdo_t *pdo = user;
-    co_timer_start(co_line_timers(line), &pdo->retry_timer, line->now_us);
+    co_timer_start(co_line_timers(line), &pdo->retry_timer, co_line_now(line));
 }
 
 /* ------------------------------------------------------------ runtime state */
@@ -360,14 +367,14 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
     if (ch->is_rpdo) {
         if (ch->ext) {
             pdo->ext_rpdos++;
-        } else if (pdo->rx_map[ch->can_id] != 0 || pdo->line->id_map[ch->can_id] != 0) {
+        } else if (pdo->rx_map[ch->can_id] != 0 || co_line_id_taken(pdo->line, ch->can_id)) {
             pdo->stats.id_conflicts++;
             return;
         } else {
             pdo->rx_map[ch->can_id] = slot;
         }
     } else {
-        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && pdo->line->mode == CO_MODE_CLASSIC;
+        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && co_line_mode(pdo->line) == CO_MODE_CLASSIC;
         if (ch->rtr_allowed && !ch->ext && pdo->rtr_map[ch->can_id] == 0) {
             pdo->rtr_map[ch->can_id] = slot;
         }
@@ -420,7 +427,7 @@ static uint32_t check_comm(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entr
         if (ch->is_rpdo && !(cob & COB_EXT)) {
             uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
             if ((pdo->rx_map[id] != 0 && pdo->rx_map[id] != slot) ||
-                pdo->line->id_map[id] != 0) {
+                co_line_id_taken(pdo->line, id)) {
                 return CO_ABORT_INVALID_VALUE;   /* another RPDO or service takes it */
             }
         }
@@ -571,7 +578,7 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
 {
     uint8_t need = (uint8_t)((ch->bits + 7u) / 8u);
     /* fd lines send the mapped bytes rounded up to an FD length */
-    uint8_t allowed = pdo->line->mode == CO_MODE_FD ? co_fd_len_round(need) : need;
+    uint8_t allowed = co_line_mode(pdo->line) == CO_MODE_FD ? co_fd_len_round(need) : need;
     if (!pdo->operational) {
         pdo->stats.rx_not_operational++;
         return;
@@ -590,7 +597,7 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
     if (ch->event_ms != 0) {
         ch->monitoring = true;
         co_timer_start(co_line_timers(pdo->line), &ch->timer,
-                       pdo->line->now_us + ms_to_us(ch->event_ms));
+                       co_line_now(pdo->line) + ms_to_us(ch->event_ms));
     }
     if (ch->timed_out) {
         report(pdo, ch, CO_PDO_EMCY_RECEIVED_AGAIN);
@@ -620,14 +627,13 @@ static co_pdo_channel_t *find_ext(co_pdo_t *pdo, bool is_rpdo, uint32_t id)
 static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
 {
     co_pdo_channel_t *ch;
-    if (pdo->line->mode != CO_MODE_CLASSIC) {
+    if (co_line_mode(pdo->line) != CO_MODE_CLASSIC) {
         return false;   /* fd lines have no remote frames for PDOs */
     }
     if (f->flags & CO_FRAME_EXT) {
         ch = find_ext(pdo, false, f->id);
     } else {
-        uint16_t slot = pdo->rtr_map[f->id];
-        ch = slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+        ch = channel_at(pdo, pdo->rtr_map[f->id]);
     }
     if (ch == NULL) {
         return false;
@@ -648,7 +654,7 @@ static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
         pdo->stats.rtr_answered++;   /* a full tx queue counts in tx_failed instead */
     }
     if (is_event_type(ch->type)) {
-        ch->inhibit_end_us = pdo->line->now_us + (uint64_t)ch->inhibit_100us * 100u;
+        ch->inhibit_end_us = co_line_now(pdo->line) + (uint64_t)ch->inhibit_100us * 100u;
         arm_event_timer(pdo, ch);
     }
     return true;
@@ -665,8 +671,7 @@ static bool on_other(co_line_t *line, const co_frame_t *f, void *user)
     if (f->flags & CO_FRAME_EXT) {
         ch = pdo->ext_rpdos != 0 ? find_ext(pdo, true, f->id) : NULL;
     } else {
-        uint16_t slot = pdo->rx_map[f->id];
-        ch = slot != 0 ? &pdo->channels[slot - 1u] : NULL;
+        ch = channel_at(pdo, pdo->rx_map[f->id]);
     }
     if (ch == NULL) {
         pdo->stats.rx_not_ours++;
@@ -842,7 +847,7 @@ bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_confi
     uint32_t channels, items;
     setup_t s;
     if (pdo == NULL || line == NULL || config == NULL || !co_pdo_need(od, &channels, &items) ||
-        od->mode != line->mode || config->channel_count < channels ||
+        od->mode != co_line_mode(line) || config->channel_count < channels ||
         config->item_count < items || (channels > 0 && config->channels == NULL) ||
         (items > 0 && config->items == NULL)) {
         return false;
@@ -976,18 +981,17 @@ uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
 
 bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    uint16_t slot = slot_of(pdo, is_rpdo, number);
-    return slot != 0 && pdo->channels[slot - 1u].active;
+    const co_pdo_channel_t *ch = channel_at(pdo, slot_of(pdo, is_rpdo, number));
+    return ch != NULL && ch->active;
 }
 
 bool co_pdo_pack_values(const co_pdo_t *pdo, bool is_rpdo, uint16_t number, uint8_t *data,
                         uint8_t *len)
 {
-    uint16_t slot = slot_of(pdo, is_rpdo, number);
-    if (slot == 0) {
+    const co_pdo_channel_t *ch = channel_at(pdo, slot_of(pdo, is_rpdo, number));
+    if (ch == NULL) {
         return false;
     }
-    const co_pdo_channel_t *ch = &pdo->channels[slot - 1u];
     memset(data, 0, CO_FRAME_MAX_DATA);
     co_pdo_map_pack(pdo->od, ch->map, ch->map_count, ch->bits, data);
     *len = (uint8_t)((ch->bits + 7u) / 8u);

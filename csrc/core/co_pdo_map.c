@@ -1,5 +1,5 @@
 /* PDO mapping: validation and compiled copy lists (see co_pdo_map.h). */
-#include "co_pdo_map.h"
+#include "canopenfd/co_pdo_map.h"
 
 #include <string.h>
 

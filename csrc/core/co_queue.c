@@ -1,7 +1,8 @@
-#include "co_queue.h"
+#include "canopenfd/co_queue.h"
 
 void co_queue_init(co_frame_queue_t *q, co_frame_t *slots, uint32_t capacity)
 {
+    CO_ASSERT(slots != NULL && capacity > 0);
     q->slots = slots;
     q->capacity = capacity;
     q->head = 0;
@@ -12,6 +13,7 @@ void co_queue_init(co_frame_queue_t *q, co_frame_t *slots, uint32_t capacity)
 
 bool co_queue_push(co_frame_queue_t *q, const co_frame_t *frame)
 {
+    CO_ASSERT(q->count <= q->capacity && q->head < q->capacity);
     if (q->count == q->capacity) {
         q->overflows++;
         return false;
@@ -38,6 +40,7 @@ void co_queue_drop_head(co_frame_queue_t *q)
     if (q->count == 0) {
         return;
     }
+    CO_ASSERT(q->count <= q->capacity && q->head < q->capacity);
     q->head = (q->head + 1 == q->capacity) ? 0 : q->head + 1;
     q->count--;
 }

@@ -1,6 +1,6 @@
 /* Classic SDO (CiA 301) codec: see co_sdo.h; every byte position and bit
  * is defined once, here, with its evidence in docs/protocol-notes.md. */
-#include "co_sdo.h"
+#include "canopenfd/co_sdo.h"
 
 #include <string.h>
 

@@ -35,12 +35,12 @@
  *    timeout runs out once; a second expiry without a segment aborts.
  *  - AUTO: a block initiate refused with 0x05040001 is done once more
  *    without block (segmented download / normal upload). */
+#include "canopenfd/co_sdo_client.h"
+
 #include "co_cob_id.h"
-#include "co_sdo_client.h"
+#include "co_crc.h"
 
 #include <string.h>
-
-#include "co_crc.h"
 
 enum {
     NODE_MAX = 127,
@@ -64,7 +64,7 @@ static co_timer_list_t *timers_of(const co_sdo_client_channel_t *ch)
 
 static uint64_t now_of(const co_sdo_client_t *c)
 {
-    return c->line->now_us;
+    return co_line_now(c->line);
 }
 
 static void arm_timeout(co_sdo_client_channel_t *ch)
@@ -286,14 +286,6 @@ static void send_upload_segment_request(co_sdo_client_channel_t *ch)
 
 /* ------------------------------------------------------------ block download */
 
-/* Send while the tx queue is below 3/4 full: a quarter stays for other
- * services (heartbeat, PDOs, other channels). */
-static bool tx_room(const co_sdo_client_t *c)
-{
-    const co_frame_queue_t *q = &c->line->tx;
-    return co_queue_count(q) < q->capacity - q->capacity / 4u;
-}
-
 static void wait_space(co_sdo_client_channel_t *ch)
 {
     if (!ch->wait_space) {
@@ -343,7 +335,7 @@ static void send_run(co_sdo_client_channel_t *ch)
         co_sdo_msg_t m;
         uint32_t off = (uint32_t)ch->seqno * CO_SDO_SEGMENT_DATA;
         uint32_t left = ch->sub_len > off ? ch->sub_len - off : 0;
-        if (!tx_room(c)) {
+        if (co_line_tx_room(c->line) == 0) {
             wait_space(ch);
             break;
         }
@@ -1110,13 +1102,10 @@ static bool ids_usable(co_sdo_client_t *c, const co_sdo_client_channel_t *ch, ui
         return false;
     }
     if (!in_range(rx)) {
-        const co_line_t *line = c->line;
-        uint8_t slot = line->id_map[rx];
-        if (slot != 0) {
-            const co_receiver_t *r = &line->receivers[slot - 1u];
-            return r->fn == on_own_frame && r->user == ch;
+        if (co_line_id_taken(c->line, rx)) {
+            return co_line_id_taken_by(c->line, rx, on_own_frame, ch);
         }
-        return line->receiver_count < CO_LINE_MAX_RECEIVERS;
+        return co_line_receiver_free(c->line);
     }
     return true;
 }
@@ -1248,12 +1237,8 @@ static uint32_t check_param(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t
         return CO_ABORT_INVALID_VALUE;
     }
     if (sub == 2 && !in_range(id)) {
-        uint8_t slot = c->line->id_map[id];
-        if (slot != 0) {
-            const co_receiver_t *r = &c->line->receivers[slot - 1u];
-            if (r->fn != on_own_frame || r->user != ch) {
-                return CO_ABORT_INVALID_VALUE;
-            }
+        if (co_line_id_taken(c->line, id) && !co_line_id_taken_by(c->line, id, on_own_frame, ch)) {
+            return CO_ABORT_INVALID_VALUE;
         }
     }
     return 0;
@@ -1287,7 +1272,7 @@ bool co_sdo_client_init(co_sdo_client_t *c, co_line_t *line, const co_sdo_client
     uint8_t i;
     if (c == NULL || line == NULL || cfg == NULL || cfg->channels == NULL ||
         cfg->channel_count == 0 || cfg->channel_count > CO_SDO_CLIENT_MAX_CHANNELS ||
-        line->mode != CO_MODE_CLASSIC) {
+        co_line_mode(line) != CO_MODE_CLASSIC) {
         return false;
     }
     memset(c, 0, sizeof *c);

@@ -40,12 +40,12 @@
  *    127 -> 0x05040002, an ack above the segments sent -> 0x05040003, CRC
  *    mismatch -> 0x05040004 (download: checked only when both sides
  *    announced CRC support; upload: sent whenever we support it). */
+#include "canopenfd/co_sdo_server.h"
+
 #include "co_cob_id.h"
-#include "co_sdo_server.h"
+#include "co_crc.h"
 
 #include <string.h>
-
-#include "co_crc.h"
 
 enum answer {
     ANSWER_NONE = 0,
@@ -122,7 +122,7 @@ static void release(co_sdo_channel_t *ch)
 static void touch(co_sdo_channel_t *ch)
 {
     co_sdo_server_t *s = ch->server;
-    co_timer_start(co_line_timers(s->line), &ch->timer, s->line->now_us + s->timeout_us);
+    co_timer_start(co_line_timers(s->line), &ch->timer, co_line_now(s->line) + s->timeout_us);
 }
 
 /* End the open transfer: the object dictionary is told (a domain writer
@@ -308,12 +308,6 @@ static void after_od(co_sdo_channel_t *ch, uint32_t r, uint8_t answer)
 
 /* ------------------------------------------------------------ block upload */
 
-static bool tx_room(const co_line_t *line)
-{
-    uint32_t cap = line->tx.capacity;
-    return co_queue_count(&line->tx) < cap - cap / 4u;
-}
-
 /* Send the segments of the current sub-block not sent yet, while the tx
  * queue has room; else wait for the tx-space indication. */
 static void send_segments(co_sdo_channel_t *ch)
@@ -323,7 +317,7 @@ static void send_segments(co_sdo_channel_t *ch)
         co_sdo_msg_t m;
         uint32_t off = (uint32_t)ch->seqno * CO_SDO_SEGMENT_DATA;
         uint32_t left = ch->sub_len > off ? ch->sub_len - off : 0;
-        if (!tx_room(s->line)) {
+        if (co_line_tx_room(s->line) == 0) {
             if (!ch->tx_wait) {
                 s->stats.tx_deferred++;
             }
@@ -747,7 +741,7 @@ static bool wanted_ids(co_sdo_server_t *s, uint8_t number, uint32_t *rx, uint32_
 {
     uint32_t c2s = 0, s2c = 0;
     if (number == 0) {
-        uint8_t nid = s->line->node_id;
+        uint8_t nid = co_line_node_id(s->line);
         if (nid < 1 || nid > 127) {
             return false;
         }
@@ -856,12 +850,9 @@ static uint32_t check_cob_id(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_
     }
     if (sub == 1) {
         uint8_t number = (uint8_t)(co_od_entry_index(e) - CO_SDO_SERVER_PARAM);
-        uint8_t slot = s->line->id_map[id];
-        if (slot != 0 && number < s->channel_count) {
-            const co_receiver_t *r = &s->line->receivers[slot - 1u];
-            if (r->fn != on_frame || r->user != &s->channels[number]) {
-                return CO_ABORT_INVALID_VALUE;
-            }
+        if (number < s->channel_count && co_line_id_taken(s->line, id) &&
+            !co_line_id_taken_by(s->line, id, on_frame, &s->channels[number])) {
+            return CO_ABORT_INVALID_VALUE;   /* another service receives on it */
         }
     }
     return 0;
@@ -936,7 +927,7 @@ static void on_tx_space(co_line_t *line, void *user)
         co_sdo_channel_t *ch = &s->channels[i];
         if (ch->state == CO_SDO_CH_BLOCK_UPLOAD && ch->tx_wait) {
             ch->tx_resume = true;
-            co_timer_start(co_line_timers(line), &ch->timer, line->now_us);
+            co_timer_start(co_line_timers(line), &ch->timer, co_line_now(line));
         }
     }
 }
@@ -962,7 +953,7 @@ bool co_sdo_server_init(co_sdo_server_t *server, co_line_t *line, co_od_t *od,
         config->channels == NULL || config->channel_count == 0 ||
         config->channel_count > CO_SDO_SERVER_MAX_CHANNELS || config->scratch == NULL ||
         config->scratch_size < CO_SDO_SERVER_BUFFER || config->block_size > CO_SDO_BLKSIZE_MAX ||
-        line->mode != CO_MODE_CLASSIC) {
+        co_line_mode(line) != CO_MODE_CLASSIC) {
         return false;
     }
     memset(server, 0, sizeof *server);
@@ -1001,7 +992,7 @@ bool co_sdo_server_init(co_sdo_server_t *server, co_line_t *line, co_od_t *od,
         server->od_hooked = true;
     }
     configure(&server->channels[0]);
-    if (line->node_id != 0 && !server->channels[0].valid) {
+    if (co_line_node_id(line) != 0 && !server->channels[0].valid) {
         co_sdo_server_deinit(server);
         return false;
     }

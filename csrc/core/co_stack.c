@@ -1,6 +1,6 @@
 /* co_stack: sizing, set-up and wiring of a line's services and its local
  * node over caller memory (see co_stack.h). */
-#include "co_stack.h"
+#include "canopenfd/co_stack.h"
 
 #include <string.h>
 

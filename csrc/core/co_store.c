@@ -46,7 +46,7 @@
  *   an entry may hear RESTORE twice in one load (default, then stored value);
  *   handlers take the last word.
  */
-#include "co_store.h"
+#include "canopenfd/co_store.h"
 
 #include "co_crc.h"
 

@@ -1,6 +1,7 @@
 /* SYNC producer and consumer (see co_sync.h). */
+#include "canopenfd/co_sync.h"
+
 #include "co_cob_id.h"
-#include "co_sync.h"
 
 #include <string.h>
 
@@ -47,12 +48,12 @@ static void on_window_timer(co_timer_t *timer, uint64_t now_us, void *user)
 /* A SYNC happened (sent or received): open its window, tell the listeners. */
 static void sync_event(co_sync_t *s, uint8_t counter)
 {
-    s->last_sync_us = s->line->now_us;
+    s->last_sync_us = co_line_now(s->line);
     s->last_counter = counter;
     if (s->config.window_us > 0) {
         s->window_open = true;
-        co_timer_start(&s->line->timers, &s->window_timer,
-                       s->line->now_us + s->config.window_us);
+        co_timer_start(co_line_timers(s->line), &s->window_timer,
+                       co_line_now(s->line) + s->config.window_us);
     }
     /* Every listener registered at the SYNC is told, even when an earlier
      * one changes the list. */
@@ -90,7 +91,7 @@ static void on_producer_timer(co_timer_t *timer, uint64_t now_us, void *user)
      * stopped production (reconfigured the service) meanwhile. */
     if (producing(s) && !co_timer_is_armed(timer)) {
         uint64_t next = timer->deadline_us + s->config.period_us;
-        co_timer_start(&s->line->timers, timer,
+        co_timer_start(co_line_timers(s->line), timer,
                        next > now_us ? next : now_us + s->config.period_us);
     }
 }
@@ -98,11 +99,11 @@ static void on_producer_timer(co_timer_t *timer, uint64_t now_us, void *user)
 /* (Re)start production from now: counter 1, first SYNC one period later. */
 static void restart_producer(co_sync_t *s)
 {
-    co_timer_cancel(&s->line->timers, &s->producer_timer);
+    co_timer_cancel(co_line_timers(s->line), &s->producer_timer);
     s->next_counter = 1;
     if (producing(s)) {
-        co_timer_start(&s->line->timers, &s->producer_timer,
-                       s->line->now_us + s->config.period_us);
+        co_timer_start(co_line_timers(s->line), &s->producer_timer,
+                       co_line_now(s->line) + s->config.period_us);
     }
 }
 
@@ -174,12 +175,12 @@ static void apply(co_sync_t *s, const co_sync_config_t *config)
     if (new_window && s->window_open) {
         /* The open window takes the new length at once. */
         if (c.window_us == 0) {
-            co_timer_cancel(&s->line->timers, &s->window_timer);
+            co_timer_cancel(co_line_timers(s->line), &s->window_timer);
             s->window_open = false;
         } else {
             uint64_t end = s->last_sync_us + c.window_us;
-            co_timer_start(&s->line->timers, &s->window_timer,
-                           end > s->line->now_us ? end : s->line->now_us);
+            co_timer_start(co_line_timers(s->line), &s->window_timer,
+                           end > co_line_now(s->line) ? end : co_line_now(s->line));
         }
     }
 }
@@ -199,8 +200,8 @@ bool co_sync_init(co_sync_t *sync, co_line_t *line)
 void co_sync_deinit(co_sync_t *sync)
 {
     co_sync_detach_od(sync);
-    co_timer_cancel(&sync->line->timers, &sync->producer_timer);
-    co_timer_cancel(&sync->line->timers, &sync->window_timer);
+    co_timer_cancel(co_line_timers(sync->line), &sync->producer_timer);
+    co_timer_cancel(co_line_timers(sync->line), &sync->window_timer);
     if (sync->subscribed) {
         co_line_unsubscribe(sync->line, on_sync_frame, sync);
         sync->subscribed = false;
@@ -243,7 +244,7 @@ void co_sync_set_nmt_state(co_sync_t *sync, co_nmt_state_t state)
     }
     sync->nmt_active = active;
     if (!active) {
-        co_timer_cancel(&sync->line->timers, &sync->window_timer);
+        co_timer_cancel(co_line_timers(sync->line), &sync->window_timer);
         sync->window_open = false;
     }
     /* CiA: the counter is reset to 1 when the device leaves stopped. */

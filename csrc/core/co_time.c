@@ -1,6 +1,7 @@
 /* TIME producer and consumer (see co_time.h). */
+#include "canopenfd/co_time.h"
+
 #include "co_cob_id.h"
-#include "co_time.h"
 
 #include <string.h>
 

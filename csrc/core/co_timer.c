@@ -1,4 +1,6 @@
-#include "co_timer.h"
+#include "canopenfd/co_timer.h"
+
+#include "canopenfd/co_assert.h"
 
 #include <stddef.h>
 
@@ -23,6 +25,10 @@ void co_timer_init(co_timer_t *timer, co_timer_fn fn, void *user)
 
 static void unlink_timer(co_timer_list_t *list, co_timer_t *timer)
 {
+    /* armed on this list: its neighbours (or the list's ends) point at it */
+    CO_ASSERT(list->armed > 0);
+    CO_ASSERT(timer->prev ? timer->prev->next == timer : list->head == timer);
+    CO_ASSERT(timer->next ? timer->next->prev == timer : list->tail == timer);
     if (timer->prev) {
         timer->prev->next = timer->next;
     } else {

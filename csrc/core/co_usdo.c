@@ -1,11 +1,11 @@
 /* USDO wire format: one encoder and one decoder per frame layout, selected
  * by the command specifier (byte 1). Layouts and their evidence:
  * docs/protocol-notes.md, section "USDO". */
-#include "co_usdo.h"
+#include "canopenfd/co_usdo.h"
 
 #include <string.h>
 
-#include "co_od.h"
+#include "canopenfd/co_od.h"
 
 /* Byte positions shared by the layouts. */
 enum {

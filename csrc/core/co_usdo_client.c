@@ -18,7 +18,9 @@
  *    tells the server the data was not taken (the server ignores it).
  *  - AUTO: a bulk initiate refused with 0x13 (the server has no bulk) is
  *    retried once as a segmented download with a fresh session-ID. */
-#include "co_usdo_client.h"
+#include "canopenfd/co_usdo_client.h"
+
+#include "co_bits.h"
 
 #include <string.h>
 
@@ -39,7 +41,7 @@ static co_timer_list_t *timers_of(const co_usdo_client_session_t *ses)
 
 static uint64_t now_of(const co_usdo_client_t *c)
 {
-    return c->line->now_us;
+    return co_line_now(c->line);
 }
 
 static uint64_t timeout_of(const co_usdo_client_session_t *ses)
@@ -60,17 +62,12 @@ static void arm_timeout(co_usdo_client_session_t *ses)
 
 static bool sid_live(const co_usdo_client_t *c, uint8_t sid)
 {
-    return ((c->live_sid[sid >> 5] >> (sid & 31u)) & 1u) != 0;
+    return co_bit32_test(c->live_sid, sid);
 }
 
 static void sid_mark(co_usdo_client_t *c, uint8_t sid, bool live)
 {
-    uint32_t bit = 1u << (sid & 31u);
-    if (live) {
-        c->live_sid[sid >> 5] |= bit;
-    } else {
-        c->live_sid[sid >> 5] &= ~bit;
-    }
+    co_bit32_put(c->live_sid, sid, live);
 }
 
 /* Round-robin over 1..255, skipping live IDs: a finished transfer's ID
@@ -88,16 +85,6 @@ static uint8_t sid_next(co_usdo_client_t *c)
         }
     }
     return 0;
-}
-
-static bool bit_test(const uint32_t *bits, uint8_t n)
-{
-    return ((bits[n >> 5] >> (n & 31u)) & 1u) != 0;
-}
-
-static void bit_set(uint32_t *bits, uint8_t n)
-{
-    bits[n >> 5] |= 1u << (n & 31u);
 }
 
 static bool is_broadcast(const co_usdo_client_session_t *ses)
@@ -291,14 +278,6 @@ static void send_upload_segment_request(co_usdo_client_session_t *ses)
 
 /* ------------------------------------------------------------ bulk */
 
-/* Send while the tx queue is below 3/4 full: a quarter stays for other
- * services (heartbeat, PDOs, other transfers' answers). */
-static bool tx_room(const co_usdo_client_t *c)
-{
-    const co_frame_queue_t *q = &c->line->tx;
-    return co_queue_count(q) < q->capacity - q->capacity / 4u;
-}
-
 static void wait_space(co_usdo_client_session_t *ses)
 {
     if (!ses->wait_space) {
@@ -352,7 +331,7 @@ static void bulk_run(co_usdo_client_session_t *ses)
         ses->next_at = now + ses->period_us;
     }
     while (budget > 0) {
-        if (!tx_room(c)) {
+        if (co_line_tx_room(c->line) == 0) {
             wait_space(ses);
             break;
         }
@@ -717,7 +696,7 @@ static void on_broadcast_answer(co_usdo_client_session_t *ses, uint8_t node,
     bool takes = req->upload ? (m->cs == CO_USDO_CS_UPLOAD_EXPEDITED_RSP ||
                                 m->cs == CO_USDO_CS_UPLOAD_INITIATE_RSP)
                              : m->cs == CO_USDO_CS_DOWNLOAD_EXPEDITED_RSP;
-    if (bit_test(ses->answered, node)) {
+    if (co_bit32_test(ses->answered, node)) {
         c->stats.rx_duplicate++;
         return;
     }
@@ -747,7 +726,7 @@ static void on_broadcast_answer(co_usdo_client_session_t *ses, uint8_t node,
     if (m->cs == CO_USDO_CS_UPLOAD_INITIATE_RSP) {
         send_abort(ses, node, code);   /* that server holds an open upload */
     }
-    bit_set(ses->answered, node);
+    co_bit32_put(ses->answered, node, true);
     req->answers++;
     if (req->answer != NULL) {
         req->answer(req, node, code, type, data, len);   /* last use of ses */
@@ -878,7 +857,7 @@ bool co_usdo_client_init(co_usdo_client_t *c, co_line_t *line, const co_usdo_cli
     uint8_t i;
     if (c == NULL || line == NULL || cfg == NULL || cfg->sessions == NULL ||
         cfg->session_count == 0 || cfg->node_id == 0 || cfg->node_id > NODE_MAX ||
-        line->mode != CO_MODE_FD) {
+        co_line_mode(line) != CO_MODE_FD) {
         return false;
     }
     memset(c, 0, sizeof *c);

@@ -33,7 +33,7 @@
  *    segment (0x08) is answered (0x28). A wrong counter (lost, repeated or
  *    reordered segment) aborts with 0x14 once.
  *  - An abort is never answered with an abort. */
-#include "co_usdo_server.h"
+#include "canopenfd/co_usdo_server.h"
 
 #include <string.h>
 
@@ -51,7 +51,7 @@ static void send_msg(co_usdo_server_t *s, const co_usdo_msg_t *m)
 {
     uint8_t buf[CO_USDO_FRAME_MAX];
     size_t n = co_usdo_encode(m, buf);
-    if (n == 0 || !co_line_send(s->line, co_usdo_response_id(s->line->node_id), buf, n)) {
+    if (n == 0 || !co_line_send(s->line, co_usdo_response_id(co_line_node_id(s->line)), buf, n)) {
         s->stats.tx_failed++;
     }
 }
@@ -157,7 +157,7 @@ static void release(co_usdo_session_t *ses)
 static void touch(co_usdo_session_t *ses)
 {
     co_usdo_server_t *s = ses->server;
-    co_timer_start(co_line_timers(s->line), &ses->timer, s->line->now_us + s->timeout_us);
+    co_timer_start(co_line_timers(s->line), &ses->timer, co_line_now(s->line) + s->timeout_us);
 }
 
 /* End an open transfer with a USDO abort code: the object dictionary is told
@@ -500,7 +500,7 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
 {
     co_usdo_server_t *s = user;
     co_usdo_msg_t m;
-    uint8_t me = line->node_id;
+    uint8_t me = co_line_node_id(line);
     uint8_t client = (uint8_t)(f->id - CO_USDO_REQUEST_BASE);
     s->stats.rx_frames++;
     if (!(f->flags & CO_FRAME_FD)) {
@@ -599,7 +599,8 @@ bool co_usdo_server_init(co_usdo_server_t *server, co_line_t *line, co_od_t *od,
     uint8_t i;
     if (server == NULL || line == NULL || od == NULL || config == NULL ||
         config->sessions == NULL || config->session_count == 0 ||
-        (config->scratch == NULL && config->scratch_size != 0) || line->mode != CO_MODE_FD) {
+        (config->scratch == NULL && config->scratch_size != 0) ||
+        co_line_mode(line) != CO_MODE_FD) {
         return false;
     }
     memset(server, 0, sizeof *server);

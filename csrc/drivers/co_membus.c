@@ -1,4 +1,4 @@
-#include "co_membus.h"
+#include "canopenfd/co_membus.h"
 
 #include <string.h>
 

@@ -1,7 +1,7 @@
 /* Linux SocketCAN driver (see co_socketcan.h). */
 #define _GNU_SOURCE   /* recvmmsg, sendmmsg */
 
-#include "co_socketcan.h"
+#include "canopenfd/co_socketcan.h"
 
 #include <errno.h>
 #include <net/if.h>

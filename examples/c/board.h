@@ -4,7 +4,7 @@
 #ifndef EXAMPLE_BOARD_H
 #define EXAMPLE_BOARD_H
 
-#include "co_frame.h"
+#include "canopenfd/co_frame.h"
 
 #include <stdbool.h>
 #include <stdint.h>

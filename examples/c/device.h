@@ -5,7 +5,7 @@
 #ifndef EXAMPLE_DEVICE_H
 #define EXAMPLE_DEVICE_H
 
-#include "co_stack.h"
+#include "canopenfd/co_stack.h"
 
 enum {
     DEVICE_QUEUE = 32,            /* rx and tx frames the line holds */

@@ -27,7 +27,8 @@ int main(void)
             (void)co_line_receive(&device.line, &frame);
         }
         (void)device_process(&device, board_micros());
-        while (co_line_tx_peek(&device.line, &frame) && board_can_send(&frame)) {
+        while (co_line_tx_count(&device.line) > 0 &&
+               board_can_send(co_line_tx_at(&device.line, 0))) {
             (void)co_line_tx_pop(&device.line, &frame);
         }
     }

@@ -9,8 +9,8 @@
  * One thread, no allocation: wait for the socket or the next deadline, feed
  * frames in, process, hand the tx queue to the socket. */
 #define _GNU_SOURCE
-#include "co_membus.h"
-#include "co_socketcan.h"
+#include "canopenfd/co_membus.h"
+#include "canopenfd/co_socketcan.h"
 #include "device.h"
 
 #include <poll.h>
@@ -41,9 +41,10 @@ static device_t device;   /* static: an MCU would place it the same way */
 static void flush(co_socketcan_t *sc)
 {
     co_frame_t frame;
-    while (co_line_tx_peek(&device.line, &frame)) {
+    while (co_line_tx_count(&device.line) > 0) {
         unsigned sent = 0;
-        if (co_sc_write(sc, &frame, 1, &sent) != CO_SC_DONE || sent != 1) {
+        if (co_sc_write(sc, co_line_tx_at(&device.line, 0), 1, &sent) != CO_SC_DONE ||
+            sent != 1) {
             return;
         }
         (void)co_line_tx_pop(&device.line, &frame);

@@ -9,7 +9,7 @@
  * Lines: a (the producer, node 5), b (the consumer). */
 #include "test_od_util.h"
 
-#include "co_emcy.h"
+#include "canopenfd/co_emcy.h"
 
 #define NODE 5
 #define EMCY_ID (0x80u + NODE)

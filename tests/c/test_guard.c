@@ -6,7 +6,7 @@
  * frame and answer: CAN-ID, flags, length, bytes, time. */
 #include "test_od_util.h"
 
-#include "co_guard.h"
+#include "canopenfd/co_guard.h"
 
 #define MS(x) ((uint64_t)(x) * TU_MS)
 #define ID_S 5
@@ -374,7 +374,7 @@ static void test_slave_not_before_bootup(void **state)
     }
     assert_int_equal(gs.stats.ignored_state, 1);
     assert_int_equal(extra.line.stats.rx_rtr, 1);
-    assert_int_equal(co_queue_count(&extra.line.tx), 0);
+    assert_int_equal(co_line_tx_count(&extra.line), 0);
     co_guard_slave_deinit(&gs);
     co_node_deinit(&node);
 }
@@ -651,7 +651,7 @@ static void test_fd_refused(void **state)
     assert_int_equal(fd.line.other_count, 0);
     assert_false(co_guard_master_init(&gm, &fd.line, nodes, 1, NULL, NULL));
     assert_int_equal(co_guard_master_guard(&gm, 5, 100, 1), CO_GUARD_NO_ROOM);
-    assert_int_equal(co_timer_list_next(&fd.line.timers), CO_TIME_NEVER);
+    assert_int_equal(co_timer_list_next(co_line_timers(&fd.line)), CO_TIME_NEVER);
     co_nmt_deinit(&nmt);
 }
 

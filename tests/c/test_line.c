@@ -31,7 +31,7 @@ static void on_rx(co_line_t *line, const co_frame_t *frame, void *user)
     assert_true(fx->seen_count < MAX_SEEN);
     fx->seen_by[fx->seen_count] = h->tag;
     fx->seen[fx->seen_count] = *frame;
-    fx->seen_at[fx->seen_count] = line->now_us;
+    fx->seen_at[fx->seen_count] = co_line_now(line);
     fx->seen_count++;
 }
 
@@ -140,9 +140,9 @@ static void test_init_starts_clean(void **state)
     co_line_stats_t zero;
     memset(&zero, 0, sizeof zero);
     assert_memory_equal(&fx->line.stats, &zero, sizeof zero);
-    assert_int_equal(fx->line.node_id, 0);
-    assert_true(co_queue_is_empty(&fx->line.rx));
-    assert_true(co_queue_is_empty(&fx->line.tx));
+    assert_int_equal(co_line_node_id(&fx->line), 0);
+    assert_int_equal(co_line_rx_count(&fx->line), 0);
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
     assert_true(co_line_process(&fx->line, 0) == CO_TIME_NEVER);
 }
 
@@ -213,10 +213,10 @@ static void test_nothing_dispatched_before_process(void **state)
     assert_true(co_line_subscribe(&fx->line, 0x100, 0x100, on_rx, &a));
     receive(fx, 0x100, 0, 1);
     assert_int_equal(fx->seen_count, 0);
-    assert_int_equal(co_queue_count(&fx->line.rx), 1);
+    assert_int_equal(co_line_rx_count(&fx->line), 1);
     (void)co_line_process(&fx->line, 0);
     assert_int_equal(fx->seen_count, 1);
-    assert_true(co_queue_is_empty(&fx->line.rx));
+    assert_int_equal(co_line_rx_count(&fx->line), 0);
 }
 
 static void test_whole_id_space_subscribable(void **state)
@@ -540,7 +540,7 @@ static void test_tx_fd_line_rounds_every_length(void **state)
             assert_int_equal(out.data[i], 0);
     }
     assert_false(co_line_send(&fx->line, 0x200, d, 65));
-    assert_true(co_queue_is_empty(&fx->line.tx));
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
 }
 
 static void test_tx_classic_line_no_flags_no_rounding(void **state)
@@ -558,7 +558,7 @@ static void test_tx_classic_line_refuses_more_than_8_bytes(void **state)
     fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
     uint8_t d[9] = {0};
     assert_false(co_line_send(&fx->line, 0x181, d, 9));
-    assert_true(co_queue_is_empty(&fx->line.tx));
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
     assert_int_equal(fx->line.stats.tx_overflow, 0);   /* not an overflow */
     assert_int_equal(count_events(fx, CO_COMM_TX_OVERFLOW), 0);
 }
@@ -567,7 +567,7 @@ static void test_tx_refuses_id_beyond_11_bits(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
     assert_false(co_line_send(&fx->line, 0x800, NULL, 0));
-    assert_true(co_queue_is_empty(&fx->line.tx));
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
 }
 
 static void test_tx_send_frame_on_fd_line_adds_flags_keeps_ext(void **state)
@@ -619,7 +619,7 @@ static void test_tx_send_frame_invalid_refused(void **state)
     assert_false(co_line_send_frame(&fx->line, &f));
     f = tu_frame(0x100, CO_FRAME_FD, NULL, 8);        /* FD frame on a classic line */
     assert_false(co_line_send_frame(&fx->line, &f));
-    assert_true(co_queue_is_empty(&fx->line.tx));
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
     assert_int_equal(fx->line.stats.tx_overflow, 0);
 }
 
@@ -730,7 +730,7 @@ static void on_space(co_line_t *line, void *user)
     space_t *sp = user;
     assert_ptr_equal(line, &sp->fx->line);
     if (sp->calls < 8)
-        sp->count_seen[sp->calls] = co_queue_count(&line->tx);
+        sp->count_seen[sp->calls] = co_line_tx_count(line);
     sp->calls++;
     if (sp->send_more > 0) {
         sp->send_more--;
@@ -863,6 +863,109 @@ static void test_tx_space_nobody_registered(void **state)
     assert_int_equal(fx->line.stats.tx_frames, 8);
 }
 
+/* ------------------------------------------------------------ accessors */
+
+static void test_id_owner_accessors(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
+    handler_t a = {fx, 1}, b = {fx, 2};
+    assert_false(co_line_id_taken(&fx->line, 0x150));
+    assert_true(co_line_subscribe(&fx->line, 0x100, 0x1FF, on_rx, &a));
+    assert_true(co_line_id_taken(&fx->line, 0x100));
+    assert_true(co_line_id_taken(&fx->line, 0x1FF));
+    assert_false(co_line_id_taken(&fx->line, 0x200));
+    assert_true(co_line_id_taken_by(&fx->line, 0x150, on_rx, &a));
+    assert_false(co_line_id_taken_by(&fx->line, 0x150, on_rx, &b));
+    assert_false(co_line_id_taken_by(&fx->line, 0x200, on_rx, &a));
+    co_line_unsubscribe(&fx->line, on_rx, &a);
+    assert_false(co_line_id_taken(&fx->line, 0x150));
+    assert_false(co_line_id_taken_by(&fx->line, 0x150, on_rx, &a));
+}
+
+static void test_receiver_free_until_table_full(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
+    handler_t a = {fx, 1};
+    uint32_t i;
+    for (i = 0; i < CO_LINE_MAX_RECEIVERS; i++) {
+        assert_true(co_line_receiver_free(&fx->line));
+        assert_true(co_line_subscribe(&fx->line, i, i, on_rx, &a));
+    }
+    assert_false(co_line_receiver_free(&fx->line));
+}
+
+/* The room for bursts keeps the last quarter of the tx queue free. */
+static void test_tx_room_keeps_a_quarter(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, 8);
+    const uint8_t d[1] = {1};
+    uint32_t sent;
+    co_frame_t out;
+    assert_int_equal(co_line_tx_room(&fx->line), 6);
+    for (sent = 1; sent <= 8; sent++) {
+        assert_true(co_line_send(&fx->line, 0x100, d, 1));
+        assert_int_equal(co_line_tx_count(&fx->line), sent);
+        assert_int_equal(co_line_tx_room(&fx->line), sent < 6 ? 6 - sent : 0);
+    }
+    for (sent = 0; sent < 3; sent++)
+        assert_true(co_line_tx_pop(&fx->line, &out));
+    assert_int_equal(co_line_tx_room(&fx->line), 1);
+}
+
+static void test_queue_accessors_show_frames_in_order(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
+    handler_t a = {fx, 1};
+    const uint8_t d[1] = {1};
+    co_frame_t out;
+    assert_true(co_line_subscribe(&fx->line, 0x000, 0x7FF, on_rx, &a));
+    receive(fx, 0x101, 0, 1);
+    receive(fx, 0x102, 0, 1);
+    receive(fx, 0x103, 0, 1);
+    assert_int_equal(co_line_rx_count(&fx->line), 3);
+    assert_int_equal(co_line_rx_free(&fx->line), SMALL - 3);
+    assert_int_equal(co_line_rx_at(&fx->line, 0)->id, 0x101);
+    assert_int_equal(co_line_rx_at(&fx->line, 2)->id, 0x103);
+    /* a capture line takes frames raw: nothing is dispatched */
+    assert_true(co_line_rx_pop(&fx->line, &out));
+    assert_int_equal(out.id, 0x101);
+    assert_int_equal(co_line_rx_at(&fx->line, 0)->id, 0x102);
+    (void)co_line_process(&fx->line, 0);
+    assert_int_equal(fx->seen_count, 2);
+    assert_false(co_line_rx_pop(&fx->line, &out));
+    assert_true(co_line_send(&fx->line, 0x201, d, 1));
+    assert_true(co_line_send(&fx->line, 0x202, d, 1));
+    assert_int_equal(co_line_tx_at(&fx->line, 1)->id, 0x202);
+    assert_true(co_line_tx_pop(&fx->line, &out));
+    assert_int_equal(co_line_tx_at(&fx->line, 0)->id, 0x202);
+    assert_int_equal(co_line_stats(&fx->line)->rx_frames, 3);
+    assert_int_equal(co_line_stats(&fx->line)->tx_frames, 1);
+    assert_int_equal(co_line_mode(&fx->line), CO_MODE_CLASSIC);
+}
+
+static void test_node_id_and_rejected_counters(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
+    const co_line_stats_t *s = co_line_stats(&fx->line);
+    co_line_set_node_id(&fx->line, 5);
+    assert_int_equal(co_line_node_id(&fx->line), 5);
+    co_line_count_rejected(&fx->line, CO_LINE_NMT_BAD_LENGTH);
+    co_line_count_rejected(&fx->line, CO_LINE_NMT_BAD_COMMAND);
+    co_line_count_rejected(&fx->line, CO_LINE_NMT_BAD_COMMAND);
+    co_line_count_rejected(&fx->line, CO_LINE_NMT_BAD_NODE);
+    co_line_count_rejected(&fx->line, CO_LINE_HB_BAD_LENGTH);
+    co_line_count_rejected(&fx->line, CO_LINE_HB_BAD_STATE);
+    co_line_count_rejected(&fx->line, CO_LINE_HB_BAD_NODE);
+    co_line_count_rejected(&fx->line, CO_LINE_HB_BAD_NODE);
+    assert_int_equal(s->nmt_bad_length, 1);
+    assert_int_equal(s->nmt_bad_command, 2);
+    assert_int_equal(s->nmt_bad_node, 1);
+    assert_int_equal(s->hb_bad_length, 1);
+    assert_int_equal(s->hb_bad_state, 1);
+    assert_int_equal(s->hb_bad_node, 2);
+    assert_int_equal(s->rx_unhandled + s->rx_invalid, 0);
+}
+
 /* ------------------------------------------------------------ process */
 
 typedef struct tick {
@@ -878,7 +981,7 @@ static void tick_fn(co_timer_t *timer, uint64_t now_us, void *user)
     (void)timer;
     t->fired++;
     t->at = now_us;
-    t->line_now = t->line->now_us;
+    t->line_now = co_line_now(t->line);
 }
 
 static void test_process_returns_never_without_timers(void **state)
@@ -886,7 +989,7 @@ static void test_process_returns_never_without_timers(void **state)
     fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
     assert_true(co_line_process(&fx->line, 0) == CO_TIME_NEVER);
     assert_true(co_line_process(&fx->line, 123456) == CO_TIME_NEVER);
-    assert_int_equal(fx->line.now_us, 123456);
+    assert_int_equal(co_line_now(&fx->line), 123456);
 }
 
 static void test_process_runs_due_timers_and_returns_next_deadline(void **state)
@@ -969,10 +1072,10 @@ static void test_membus_delivers_to_all_others_not_sender(void **state)
     assert_true(co_line_send(&bx->a.line, 0x705, d, 1));
     assert_int_equal(co_membus_transfer(&bx->tb.bus, NULL, NULL), 1);
     assert_int_equal(bx->tb.bus.frames, 1);
-    assert_true(co_queue_is_empty(&bx->a.line.rx));
-    assert_true(co_queue_pop(&bx->b.line.rx, &out));
+    assert_int_equal(co_line_rx_count(&bx->a.line), 0);
+    assert_true(co_line_rx_pop(&bx->b.line, &out));
     tu_assert_frame(&out, 0x705, CO_FRAME_FD | CO_FRAME_BRS, d, 1);
-    assert_true(co_queue_pop(&bx->tb.sniffer.line.rx, &out));
+    assert_true(co_line_rx_pop(&bx->tb.sniffer.line, &out));
     tu_assert_frame(&out, 0x705, CO_FRAME_FD | CO_FRAME_BRS, d, 1);
     assert_int_equal(bx->a.line.stats.tx_frames, 1);
 }
@@ -1014,12 +1117,12 @@ static void test_membus_fault_hook_drops_and_duplicates(void **state)
     assert_true(co_line_send(&bx->a.line, 0x101, NULL, 0));
     assert_true(co_line_send(&bx->a.line, 0x102, NULL, 0));
     (void)co_membus_transfer(&bx->tb.bus, NULL, NULL);
-    assert_int_equal(co_queue_count(&bx->b.line.rx), 3);
-    assert_true(co_queue_pop(&bx->b.line.rx, &out));
+    assert_int_equal(co_line_rx_count(&bx->b.line), 3);
+    assert_true(co_line_rx_pop(&bx->b.line, &out));
     assert_int_equal(out.id, 0x100);
-    assert_true(co_queue_pop(&bx->b.line.rx, &out));
+    assert_true(co_line_rx_pop(&bx->b.line, &out));
     assert_int_equal(out.id, 0x102);
-    assert_true(co_queue_pop(&bx->b.line.rx, &out));
+    assert_true(co_line_rx_pop(&bx->b.line, &out));
     assert_int_equal(out.id, 0x102);
 }
 
@@ -1057,7 +1160,7 @@ static void test_membus_full_receiver_counts_rx_overflow(void **state)
         assert_true(co_line_send(&bx->a.line, 0x100, NULL, 0));
     assert_int_equal(co_membus_transfer(&bx->tb.bus, NULL, NULL), 3);
     assert_int_equal(bx->b.line.stats.rx_overflow, 3);
-    assert_int_equal(co_queue_count(&bx->b.line.rx), TU_QUEUE);
+    assert_int_equal(co_line_rx_count(&bx->b.line), TU_QUEUE);
 }
 
 static void test_membus_attach_twice_refused(void **state)
@@ -1077,8 +1180,8 @@ static void test_membus_detached_line_receives_nothing(void **state)
     co_membus_detach(&bx->tb.bus, &bx->b.line);
     assert_true(co_line_send(&bx->a.line, 0x100, NULL, 0));
     assert_int_equal(co_membus_transfer(&bx->tb.bus, NULL, NULL), 1);
-    assert_true(co_queue_is_empty(&bx->b.line.rx));
-    assert_int_equal(co_queue_count(&bx->tb.sniffer.line.rx), 1);
+    assert_int_equal(co_line_rx_count(&bx->b.line), 0);
+    assert_int_equal(co_line_rx_count(&bx->tb.sniffer.line), 1);
 }
 
 int main(void)
@@ -1092,6 +1195,11 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_dispatch_keeps_receive_order, setup, teardown),
         cmocka_unit_test_setup_teardown(test_nothing_dispatched_before_process, setup, teardown),
         cmocka_unit_test_setup_teardown(test_whole_id_space_subscribable, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_id_owner_accessors, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_receiver_free_until_table_full, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_room_keeps_a_quarter, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_queue_accessors_show_frames_in_order, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_node_id_and_rejected_counters, setup, teardown),
         cmocka_unit_test_setup_teardown(test_overlapping_subscribe_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(test_invalid_range_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(test_receiver_table_full_refused, setup, teardown),

@@ -79,8 +79,8 @@ static const ev_t *last_ev(const fx_t *fx, int kind, int node)
 static bool tx_has_bootup(const co_line_t *line, uint8_t node_id)
 {
     uint32_t i;
-    for (i = 0; i < line->tx.count; i++) {
-        const co_frame_t *f = &line->tx.slots[(line->tx.head + i) % line->tx.capacity];
+    for (i = 0; i < co_line_tx_count(line); i++) {
+        const co_frame_t *f = co_line_tx_at(line, i);
         if (f->id == 0x700u + node_id && f->len >= 1 && f->data[0] == 0x00)
             return true;
     }

@@ -8,8 +8,8 @@
 
 #include "test_util.h"
 
-#include "co_od.h"
-#include "co_store.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_store.h"
 
 /* ------------------------------------------------------------------ bytes */
 

@@ -8,7 +8,7 @@
 #include "test_od_util.h"
 
 #include "co_cob_id.h"
-#include "co_pdo.h"
+#include "canopenfd/co_pdo.h"
 
 #define ID_A 5
 #define ID_B 6
@@ -76,7 +76,7 @@ static void on_error(co_pdo_t *pdo, uint16_t code, bool is_rpdo, uint16_t number
     node_t *n = user;
     (void)pdo;
     if (n->nerr < MAX_REC) {   /* (the random test makes more: counted only) */
-        n->err[n->nerr] = (err_rec_t){code, is_rpdo, number, n->line->now_us};
+        n->err[n->nerr] = (err_rec_t){code, is_rpdo, number, co_line_now(n->line)};
     }
     n->nerr++;
 }
@@ -86,7 +86,7 @@ static void on_received(co_pdo_t *pdo, uint16_t number, void *user)
     node_t *n = user;
     (void)pdo;
     if (n->nreceived < MAX_REC) {
-        n->received_t[n->nreceived] = n->line->now_us;
+        n->received_t[n->nreceived] = co_line_now(n->line);
         n->received[n->nreceived] = number;
     }
     n->nreceived++;
@@ -107,8 +107,8 @@ static void on_rx_error(co_pdo_t *pdo, uint16_t number, uint16_t code, bool acti
 {
     node_t *n = user;
     if (n->nrx < MAX_REC) {
-        n->rx[n->nrx] = (rx_rec_t){number, code, active, cause,
-                                   co_pdo_is_active(pdo, true, number), n->line->now_us};
+        n->rx[n->nrx] = (rx_rec_t){number, code, active, cause, co_pdo_is_active(pdo, true, number),
+                                   co_line_now(n->line)};
     }
     n->nrx++;
 }
@@ -218,8 +218,8 @@ static fx_t *fx_new(co_mode_t mode, uint32_t capacity)
     tu_bus_add_line(&fx->tb, &fx->l[0]);
     tu_bus_add_line(&fx->tb, &fx->l[1]);
     fx->r = tu_bus_add_line(&fx->tb, &fx->l[2]);
-    fx->l[0].line.node_id = ID_A;
-    fx->l[1].line.node_id = ID_B;
+    co_line_set_node_id(&fx->l[0].line, ID_A);
+    co_line_set_node_id(&fx->l[1].line, ID_B);
     node_begin(&fx->a, mode, capacity);
     node_begin(&fx->b, mode, capacity);
     return fx;

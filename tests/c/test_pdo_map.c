@@ -5,7 +5,7 @@
  * strings). */
 #include "test_od_util.h"
 
-#include "co_pdo_map.h"
+#include "canopenfd/co_pdo_map.h"
 
 #define N_ENTRIES 64
 #define POOL 2048

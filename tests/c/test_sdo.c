@@ -17,8 +17,8 @@
 
 #include "co_cob_id.h"
 #include "co_crc.h"
-#include "co_sdo.h"
-#include "co_sdo_server.h"
+#include "canopenfd/co_sdo.h"
+#include "canopenfd/co_sdo_server.h"
 
 #define ID_S 5
 #define REQ0 (0x600u + ID_S)

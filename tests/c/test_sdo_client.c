@@ -18,9 +18,9 @@
 
 #include "co_cob_id.h"
 #include "co_crc.h"
-#include "co_sdo.h"
-#include "co_sdo_client.h"
-#include "co_sdo_server.h"
+#include "canopenfd/co_sdo.h"
+#include "canopenfd/co_sdo_client.h"
+#include "canopenfd/co_sdo_server.h"
 
 #define NSRV 3
 #define X 0x40                    /* scripted server */
@@ -236,7 +236,7 @@ static void server_build(fx_t *fx, srv_t *s, uint8_t id, co_line_t *line)
     s->fx = fx;
     s->id = id;
     s->line = line;
-    line->node_id = id;   /* the server's default channel comes from the line */
+    co_line_set_node_id(line, id);   /* the server's default channel comes from the line */
     s->dom = calloc(1, DOM_CAP);
     assert_non_null(s->dom);
     co_od_init(&s->od, CO_MODE_CLASSIC, s->entries, N_ENTRIES, s->pool, POOL, s->subs, SUBS);
@@ -347,7 +347,7 @@ static uint32_t round1(fx_t *fx)
         (void)co_line_process(&tb->lines[i]->line, tb->now);
     moved = co_membus_transfer(&tb->bus, NULL, NULL);
     if (fx->observe != NULL) {
-        while (co_queue_pop(&tb->sniffer.line.rx, &f))
+        while (co_line_rx_pop(&tb->sniffer.line, &f))
             fx->observe(fx, &f);
     } else {
         tu_drain_sniffer(tb);

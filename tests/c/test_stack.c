@@ -5,8 +5,8 @@
  * refused with a status and the part named, leaving nothing behind. */
 #include "test_od_util.h"
 
-#include "co_stack.h"
-#include "co_usdo.h"
+#include "canopenfd/co_stack.h"
+#include "canopenfd/co_usdo.h"
 
 #include <stdlib.h>
 
@@ -266,7 +266,7 @@ static void test_no_memory_leaves_nothing_behind(void **state)
     assert_string_equal(co_stack_part_name(CO_STACK_PART_PDO), "PDO service");
     assert_null(co_stack_node(&fx->stack));
     assert_null(co_stack_usdo_server(&fx->stack));
-    assert_int_equal(fx->dev_line.line.node_id, 0);
+    assert_int_equal(co_line_node_id(&fx->dev_line.line), 0);
     assert_int_equal(fx->dev.od.sub_count, subs_before);
     assert_int_equal(fx->arena.used, line_need);
     /* without a store the node fits */

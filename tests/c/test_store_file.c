@@ -21,7 +21,7 @@
 
 #include "test_od_util.h"
 
-#include "co_store_file.h"
+#include "canopenfd/co_store_file.h"
 
 /* ------------------------------------------------------ fake file system */
 

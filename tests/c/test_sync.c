@@ -6,7 +6,7 @@
 #include "test_od_util.h"
 
 #include "co_cob_id.h"
-#include "co_sync.h"
+#include "canopenfd/co_sync.h"
 
 #define MS(x) ((uint64_t)(x) * TU_MS)
 #define MAX_EV 16384

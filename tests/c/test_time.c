@@ -5,7 +5,7 @@
 #include "test_od_util.h"
 
 #include "co_cob_id.h"
-#include "co_time.h"
+#include "canopenfd/co_time.h"
 
 #define MAX_EV 16384
 /* 2024-01-01 12:34:56.789 UTC */

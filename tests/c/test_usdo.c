@@ -13,8 +13,8 @@
  * under test). */
 #include "test_od_util.h"
 
-#include "co_usdo.h"
-#include "co_usdo_server.h"
+#include "canopenfd/co_usdo.h"
+#include "canopenfd/co_usdo_server.h"
 
 #define ID_S 5
 #define C1 1

@@ -13,9 +13,9 @@
  * hand from the research notes (§2.4-2.9), not with the codec. */
 #include "test_od_util.h"
 
-#include "co_usdo.h"
-#include "co_usdo_client.h"
-#include "co_usdo_server.h"
+#include "canopenfd/co_usdo.h"
+#include "canopenfd/co_usdo_client.h"
+#include "canopenfd/co_usdo_server.h"
 
 #define C 0x10
 #define REQ_ID (0x600u + C)
@@ -248,7 +248,7 @@ static void server_build(fx_t *fx, srv_t *s, uint8_t id, co_line_t *line, uint32
     s->fx = fx;
     s->id = id;
     s->line = line;
-    line->node_id = id;   /* the server reads its node-id from the line */
+    co_line_set_node_id(line, id);   /* the server reads its node-id from the line */
     s->dom_cap = dom_cap;
     s->dom = calloc(1, dom_cap);
     assert_non_null(s->dom);
@@ -348,7 +348,7 @@ static void step(fx_t *fx, uint64_t now)
             (void)co_line_process(&tb->lines[i]->line, now);
         moved = co_membus_transfer(&tb->bus, NULL, NULL);
         if (fx->observe != NULL) {
-            while (co_queue_pop(&tb->sniffer.line.rx, &f))
+            while (co_line_rx_pop(&tb->sniffer.line, &f))
                 fx->observe(fx, &f);
         } else {
             tu_drain_sniffer(tb);

@@ -15,14 +15,14 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "co_frame.h"
-#include "co_queue.h"
-#include "co_timer.h"
-#include "co_line.h"
-#include "co_nmt.h"
-#include "co_hb.h"
-#include "co_node.h"
-#include "co_membus.h"
+#include "canopenfd/co_frame.h"
+#include "canopenfd/co_queue.h"
+#include "canopenfd/co_timer.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_hb.h"
+#include "canopenfd/co_node.h"
+#include "canopenfd/co_membus.h"
 
 #define TU_QUEUE 256          /* rx and tx slots of every test line */
 #define TU_MAX_LINES 4        /* processed lines on a test bus */
@@ -107,7 +107,7 @@ static inline co_line_t *tu_bus_add_line(tu_bus_t *tb, tu_line_t *l)
 static inline void tu_drain_sniffer(tu_bus_t *tb)
 {
     co_frame_t f;
-    while (co_queue_pop(&tb->sniffer.line.rx, &f)) {
+    while (co_line_rx_pop(&tb->sniffer.line, &f)) {
         assert_true(tb->log_count < TU_LOG_MAX);
         tb->log[tb->log_count].frame = f;
         tb->log[tb->log_count].t_us = tb->now;
@@ -140,7 +140,7 @@ static inline uint64_t tu_next_deadline(const tu_bus_t *tb)
     uint64_t next = CO_TIME_NEVER;
     uint8_t i;
     for (i = 0; i < tb->count; i++) {
-        uint64_t d = co_timer_list_next(&tb->lines[i]->line.timers);
+        uint64_t d = co_timer_list_next(co_line_timers(&tb->lines[i]->line));
         if (d < next)
             next = d;
     }

@@ -251,14 +251,14 @@ static rt_client_t *client_of(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
         return l->client;
     }
     if (node_id == 0) {
-        node_id = l->line.node_id ? l->line.node_id : 0x7F;
+        node_id = co_line_node_id(&l->line) ? co_line_node_id(&l->line) : 0x7F;
     }
     rt_client_t *c = calloc(1, sizeof *c);
     if (!c) {
         rt_set_error(rt, "line %d: no memory for the client", l->index);
         return NULL;
     }
-    c->fd = l->line.mode == CO_MODE_FD;
+    c->fd = co_line_mode(&l->line) == CO_MODE_FD;
     for (uint32_t i = 0; i < RT_CLIENT_REQUESTS; i++) {
         c->reqs[i].line = l;
         c->reqs[i].fd = -1;
@@ -267,7 +267,7 @@ static rt_client_t *client_of(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
     if (status != CO_STACK_OK) {
         free(c);
         rt_set_error(rt, "line %d: %s client could not start (%s)", l->index,
-                     l->line.mode == CO_MODE_FD ? "USDO" : "SDO",
+                     co_line_mode(&l->line) == CO_MODE_FD ? "USDO" : "SDO",
                      status == CO_STACK_ERR_NO_MEMORY ? "no memory"
                                                       : "CAN-IDs 0x581..0x5FF taken?");
         return NULL;
@@ -307,7 +307,7 @@ static rt_req_t *request_of(co_rt_t *rt, rt_line_t *l, int handle)
 
 static int check_request(co_rt_t *rt, const rt_line_t *l, const co_rt_transfer_request_t *q)
 {
-    bool fd = l->line.mode == CO_MODE_FD;
+    bool fd = co_line_mode(&l->line) == CO_MODE_FD;
     if (q->server < (fd ? 0 : 1) || q->server > 127) {
         return rt_argument_error(rt, "line %d: server node-id %d outside %d..127%s", l->index,
                                  q->server, fd ? 0 : 1, fd ? " (0 = broadcast)" : "");
@@ -426,7 +426,7 @@ int co_rt_usdo_client(co_rt_t *rt, int line, int node_id)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    if (l->line.mode != CO_MODE_FD) {
+    if (co_line_mode(&l->line) != CO_MODE_FD) {
         return rt_argument_error(rt, "line %d is classic: SDO clients have no node-id", line);
     }
     if (node_id < 1 || node_id > 127) {

@@ -4,19 +4,19 @@
 #ifndef CO_RT_INTERNAL_H
 #define CO_RT_INTERNAL_H
 
-#include "co_runtime.h"
+#include "canopenfd/co_runtime.h"
 
-#include "../../core/co_stack.h"
-#include "../../core/co_node.h"
-#include "../../core/co_od.h"
-#include "../../core/co_store.h"
-#include "../../core/co_sdo_client.h"
-#include "../../core/co_sdo_server.h"
-#include "../../core/co_usdo_client.h"
-#include "../../core/co_usdo_server.h"
-#include "co_store_file.h"
-#include "../../drivers/co_membus.h"
-#include "../../drivers/co_socketcan.h"
+#include "canopenfd/co_stack.h"
+#include "canopenfd/co_node.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_store.h"
+#include "canopenfd/co_sdo_client.h"
+#include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_usdo_client.h"
+#include "canopenfd/co_usdo_server.h"
+#include "canopenfd/co_store_file.h"
+#include "canopenfd/co_membus.h"
+#include "canopenfd/co_socketcan.h"
 
 #include <pthread.h>
 #include <stdbool.h>
@@ -162,7 +162,7 @@ typedef struct rt_line {
     uint8_t watch_count;
     uint8_t watch_of[CO_LINE_ID_MAP_SIZE];
     /* ... and per local node: */
-    uint8_t pdo_listen[CO_PDO_MAX_NUMBER / 8];   /* RPDOs Python listens to */
+    bool pdo_listen[CO_PDO_MAX_NUMBER];   /* RPDOs Python listens to, by number - 1 */
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;

@@ -36,7 +36,7 @@ static int od_fill(co_rt_t *rt, rt_line_t *l, const co_od_def_t *defs, uint32_t 
         rt_set_error(rt, "line %d: no memory for %u OD entries", l->index, (unsigned)count);
         return CO_RT_ERR_NO_MEMORY;
     }
-    co_od_init(&l->od, l->line.mode, l->od_entries, count, l->od_pool, (uint32_t)pool,
+    co_od_init(&l->od, co_line_mode(&l->line), l->od_entries, count, l->od_pool, (uint32_t)pool,
                l->od_subs, RT_OD_SUBSCRIPTIONS);
     for (uint32_t i = 0; i < count; i++) {
         co_od_add_result_t r = co_od_add(&l->od, &defs[i]);

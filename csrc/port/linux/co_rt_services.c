@@ -10,8 +10,6 @@
  * it is posted as events. */
 #include "co_rt_internal.h"
 
-#include "../../core/co_bits.h"
-
 #include <stdlib.h>
 #include <string.h>
 
@@ -23,7 +21,7 @@ static void on_emcy(co_stack_t *stack, uint8_t node_id, const co_emcy_msg_t *msg
     rt_line_t *l = user;
     co_frame_t frame;
     memset(&frame, 0, sizeof frame);
-    bool fd = l->line.mode == CO_MODE_FD;
+    bool fd = co_line_mode(&l->line) == CO_MODE_FD;
     frame.len = (uint8_t)(fd ? co_emcy_encode_fd(msg, frame.data, sizeof frame.data)
                              : co_emcy_encode_classic(msg, frame.data, sizeof frame.data));
     rt_post(l, CO_EV_EMCY, node_id, fd ? 1u : 0u, msg->code, &frame);
@@ -67,7 +65,7 @@ static void on_comm(co_stack_t *stack, co_comm_event_t event, void *user)
 
 void rt_services_pdo_received(rt_line_t *l, uint16_t number)
 {
-    if (number == 0 || number > CO_PDO_MAX_NUMBER || !co_bit_test(l->pdo_listen, number - 1u)) {
+    if (number == 0 || number > CO_PDO_MAX_NUMBER || !l->pdo_listen[number - 1u]) {
         return;
     }
     /* the values as now in the OD, laid out as the mapping says */
@@ -335,7 +333,7 @@ int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen)
     if (!l) {
         return CO_RT_ERR_STATE;
     }
-    co_bit_put(l->pdo_listen, (uint16_t)(rpdo_number - 1), listen != 0);
+    l->pdo_listen[rpdo_number - 1] = listen != 0;
     pthread_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }

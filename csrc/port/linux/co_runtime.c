@@ -278,9 +278,9 @@ void rt_wake(co_rt_t *rt)
 /* Frames queued in rx but not yet shown to the monitor (any driver). */
 static void post_new_rx(rt_line_t *l)
 {
-    const co_frame_queue_t *rx = &l->line.rx;
-    for (uint32_t i = l->rx_seen; i < rx->count; i++) {
-        rt_post(l, CO_EV_FRAME, 0, 0, 0, &rx->slots[(rx->head + i) % rx->capacity]);
+    uint32_t count = co_line_rx_count(&l->line);
+    for (uint32_t i = l->rx_seen; i < count; i++) {
+        rt_post(l, CO_EV_FRAME, 0, 0, 0, co_line_rx_at(&l->line, i));
     }
 }
 
@@ -291,8 +291,8 @@ static uint64_t line_step(rt_line_t *l, uint64_t now)
         post_new_rx(l);
     }
     uint64_t next = co_line_process(&l->line, now);
-    l->rx_seen = co_queue_count(&l->line.rx);
-    return co_queue_is_empty(&l->line.rx) ? next : now;
+    l->rx_seen = co_line_rx_count(&l->line);
+    return l->rx_seen == 0 ? next : now;
 }
 
 static uint32_t transfer_buses(co_rt_t *rt)
@@ -604,7 +604,8 @@ static void socket_down(rt_line_t *l)
 static void socket_reopen(co_rt_t *rt, rt_line_t *l, uint64_t now)
 {
     char err[RT_ERROR_SIZE];
-    co_sc_open_result_t r = co_sc_open(&l->sc.sock, l->channel, l->line.mode, err, sizeof err);
+    co_sc_open_result_t r =
+        co_sc_open(&l->sc.sock, l->channel, co_line_mode(&l->line), err, sizeof err);
     if (r == CO_SC_OPEN_OK && !socket_watch(rt, l, EPOLL_CTL_ADD, false)) {
         co_sc_close(&l->sc.sock);
         r = CO_SC_OPEN_SOCKET;
@@ -630,10 +631,9 @@ static void reopen_sockets(co_rt_t *rt, uint64_t now)
 static void socket_read(rt_line_t *l)
 {
     co_sc_rx_t items[CO_SC_BATCH];
-    const co_frame_queue_t *rx = &l->line.rx;
+    uint32_t room;
     /* Read only what rx can hold: the rest waits in the socket buffer. */
-    while (rx->count < rx->capacity) {
-        uint32_t room = rx->capacity - rx->count;
+    while ((room = co_line_rx_free(&l->line)) > 0) {
         unsigned got = 0;
         co_sc_io_t r = co_sc_read(&l->sc.sock, items, room < CO_SC_BATCH ? room : CO_SC_BATCH,
                                   &got);
@@ -676,10 +676,10 @@ static void socket_ready(co_rt_t *rt, rt_line_t *l, uint32_t events)
  * they leave the queue only once the kernel accepted them. */
 static unsigned peek_tx(const co_line_t *line, co_frame_t *out, unsigned max)
 {
-    const co_frame_queue_t *tx = &line->tx;
+    uint32_t count = co_line_tx_count(line);
     unsigned n = 0;
-    for (; n < max && n < tx->count; n++) {
-        out[n] = tx->slots[(tx->head + n) % tx->capacity];
+    for (; n < max && n < count; n++) {
+        out[n] = *co_line_tx_at(line, n);
     }
     return n;
 }
@@ -755,7 +755,7 @@ static uint64_t flush_socket(co_rt_t *rt, rt_line_t *l, uint64_t now)
 
 static void flush_host(rt_line_t *l)
 {
-    if (co_queue_is_empty(&l->line.tx)) {
+    if (co_line_tx_count(&l->line) == 0) {
         return;
     }
     rt_host_t *h = &l->host;
@@ -769,7 +769,7 @@ static void flush_host(rt_line_t *l)
             rt_post(l, CO_EV_FRAME, 0, 1, 0, &frame);
         }
     }
-    h->stalled = !co_queue_is_empty(&l->line.tx);
+    h->stalled = co_line_tx_count(&l->line) != 0;
     if (moved > 0 && h->waiters > 0) {
         pthread_cond_broadcast(&h->ready);
     }
@@ -826,10 +826,10 @@ void rt_kick(co_rt_t *rt)
         rt_line_t *l = rt->lines[i];
         if (l->driver == CO_DRIVER_SOCKETCAN) {
             next = min_u64(next, flush_socket(rt, l, now));
-        } else if (!co_queue_is_empty(&l->line.tx)) {
+        } else if (co_line_tx_count(&l->line) != 0) {
             wake = true;
         }
-        next = min_u64(next, co_timer_list_next(&l->line.timers));
+        next = min_u64(next, co_timer_list_next(co_line_timers(&l->line)));
     }
     /* only ever earlier: the thread recomputes everything at its next turn */
     if (next < rt->armed_us) {
@@ -877,7 +877,7 @@ static void iterate(co_rt_t *rt)
     next = min_u64(next, flush_drivers(rt, now));
     /* Sending may have armed timers (a service told of free tx space). */
     for (int i = 0; i < rt->line_count; i++) {
-        next = min_u64(next, co_timer_list_next(&rt->lines[i]->line.timers));
+        next = min_u64(next, co_timer_list_next(co_line_timers(&rt->lines[i]->line)));
     }
     arm_timer(rt, next, now);
 }
@@ -1200,7 +1200,7 @@ static rt_line_t *line_new(co_rt_t *rt, const co_rt_line_config_t *c)
 static int open_socketcan(co_rt_t *rt, rt_line_t *l)
 {
     char err[RT_ERROR_SIZE];
-    switch (co_sc_open(&l->sc.sock, l->channel, l->line.mode, err, sizeof err)) {
+    switch (co_sc_open(&l->sc.sock, l->channel, co_line_mode(&l->line), err, sizeof err)) {
     case CO_SC_OPEN_OK:
         return CO_RT_OK;
     case CO_SC_OPEN_NO_INTERFACE:
@@ -1242,7 +1242,7 @@ static int new_bus(co_rt_t *rt, const rt_line_t *l, rt_bus_t **out)
         return CO_RT_ERR_NO_MEMORY;
     }
     snprintf(bus->name, sizeof bus->name, "%s", l->channel);
-    bus->mode = l->line.mode;
+    bus->mode = co_line_mode(&l->line);
     co_membus_init(&bus->bus);
     rt->buses[rt->bus_count++] = bus;
     *out = bus;
@@ -1258,9 +1258,9 @@ static int join_membus(co_rt_t *rt, rt_line_t *l)
     if (status != CO_RT_OK) {
         return status;
     }
-    if (bus->mode != l->line.mode) {
+    if (bus->mode != co_line_mode(&l->line)) {
         rt_set_error(rt, "membus %s: open in %s mode, a %s line cannot join it", bus->name,
-                  mode_names[bus->mode], mode_names[l->line.mode]);
+                  mode_names[bus->mode], mode_names[co_line_mode(&l->line)]);
         return CO_RT_ERR_MODE;
     }
     if (!co_membus_attach(&bus->bus, &l->line)) {
@@ -1374,7 +1374,7 @@ static int check_frame(co_rt_t *rt, const rt_line_t *l, const co_frame_t *f)
         return rt_argument_error(rt, "malformed frame (id 0x%X, len %u, flags 0x%02X)",
                               (unsigned)f->id, f->len, f->flags);
     }
-    if ((f->flags & CO_FRAME_FD) && l->line.mode == CO_MODE_CLASSIC) {
+    if ((f->flags & CO_FRAME_FD) && co_line_mode(&l->line) == CO_MODE_CLASSIC) {
         return rt_argument_error(rt, "line %d is classic: it cannot send FD frames", l->index);
     }
     return CO_RT_OK;
@@ -1561,7 +1561,7 @@ int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out)
         return CO_RT_ERR_ARGUMENT;
     }
     pthread_mutex_lock(&rt->lock);
-    *out = l->line.stats;
+    *out = *co_line_stats(&l->line);
     pthread_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }

@@ -8,7 +8,7 @@
  * "successful" save comes back as the old image after a power cut). */
 #define _GNU_SOURCE
 
-#include "co_store_file.h"
+#include "canopenfd/co_store_file.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -32,9 +32,9 @@
 #ifndef CO_SDO_SERVER_H
 #define CO_SDO_SERVER_H
 
-#include "co_line.h"
-#include "co_od.h"
-#include "co_sdo.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_sdo.h"
 
 enum {
     CO_SDO_SERVER_DEFAULT_TIMEOUT_MS = 1000,

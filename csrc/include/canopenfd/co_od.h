@@ -10,7 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "co_line.h"
+#include "canopenfd/co_line.h"
 
 /* cffi:begin */
 /* CiA 301 data type indices. */
@@ -223,7 +223,8 @@ typedef enum co_od_xfer_state {
 
 /* One network access in progress (an SDO/USDO server owns one per session).
  * Non-domain writes collect the value in `scratch` (at least the largest
- * entry size) and change the entry only at the end, after every check. */
+ * entry size) and change the entry only at the end, after every check. The
+ * fields are the OD's: scratch stays as given to co_od_xfer_init. */
 struct co_od_xfer {
     co_od_t *od;
     const co_od_entry_t *entry;

@@ -5,7 +5,7 @@
 #ifndef CO_MEMBUS_H
 #define CO_MEMBUS_H
 
-#include "../core/co_line.h"
+#include "canopenfd/co_line.h"
 
 enum { CO_MEMBUS_MAX_LINES = 32 };
 

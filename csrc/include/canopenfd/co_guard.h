@@ -21,8 +21,8 @@
 #ifndef CO_GUARD_H
 #define CO_GUARD_H
 
-#include "co_nmt.h"
-#include "co_od.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_od.h"
 
 enum {
     CO_GUARD_EMCY_LIFE = 0x8130,     /* EMCY code: life guard or heartbeat error */

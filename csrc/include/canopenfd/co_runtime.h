@@ -5,16 +5,16 @@
 #ifndef CO_RUNTIME_H
 #define CO_RUNTIME_H
 
-#include "../../core/co_line.h"
-#include "../../core/co_nmt.h"
-#include "../../core/co_hb.h"
-#include "../../core/co_od.h"
-#include "../../core/co_store.h"
-#include "../../core/co_emcy.h"
-#include "../../core/co_guard.h"
-#include "../../core/co_pdo.h"
-#include "../../core/co_sync.h"
-#include "../../core/co_time.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_hb.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_store.h"
+#include "canopenfd/co_emcy.h"
+#include "canopenfd/co_guard.h"
+#include "canopenfd/co_pdo.h"
+#include "canopenfd/co_sync.h"
+#include "canopenfd/co_time.h"
 
 /* cffi:begin */
 typedef struct co_rt co_rt_t;

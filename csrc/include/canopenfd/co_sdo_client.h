@@ -52,10 +52,10 @@
 #ifndef CO_SDO_CLIENT_H
 #define CO_SDO_CLIENT_H
 
-#include "co_buffer.h"
-#include "co_line.h"
-#include "co_od.h"
-#include "co_sdo.h"
+#include "canopenfd/co_buffer.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_sdo.h"
 
 enum {
     CO_SDO_CLIENT_DEFAULT_TIMEOUT_MS = 1000,

@@ -6,14 +6,14 @@
 #ifndef CO_NODE_H
 #define CO_NODE_H
 
-#include "co_emcy.h"
-#include "co_guard.h"
-#include "co_hb.h"
-#include "co_od.h"
-#include "co_pdo.h"
-#include "co_store.h"
-#include "co_sync.h"
-#include "co_time.h"
+#include "canopenfd/co_emcy.h"
+#include "canopenfd/co_guard.h"
+#include "canopenfd/co_hb.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_pdo.h"
+#include "canopenfd/co_store.h"
+#include "canopenfd/co_sync.h"
+#include "canopenfd/co_time.h"
 
 typedef struct co_node co_node_t;
 

@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <sys/types.h>
 
-#include "../../core/co_store.h"
+#include "canopenfd/co_store.h"
 
 enum { CO_STORE_FILE_PATH_MAX = 4096 };
 

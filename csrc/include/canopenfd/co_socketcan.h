@@ -6,7 +6,7 @@
 #ifndef CO_SOCKETCAN_H
 #define CO_SOCKETCAN_H
 
-#include "../core/co_line.h"
+#include "canopenfd/co_line.h"
 
 enum {
     CO_SC_NAME_SIZE = 16,    /* IFNAMSIZ, checked in co_socketcan.c */

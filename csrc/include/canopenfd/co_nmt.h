@@ -2,7 +2,7 @@
 #ifndef CO_NMT_H
 #define CO_NMT_H
 
-#include "co_line.h"
+#include "canopenfd/co_line.h"
 
 /* cffi:begin */
 typedef enum co_nmt_state {

@@ -29,9 +29,9 @@
 #ifndef CO_PDO_H
 #define CO_PDO_H
 
-#include "co_line.h"
-#include "co_od.h"
-#include "co_pdo_map.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_pdo_map.h"
 
 enum {
     CO_PDO_MAX_NUMBER = 512,        /* RPDOs and TPDOs each */

@@ -27,9 +27,9 @@
 #ifndef CO_USDO_SERVER_H
 #define CO_USDO_SERVER_H
 
-#include "co_line.h"
-#include "co_od.h"
-#include "co_usdo.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_usdo.h"
 
 enum { CO_USDO_SERVER_DEFAULT_TIMEOUT_MS = 1000 };
 
@@ -110,7 +110,7 @@ typedef struct co_usdo_server_config {
 /* Scratch bytes one session needs: the largest entry size of the OD. */
 uint32_t co_usdo_server_scratch_need(const co_od_t *od);
 
-/* Serve `od` on `line` (an fd line; the node-id is read from line->node_id
+/* Serve `od` on `line` (an fd line; the node-id is read from co_line_node_id
  * at every request, so requests before a node exists are ignored). False on
  * a classic line, a bad configuration or when 0x601..0x67F is taken. */
 bool co_usdo_server_init(co_usdo_server_t *server, co_line_t *line, co_od_t *od,

@@ -20,7 +20,7 @@
 #ifndef CO_PDO_MAP_H
 #define CO_PDO_MAP_H
 
-#include "co_od.h"
+#include "canopenfd/co_od.h"
 
 enum {
     CO_PDO_MAX_ENTRIES = 64,        /* mapping entries per PDO (sub 1..64) */

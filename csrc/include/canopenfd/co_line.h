@@ -4,9 +4,10 @@
 #ifndef CO_LINE_H
 #define CO_LINE_H
 
-#include "co_frame.h"
-#include "co_queue.h"
-#include "co_timer.h"
+#include "canopenfd/co_assert.h"
+#include "canopenfd/co_frame.h"
+#include "canopenfd/co_queue.h"
+#include "canopenfd/co_timer.h"
 
 /* cffi:begin */
 typedef enum co_mode {
@@ -81,6 +82,10 @@ typedef struct co_other_receiver {
     void *user;
 } co_other_receiver_t;
 
+/* Public because callers own its storage (no allocation). A caller may read
+ * mode, node_id, now_us and stats (the accessors below say the same); the
+ * rest is co_line.c's own. No field is written outside co_line.c: services,
+ * drivers and the runtime go through the functions and accessors below. */
 struct co_line {
     co_mode_t mode;
     uint8_t node_id;              /* 0 = no local node yet */
@@ -114,6 +119,21 @@ typedef struct co_line_config {
 /* Returns false for an invalid configuration (no queue storage, unknown mode). */
 bool co_line_init(co_line_t *line, const co_line_config_t *config);
 void co_line_set_comm_indication(co_line_t *line, co_comm_fn fn, void *user);
+/* The local node-id (1..127, 0 = none): co_node sets it; a server used
+ * without a co_node (tools, tests) sets it itself. */
+void co_line_set_node_id(co_line_t *line, uint8_t node_id);
+
+/* Malformed NMT and heartbeat frames, counted in the line's statistics by
+ * the services that decode them. */
+typedef enum co_line_reject {
+    CO_LINE_NMT_BAD_LENGTH,
+    CO_LINE_NMT_BAD_COMMAND,
+    CO_LINE_NMT_BAD_NODE,
+    CO_LINE_HB_BAD_LENGTH,
+    CO_LINE_HB_BAD_STATE,
+    CO_LINE_HB_BAD_NODE
+} co_line_reject_t;
+void co_line_count_rejected(co_line_t *line, co_line_reject_t reason);
 
 /* Services register for an inclusive range of 11-bit CAN-IDs. A range that
  * overlaps an existing one, or a full table, returns false. */
@@ -146,21 +166,11 @@ void co_line_tx_space_unregister(co_line_t *line, co_tx_space_fn fn, void *user)
 
 /* Driver side: queue a received frame (false + rx overflow event when full). */
 bool co_line_receive(co_line_t *line, const co_frame_t *frame);
+/* Take the oldest received frame without dispatching it (a capture line of
+ * a tool or test that handles frames itself); false when none. */
+bool co_line_rx_pop(co_line_t *line, co_frame_t *out);
 /* Driver side: next frame to transmit, false when none. */
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out);
-/* Driver side: the next frame to transmit without taking it (a driver that
- * may be refused by its controller takes it with co_line_tx_pop once sent);
- * false when none. */
-static inline bool co_line_tx_peek(const co_line_t *line, co_frame_t *out)
-{
-    const co_frame_t *f = co_queue_peek(&line->tx);
-    if (f) {
-        *out = *f;
-    }
-    return f != NULL;
-}
-/* Frames waiting in the tx queue. */
-static inline uint32_t co_line_tx_count(const co_line_t *line) { return co_queue_count(&line->tx); }
 /* Driver side: report a communication-state change. */
 void co_line_comm_event(co_line_t *line, co_comm_event_t event);
 
@@ -188,8 +198,76 @@ static inline void co_line_set_time(co_line_t *line, uint64_t now_us)
     }
 }
 
-static inline co_mode_t co_line_mode(const co_line_t *line) { return line->mode; }
-static inline uint64_t co_line_now(const co_line_t *line) { return line->now_us; }
 static inline co_timer_list_t *co_line_timers(co_line_t *line) { return &line->timers; }
+
+/* ------------------------------------------------------------ reading a line
+ * Inline and free: services call them per frame. */
+
+static inline co_mode_t co_line_mode(const co_line_t *line) { return line->mode; }
+/* 0 while the line has no local node. */
+static inline uint8_t co_line_node_id(const co_line_t *line) { return line->node_id; }
+/* Time of the current co_line_process call (or of co_line_set_time). */
+static inline uint64_t co_line_now(const co_line_t *line) { return line->now_us; }
+static inline const co_line_stats_t *co_line_stats(const co_line_t *line) { return &line->stats; }
+
+/* Received frames waiting for co_line_process; i-th from the oldest, i below
+ * the count (a monitor shows them before they are dispatched). */
+static inline uint32_t co_line_rx_count(const co_line_t *line)
+{
+    return co_queue_count(&line->rx);
+}
+
+static inline uint32_t co_line_rx_free(const co_line_t *line) { return co_queue_room(&line->rx); }
+
+static inline const co_frame_t *co_line_rx_at(const co_line_t *line, uint32_t i)
+{
+    return co_queue_at(&line->rx, i);
+}
+
+/* Frames waiting for the driver; i-th from the oldest, i below the count (a
+ * driver copies a batch and pops what the hardware took). */
+static inline uint32_t co_line_tx_count(const co_line_t *line)
+{
+    return co_queue_count(&line->tx);
+}
+
+static inline const co_frame_t *co_line_tx_at(const co_line_t *line, uint32_t i)
+{
+    return co_queue_at(&line->tx, i);
+}
+
+/* Frames a service sending in bursts (block and bulk transfers) may still
+ * queue now: the last quarter of the tx queue stays free for the others
+ * (heartbeat, PDOs, other transfers' answers). 0 = wait for the tx-space
+ * indication. */
+static inline uint32_t co_line_tx_room(const co_line_t *line)
+{
+    uint32_t limit = line->tx.capacity - line->tx.capacity / 4u;
+    uint32_t count = co_queue_count(&line->tx);
+    return count < limit ? limit - count : 0;
+}
+
+/* Whether a subscribed range takes 11-bit CAN-ID id (id < 2048), and
+ * whether that subscriber is (fn, user). */
+static inline bool co_line_id_taken(const co_line_t *line, uint32_t id)
+{
+    CO_ASSERT(id < CO_LINE_ID_MAP_SIZE);
+    return line->id_map[id] != 0;
+}
+
+static inline bool co_line_id_taken_by(const co_line_t *line, uint32_t id, co_rx_fn fn,
+                                       const void *user)
+{
+    CO_ASSERT(id < CO_LINE_ID_MAP_SIZE);
+    uint8_t slot = line->id_map[id];
+    return slot != 0 && line->receivers[slot - 1u].fn == fn &&
+           line->receivers[slot - 1u].user == user;
+}
+
+/* Whether co_line_subscribe has a receiver left (the ids must be free too). */
+static inline bool co_line_receiver_free(const co_line_t *line)
+{
+    return line->receiver_count < CO_LINE_MAX_RECEIVERS;
+}
 
 #endif

@@ -35,9 +35,9 @@
 #ifndef CO_USDO_CLIENT_H
 #define CO_USDO_CLIENT_H
 
-#include "co_buffer.h"
-#include "co_line.h"
-#include "co_usdo.h"
+#include "canopenfd/co_buffer.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_usdo.h"
 
 enum {
     CO_USDO_CLIENT_DEFAULT_TIMEOUT_MS = 1000,
@@ -198,7 +198,7 @@ struct co_usdo_client {
 typedef struct co_usdo_client_config {
     co_usdo_client_session_t *sessions;
     uint8_t session_count;          /* 1..255 */
-    uint8_t node_id;                /* our client node-id 1..127 (not line->node_id) */
+    uint8_t node_id;                /* our client node-id 1..127 (not the line's node-id) */
     uint32_t timeout_ms;            /* default per-frame timeout, 0 = 1000 */
     uint16_t max_pacing;            /* cap on a server's bulk pacing, 100 us units, 0 = 100 */
 } co_usdo_client_config_t;

@@ -18,10 +18,10 @@
 #ifndef CO_EMCY_H
 #define CO_EMCY_H
 
-#include "co_emcy_codec.h"
-#include "co_line.h"
-#include "co_nmt.h"
-#include "co_od.h"
+#include "canopenfd/co_emcy_codec.h"
+#include "canopenfd/co_line.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_od.h"
 
 /* cffi:begin */
 /* Statistics of a producer or a consumer (each has its own). */

@@ -32,7 +32,8 @@ typedef struct co_timer_list {
 
 void co_timer_list_init(co_timer_list_t *list);
 void co_timer_init(co_timer_t *timer, co_timer_fn fn, void *user);
-/* Arm (or re-arm) a timer to fire at deadline_us. */
+/* Arm (or re-arm) a timer to fire at deadline_us. An armed timer belongs to
+ * the list it was armed on: start and cancel it on that list only. */
 void co_timer_start(co_timer_list_t *list, co_timer_t *timer, uint64_t deadline_us);
 /* Disarm; harmless on a timer that is not armed. */
 void co_timer_cancel(co_timer_list_t *list, co_timer_t *timer);

@@ -26,19 +26,19 @@
 #ifndef CO_STACK_H
 #define CO_STACK_H
 
-#include "co_emcy.h"
-#include "co_guard.h"
-#include "co_hb.h"
-#include "co_node.h"
-#include "co_od.h"
-#include "co_pdo.h"
-#include "co_sdo_client.h"
-#include "co_sdo_server.h"
-#include "co_store.h"
-#include "co_sync.h"
-#include "co_time.h"
-#include "co_usdo_client.h"
-#include "co_usdo_server.h"
+#include "canopenfd/co_emcy.h"
+#include "canopenfd/co_guard.h"
+#include "canopenfd/co_hb.h"
+#include "canopenfd/co_node.h"
+#include "canopenfd/co_od.h"
+#include "canopenfd/co_pdo.h"
+#include "canopenfd/co_sdo_client.h"
+#include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_store.h"
+#include "canopenfd/co_sync.h"
+#include "canopenfd/co_time.h"
+#include "canopenfd/co_usdo_client.h"
+#include "canopenfd/co_usdo_server.h"
 
 #include <stddef.h>
 

@@ -7,8 +7,8 @@
 #ifndef CO_TIME_H
 #define CO_TIME_H
 
-#include "co_nmt.h"
-#include "co_od.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_od.h"
 
 enum {
     CO_TIME_DEFAULT_COB_ID = 0x100,

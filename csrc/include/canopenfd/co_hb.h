@@ -3,7 +3,7 @@
 #ifndef CO_HB_H
 #define CO_HB_H
 
-#include "co_nmt.h"
+#include "canopenfd/co_nmt.h"
 
 /* cffi:begin */
 typedef enum co_hb_event {

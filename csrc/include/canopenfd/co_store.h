@@ -6,11 +6,11 @@
  * applied one by one, so values survive a firmware update that adds or removes
  * entries (the format is described at the top of co_store.c). Atomicity (old
  * or new image after a power cut, never a mix) is the backend's promise: see
- * csrc/port/linux/co_store_file.h. */
+ * co_store_file.h. */
 #ifndef CO_STORE_H
 #define CO_STORE_H
 
-#include "co_od.h"
+#include "canopenfd/co_od.h"
 
 /* cffi:begin */
 typedef enum co_store_status {

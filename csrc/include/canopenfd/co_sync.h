@@ -8,8 +8,8 @@
 #ifndef CO_SYNC_H
 #define CO_SYNC_H
 
-#include "co_nmt.h"
-#include "co_od.h"
+#include "canopenfd/co_nmt.h"
+#include "canopenfd/co_od.h"
 
 enum {
     CO_SYNC_MAX_LISTENERS = 8,
