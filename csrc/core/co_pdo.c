@@ -33,13 +33,54 @@ static uint16_t map_index(const co_pdo_channel_t *ch)
     return (uint16_t)((ch->is_rpdo ? CO_PDO_RPDO_MAP : CO_PDO_TPDO_MAP) + ch->number - 1u);
 }
 
-/* Channel + 1 of PDO number (1..512), 0 when there is none. */
+/* Channel + 1 of PDO number (1..512), 0 when there is none: a binary search
+ * in the RPDO or the TPDO part of the channel table (both sorted). */
 static uint16_t slot_of(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
 {
-    if (number < 1 || number > CO_PDO_MAX_NUMBER) {
-        return 0;
+    uint16_t lo = is_rpdo ? 0 : pdo->rpdo_count;
+    uint16_t hi = is_rpdo ? pdo->rpdo_count : pdo->channel_count;
+    while (lo < hi) {
+        uint16_t mid = (uint16_t)(lo + (hi - lo) / 2u);
+        uint16_t n = pdo->channels[mid].number;
+        if (n == number) {
+            return (uint16_t)(mid + 1u);
+        }
+        if (n < number) {
+            lo = (uint16_t)(mid + 1u);
+        } else {
+            hi = mid;
+        }
     }
-    return is_rpdo ? pdo->rpdo_of[number - 1u] : pdo->tpdo_of[number - 1u];
+    return 0;
+}
+
+/* Channel + 1 of the RPDO (rtr: the TPDO answering remote frames) that takes
+ * an 11-bit CAN-ID, 0 when none: the table when there is one, else a scan. */
+static uint16_t id_slot(const co_pdo_t *pdo, bool rtr, uint32_t id)
+{
+    const uint16_t *map = rtr ? pdo->rtr_map : pdo->rx_map;
+    uint16_t i;
+    CO_ASSERT(id < CO_LINE_ID_MAP_SIZE);
+    if (map != NULL) {
+        return map[id];
+    }
+    for (i = 0; i < pdo->channel_count; i++) {
+        const co_pdo_channel_t *ch = &pdo->channels[i];
+        if (ch->takes_id && ch->can_id == id && ch->is_rpdo != rtr) {
+            return (uint16_t)(i + 1u);
+        }
+    }
+    return 0;
+}
+
+/* The channel starts or stops taking its 11-bit CAN-ID. */
+static void take_id(co_pdo_t *pdo, co_pdo_channel_t *ch, bool take)
+{
+    uint16_t *map = ch->is_rpdo ? pdo->rx_map : pdo->rtr_map;
+    ch->takes_id = take;
+    if (map != NULL) {
+        map[ch->can_id] = take ? (uint16_t)(ch - pdo->channels + 1) : 0u;
+    }
 }
 
 /* The channel of a slot taken from the number or CAN-ID tables (0 = none). */
@@ -299,18 +340,14 @@ static void start_channel(co_pdo_t *pdo, co_pdo_channel_t *ch)
 
 static void unmap(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
-    uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
     if (!ch->active) {
         return;
     }
-    if (ch->is_rpdo) {
-        if (ch->ext) {
-            pdo->ext_rpdos--;
-        } else if (pdo->rx_map[ch->can_id] == slot) {
-            pdo->rx_map[ch->can_id] = 0;
-        }
-    } else if (ch->rtr_allowed && !ch->ext && pdo->rtr_map[ch->can_id] == slot) {
-        pdo->rtr_map[ch->can_id] = 0;
+    if (ch->is_rpdo && ch->ext) {
+        pdo->ext_rpdos--;
+    }
+    if (ch->takes_id) {
+        take_id(pdo, ch, false);
     }
     ch->active = false;
 }
@@ -326,7 +363,6 @@ static uint8_t mapping_count(const co_pdo_t *pdo, const co_pdo_channel_t *ch)
 static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     uint16_t comm = comm_index(ch);
-    uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
     uint32_t cob = COB_INVALID;
     uint8_t type = CO_PDO_TYPE_EVENT_MANUFACTURER;
     uint8_t count;
@@ -367,16 +403,17 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
     if (ch->is_rpdo) {
         if (ch->ext) {
             pdo->ext_rpdos++;
-        } else if (pdo->rx_map[ch->can_id] != 0 || co_line_id_taken(pdo->line, ch->can_id)) {
+        } else if (id_slot(pdo, false, ch->can_id) != 0 ||
+                   co_line_id_taken(pdo->line, ch->can_id)) {
             pdo->stats.id_conflicts++;
             return;
         } else {
-            pdo->rx_map[ch->can_id] = slot;
+            take_id(pdo, ch, true);
         }
     } else {
         ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && co_line_mode(pdo->line) == CO_MODE_CLASSIC;
-        if (ch->rtr_allowed && !ch->ext && pdo->rtr_map[ch->can_id] == 0) {
-            pdo->rtr_map[ch->can_id] = slot;
+        if (ch->rtr_allowed && !ch->ext && id_slot(pdo, true, ch->can_id) == 0) {
+            take_id(pdo, ch, true);
         }
     }
     ch->active = true;
@@ -426,8 +463,8 @@ static uint32_t check_comm(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entr
         id = cob & COB_ID_11;
         if (ch->is_rpdo && !(cob & COB_EXT)) {
             uint16_t slot = (uint16_t)(ch - pdo->channels + 1);
-            if ((pdo->rx_map[id] != 0 && pdo->rx_map[id] != slot) ||
-                co_line_id_taken(pdo->line, id)) {
+            uint16_t holder = id_slot(pdo, false, id);
+            if ((holder != 0 && holder != slot) || co_line_id_taken(pdo->line, id)) {
                 return CO_ABORT_INVALID_VALUE;   /* another RPDO or service takes it */
             }
         }
@@ -633,7 +670,7 @@ static bool on_rtr(co_pdo_t *pdo, const co_frame_t *f)
     if (f->flags & CO_FRAME_EXT) {
         ch = find_ext(pdo, false, f->id);
     } else {
-        ch = channel_at(pdo, pdo->rtr_map[f->id]);
+        ch = channel_at(pdo, id_slot(pdo, true, f->id));
     }
     if (ch == NULL) {
         return false;
@@ -671,7 +708,7 @@ static bool on_other(co_line_t *line, const co_frame_t *f, void *user)
     if (f->flags & CO_FRAME_EXT) {
         ch = pdo->ext_rpdos != 0 ? find_ext(pdo, true, f->id) : NULL;
     } else {
-        ch = channel_at(pdo, pdo->rx_map[f->id]);
+        ch = channel_at(pdo, id_slot(pdo, false, f->id));
     }
     if (ch == NULL) {
         pdo->stats.rx_not_ours++;
@@ -836,10 +873,10 @@ static void setup_pdo(void *user, bool is_rpdo, uint16_t number, uint8_t capacit
     co_timer_init(&ch->timer, on_channel_timer, ch);
     co_timer_init(&ch->inhibit_timer, on_inhibit_end, ch);
     if (is_rpdo) {
-        pdo->rpdo_of[number - 1u] = pdo->channel_count;
-    } else {
-        pdo->tpdo_of[number - 1u] = pdo->channel_count;
+        pdo->rpdo_count = pdo->channel_count;   /* RPDOs come first (each_pdo) */
     }
+    /* each direction by ascending number: slot_of searches it */
+    CO_ASSERT(pdo->channel_count == 1 || ch[-1].is_rpdo != is_rpdo || ch[-1].number < number);
 }
 
 bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_config_t *config)
@@ -858,6 +895,14 @@ bool co_pdo_init(co_pdo_t *pdo, co_line_t *line, co_od_t *od, const co_pdo_confi
     pdo->ind = config->ind;
     pdo->user = config->user;
     pdo->channels = config->channels;
+    pdo->rx_map = config->rx_map;
+    pdo->rtr_map = config->rtr_map;
+    if (pdo->rx_map != NULL) {
+        memset(pdo->rx_map, 0, CO_LINE_ID_MAP_SIZE * sizeof *pdo->rx_map);
+    }
+    if (pdo->rtr_map != NULL) {
+        memset(pdo->rtr_map, 0, CO_LINE_ID_MAP_SIZE * sizeof *pdo->rtr_map);
+    }
     co_timer_init(&pdo->retry_timer, on_retry, pdo);
     s.pdo = pdo;
     s.items = config->items;

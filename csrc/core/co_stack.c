@@ -224,6 +224,9 @@ static void node_plan(const co_line_t *line, const node_sizes_t *n, bool has_od,
     plan_add(p, (size_t)n->server_scratch * n->servers + 1u);
     plan_add(p, sizeof(co_pdo_channel_t) * n->pdo_channels);
     plan_add(p, sizeof(co_pdo_map_item_t) * n->pdo_items);
+    if (n->pdo_channels > CO_PDO_SCAN_MAX) {
+        plan_add(p, 2u * CO_LINE_ID_MAP_SIZE * sizeof(uint16_t));   /* rx and rtr tables */
+    }
 }
 
 size_t co_stack_node_need(const co_line_t *line, const co_stack_node_config_t *config)
@@ -488,7 +491,13 @@ static co_stack_status_t start_pdo(co_stack_t *s, const node_sizes_t *n)
         .item_count = n->pdo_items,
         .ind = &co_node_pdo_indications,
         .user = &s->node};
-    if (!config.channels || !config.items) {
+    if (n->pdo_channels > CO_PDO_SCAN_MAX) {
+        /* many PDOs: a received frame finds its RPDO by table, not by a scan */
+        config.rx_map = take(s, OWNER_NODE, 2u * CO_LINE_ID_MAP_SIZE * sizeof(uint16_t));
+        config.rtr_map = config.rx_map ? config.rx_map + CO_LINE_ID_MAP_SIZE : NULL;
+    }
+    if (!config.channels || !config.items ||
+        (n->pdo_channels > CO_PDO_SCAN_MAX && !config.rx_map)) {
         return fail(s, CO_STACK_PART_PDO, CO_STACK_ERR_NO_MEMORY);
     }
     s->has_pdo = co_pdo_init(&s->pdo, s->line, s->od, &config);

@@ -15,8 +15,11 @@ for variant in "$@"; do
         out=$("$bin" 2>&1)
         rc=$?
         printf '%s\n' "$out"
-        p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -n 1)
-        f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -n 1)
+        # a binary may run several groups: every group's summary counts
+        p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' |
+            awk '{ n += $1 } END { if (NR) print n }')
+        f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' |
+            awk '{ n += $1 } END { if (NR) print n }')
         passed=$((passed + ${p:-0}))
         failed=$((failed + ${f:-0}))
         if [ "$rc" -ne 0 ] && [ -z "$f" ]; then

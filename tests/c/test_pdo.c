@@ -49,6 +49,7 @@ typedef struct node {
     co_pdo_t pdo;
     co_pdo_channel_t *channels;
     co_pdo_map_item_t *items;
+    uint16_t *id_maps;              /* rx and rtr CAN-ID tables, when the group gives them */
     co_line_t *line;
     bool ready;
     err_rec_t err[MAX_REC];
@@ -129,6 +130,24 @@ static void def(node_t *n, uint16_t index, uint8_t sub, uint8_t obj, uint8_t typ
     assert_int_equal(co_od_add(&n->od, &d), CO_OD_ADDED);
 }
 
+/* Every test runs twice: the RPDO / RTR lookup by CAN-ID tables, then by a
+ * scan of the channels (co_pdo_config without tables). */
+static bool with_id_maps;
+
+static int group_with_id_maps(void **state)
+{
+    (void)state;
+    with_id_maps = true;
+    return 0;
+}
+
+static int group_with_scan(void **state)
+{
+    (void)state;
+    with_id_maps = false;
+    return 0;
+}
+
 static void node_begin(node_t *n, co_mode_t mode, uint32_t capacity)
 {
     uint32_t pool = capacity * 24u;
@@ -188,6 +207,11 @@ static void node_finish(node_t *n, co_line_t *line, uint8_t node_id)
     cfg.item_count = items;
     cfg.ind = &indications;
     cfg.user = n;
+    if (with_id_maps) {
+        n->id_maps = calloc(2 * CO_LINE_ID_MAP_SIZE, sizeof *n->id_maps);
+        cfg.rx_map = n->id_maps;
+        cfg.rtr_map = n->id_maps + CO_LINE_ID_MAP_SIZE;
+    }
     /* too little storage is refused */
     if (items > 0) {
         cfg.item_count = items - 1;
@@ -206,6 +230,7 @@ static void node_free(node_t *n)
     free(n->entries);
     free(n->pool);
     free(n->channels);
+    free(n->id_maps);
     free(n->items);
 }
 
@@ -1411,5 +1436,6 @@ int main(void)
         cmocka_unit_test(test_before_send_disables),
         cmocka_unit_test(test_api_misuse),
     };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = cmocka_run_group_tests_name("CAN-ID tables", tests, group_with_id_maps, NULL);
+    return failed + cmocka_run_group_tests_name("channel scan", tests, group_with_scan, NULL);
 }

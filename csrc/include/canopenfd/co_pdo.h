@@ -35,6 +35,7 @@
 
 enum {
     CO_PDO_MAX_NUMBER = 512,        /* RPDOs and TPDOs each */
+    CO_PDO_SCAN_MAX = 8,            /* channels up to which a scan beats the CAN-ID tables */
     CO_PDO_RPDO_COMM = 0x1400,
     CO_PDO_RPDO_MAP = 0x1600,
     CO_PDO_TPDO_COMM = 0x1800,
@@ -93,6 +94,8 @@ typedef struct co_pdo_channel {
     bool active;
     bool ext;                       /* 29-bit CAN-ID */
     bool rtr_allowed;               /* TPDO, classic, COB-ID bit 30 clear */
+    bool takes_id;                  /* RPDO: receives on can_id (11-bit); TPDO: answers RTRs
+                                       on it (the CAN-ID tables or the scan see it) */
     uint8_t type;
     uint32_t can_id;
     uint16_t inhibit_100us;
@@ -155,6 +158,12 @@ typedef struct co_pdo_config {
     uint32_t channel_count;
     co_pdo_map_item_t *items;       /* co_pdo_need's item count */
     uint32_t item_count;
+    /* Optional CAN-ID tables, CO_LINE_ID_MAP_SIZE entries each (zeroed here):
+     * a received frame finds its RPDO, a remote frame its TPDO, in one step.
+     * NULL: the channels are scanned, which costs little for a few PDOs and
+     * saves 8 KB (co_stack gives tables above CO_PDO_SCAN_MAX channels). */
+    uint16_t *rx_map;
+    uint16_t *rtr_map;
     const co_pdo_indications_t *ind;
     void *user;
 } co_pdo_config_t;
@@ -169,10 +178,11 @@ struct co_pdo {
     bool operational;
     bool hooked;
     uint16_t ext_rpdos;             /* active RPDOs with a 29-bit COB-ID */
-    uint16_t rpdo_of[CO_PDO_MAX_NUMBER];   /* number - 1 -> channel + 1 (0 = none) */
-    uint16_t tpdo_of[CO_PDO_MAX_NUMBER];
-    uint16_t rx_map[CO_LINE_ID_MAP_SIZE];  /* 11-bit CAN-ID -> active RPDO channel + 1 */
-    uint16_t rtr_map[CO_LINE_ID_MAP_SIZE]; /* 11-bit CAN-ID -> TPDO answering RTR + 1 */
+    uint16_t rpdo_count;            /* channels [0, rpdo_count) are RPDOs, then TPDOs, each
+                                       by ascending number (a number finds its channel by
+                                       binary search) */
+    uint16_t *rx_map;               /* 11-bit CAN-ID -> active RPDO channel + 1, or NULL */
+    uint16_t *rtr_map;              /* 11-bit CAN-ID -> TPDO answering RTR + 1, or NULL */
     co_timer_t retry_timer;         /* sends synchronous TPDOs the tx queue refused */
     co_pdo_stats_t stats;
 };

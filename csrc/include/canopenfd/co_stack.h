@@ -305,6 +305,8 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
      CO_STACK_BLOCK(sizeof(uint32_t) * CO_STACK_DEFAULT_EMCY_HISTORY) +                     \
      CO_STACK_BLOCK(sizeof(co_pdo_channel_t) * ((pdo_channels) ? (pdo_channels) : 1)) +     \
      CO_STACK_BLOCK(sizeof(co_pdo_map_item_t) * ((map_items) ? (map_items) : 1)) +          \
+     ((size_t)(pdo_channels) > (size_t)CO_PDO_SCAN_MAX                                       \
+          ? CO_STACK_BLOCK(2u * CO_LINE_ID_MAP_SIZE * sizeof(uint16_t)) : 0u) +             \
      CO_STACK_BLOCK(2u * (size_t)(store_image)) +                                            \
      CO_STACK_BLOCK((sizeof(co_usdo_session_t) > sizeof(co_sdo_channel_t)                   \
                          ? sizeof(co_usdo_session_t) : sizeof(co_sdo_channel_t)) *          \
