@@ -26,7 +26,7 @@ import time
 from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, List, Optional, Tuple
 
 from ._callbacks import CallbackList
-from ._runtime import decode_emcy
+from ._binding.runtime import decode_emcy
 from .decode_services import emcy_code_text, emcy_status_text, error_register_text
 from .errors import ConfigurationError
 

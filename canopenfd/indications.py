@@ -14,7 +14,7 @@ import logging
 import threading
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Tuple
 
-from ._runtime import lib
+from ._binding.runtime import lib
 from .errors import AbortError, ConfigurationError
 from .od import ODVariable
 

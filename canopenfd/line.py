@@ -10,7 +10,7 @@ import threading
 from typing import TYPE_CHECKING, Any, Callable, Dict, Iterable, List, Optional, Union
 
 from ._callbacks import CallbackList, Waiter
-from ._runtime import lib, now_us, status_text
+from ._binding.runtime import lib, now_us, status_text
 from .errors import ConfigurationError
 from .frame import Frame, fd_len_round
 from .nmt import NmtCommand, NmtMaster, NmtState

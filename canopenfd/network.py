@@ -9,9 +9,9 @@ import threading
 import weakref
 from typing import Any, Dict, List, Optional
 
-from ._runtime import EVENT_BATCH, Runtime, ffi, frame_from_c, lib
+from ._binding.hostbus import HostBridge
+from ._binding.runtime import EVENT_BATCH, Runtime, ffi, frame_from_c, lib
 from .errors import ClosedError, ConfigurationError
-from .hostbus import HostBridge
 from .line import Line
 
 log = logging.getLogger("canopenfd")

@@ -7,7 +7,7 @@ import logging
 from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, Optional, Tuple, Union
 
 from ._callbacks import CallbackList
-from ._runtime import lib
+from ._binding.runtime import lib
 from .indications import READ, WRITE, Indications, ODRequest
 from .errors import AbortError, ConfigurationError
 from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
@@ -133,7 +133,7 @@ class LocalNode:
             self._booted = True
 
     def _define_od(self) -> None:
-        from ._od_c import definitions  # needs the compiled core
+        from ._binding.od_tables import definitions
         overrides: Dict[Tuple[int, int], Any] = {}
         if self._heartbeat_ms and self._has_1017:
             overrides[(0x1017, 0)] = self._heartbeat_ms

@@ -17,7 +17,7 @@ import time
 from typing import (TYPE_CHECKING, Any, BinaryIO, Callable, Dict, List, Optional, Tuple,
                     Union)
 
-from ._runtime import ffi, lib
+from ._binding.runtime import ffi, lib
 from .errors import (ABORT_TEXT, AbortError, CanopenFDError, ClosedError, ConfigurationError,
                      TransferAbortError)
 from .od import ODVariable

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any, Dict, Optional
 
-from ._runtime import lib
+from ._binding.runtime import lib
 from .errors import USDO_ABORT_TEXT, AbortError, TransferAbortError
 from .od import ODVariable
 from .transfer import (RemoteAccess, RemoteObjects, RemoteValue, Transfer, TransferClient,

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from typing import Any, Dict, List, Optional, Tuple
 
-from ._core import ffi, lib
-from .od import DataType, ObjectDictionary, ODVariable
-from .od.datatypes import encode
+from ..od import DataType, ObjectDictionary, ODVariable
+from ..od.datatypes import encode
+from .core import ffi, lib
 
 _ACCESS = {
     "ro": lib.CO_ACCESS_RO, "wo": lib.CO_ACCESS_WO, "rw": lib.CO_ACCESS_RW,

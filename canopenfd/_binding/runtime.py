@@ -1,8 +1,8 @@
 """Thin, thread-safe wrapper around one `co_rt_t` of the cffi binding.
 
-It is the only module that calls `canopenfd._core` directly: it turns negative
-status codes into exceptions carrying `co_rt_last_error`'s text, and it makes
-every call after `free()` raise ClosedError instead of touching freed memory.
+It turns negative status codes into exceptions carrying `co_rt_last_error`'s
+text, and it makes every call after `free()` raise ClosedError instead of
+touching freed memory.
 """
 
 from __future__ import annotations
@@ -10,15 +10,9 @@ from __future__ import annotations
 import threading
 from typing import Optional
 
-from .errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
-from .frame import Frame
-
-try:
-    from ._core import ffi, lib
-except ImportError as exc:  # pragma: no cover - only without a build
-    raise ImportError(
-        "canopenfd._core (the compiled C stack) is missing: install the package with "
-        "'pip install .' (or 'pip install -e .') so build_ext.py compiles it") from exc
+from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
+from ..frame import Frame
+from .core import ffi, lib
 
 _ERRORS = {
     lib.CO_RT_ERR_ARGUMENT: ConfigurationError,

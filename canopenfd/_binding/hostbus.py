@@ -14,7 +14,8 @@ import logging
 import threading
 from typing import Any
 
-from ._runtime import HOST_BATCH, Runtime, ffi, lib
+from .core import ffi, lib
+from .runtime import HOST_BATCH, Runtime
 
 log = logging.getLogger("canopenfd")
 
