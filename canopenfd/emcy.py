@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, List, Optional, Tu
 from ._callbacks import CallbackList
 from ._binding.runtime import decode_emcy
 from .decode_services import emcy_code_text, emcy_status_text, error_register_text
+from ._binding.constants import EmcyStatus
 from .errors import ConfigurationError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -38,10 +39,10 @@ __all__ = ["Emcy", "EmcyProducer", "EmcyConsumer", "LOG_SIZE"]
 #: EMCYs a RemoteNode keeps in `emcy.log`.
 LOG_SIZE = 100
 
-_PRIORITY_MASK = 0x07
-_NON_RECOVERABLE = 0x08
-_OCCURRED = 0x10
-_REPEATED = 0x20
+_PRIORITY_MASK = int(EmcyStatus.PRIORITY_MASK)
+_NON_RECOVERABLE = int(EmcyStatus.NON_RECOVERABLE)
+_OCCURRED = int(EmcyStatus.OCCURRED)
+_REPEATED = int(EmcyStatus.REPEATED)
 _TIME_MAX = (1 << 48) - 1
 
 

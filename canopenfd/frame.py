@@ -6,13 +6,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-# Flag bits of co_frame_t.flags (co_frame.h); kept here so this module and the
-# decoder work without the compiled extension.
-FLAG_FD = 0x01
-FLAG_BRS = 0x02
-FLAG_ESI = 0x04
-FLAG_EXT = 0x08
-FLAG_RTR = 0x10
+from ._binding.constants import FrameFlag
+
+# Flag bits of co_frame_t.flags, as plain ints.
+FLAG_FD = int(FrameFlag.FD)
+FLAG_BRS = int(FrameFlag.BRS)
+FLAG_ESI = int(FrameFlag.ESI)
+FLAG_EXT = int(FrameFlag.EXT)
+FLAG_RTR = int(FrameFlag.RTR)
 
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 

@@ -14,7 +14,7 @@ import logging
 import threading
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Tuple
 
-from ._binding.runtime import lib
+from ._binding.constants import AbortCode, Indicate
 from .errors import AbortError, ConfigurationError
 from .od import ODVariable
 
@@ -24,10 +24,10 @@ if TYPE_CHECKING:  # pragma: no cover
 log = logging.getLogger(__name__)
 
 #: CiA 301 "general error": what a callback that raised anything but AbortError answers.
-GENERAL_ERROR = 0x08000000
+GENERAL_ERROR = int(AbortCode.GENERAL)
 
-READ = lib.CO_RT_INDICATE_READ
-WRITE = lib.CO_RT_INDICATE_WRITE
+READ = int(Indicate.READ)
+WRITE = int(Indicate.WRITE)
 _KIND_NAMES = {READ: "read", WRITE: "write"}
 
 Callback = Callable[["ODRequest"], Any]
@@ -210,7 +210,7 @@ class Indications:
         """CO_EV_OD_REQUEST: the access to answer (dispatcher thread)."""
         node = self._node
         index, sub, kind = key >> 8, key & 0xFF, token >> 24
-        if kind == lib.CO_RT_INDICATE_STORE:
+        if kind == Indicate.STORE:
             return node._event_persist(token)
         variable = node.od.get_variable(index, sub) if node.od is not None else None
         with self._lock:

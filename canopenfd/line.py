@@ -4,13 +4,13 @@ and the remote nodes it watches."""
 
 from __future__ import annotations
 
-import enum
 import logging
 import threading
 from typing import TYPE_CHECKING, Any, Callable, Dict, Iterable, List, Optional, Union
 
 from ._callbacks import CallbackList, Waiter
-from ._binding.runtime import lib, now_us, status_text
+from ._binding.constants import CommandKind, CommEvent, EventKind
+from ._binding.runtime import now_us, status_text
 from .errors import ConfigurationError
 from .frame import Frame, fd_len_round
 from .nmt import NmtCommand, NmtMaster, NmtState
@@ -24,22 +24,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from .usdo import UsdoClient
 
 log = logging.getLogger("canopenfd")
-
-
-class CommEvent(enum.IntEnum):
-    """Communication-state events of a line (co_comm_event_t)."""
-
-    BUS_OFF = 1
-    ERROR_PASSIVE = 2
-    ERROR_ACTIVE = 3
-    RX_OVERFLOW = 4
-    TX_OVERFLOW = 5
-    TX_QUEUE_FULL = 6
-    TX_QUEUE_EMPTY = 7
-    IFACE_DOWN = 8
-    IFACE_UP = 9
-    ERROR_WARNING = 10
-    BUS_OFF_RECOVERED = 11
 
 
 class Line:
@@ -156,7 +140,7 @@ class Line:
         self._check_consumer_owner(node_id, heartbeat_timeout_ms, f"add_node({node_id})")
         node = RemoteNode(self, node_id, heartbeat_timeout_ms, od)
         with self._cond:
-            self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, heartbeat_timeout_ms,
+            self._rt.command(CommandKind.HB_WATCH, self.index, node_id, heartbeat_timeout_ms,
                              what=f"add_node({node_id}) on {self._where}")
             node._tracked = _remote_state(self._rt.remote_state(self.index, node_id,
                                                                 self._where))
@@ -171,7 +155,7 @@ class Line:
                 raise ConfigurationError(f"{self._where}: node {node_id} is not watched")
             what = f"remove_node({node_id}) on {self._where}"
             node = self.nodes[node_id]
-            self._rt.command(lib.CO_CMD_HB_UNWATCH, self.index, node_id, what=what)
+            self._rt.command(CommandKind.HB_UNWATCH, self.index, node_id, what=what)
             if node._guarded:
                 self._rt.guard(self.index, node_id, 0, 0, what)
             if "_emcy" in node.__dict__ and node_id not in self._emcy_nodes:
@@ -285,7 +269,7 @@ class Line:
         elif len(data) > 8:
             raise ConfigurationError(f"{where}: {len(data)} bytes, a classic frame holds 8")
         frame = Frame(can_id, data, fd=fd, brs=brs, ext=bool(extended))
-        self._rt.command(lib.CO_CMD_SEND_FRAME, self.index, frame=frame, what=where)
+        self._rt.command(CommandKind.SEND_FRAME, self.index, frame=frame, what=where)
 
     # ---------------------------------------------------------------- USDO / SDO
     @property
@@ -332,24 +316,24 @@ class Line:
         return self._rt.od_store(self.index, group_mask, save, what)
 
     def _create_node(self, node_id: int, heartbeat_ms: int, where: str) -> None:
-        self._rt.command(lib.CO_CMD_NODE_CREATE, self.index, node_id, heartbeat_ms,
+        self._rt.command(CommandKind.NODE_CREATE, self.index, node_id, heartbeat_ms,
                          what=f"boot of {where}")
     def _send_nmt(self, command: NmtCommand, node_id: int, include_self: bool) -> None:
         target = "all" if node_id == 0 else f"node {node_id}"
-        self._rt.command(lib.CO_CMD_NMT_SEND, self.index, int(command), node_id,
+        self._rt.command(CommandKind.NMT_SEND, self.index, int(command), node_id,
                          int(include_self),
                          what=f"NMT {command.label} {target} on {self._where}")
 
     def _apply_local(self, command: NmtCommand, where: str) -> None:
-        self._rt.command(lib.CO_CMD_NMT_LOCAL, self.index, int(command),
+        self._rt.command(CommandKind.NMT_LOCAL, self.index, int(command),
                          what=f"NMT {command.label} on {where}")
 
     def _set_heartbeat(self, ms: int, where: str) -> None:
-        self._rt.command(lib.CO_CMD_HEARTBEAT_TIME, self.index, ms,
+        self._rt.command(CommandKind.HEARTBEAT_TIME, self.index, ms,
                          what=f"heartbeat_ms = {ms} on {where}")
 
     def _set_allow_operational(self, allowed: bool, where: str) -> None:
-        self._rt.command(lib.CO_CMD_ALLOW_OPERATIONAL, self.index, int(allowed),
+        self._rt.command(CommandKind.ALLOW_OPERATIONAL, self.index, int(allowed),
                          what=f"allow_operational = {allowed} on {where}")
 
     def _check_consumer_owner(self, node_id: int, ms: int, what: str) -> None:
@@ -369,7 +353,7 @@ class Line:
 
     def _watch(self, node_id: int, ms: int, where: str) -> None:
         self._check_consumer_owner(node_id, ms, f"heartbeat_timeout_ms = {ms}")
-        self._rt.command(lib.CO_CMD_HB_WATCH, self.index, node_id, ms,
+        self._rt.command(CommandKind.HB_WATCH, self.index, node_id, ms,
                          what=f"heartbeat_timeout_ms = {ms} on {where}")
 
     @staticmethod
@@ -388,17 +372,17 @@ class Line:
         """One runtime event for this line (dispatcher thread)."""
         run: Optional[Callable[[], None]] = None
         with self._cond:
-            if kind == lib.CO_EV_FRAME:
+            if kind == EventKind.FRAME:
                 if frame is not None and self._frames:
                     run = lambda: self._frames.fire(frame)  # noqa: E731
-            elif kind == lib.CO_EV_HEARTBEAT:
+            elif kind == EventKind.HEARTBEAT:
                 remote = self.nodes.get(node)
                 if remote is not None:
                     run = remote._event(a, b, time_us)
-            elif kind == lib.CO_EV_NMT_STATE:
+            elif kind == EventKind.NMT_STATE:
                 if self.local_node is not None:
                     run = self.local_node._event_state(a, b)
-            elif kind == lib.CO_EV_COMM:
+            elif kind == EventKind.COMM:
                 try:
                     event = CommEvent(a)
                 except ValueError:
@@ -407,43 +391,43 @@ class Line:
                     self._comm_events.append(event)
                     del self._comm_events[:-1000]
                     run = lambda: self._comm.fire(event)  # noqa: E731
-            elif kind == lib.CO_EV_NMT_VETOED:
+            elif kind == EventKind.NMT_VETOED:
                 if self.local_node is not None:
                     run = self.local_node._event_vetoed()
-            elif kind == lib.CO_EV_NMT_RESET:
+            elif kind == EventKind.NMT_RESET:
                 if self.local_node is not None:
                     run = self.local_node._event_reset(a)
-            elif kind == lib.CO_EV_OD_CHANGED:
+            elif kind == EventKind.OD_CHANGED:
                 if self.local_node is not None:
                     run = self.local_node._event_changed(a, b)
-            elif kind == lib.CO_EV_OD_REQUEST:
+            elif kind == EventKind.OD_REQUEST:
                 if self.local_node is not None:
                     run = self.local_node._event_request(a, b)
-            elif kind == lib.CO_EV_TRANSFER_DONE:
+            elif kind == EventKind.TRANSFER_DONE:
                 if self._client is not None:
                     run = self._client._event_done(a)
-            elif kind == lib.CO_EV_TRANSFER_PROGRESS:
+            elif kind == EventKind.TRANSFER_PROGRESS:
                 if self._client is not None:
                     run = self._client._event_progress(a, b)
-            elif kind == lib.CO_EV_STORE:
+            elif kind == EventKind.STORE:
                 if self.local_node is not None:
                     run = self.local_node._event_store(a, b)
-            elif kind == lib.CO_EV_EMCY:
+            elif kind == EventKind.EMCY:
                 run = self._event_emcy(node, bool(a), data)
-            elif kind == lib.CO_EV_PDO:
+            elif kind == EventKind.PDO:
                 if self.local_node is not None:
                     run = self.local_node._event_pdo(a, data)
-            elif kind == lib.CO_EV_PDO_FRAME:
+            elif kind == EventKind.PDO_FRAME:
                 run = self._event_pdo_frame(a, frame)
-            elif kind == lib.CO_EV_SYNC:
+            elif kind == EventKind.SYNC:
                 run = self.sync._event(a)
-            elif kind == lib.CO_EV_TIME:
+            elif kind == EventKind.TIME:
                 run = self.time._event(a, b)
-            elif kind == lib.CO_EV_GUARD:
+            elif kind == EventKind.GUARD:
                 remote = self.nodes.get(node)
                 if remote is not None:
                     run = remote._event_guard(a, b)
-            elif kind == lib.CO_EV_COMMAND_FAILED:
+            elif kind == EventKind.COMMAND_FAILED:
                 log.warning("%s: command %d failed in the runtime: %s", self._where, a,
                             self._status_text(-b))
             self._cond.notify_all()

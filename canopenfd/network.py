@@ -10,7 +10,8 @@ import weakref
 from typing import Any, Dict, List, Optional
 
 from ._binding.hostbus import HostBridge
-from ._binding.runtime import EVENT_BATCH, Runtime, ffi, frame_from_c, lib
+from ._binding.constants import Driver, EventKind, Mode
+from ._binding.runtime import EVENT_BATCH, Runtime, ffi, frame_from_c
 from .errors import ClosedError, ConfigurationError
 from .line import Line
 
@@ -113,20 +114,20 @@ class Network:
         if bus is not None:
             if not (callable(getattr(bus, "recv", None)) and callable(getattr(bus, "send", None))):
                 raise ConfigurationError(f"bus must be a python-can Bus, got {bus!r}")
-            driver = lib.CO_DRIVER_HOST
+            driver = Driver.HOST
             label = str(getattr(bus, "channel_info", None) or type(bus).__name__)
         else:
             if not isinstance(channel, str) or not channel.strip():
                 raise ConfigurationError(
                     f"channel must be an interface name or 'mem:NAME', got {channel!r}")
             if channel.startswith("mem:"):
-                driver = lib.CO_DRIVER_MEMBUS
+                driver = Driver.MEMBUS
                 label = channel[4:]
                 if not label:
                     raise ConfigurationError(
                         f"channel {channel!r}: the in-process bus needs a name ('mem:NAME')")
             else:
-                driver = lib.CO_DRIVER_SOCKETCAN
+                driver = Driver.SOCKETCAN
                 label = channel
         fd = mode == "fd"
         brs = bool(brs) and fd
@@ -135,7 +136,7 @@ class Network:
             if self._closed:
                 raise ClosedError(f"open_line({name!r}): the network is closed")
             index = self._runtime.add_line(
-                driver, label, lib.CO_MODE_FD if fd else lib.CO_MODE_CLASSIC, brs,
+                driver, label, Mode.FD if fd else Mode.CLASSIC, brs,
                 rx_queue, tx_queue, monitor, what=f"cannot open {mode} line {name!r}")
             line = Line(self, index, name, mode, brs, bool(monitor))
             self._lines[index] = line
@@ -202,7 +203,7 @@ class Network:
 
     def _deliver(self, ev: Any) -> None:
         kind = ev.kind
-        if kind == lib.CO_EV_EVENTS_LOST:
+        if kind == EventKind.EVENTS_LOST:
             self._events_lost += ev.a
             log.warning("canopenfd: %d runtime events lost (callbacks too slow?)", ev.a)
             return
@@ -213,11 +214,11 @@ class Network:
             return
         frame = None
         data = b""
-        if kind == lib.CO_EV_FRAME:
+        if kind == EventKind.FRAME:
             frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
-        elif kind == lib.CO_EV_PDO_FRAME:
+        elif kind == EventKind.PDO_FRAME:
             frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
-        elif kind in (lib.CO_EV_EMCY, lib.CO_EV_PDO):
+        elif kind in (EventKind.EMCY, EventKind.PDO):
             # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
             data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
         line._handle(kind, ev.node, ev.a, ev.b, frame, ev.time_us, data)

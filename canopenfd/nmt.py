@@ -1,160 +1,23 @@
 """NMT states and commands, and the NMT objects of lines and nodes.
 
-`NmtState` and `NmtCommand` mirror the C enums (co_nmt_state_t,
-co_nmt_command_t). Both also accept the names python-canopen uses
+`NmtState` and `NmtCommand` are the C enums (co_nmt_state_t,
+co_nmt_command_t, built in canopenfd._binding.constants). Both also accept the
+names python-canopen uses
 ('OPERATIONAL', 'PRE-OPERATIONAL', 'RESET COMMUNICATION', ...), so code written
 for python-canopen (`node.nmt.state = 'OPERATIONAL'`) keeps working.
 """
 
 from __future__ import annotations
 
-import enum
 from typing import TYPE_CHECKING, Callable, Optional, Union
 
+from ._binding.constants import NmtCommand, NmtState
 from .errors import ConfigurationError
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
     from .node import LocalNode, RemoteNode
 
-
-def _normalise(name: str) -> str:
-    """'pre-operational', 'Pre Operational', 'PRE_OPERATIONAL' -> 'PRE_OPERATIONAL'."""
-    return name.strip().upper().replace("-", "_").replace(" ", "_")
-
-
-class NmtState(enum.IntEnum):
-    """NMT state of a node, as carried by its heartbeat (CiA 301)."""
-
-    INITIALISING = 0x00
-    STOPPED = 0x04
-    OPERATIONAL = 0x05
-    PRE_OPERATIONAL = 0x7F
-    UNKNOWN = 0xFF  # never heard of (remote nodes only)
-
-    @property
-    def label(self) -> str:
-        """The python-canopen spelling: 'PRE-OPERATIONAL', 'OPERATIONAL', ..."""
-        return self.name.replace("_", "-")
-
-    def __str__(self) -> str:
-        return self.label
-
-    def __eq__(self, other: object) -> bool:
-        # python-canopen compares states with strings: keep that working.
-        if isinstance(other, str):
-            try:
-                return self is NmtState.parse(other)
-            except ConfigurationError:
-                return False
-        return int.__eq__(self, other)
-
-    def __ne__(self, other: object) -> bool:
-        result = self.__eq__(other)
-        return result if result is NotImplemented else not result
-
-    __hash__ = int.__hash__
-
-    @classmethod
-    def parse(cls, value: Union["NmtState", int, str]) -> "NmtState":
-        """An NmtState from itself, its code or its name (any spelling)."""
-        if isinstance(value, NmtState):
-            return value
-        if isinstance(value, str):
-            key = _normalise(value)
-            key = {"INITIALIZING": "INITIALISING", "PREOP": "PRE_OPERATIONAL",
-                   "PRE_OP": "PRE_OPERATIONAL", "BOOTUP": "INITIALISING",
-                   "BOOT_UP": "INITIALISING"}.get(key, key)
-            try:
-                return cls[key]
-            except KeyError:
-                raise ConfigurationError(
-                    f"NMT state {value!r} unknown: expected one of "
-                    "'INITIALISING', 'PRE-OPERATIONAL', 'OPERATIONAL', 'STOPPED'") from None
-        if isinstance(value, int) and not isinstance(value, bool):
-            try:
-                return cls(value)
-            except ValueError:
-                raise ConfigurationError(
-                    f"NMT state 0x{value:02X} unknown: expected 0x00, 0x04, 0x05 or 0x7F"
-                ) from None
-        raise ConfigurationError(f"NMT state must be a name or a code, got {value!r}")
-
-
-class NmtCommand(enum.IntEnum):
-    """NMT command specifiers (CiA 301)."""
-
-    START = 0x01
-    STOP = 0x02
-    PRE_OPERATIONAL = 0x80
-    RESET_NODE = 0x81
-    RESET_COMMUNICATION = 0x82
-
-    @property
-    def label(self) -> str:
-        """Short spelling used by the CLI and the decoder: 'start', 'reset-comm'..."""
-        return _COMMAND_LABELS[self]
-
-    @property
-    def target(self) -> NmtState:
-        """State the command leads to (INITIALISING for the resets: the node
-        then boots and is PRE-OPERATIONAL right after)."""
-        return _COMMAND_TARGETS[self]
-
-    @classmethod
-    def parse(cls, value: Union["NmtCommand", int, str]) -> "NmtCommand":
-        """An NmtCommand from itself, its code, its name, a CLI label
-        ('reset-comm') or a python-canopen state name ('OPERATIONAL' = start)."""
-        if isinstance(value, NmtCommand):
-            return value
-        if isinstance(value, str):
-            key = _normalise(value)
-            if key in cls.__members__:
-                return cls[key]
-            if key in _COMMAND_ALIASES:
-                return _COMMAND_ALIASES[key]
-            raise ConfigurationError(
-                f"NMT command {value!r} unknown: expected one of start, stop, "
-                "pre-operational, reset-node, reset-comm (or a python-canopen state "
-                "name such as 'OPERATIONAL')")
-        if isinstance(value, int) and not isinstance(value, bool):
-            try:
-                return cls(value)
-            except ValueError:
-                raise ConfigurationError(
-                    f"NMT command 0x{value:02X} unknown: expected 0x01, 0x02, 0x80, "
-                    "0x81 or 0x82") from None
-        raise ConfigurationError(f"NMT command must be a name or a code, got {value!r}")
-
-
-_COMMAND_LABELS = {
-    NmtCommand.START: "start",
-    NmtCommand.STOP: "stop",
-    NmtCommand.PRE_OPERATIONAL: "pre-operational",
-    NmtCommand.RESET_NODE: "reset-node",
-    NmtCommand.RESET_COMMUNICATION: "reset-comm",
-}
-
-_COMMAND_TARGETS = {
-    NmtCommand.START: NmtState.OPERATIONAL,
-    NmtCommand.STOP: NmtState.STOPPED,
-    NmtCommand.PRE_OPERATIONAL: NmtState.PRE_OPERATIONAL,
-    NmtCommand.RESET_NODE: NmtState.INITIALISING,
-    NmtCommand.RESET_COMMUNICATION: NmtState.INITIALISING,
-}
-
-# Every other spelling people use: CLI labels and python-canopen's NMT_COMMANDS keys.
-_COMMAND_ALIASES = {
-    "OPERATIONAL": NmtCommand.START,
-    "STOPPED": NmtCommand.STOP,
-    "PRE_OP": NmtCommand.PRE_OPERATIONAL,
-    "PREOP": NmtCommand.PRE_OPERATIONAL,
-    "ENTER_PRE_OPERATIONAL": NmtCommand.PRE_OPERATIONAL,
-    "INITIALISING": NmtCommand.RESET_NODE,
-    "INITIALIZING": NmtCommand.RESET_NODE,
-    "RESET": NmtCommand.RESET_NODE,
-    "RESET_COMM": NmtCommand.RESET_COMMUNICATION,
-}
 
 NodeTarget = Union[int, str]
 
@@ -300,8 +163,8 @@ def _command_for_state(value: Union[NmtState, NmtCommand, str, int]) -> NmtComma
     if isinstance(value, NmtCommand):
         return value
     if isinstance(value, NmtState):
-        for command, target in _COMMAND_TARGETS.items():
-            if target is value:
+        for command in NmtCommand:
+            if command.target is value:
                 return command
         raise ConfigurationError(f"no NMT command leads to state {value.label}")
     if isinstance(value, str):

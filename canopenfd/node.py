@@ -7,7 +7,7 @@ import logging
 from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, Optional, Tuple, Union
 
 from ._callbacks import CallbackList
-from ._binding.runtime import lib
+from ._binding.constants import AbortCode, HeartbeatEvent, OdOrigin, ParameterGroup, StoreStatus
 from .indications import READ, WRITE, Indications, ODRequest
 from .errors import AbortError, ConfigurationError
 from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
@@ -18,14 +18,20 @@ log = logging.getLogger(__name__)
 
 #: 0x1010 / 0x1011 parameter groups by name: (group mask, CiA 301 sub-index).
 PARAMETER_GROUPS = {
-    "all": (lib.CO_GROUP_ALL, 1),
-    "communication": (lib.CO_GROUP_COMMUNICATION, 2),
-    "application": (lib.CO_GROUP_APPLICATION, 3),
-    "manufacturer": (lib.CO_GROUP_MANUFACTURER, 4),
+    "all": (ParameterGroup.ALL, 1),
+    "communication": (ParameterGroup.COMMUNICATION, 2),
+    "application": (ParameterGroup.APPLICATION, 3),
+    "manufacturer": (ParameterGroup.MANUFACTURER, 4),
 }
 
-#: What a parameter load found (co_store_status_t).
-STORE_STATUS = {0: "ok", 1: "empty", 2: "damaged", 3: "foreign", 4: "io-error", 5: "too-big"}
+#: What a parameter load found (co_store_status_t), as the texts callbacks get:
+#: the C name in lower case with dashes ('too-big'); IO says what failed.
+STORE_STATUS = {int(status): {"IO": "io-error"}.get(status.name,
+                                                   status.name.lower().replace("_", "-"))
+                for status in StoreStatus}
+
+#: The writers on_object_changed names (the runtime reports no others).
+_ORIGIN_NAMES = {int(OdOrigin.NETWORK): "network", int(OdOrigin.PDO): "pdo"}
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
@@ -147,11 +153,11 @@ class LocalNode:
         what = f"parameter store {self.store!r} of {self._where}"
         try:
             image = self.store.load()
-            status = lib.CO_STORE_OK if image else lib.CO_STORE_EMPTY
+            status = StoreStatus.OK if image else StoreStatus.EMPTY
             image = bytes(image or b"")
         except Exception:  # noqa: BLE001 - an unreadable medium: run on defaults, say so
             log.exception("%s: load() failed; the node starts from defaults", what)
-            image, status = b"", lib.CO_STORE_IO
+            image, status = b"", StoreStatus.IO
         self.line._rt.store_application(self.line.index, image, status, what)
 
     def _persist(self, what: str) -> Optional[int]:
@@ -166,7 +172,7 @@ class LocalNode:
             self.store.save(image)
         except Exception:  # noqa: BLE001 - reported as the CiA abort, logged with the cause
             log.exception("%s: the parameter store's save() failed", what)
-            return 0x08000020
+            return int(AbortCode.DATA_STORE)
         return 0
 
     def _event_persist(self, token: int) -> Callable[[], None]:
@@ -323,7 +329,7 @@ class LocalNode:
         if var is None:
             return None
         value = LocalValue(self, var)
-        name = {1: "network", 2: "pdo"}.get(origin, str(origin))
+        name = _ORIGIN_NAMES.get(origin, str(origin))
         return lambda: self._changed.fire(value, name)
 
     def on_store_problem(self, callback: Callable[[str, int], None]):
@@ -847,21 +853,21 @@ class RemoteNode:
         returns the callbacks to run once the lock is released."""
         state = _remote_state(code)
         calls = []
-        if hb_event == lib.CO_HB_BOOTUP:
+        if hb_event == HeartbeatEvent.BOOTUP:
             self._last_bootup_us = max(self._last_bootup_us, time_us)
             self._alive = False
             self._history.push(NmtState.INITIALISING)
             self._history.push(NmtState.PRE_OPERATIONAL)
             calls.append(self._bootup.fire)
             calls.append(lambda: self._heartbeat.fire(NmtState.INITIALISING))
-        elif hb_event == lib.CO_HB_LOST:
+        elif hb_event == HeartbeatEvent.LOST:
             self._alive = False
             calls.append(self._lost.fire)
             return _chain(calls)
         else:
             self._last_heartbeat_us = max(self._last_heartbeat_us, time_us)
             self._history.push(state)
-            if hb_event == lib.CO_HB_STARTED:
+            if hb_event == HeartbeatEvent.STARTED:
                 self._alive = True
                 calls.append(self._started.fire)
             calls.append(lambda: self._heartbeat.fire(state))

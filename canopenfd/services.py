@@ -19,6 +19,7 @@ import datetime as _dt
 import enum
 from typing import TYPE_CHECKING, Callable, Optional, Union
 
+from ._binding.constants import GuardEventCode
 from ._callbacks import CallbackList
 from .errors import ConfigurationError
 
@@ -44,9 +45,11 @@ class GuardEvent(str, enum.Enum):
 
     @classmethod
     def from_code(cls, code: int) -> Optional["GuardEvent"]:
-        order = [cls.STARTED, cls.STATE_CHANGED, cls.LOST, cls.RESUMED, cls.TOGGLE_ERROR,
-                 cls.UNEXPECTED_STATE]
-        return order[code - 1] if 1 <= code <= len(order) else None
+        """The event of a co_guard_event_t code, None for an unknown one."""
+        try:
+            return cls[GuardEventCode(code).name]
+        except ValueError:
+            return None
 
 
 def _seconds_to_us(value: object, name: str, where: str, allow_zero: bool) -> int:
