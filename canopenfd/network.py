@@ -11,7 +11,7 @@ from typing import Any, Dict, List, Optional
 
 from ._binding.hostbus import HostBridge
 from ._binding.constants import Driver, EventKind, Mode
-from ._binding.runtime import EVENT_BATCH, Runtime, ffi, frame_from_c
+from ._binding.runtime import Event, Runtime
 from .errors import ClosedError, ConfigurationError
 from .line import Line
 
@@ -185,23 +185,22 @@ class Network:
 
     # ---------------------------------------------------------------- dispatch
     def _dispatch(self) -> None:
-        events = ffi.new("co_rt_event_t[]", EVENT_BATCH)
         try:
             while not self._closed:
-                n = self._runtime.wait_events(events, EVENT_BATCH, _WAIT_MS)
-                if n < 0:
-                    break  # CO_RT_ERR_CLOSED
-                for i in range(n):
+                events = self._runtime.read_events(_WAIT_MS)
+                if events is None:
+                    break  # the runtime stopped
+                for event in events:
                     try:
-                        self._deliver(events[i])
+                        self._deliver(event)
                     except Exception:  # noqa: BLE001 - one bad event must not stop the rest
                         log.exception("canopenfd: event %d of line %d could not be delivered",
-                                      events[i].kind, events[i].line)
+                                      event.kind, event.line)
         finally:
             if self._free_on_exit:
                 self._finish()
 
-    def _deliver(self, ev: Any) -> None:
+    def _deliver(self, ev: Event) -> None:
         kind = ev.kind
         if kind == EventKind.EVENTS_LOST:
             self._events_lost += ev.a
@@ -212,13 +211,4 @@ class Network:
         if line is None:
             log.debug("event %d for unknown line %d ignored", kind, ev.line)
             return
-        frame = None
-        data = b""
-        if kind == EventKind.FRAME:
-            frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
-        elif kind == EventKind.PDO_FRAME:
-            frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
-        elif kind in (EventKind.EMCY, EventKind.PDO):
-            # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
-            data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
-        line._handle(kind, ev.node, ev.a, ev.b, frame, ev.time_us, data)
+        line._handle(kind, ev.node, ev.a, ev.b, ev.frame, ev.time_us, ev.data)

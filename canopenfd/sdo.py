@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import Any, Dict, Optional
 
+from ._binding.transfers import TransferRequest
 from .errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
 from .od import ODVariable
 from .transfer import TransferClient
@@ -51,7 +52,7 @@ class SdoClient(TransferClient):
         return SdoAbortError(code, node, index, sub, from_server, what)
 
     def _request(self, node: int, index: int, sub: int, upload: bool, timeout: float,
-                 what: str) -> Any:
+                 what: str) -> TransferRequest:
         request = super()._request(node, index, sub, upload, timeout, what)
         threshold = self.block_threshold
         if threshold is not None and (isinstance(threshold, bool) or

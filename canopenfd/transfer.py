@@ -17,7 +17,7 @@ import time
 from typing import (TYPE_CHECKING, Any, BinaryIO, Callable, Dict, List, Optional, Tuple,
                     Union)
 
-from ._binding.runtime import ffi, lib
+from ._binding.transfers import TransferRequest, memory_source
 from .errors import (ABORT_TEXT, AbortError, CanopenFDError, ClosedError, ConfigurationError,
                      TransferAbortError)
 from .od import ODVariable
@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 
 #: Largest answer we accept to an upload of unknown size unless told (bytes).
 DEFAULT_MAX_SIZE = 64 << 20
-_DOMAIN = 0x0F
+_DOMAIN = int(DataType.DOMAIN)
 _WAIT_STEP_S = 0.5     # longest blocking wait in C (Ctrl-C is seen between steps)
 _DISPATCHER_POLL_S = 0.002
 
@@ -231,7 +231,7 @@ class TransferClient:
             request.max_size = max_size
         if file is not None:
             request.fd, request.fd_offset = _file_target(file, what)
-        request.progress = int(progress is not None)
+        request.progress = progress is not None
         return self._start(request, node, index, sub, True, file, progress, what)
 
     def start_download(self, node: int, index: int, sub: int, data: Any, *,
@@ -249,7 +249,7 @@ class TransferClient:
                                      f"{', '.join(self.MODES)}")
         request = self._request(node, index, sub, False, timeout, what)
         request.mode = self.MODES.index(mode)
-        request.type = _DOMAIN if data_type is None else _type_code(data_type, what)
+        request.data_type = _DOMAIN if data_type is None else _type_code(data_type, what)
         keep: Any
         if hasattr(data, "fileno") and hasattr(data, "seek"):
             request.fd, request.fd_offset = _file_target(data, what)
@@ -257,20 +257,19 @@ class TransferClient:
             keep = data
         else:
             try:
-                keep = ffi.from_buffer(data)
+                keep, size = memory_source(data)
             except TypeError:
                 raise ConfigurationError(f"{what}: data must be bytes-like or an open binary "
                                          f"file, got {type(data).__name__}") from None
-            size = len(keep)
             request.data = keep
         if size > 0xFFFFFFFE:
             raise ConfigurationError(f"{what}: {size} bytes; a transfer moves at most 4 GiB - 2")
         request.size = size
-        request.progress = int(progress is not None)
+        request.progress = progress is not None
         return self._start(request, node, index, sub, False, keep, progress, what)
 
     def _request(self, node: int, index: int, sub: int, upload: bool, timeout: float,
-                 what: str) -> Any:
+                 what: str) -> TransferRequest:
         lowest = 0 if self.PROTOCOL == "USDO" else 1
         if isinstance(node, bool) or not isinstance(node, int) or not lowest <= node <= 127:
             raise ConfigurationError(f"{what}: node must be 1..127"
@@ -279,16 +278,9 @@ class TransferClient:
             raise ConfigurationError(f"{what}: 0x{index:X}:{sub:X} outside 0..0xFFFF:0..0xFF")
         if not 0 < timeout <= 3600:
             raise ConfigurationError(f"{what}: timeout {timeout!r} s outside (0, 3600]")
-        request = ffi.new("co_rt_transfer_request_t *")
-        request.server = node
-        request.index = index
-        request.sub = sub
-        request.upload = int(upload)
-        request.fd = -1
-        request.timeout_ms = max(1, int(timeout * 1000))
-        return request
+        return TransferRequest(node, index, sub, upload, max(1, int(timeout * 1000)))
 
-    def _start(self, request: Any, node: int, index: int, sub: int, upload: bool, keep: Any,
+    def _start(self, request: TransferRequest, node: int, index: int, sub: int, upload: bool, keep: Any,
                progress: Optional[Progress], what: str) -> Transfer:
         self._ensure_client()
         with self._lock:   # the done event cannot overtake the registration

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any, Dict, Optional
 
-from ._binding.runtime import lib
+from ._binding.transfers import usdo_abort_to_cia
 from .errors import USDO_ABORT_TEXT, AbortError, TransferAbortError
 from .od import ODVariable
 from .transfer import (RemoteAccess, RemoteObjects, RemoteValue, Transfer, TransferClient,
@@ -36,7 +36,7 @@ class UsdoAbortError(TransferAbortError):
     def __init__(self, usdo_code: int, node: int, index: int, subindex: int,
                  from_server: bool, what: str = "") -> None:
         self.usdo_code = usdo_code
-        super().__init__(lib.co_usdo_abort_to_co(usdo_code),
+        super().__init__(usdo_abort_to_cia(usdo_code),
                          USDO_ABORT_TEXT.get(usdo_code, "unknown abort code"),
                          f"0x{usdo_code:02X}", "USDO", node, index, subindex, from_server, what)
 

@@ -8,11 +8,13 @@ touching freed memory.
 from __future__ import annotations
 
 import threading
-from typing import Optional
+from typing import List, NamedTuple, Optional
 
 from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
 from ..frame import Frame
+from .constants import EventKind
 from .core import ffi, lib
+from .transfers import TransferRequest
 
 _ERRORS = {
     lib.CO_RT_ERR_ARGUMENT: ConfigurationError,
@@ -28,6 +30,19 @@ _ERRORS = {
 
 EVENT_BATCH = 64
 HOST_BATCH = 32
+
+
+class Event(NamedTuple):
+    """One runtime event (co_rt_event_t) in Python values."""
+
+    kind: int                 # EventKind
+    line: int
+    node: int
+    a: int
+    b: int
+    time_us: int              # CLOCK_MONOTONIC
+    frame: Optional[Frame]    # FRAME (monitor lines), PDO_FRAME
+    data: bytes               # EMCY: the encoded EMCY; PDO: the RPDO's mapped values
 
 
 def status_text(status: int) -> str:
@@ -61,6 +76,7 @@ class Runtime:
         # until they left (stop() has woken them).
         self._idle = threading.Condition(self._lock)
         self._waiters = 0
+        self._events = ffi.new("co_rt_event_t[]", EVENT_BATCH)
         self._rt = ffi.NULL
         self._stopped = False
         rt = lib.co_rt_new(event_capacity)
@@ -254,9 +270,10 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
-    def transfer_start(self, line: int, request, what: str) -> int:
+    def transfer_start(self, line: int, request: TransferRequest, what: str) -> int:
+        c_request = request.to_c()
         with self._lock:
-            rc = lib.co_rt_transfer_start(self._live(what), line, request)
+            rc = lib.co_rt_transfer_start(self._live(what), line, c_request)
             if rc < 0:
                 self._raise(rc, what)
         return rc
@@ -461,17 +478,38 @@ class Runtime:
 
     # The two blocking waits run without the lock (they may block for a while);
     # Network.close() joins their threads before free(), so _rt stays valid.
-    def wait_events(self, events, max_events: int, timeout_ms: int) -> int:
+    def read_events(self, timeout_ms: int) -> Optional[List[Event]]:
+        """The events posted since the last call (up to EVENT_BATCH), waiting up
+        to timeout_ms for one; None once the runtime stopped. One thread only
+        (the dispatcher): the buffer is reused."""
         rt = self._rt
         if rt == ffi.NULL:
-            return lib.CO_RT_ERR_CLOSED
-        return lib.co_rt_wait_events(rt, events, max_events, timeout_ms)
+            return None
+        n = lib.co_rt_wait_events(rt, self._events, EVENT_BATCH, timeout_ms)
+        if n < 0:
+            return None   # CO_RT_ERR_CLOSED
+        return [_event(self._events[i]) for i in range(n)]
 
     def host_transmit(self, line: int, frames, max_frames: int, timeout_ms: int) -> int:
         rt = self._rt
         if rt == ffi.NULL:
             return lib.CO_RT_ERR_CLOSED
         return lib.co_rt_host_transmit(rt, line, frames, max_frames, timeout_ms)
+
+
+def _event(ev: object) -> Event:
+    """An Event from a co_rt_event_t (cdata)."""
+    kind = ev.kind
+    frame = None
+    data = b""
+    if kind == EventKind.FRAME:
+        frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
+    elif kind == EventKind.PDO_FRAME:
+        frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
+    elif kind in (EventKind.EMCY, EventKind.PDO):
+        # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
+        data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
+    return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data)
 
 
 def decode_emcy(data: bytes, fd: bool) -> Optional[dict]:
