@@ -27,7 +27,7 @@ from .errors import AbortError, CanopenFDError
 from .frame import Frame
 from .line import Line
 from .network import Network
-from .nmt import NmtCommand, parse_node_target
+from .services.nmt import NmtCommand, parse_node_target
 from .node import check_ms, check_node_id
 
 EXIT_OK = 0

@@ -28,7 +28,7 @@ from .decode_services import (EMCY_BASE, SYNC_ID, TIME_ID, PdoDefinition, PdoMap
                               ServiceIds, default_pdo, default_pdo_text, emcy_text, hex_bytes,
                               pdo_text, service_text, sync_text, time_text)
 from .errors import ABORT_TEXT, USDO_ABORT_TEXT
-from .nmt import NmtCommand, NmtState
+from .services.nmt import NmtCommand, NmtState
 from .od.datatypes import DataType
 
 _FD = 0x01

@@ -13,15 +13,16 @@ from ._binding.constants import CommandKind, CommEvent, EventKind
 from ._binding.runtime import now_us, status_text
 from .errors import ConfigurationError
 from .frame import Frame, fd_len_round
-from .nmt import NmtCommand, NmtMaster, NmtState
-from .node import LocalNode, RemoteNode, _remote_state, check_ms, check_node_id
-from .store import check_store
+from ._checks import check_ms, check_node_id
+from .node import LocalNode, RemoteNode, _remote_state
+from .services.nmt import NmtCommand, NmtMaster, NmtState
+from .services.store import check_store
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .emcy import Emcy
     from .network import Network
-    from .sdo import SdoClient
-    from .usdo import UsdoClient
+    from .services.emcy import Emcy
+    from .transfer.sdo import SdoClient
+    from .transfer.usdo import UsdoClient
 
 log = logging.getLogger("canopenfd")
 
@@ -55,8 +56,9 @@ class Line:
         self._emcy_nodes: set = set()     # consumed for on_emcy(nodes=...)
         # Remote nodes' PDOs Python hears: CAN-ID (bit 29 = 29-bit) -> PdoMaps.
         self._pdo_watches: Dict[int, List[Any]] = {}
-        from .services import SyncService, TimeService
-        #: SYNC producer and callbacks (see canopenfd.services).
+        from .services.sync import SyncService
+        from .services.time import TimeService
+        #: SYNC producer and callbacks (see canopenfd.services.sync).
         self.sync = SyncService(self)
         #: TIME transmit and callbacks.
         self.time = TimeService(self)
@@ -84,7 +86,7 @@ class Line:
         serves; its 0x1017/0x1016 drive the heartbeat (a non-zero heartbeat_ms
         replaces the 0x1017 default). store: a file where `save_parameters()`
         and 0x1010 keep parameters across restarts, or an object with load()
-        and save(image) for other media (see canopenfd.store; needs od).
+        and save(image) for other media (see canopenfd.services.store; needs od).
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
@@ -275,7 +277,7 @@ class Line:
     @property
     def usdo(self) -> "UsdoClient":
         """The USDO client of this fd line: upload/download any node's
-        entries (see canopenfd.usdo). Our client node-id is the local node's,
+        entries (see canopenfd.transfer.usdo). Our client node-id is the local node's,
         else 127 (set `line.usdo.client_id` before the first transfer)."""
         if self.mode != "fd":
             raise ConfigurationError(f"{self._where} is a classic line: USDO needs CAN FD "
@@ -284,7 +286,7 @@ class Line:
 
     @property
     def sdo(self) -> "SdoClient":
-        """The SDO client of this classic line (see canopenfd.sdo)."""
+        """The SDO client of this classic line (see canopenfd.transfer.sdo)."""
         if self.mode != "classic":
             raise ConfigurationError(f"{self._where} is an fd line: CANopen FD replaces SDO "
                                      "with USDO (use line.usdo)")
@@ -295,10 +297,10 @@ class Line:
         with self._cond:
             if self._client is None:
                 if self.mode == "fd":
-                    from .usdo import UsdoClient
+                    from .transfer.usdo import UsdoClient
                     self._client = UsdoClient(self)
                 else:
-                    from .sdo import SdoClient
+                    from .transfer.sdo import SdoClient
                     self._client = SdoClient(self)
             return self._client
 
@@ -472,7 +474,7 @@ class Line:
         return run
 
     def _event_emcy(self, node: int, fd: bool, data: bytes) -> Optional[Callable[[], None]]:
-        from .emcy import Emcy
+        from .services.emcy import Emcy
         emcy = Emcy.decode(node, data, fd)
         if emcy is None:
             log.warning("%s: malformed EMCY of node %d ignored: %s", self._where, node,

@@ -7,10 +7,11 @@ import logging
 from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, Optional, Tuple, Union
 
 from ._callbacks import CallbackList
+from ._checks import check_ms, check_node_id
 from ._binding.constants import AbortCode, HeartbeatEvent, OdOrigin, ParameterGroup, StoreStatus
-from .indications import READ, WRITE, Indications, ODRequest
+from .services.indications import READ, WRITE, Indications, ODRequest
 from .errors import AbortError, ConfigurationError
-from .nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
+from .services.nmt import LocalNmt, NmtCommand, NmtState, RemoteNmt
 from .od import ObjectDictionary, ODVariable
 from .od.datatypes import DataType
 
@@ -35,8 +36,8 @@ _ORIGIN_NAMES = {int(OdOrigin.NETWORK): "network", int(OdOrigin.PDO): "pdo"}
 
 if TYPE_CHECKING:  # pragma: no cover
     from .line import Line
-    from .emcy import EmcyConsumer, EmcyProducer
-    from .pdo import PdoMaps
+    from .services.emcy import EmcyConsumer, EmcyProducer
+    from .services.pdo import PdoMaps
     from .transfer import RemoteAccess, RemoteObjects
 
 StateLike = Union[NmtState, str, int]
@@ -44,24 +45,6 @@ StateLike = Union[NmtState, str, int]
 # How many recent states a node remembers, so a wait that starts a little
 # late still sees a short-lived state (INITIALISING during a reset).
 _HISTORY = 64
-
-
-def check_node_id(node_id: object, where: str) -> int:
-    """A node-id 1..127 or ConfigurationError naming the value and the place."""
-    if isinstance(node_id, bool) or not isinstance(node_id, int):
-        raise ConfigurationError(f"{where}: node-id must be an int 1..127, got {node_id!r}")
-    if not 1 <= node_id <= 127:
-        raise ConfigurationError(f"{where}: node-id {node_id} outside 1..127")
-    return node_id
-
-
-def check_ms(value: object, name: str, where: str) -> int:
-    """A time in ms 0..65535 (16-bit CANopen object) or ConfigurationError."""
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ConfigurationError(f"{where}: {name} must be an int 0..65535 ms, got {value!r}")
-    if not 0 <= value <= 0xFFFF:
-        raise ConfigurationError(f"{where}: {name} {value} ms outside 0..65535")
-    return value
 
 
 class _StateHistory:
@@ -95,7 +78,7 @@ class LocalNode:
         #: The object dictionary this node serves (None: NMT and heartbeat only).
         self.od = od
         #: Where saved parameters (0x1010) live: a file path, an object with
-        #: load()/save() (see canopenfd.store), or None.
+        #: load()/save() (see canopenfd.services.store), or None.
         self.store = store
         self._store_problems = CallbackList(f"node {node_id} store problem")
         self._changed = CallbackList(f"node {node_id} object changed")
@@ -435,14 +418,14 @@ class LocalNode:
     def tpdo(self) -> "PdoMaps":
         """The TPDOs of the served OD (0x1800../0x1A00..), by number:
         `node.tpdo[1].trans_type = 255`, `.add_variable(...)`, `.save()`
-        (see canopenfd.pdo)."""
-        from .pdo import pdo_maps
+        (see canopenfd.services.pdo)."""
+        from .services.pdo import pdo_maps
         return pdo_maps(self, "tpdo")
 
     @property
     def rpdo(self) -> "PdoMaps":
         """The RPDOs of the served OD (0x1400../0x1600..), as `tpdo`."""
-        from .pdo import pdo_maps
+        from .services.pdo import pdo_maps
         return pdo_maps(self, "rpdo")
 
     def trigger_pdo(self, key: Any) -> int:
@@ -464,10 +447,10 @@ class LocalNode:
     @property
     def emcy(self) -> "EmcyProducer":
         """The node's EMCY producer: `raise_error(code, ...)`, `clear(code)`,
-        `error_register`, `active`, `history` (see canopenfd.emcy)."""
+        `error_register`, `active`, `history` (see canopenfd.services.emcy)."""
         producer = self.__dict__.get("_emcy")
         if producer is None:
-            from .emcy import EmcyProducer
+            from .services.emcy import EmcyProducer
             producer = self.__dict__["_emcy"] = EmcyProducer(self)
         return producer
 
@@ -601,7 +584,7 @@ class RemoteNode:
     def usdo(self) -> "RemoteAccess":
         """USDO access (fd lines): upload/download by index, (index, sub),
         "INDEX:SUB" or OD name, blocking, awaitable or started in the
-        background (see canopenfd.transfer)."""
+        background (see canopenfd.transfer.remote)."""
         from .transfer import RemoteAccess
         return RemoteAccess(self, self.line.usdo)
 
@@ -766,11 +749,11 @@ class RemoteNode:
     def emcy(self) -> "EmcyConsumer":
         """The node's EMCYs (python-canopen's `node.emcy`): `add_callback(cb)`,
         `log`, `active`, `wait(code, timeout)`. The line consumes them from
-        the first use on (see canopenfd.emcy)."""
+        the first use on (see canopenfd.services.emcy)."""
         with self.line._cond:
             consumer = self.__dict__.get("_emcy")
             if consumer is None:
-                from .emcy import EmcyConsumer
+                from .services.emcy import EmcyConsumer
                 consumer = self.__dict__["_emcy"] = EmcyConsumer(self)
             return consumer
 
@@ -813,7 +796,7 @@ class RemoteNode:
         return self._guard_events.add(callback)
 
     def _event_guard(self, code: int, state_code: int) -> Optional[Callable[[], None]]:
-        from .services import GuardEvent
+        from .services.guard import GuardEvent
         event = GuardEvent.from_code(code)
         if event is None:
             return None
@@ -837,14 +820,14 @@ class RemoteNode:
     def tpdo(self) -> "PdoMaps":
         """The TPDOs of the node's OD (0x1800../0x1A00..), by number:
         `node.tpdo[1].trans_type = 255`, `.add_variable(...)`, `.save()`
-        through USDO (fd lines) or SDO (classic lines); see canopenfd.pdo."""
-        from .pdo import pdo_maps
+        through USDO (fd lines) or SDO (classic lines); see canopenfd.services.pdo."""
+        from .services.pdo import pdo_maps
         return pdo_maps(self, "tpdo")
 
     @property
     def rpdo(self) -> "PdoMaps":
         """The RPDOs of the node's OD (0x1400../0x1600..), as `tpdo`."""
-        from .pdo import pdo_maps
+        from .services.pdo import pdo_maps
         return pdo_maps(self, "rpdo")
 
     # ---------------------------------------------------------------- events

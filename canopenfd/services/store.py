@@ -20,7 +20,7 @@ import os
 import threading
 from typing import Any, Optional, Union
 
-from .errors import ConfigurationError
+from ..errors import ConfigurationError
 
 StoreLike = Union[str, "os.PathLike[str]", Any]
 

@@ -7,22 +7,21 @@
     await remote.usdo.aupload("Identity object.Vendor-ID")
     line.usdo.broadcast_upload(0x1000)              -> {node: bytes or UsdoAbortError}
 
-The shared machinery (Transfer, waiting, streams, remote views) is in
-canopenfd.transfer.
+The shared machinery (Transfer, waiting, streams) is in transfer.client,
+the remote views in transfer.remote.
 """
 
 from __future__ import annotations
 
 from typing import Any, Dict, Optional
 
-from ._binding.transfers import usdo_abort_to_cia
-from .errors import USDO_ABORT_TEXT, AbortError, TransferAbortError
-from .od import ODVariable
-from .transfer import (RemoteAccess, RemoteObjects, RemoteValue, Transfer, TransferClient,
-                       resolve)
+from .._binding.transfers import usdo_abort_to_cia
+from .._checks import check_node_id
+from ..errors import USDO_ABORT_TEXT, AbortError, TransferAbortError
+from ..od import ODVariable
+from .client import Transfer, TransferClient
 
-__all__ = ["UsdoAbortError", "UsdoClient", "UsdoTransfer", "RemoteAccess", "RemoteObjects",
-           "RemoteValue", "resolve"]
+__all__ = ["UsdoAbortError", "UsdoClient", "UsdoTransfer"]
 
 #: A USDO transfer (the shared Transfer class).
 UsdoTransfer = Transfer
@@ -67,7 +66,6 @@ class UsdoClient(TransferClient):
 
     @client_id.setter
     def client_id(self, node_id: int) -> None:
-        from .node import check_node_id
         node_id = check_node_id(node_id, f"USDO client id on {self.line._where}")
         self.line._rt.usdo_client(self.line.index, node_id,
                                   f"USDO client id {node_id} on {self.line._where}")

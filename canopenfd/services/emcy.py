@@ -25,14 +25,14 @@ import collections
 import time
 from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, List, Optional, Tuple
 
-from ._callbacks import CallbackList
-from ._binding.runtime import decode_emcy
-from .decode_services import emcy_code_text, emcy_status_text, error_register_text
-from ._binding.constants import EmcyStatus
-from .errors import ConfigurationError
+from .._callbacks import CallbackList
+from .._binding.runtime import decode_emcy
+from ..decode_services import emcy_code_text, emcy_status_text, error_register_text
+from .._binding.constants import EmcyStatus
+from ..errors import ConfigurationError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .node import LocalNode, RemoteNode
+    from ..node import LocalNode, RemoteNode
 
 __all__ = ["Emcy", "EmcyProducer", "EmcyConsumer", "LOG_SIZE"]
 

@@ -7,17 +7,17 @@
     await remote.sdo.aupload("Identity object.Vendor-ID")
 
 Expedited, segmented and block transfers (CRC, sub-block repetition) run in
-the C core; see canopenfd.transfer for waiting, streams and progress.
+the C core; see transfer.client for waiting, streams and progress.
 """
 
 from __future__ import annotations
 
 from typing import Any, Dict, Optional
 
-from ._binding.transfers import TransferRequest
-from .errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
-from .od import ODVariable
-from .transfer import TransferClient
+from .._binding.transfers import TransferRequest
+from ..errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
+from ..od import ODVariable
+from .client import TransferClient
 
 __all__ = ["SdoAbortError", "SdoClient"]
 

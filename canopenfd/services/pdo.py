@@ -62,10 +62,10 @@ from collections.abc import Mapping
 import time
 from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple, Union
 
-from ._callbacks import CallbackList
-from .errors import AbortError, ConfigurationError
-from .od import ODArray, ODRecord, ODVariable, ObjectDictionary
-from .od.datatypes import DataType, decode
+from .._callbacks import CallbackList
+from ..errors import AbortError, ConfigurationError
+from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
+from ..od.datatypes import DataType, decode
 
 __all__ = ["PdoMaps", "PdoMap", "PdoVariable", "PDO_NOT_VALID", "RTR_NOT_ALLOWED",
            "FRAME_29BIT", "DUMMY_BITS"]
@@ -110,7 +110,7 @@ def pdo_maps(node: Any, kind: str) -> "PdoMaps":
 
 
 def _is_remote(node: Any) -> bool:
-    from .node import RemoteNode
+    from ..node import RemoteNode
     return isinstance(node, RemoteNode)
 
 

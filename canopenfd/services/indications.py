@@ -14,12 +14,12 @@ import logging
 import threading
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Tuple
 
-from ._binding.constants import AbortCode, Indicate
-from .errors import AbortError, ConfigurationError
-from .od import ODVariable
+from .._binding.constants import AbortCode, Indicate
+from ..errors import AbortError, ConfigurationError
+from ..od import ODVariable
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .node import LocalNode
+    from ..node import LocalNode
 
 log = logging.getLogger(__name__)
 

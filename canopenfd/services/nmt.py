@@ -11,12 +11,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Callable, Optional, Union
 
-from ._binding.constants import NmtCommand, NmtState
-from .errors import ConfigurationError
+from .._binding.constants import NmtCommand, NmtState
+from ..errors import ConfigurationError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .line import Line
-    from .node import LocalNode, RemoteNode
+    from ..line import Line
+    from ..node import LocalNode, RemoteNode
 
 
 NodeTarget = Union[int, str]
