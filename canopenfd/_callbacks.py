@@ -88,3 +88,11 @@ class Waiter:
                 if remaining is not None and remaining <= 0:
                     raise TimeoutError(f"{what}: {describe_timeout()} after {timeout:g} s")
                 self.cond.wait(remaining)
+
+
+def chain(calls: List[Callable[[], None]]) -> Callable[[], None]:
+    """One callable running calls in order (what an event handler returns)."""
+    def run() -> None:
+        for call in calls:
+            call()
+    return run

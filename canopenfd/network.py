@@ -1,5 +1,6 @@
 """`Network`: one C runtime (one thread running every line) plus the Python
-dispatcher thread that turns its events into callbacks."""
+dispatcher thread that turns its events into callbacks: each event goes to
+the line context of its line, whose event table hands it to a service."""
 
 from __future__ import annotations
 
@@ -7,10 +8,12 @@ import atexit
 import logging
 import threading
 import weakref
-from typing import Any, Dict, List, Optional
+from types import TracebackType
+from typing import Dict, List, Optional, Type
 
-from ._binding.hostbus import HostBridge
 from ._binding.constants import Driver, EventKind, Mode
+from ._binding.context import RuntimeLineContext
+from ._binding.hostbus import HostBridge, PythonCanBus
 from ._binding.runtime import Event, Runtime
 from .errors import ClosedError, ConfigurationError
 from .line import Line
@@ -49,6 +52,7 @@ class Network:
         self._runtime = Runtime(event_capacity)
         self._lock = threading.RLock()     # lines table, close()
         self._lines: Dict[int, Line] = {}
+        self._contexts: Dict[int, RuntimeLineContext] = {}
         self._bridges: List[HostBridge] = []
         self._closed = False
         self._events_lost = 0
@@ -61,7 +65,8 @@ class Network:
     def __enter__(self) -> "Network":
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, kind: Optional[Type[BaseException]], value: Optional[BaseException],
+                 traceback: Optional[TracebackType]) -> None:
         self.close()
 
     def __repr__(self) -> str:
@@ -83,9 +88,9 @@ class Network:
         return self._events_lost
 
     # ---------------------------------------------------------------- lines
-    def open_line(self, channel: Optional[str] = None, *, bus: Any = None, mode: str = "fd",
-                  brs: bool = True, monitor: bool = False, rx_queue: int = 0,
-                  tx_queue: int = 0) -> Line:
+    def open_line(self, channel: Optional[str] = None, *, bus: Optional[PythonCanBus] = None,
+                  mode: str = "fd", brs: bool = True, monitor: bool = False,
+                  rx_queue: int = 0, tx_queue: int = 0) -> Line:
         """Open a line and return it.
 
         channel: "mem:NAME" for the in-process bus NAME, otherwise a SocketCAN
@@ -138,7 +143,11 @@ class Network:
             index = self._runtime.add_line(
                 driver, label, Mode.FD if fd else Mode.CLASSIC, brs,
                 rx_queue, tx_queue, monitor, what=f"cannot open {mode} line {name!r}")
-            line = Line(self, index, name, mode, brs, bool(monitor))
+            context = RuntimeLineContext(self._runtime, index, mode, name,
+                                         closed=lambda: self._closed,
+                                         on_dispatcher=self._on_dispatcher)
+            line = Line(self, context, brs, bool(monitor))
+            self._contexts[index] = context
             self._lines[index] = line
             if bus is not None:
                 bridge = HostBridge(self._runtime, index, bus, name)
@@ -160,8 +169,10 @@ class Network:
         for bridge in self._bridges:
             bridge.stop()
         self._runtime.stop()
-        for line in self.lines:
-            line._wake()
+        with self._lock:
+            contexts = list(self._contexts.values())
+        for context in contexts:
+            context.wake()
         if self._on_dispatcher():
             self._free_on_exit = True  # the dispatcher frees once the callback returns
             return
@@ -207,8 +218,8 @@ class Network:
             log.warning("canopenfd: %d runtime events lost (callbacks too slow?)", ev.a)
             return
         with self._lock:
-            line = self._lines.get(ev.line)
-        if line is None:
+            context = self._contexts.get(ev.line)
+        if context is None:
             log.debug("event %d for unknown line %d ignored", kind, ev.line)
             return
-        line._handle(kind, ev.node, ev.a, ev.b, ev.frame, ev.time_us, ev.data)
+        context.dispatch(ev)

@@ -1,5 +1,6 @@
 """The package's layers, read from its source with `ast`: only canopenfd/_binding/
-touches the compiled core.
+touches the compiled core, and no module reads another object's `_private`
+attributes.
 
 Every .py file of the installed package is parsed; imports count wherever they
 are (module level, inside functions, under `if TYPE_CHECKING:`), relative ones
@@ -92,3 +93,39 @@ def test_only_the_binding_imports_the_compiled_core():
                                  f"{found.module} {found.names or ''}")
     assert not offenders, "the compiled core imported outside canopenfd/_binding/:\n" + \
         "\n".join(offenders)
+
+
+# Reads of `_private` attributes of objects other than self / cls, allowed with
+# a reason: {(file under canopenfd/, the expression): why}. Keep this tiny.
+PRIVATE_ACCESS_ALLOWED = {
+    **{("cli_usdo.py", expression): "cli_usdo.py calls cli.py's module-private helpers; "
+       "both files are being rebuilt as canopenfd/cli/ in another branch, which owns the fix"
+       for expression in ("_cli._network", "_cli._open_line", "_cli._shutdown",
+                          "_cli._owned")},
+}
+
+
+def _is_self(node: ast.expr) -> bool:
+    """self, cls, or super() (the object itself, seen from its base class)."""
+    if isinstance(node, ast.Name):
+        return node.id in ("self", "cls")
+    return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
+        node.func.id == "super" and not node.args
+
+
+def test_no_module_reads_another_objects_private_attributes():
+    """A service, node or line uses what other objects offer publicly (the line
+    context, the services' methods), never their internals."""
+    found = []
+    for module in MODULES.values():
+        where = module.path.relative_to(PACKAGE_DIR).as_posix()
+        for node in ast.walk(module.tree):
+            if not isinstance(node, ast.Attribute):
+                continue
+            name = node.attr
+            if not name.startswith("_") or (name.startswith("__") and name.endswith("__")):
+                continue
+            if _is_self(node.value) or (where, ast.unparse(node)) in PRIVATE_ACCESS_ALLOWED:
+                continue
+            found.append(f"{where}:{node.lineno}: {ast.unparse(node)}")
+    assert not found, "private attributes of other objects read:\n" + "\n".join(found)

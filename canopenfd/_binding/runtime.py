@@ -8,12 +8,15 @@ touching freed memory.
 from __future__ import annotations
 
 import threading
-from typing import List, NamedTuple, Optional
+from typing import Dict, List, NamedTuple, Optional, Tuple
 
 from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
 from ..frame import Frame
+from ..od import ObjectDictionary
+from ..od.datatypes import Value
 from .constants import EventKind
 from .core import ffi, lib
+from .od_tables import definitions
 from .transfers import TransferRequest
 
 _ERRORS = {
@@ -115,10 +118,14 @@ class Runtime:
                 lib.co_rt_free(self._rt)
                 self._rt = ffi.NULL
 
-    def _live(self, what: str):
+    def _live(self, what: str) -> object:
         if self._stopped or self._rt == ffi.NULL:
             raise ClosedError(f"{what}: the network is closed")
         return self._rt
+
+    def require_open(self, what: str) -> None:
+        """ClosedError ("what: the network is closed") once stopped."""
+        self._live(what)
 
     # ------------------------------------------------------------ errors
     def last_error(self) -> str:
@@ -168,8 +175,12 @@ class Runtime:
                 self._raise(rc, what)
 
     # ------------------------------------------------------------ object dictionary
-    def od_define(self, line: int, defs, count: int, store_path: Optional[str],
+    def od_define(self, line: int, od: ObjectDictionary, node_id: int,
+                  overrides: Dict[Tuple[int, int], Value], store_path: Optional[str],
                   what: str) -> None:
+        """Define the local node's OD (co_od_def_t table from od, `overrides`
+        replacing start values) before the node is created."""
+        defs, count, _keep = definitions(od, node_id, overrides)
         path = ffi.new("char[]", store_path.encode("utf-8")) if store_path else ffi.NULL
         with self._lock:
             rc = lib.co_rt_od_define(self._live(what), line, defs, count, path)

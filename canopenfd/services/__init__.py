@@ -1,7 +1,9 @@
 """The services of lines and nodes; each takes a narrow line context, never a Line.
 
 nmt (NMT master and slave, heartbeat), emcy, pdo, sync, time, guard (node
-guarding), indications (on_read / on_write), store (parameter stores).
+guarding), indications (on_read / on_write), store (parameter stores),
+served_od (the local node's values, domains and change callbacks); views:
+what services see of their node (Protocols).
 """
 
 from .guard import GuardEvent

@@ -12,13 +12,13 @@ every SYNC of the line, ours included.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Optional
+from typing import Callable, Optional
 
+from .._binding.constants import EventKind
+from .._binding.context import Deferred, LineContext
+from .._binding.runtime import Event
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..line import Line
 
 __all__ = ["SyncService"]
 
@@ -40,19 +40,20 @@ def _seconds_to_us(value: object, name: str, where: str, allow_zero: bool) -> in
 class SyncService:
     """The SYNC of a line (`line.sync`): producer and callbacks."""
 
-    def __init__(self, line: "Line") -> None:
-        self.line = line
-        self._callbacks = CallbackList(f"line {line.channel!r} SYNC")
+    def __init__(self, context: LineContext) -> None:
+        self._context = context
+        self._callbacks = CallbackList(f"{context.where} SYNC")
         self._listening = False
         #: The producer's period in seconds (None: not producing from here).
         self.period: Optional[float] = None
+        context.subscribe(EventKind.SYNC, self._event)
 
     def __repr__(self) -> str:
-        return f"<SyncService {self.line.channel!r} period {self.period}>"
+        return f"<SyncService {self._context.channel!r} period {self.period}>"
 
     @property
     def _where(self) -> str:
-        return f"SYNC producer of {self.line._where}"
+        return f"SYNC producer of {self._context.where}"
 
     def start(self, period: Optional[float] = None, *, window: float = 0,
               overflow: int = 0) -> None:
@@ -69,33 +70,38 @@ class SyncService:
                 not (overflow == 0 or 2 <= overflow <= 240):
             raise ConfigurationError(f"{self._where}: overflow must be 0 (no counter) or "
                                      f"2..240, got {overflow!r}")
-        self.line._rt.sync_producer(self.line.index, period_us, window_us, overflow,
-                                    f"start({period!r}) of the {self._where}")
+        self._context.runtime.sync_producer(self._context.index, period_us, window_us, overflow,
+                                            f"start({period!r}) of the {self._where}")
         self.period = period_us / 1e6
 
     def stop(self) -> None:
         """Stop producing SYNC."""
-        self.line._rt.sync_producer(self.line.index, 0, 0, 0, f"stop of the {self._where}")
+        self._context.runtime.sync_producer(self._context.index, 0, 0, 0,
+                                            f"stop of the {self._where}")
         self.period = None
 
     def add_callback(self, callback: Callable[[int], None]) -> Callable[[int], None]:
         """callback(counter) for every SYNC on the line (ours included);
         counter 0 when the SYNC has none. Costs one event per SYNC."""
-        with self.line._cond:
+        context = self._context
+        with context.cond:
             self._callbacks.add(callback)
             if not self._listening:
-                self.line._rt.sync_listen(self.line.index, True,
-                                          f"SYNC callbacks of {self.line._where}")
+                context.runtime.sync_listen(context.index, True,
+                                            f"SYNC callbacks of {context.where}")
                 self._listening = True
         return callback
 
     def remove_callback(self, callback: Callable[[int], None]) -> None:
-        with self.line._cond:
+        context = self._context
+        with context.cond:
             self._callbacks.remove(callback)
             if not self._callbacks and self._listening:
-                self.line._rt.sync_listen(self.line.index, False,
-                                          f"SYNC callbacks of {self.line._where}")
+                context.runtime.sync_listen(context.index, False,
+                                            f"SYNC callbacks of {context.where}")
                 self._listening = False
 
-    def _event(self, counter: int) -> Callable[[], None]:
+    def _event(self, event: Event) -> Deferred:
+        """CO_EV_SYNC: a = the counter (0 = none)."""
+        counter = event.a
         return lambda: self._callbacks.fire(counter)

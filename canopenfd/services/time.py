@@ -7,13 +7,13 @@
 from __future__ import annotations
 
 import datetime as _dt
-from typing import TYPE_CHECKING, Callable, Union
+from typing import Callable, Union
 
+from .._binding.constants import EventKind
+from .._binding.context import Deferred, LineContext
+from .._binding.runtime import Event
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..line import Line
 
 __all__ = ["TimeService", "TIME_EPOCH", "time_of_day"]
 
@@ -29,19 +29,20 @@ def time_of_day(ms: int, days: int) -> _dt.datetime:
 class TimeService:
     """The TIME stamp of a line (`line.time`)."""
 
-    def __init__(self, line: "Line") -> None:
-        self.line = line
-        self._callbacks = CallbackList(f"line {line.channel!r} TIME")
+    def __init__(self, context: LineContext) -> None:
+        self._context = context
+        self._callbacks = CallbackList(f"{context.where} TIME")
+        context.subscribe(EventKind.TIME, self._event)
 
     def __repr__(self) -> str:
-        return f"<TimeService {self.line.channel!r}>"
+        return f"<TimeService {self._context.channel!r}>"
 
     def transmit(self, timestamp: Union[None, float, _dt.datetime] = None) -> None:
         """Send a TIME stamp (python-canopen's `network.time.transmit()`):
         `timestamp` a datetime (naive = local time) or seconds since 1970
         (time.time()); default now. The line becomes TIME producer unless the
         local node's 0x1012 says otherwise (then that entry must have bit 30)."""
-        where = f"TIME transmit({timestamp!r}) on {self.line._where}"
+        where = f"TIME transmit({timestamp!r}) on {self._context.where}"
         if timestamp is None:
             seconds = _dt.datetime.now(_dt.timezone.utc).timestamp()
         elif isinstance(timestamp, _dt.datetime):
@@ -53,7 +54,7 @@ class TimeService:
                                      f"since 1970, got {type(timestamp).__name__}")
         if seconds < TIME_EPOCH.timestamp():
             raise ConfigurationError(f"{where}: CANopen TIME starts on 1984-01-01")
-        self.line._rt.time_send(self.line.index, round(seconds * 1_000_000), where)
+        self._context.runtime.time_send(self._context.index, round(seconds * 1_000_000), where)
 
     def add_callback(self, callback: Callable[[_dt.datetime], None]) \
             -> Callable[[_dt.datetime], None]:
@@ -63,6 +64,7 @@ class TimeService:
     def remove_callback(self, callback: Callable[[_dt.datetime], None]) -> None:
         self._callbacks.remove(callback)
 
-    def _event(self, ms: int, days: int) -> Callable[[], None]:
-        when = time_of_day(ms, days)
+    def _event(self, event: Event) -> Deferred:
+        """CO_EV_TIME: a = ms after midnight, b = days since 1984-01-01."""
+        when = time_of_day(event.a, event.b)
         return lambda: self._callbacks.fire(when)

@@ -6,16 +6,20 @@
 from __future__ import annotations
 
 import tempfile
-from typing import Any, BinaryIO, Optional, Tuple, Union
+from types import TracebackType
+from typing import Any, BinaryIO, Optional, Tuple, Type, Union
 
 from ..errors import ConfigurationError
-from ..od import ODVariable
-from .client import Key, Progress, Transfer, TransferClient
+from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
+from ..od.datatypes import Value
+from ..services.views import RemoteNodeView
+from .client import DownloadSource, Key, Progress, Transfer, TransferClient
 
 __all__ = ["RemoteAccess", "RemoteObjects", "RemoteValue", "resolve"]
 
 
-def resolve(key: Key, od: Any, where: str) -> Tuple[int, int, Optional[ODVariable]]:
+def resolve(key: Key, od: Optional[ObjectDictionary], where: str
+            ) -> Tuple[int, int, Optional[ODVariable]]:
     """(index, sub, variable or None) of an index, (index, sub), "index:sub"
     text or (with an OD) a name."""
     if od is not None:
@@ -52,7 +56,7 @@ class RemoteAccess:
     on classic lines): keys are an index, (index, sub), "INDEX:SUB" or, with
     the node's OD, a name."""
 
-    def __init__(self, node: Any, client: "TransferClient") -> None:
+    def __init__(self, node: RemoteNodeView, client: TransferClient) -> None:
         self._node = node
         self._client = client
 
@@ -63,22 +67,22 @@ class RemoteAccess:
         index, sub, _ = self._key(key)
         return self._client.start_upload(self._node.node_id, index, sub, **options)
 
-    def start_download(self, key: Key, data: Any, **options: Any) -> Transfer:
+    def start_download(self, key: Key, data: DownloadSource, **options: Any) -> Transfer:
         index, sub, variable = self._key(key)
-        if variable is not None:
-            self._client._typed_download(variable, options)
+        if variable is not None and self._client.SENDS_DATA_TYPE:
+            options.setdefault("data_type", int(variable.data_type))
         return self._client.start_download(self._node.node_id, index, sub, data, **options)
 
     def upload(self, key: Key, **options: Any) -> bytes:
-        return self.start_upload(key, **options).result()
+        return self.start_upload(key, **options).result()  # type: ignore[return-value]
 
-    def download(self, key: Key, data: Any, **options: Any) -> None:
+    def download(self, key: Key, data: DownloadSource, **options: Any) -> None:
         self.start_download(key, data, **options).result()
 
     async def aupload(self, key: Key, **options: Any) -> bytes:
-        return await self.start_upload(key, **options)
+        return await self.start_upload(key, **options)  # type: ignore[return-value]
 
-    async def adownload(self, key: Key, data: Any, **options: Any) -> None:
+    async def adownload(self, key: Key, data: DownloadSource, **options: Any) -> None:
         await self.start_download(key, data, **options)
 
     def open(self, key: Key, mode: str = "rb", *, progress: Optional[Progress] = None,
@@ -134,7 +138,8 @@ class _DownloadStream:
     def __enter__(self) -> "_DownloadStream":
         return self
 
-    def __exit__(self, kind: Any, value: Any, traceback: Any) -> None:
+    def __exit__(self, kind: Optional[Type[BaseException]], value: Optional[BaseException],
+                 traceback: Optional[TracebackType]) -> None:
         if kind is None:
             self.close()
         else:
@@ -146,9 +151,11 @@ class RemoteValue:
     """One entry of a remote node, typed by its OD: `.raw` reads/writes the
     value (USDO on fd lines, SDO on classic lines), `.data` the bytes."""
 
-    def __init__(self, node: Any, variable: ODVariable) -> None:
+    def __init__(self, node: RemoteNodeView, variable: ODVariable,
+                 access: RemoteAccess) -> None:
         self.node = node
         self.variable = variable
+        self._access = access
 
     def __repr__(self) -> str:
         return f"<RemoteValue {self.variable.where} {self.variable.qualname!r} of node " \
@@ -156,36 +163,37 @@ class RemoteValue:
 
     @property
     def data(self) -> bytes:
-        return self.node._access.upload((self.variable.index, self.variable.subindex))
+        return self._access.upload((self.variable.index, self.variable.subindex))
 
     @data.setter
     def data(self, data: bytes) -> None:
-        self.node._access.download((self.variable.index, self.variable.subindex), data)
+        self._access.download((self.variable.index, self.variable.subindex), data)
 
     @property
-    def raw(self) -> Any:
+    def raw(self) -> Value:
         return self.variable.decode_raw(self.data)
 
     @raw.setter
-    def raw(self, value: Any) -> None:
+    def raw(self, value: Value) -> None:
         self.data = self.variable.encode_raw(value)
 
-    async def aget(self) -> Any:
+    async def aget(self) -> Value:
         return self.variable.decode_raw(
-            await self.node._access.aupload((self.variable.index, self.variable.subindex)))
+            await self._access.aupload((self.variable.index, self.variable.subindex)))
 
-    async def aset(self, value: Any) -> None:
-        await self.node._access.adownload((self.variable.index, self.variable.subindex),
+    async def aset(self, value: Value) -> None:
+        await self._access.adownload((self.variable.index, self.variable.subindex),
                                           self.variable.encode_raw(value))
 
 
 class RemoteObjects:
     """`remote.od[key]`: RemoteValue of an entry of the node's OD."""
 
-    def __init__(self, node: Any) -> None:
+    def __init__(self, node: RemoteNodeView, access: RemoteAccess) -> None:
         self._node = node
+        self._access = access
 
-    def __getitem__(self, key: Key) -> Any:
+    def __getitem__(self, key: Key) -> Union["RemoteValue", "_RemoteObject"]:
         od = self._node.object_dictionary
         if od is None:
             raise ConfigurationError(
@@ -194,14 +202,16 @@ class RemoteObjects:
                 "(node.read / node.usdo / node.sdo)")
         entry = od[key]
         if isinstance(entry, ODVariable):
-            return RemoteValue(self._node, entry)
-        return _RemoteObject(self._node, entry)
+            return RemoteValue(self._node, entry, self._access)
+        return _RemoteObject(self._node, entry, self._access)
 
 
 class _RemoteObject:
-    def __init__(self, node: Any, obj: Any) -> None:
+    def __init__(self, node: RemoteNodeView, obj: Union[ODRecord, ODArray],
+                 access: RemoteAccess) -> None:
         self._node = node
         self._object = obj
+        self._access = access
 
     def __getitem__(self, sub: Union[int, str]) -> RemoteValue:
-        return RemoteValue(self._node, self._object[sub])
+        return RemoteValue(self._node, self._object[sub], self._access)

@@ -12,11 +12,12 @@ the C core; see transfer.client for waiting, streams and progress.
 
 from __future__ import annotations
 
-from typing import Any, Dict, Optional
+from typing import Optional
 
+from .._binding.constants import AbortCode
+from .._binding.context import LineContext
 from .._binding.transfers import TransferRequest
 from ..errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
-from ..od import ODVariable
 from .client import TransferClient
 
 __all__ = ["SdoAbortError", "SdoClient"]
@@ -40,10 +41,10 @@ class SdoClient(TransferClient):
 
     PROTOCOL = "SDO"
     MODES = ("auto", "expedited", "segmented", "block")
-    GENERAL_ERROR = 0x08000000
+    GENERAL_ERROR = int(AbortCode.GENERAL)
 
-    def __init__(self, line: Any) -> None:
-        super().__init__(line)
+    def __init__(self, context: LineContext) -> None:
+        super().__init__(context)
         #: AUTO picks block transfer from this size on (None: never).
         self.block_threshold: Optional[int] = DEFAULT_BLOCK_THRESHOLD
 
