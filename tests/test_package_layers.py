@@ -1,6 +1,6 @@
-"""The package's layers, read from its source with `ast`: only canopenfd/_binding/
-touches the compiled core, and no module reads another object's `_private`
-attributes.
+"""The package's layers, read from its source with `ast`: no import cycles
+(not even for types), only canopenfd/_binding/ touches the compiled core, and
+no module reads another object's `_private` attributes.
 
 Every .py file of the installed package is parsed; imports count wherever they
 are (module level, inside functions, under `if TYPE_CHECKING:`), relative ones
@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import ast
 import pathlib
-from typing import Dict, Iterator, List, NamedTuple, Tuple
+from typing import Dict, Iterator, List, NamedTuple, Set, Tuple
+
+import pytest
 
 import canopenfd
 
@@ -69,6 +71,120 @@ def imports(module: Module) -> Iterator[Import]:
 
 def in_binding(name: str) -> bool:
     return name == BINDING or name.startswith(BINDING + ".")
+
+
+def import_graph() -> Dict[str, Set[str]]:
+    """{module: the package's modules it imports}. `from pkg import name` goes to
+    the submodule pkg.name when there is one, else to pkg (its __init__);
+    importing a submodule does not count its parent packages (their __init__
+    runs first, but it is not what the module uses)."""
+    graph: Dict[str, Set[str]] = {}
+    for module in MODULES.values():
+        targets = set()
+        for found in imports(module):
+            if not found.names:
+                targets.add(found.module)
+            for name in found.names:
+                submodule = f"{found.module}.{name}"
+                targets.add(submodule if submodule in MODULES else found.module)
+        graph[module.name] = {target for target in targets
+                              if target in MODULES and target != module.name}
+    return graph
+
+
+def cycles(graph: Dict[str, Set[str]]) -> List[List[str]]:
+    """One cycle (a -> b -> ... -> a) per strongly connected group of modules."""
+    index: Dict[str, int] = {}
+    low: Dict[str, int] = {}
+    stack: List[str] = []
+    on_stack: Set[str] = set()
+    groups: List[Set[str]] = []
+
+    def visit(start: str) -> None:      # Tarjan's algorithm, iteratively
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph[child]))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                group = set()
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    group.add(member)
+                    if member == node:
+                        break
+                if len(group) > 1:
+                    groups.append(group)
+
+    for name in sorted(graph):
+        if name not in index:
+            visit(name)
+    return [_cycle_in(graph, group) for group in groups]
+
+
+def _cycle_in(graph: Dict[str, Set[str]], group: Set[str]) -> List[str]:
+    """A shortest path from the group's first module back to itself."""
+    start = min(group)
+    paths = {start: [start]}
+    queue = [start]
+    while queue:
+        node = queue.pop(0)
+        for child in sorted(graph[node] & group):
+            if child == start:
+                return paths[node] + [start]
+            if child not in paths:
+                paths[child] = paths[node] + [child]
+                queue.append(child)
+    raise AssertionError(f"no cycle through {start} in {sorted(group)}")
+
+
+def _in_cli_or_decode(name: str) -> bool:
+    parts = name.split(".")
+    return len(parts) > 1 and parts[1].startswith(("cli", "decode"))
+
+
+def _named(found: List[List[str]]) -> str:
+    return "\n".join(" -> ".join(cycle) for cycle in found)
+
+
+def test_the_cycle_finder_names_a_cycle():
+    graph = {"p.a": {"p.b"}, "p.b": {"p.c"}, "p.c": {"p.a", "p.d"}, "p.d": set()}
+    assert cycles(graph) == [["p.a", "p.b", "p.c", "p.a"]]
+    assert cycles({"p.a": {"p.b"}, "p.b": set()}) == []
+
+
+def test_no_import_cycles():
+    """Type-only imports count: a cycle is a cycle (types go down a layer or
+    into a Protocol instead)."""
+    found = [cycle for cycle in cycles(import_graph())
+             if not all(_in_cli_or_decode(name) for name in cycle)]
+    assert not found, "import cycles:\n" + _named(found)
+
+
+def test_no_import_cycles_in_cli_and_decode():
+    """Cycles lying wholly inside canopenfd/cli* and canopenfd/decode* are
+    reported here. Expected to fail until the CLI and the decoder, being
+    rebuilt as the packages canopenfd/cli/ and canopenfd/decode/ in another
+    branch (issue 12), land; then it must pass (nothing else may be xfailed)."""
+    found = [cycle for cycle in cycles(import_graph())
+             if all(_in_cli_or_decode(name) for name in cycle)]
+    if found:
+        pytest.xfail("CLI/decoder cycles, owned by the cli/decode rebuild:\n" + _named(found))
 
 
 def test_the_package_is_read():
