@@ -4,9 +4,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from ._binding.constants import FrameFlag
+
+if TYPE_CHECKING:  # pragma: no cover
+    import can
 
 # Flag bits of co_frame_t.flags, as plain ints.
 FLAG_FD = int(FrameFlag.FD)
@@ -65,7 +68,7 @@ class Frame:
 
     # ---------------------------------------------------------------- python-can
     @classmethod
-    def from_message(cls, msg: Any) -> "Frame":
+    def from_message(cls, msg: can.Message) -> "Frame":
         """From a python-can `can.Message` (error frames are the caller's business)."""
         rtr = bool(msg.is_remote_frame)
         return cls(int(msg.arbitration_id), b"" if rtr else bytes(msg.data),
@@ -74,7 +77,7 @@ class Frame:
                    rtr=rtr, timestamp=float(msg.timestamp or 0.0),
                    rtr_len=int(msg.dlc) if rtr else 0)
 
-    def to_message(self) -> Any:
+    def to_message(self) -> can.Message:
         """To a python-can `can.Message` (imports python-can)."""
         import can
 

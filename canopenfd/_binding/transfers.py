@@ -11,13 +11,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
-from .core import ffi, lib
+from .core import CData, ffi, lib
 
 __all__ = ["TransferRequest", "CBuffer", "memory_source", "usdo_abort_to_cia"]
 
 #: A cffi buffer over the caller's bytes-like object; keep it alive while the
 #: transfer runs.
-CBuffer = object
+CBuffer = CData
 
 
 @dataclass
@@ -39,7 +39,7 @@ class TransferRequest:
     block_threshold: int = 0          # SDO AUTO: block from this size
     progress: bool = False            # post progress events
 
-    def to_c(self) -> object:
+    def to_c(self) -> CData:
         """The co_rt_transfer_request_t (cdata) of this request."""
         request = ffi.new("co_rt_transfer_request_t *")
         request.server = self.server

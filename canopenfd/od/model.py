@@ -13,10 +13,11 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
+from typing import Dict, Iterator, List, Optional, Tuple, Union
 
 from .errors import OdValueError
 from .objects import ODArray, ODObject, ODRecord, _by_name
+from .validate import Problem, validate
 from .variable import (ACCESS_TYPES, LINE_MODES, PDO_DIRECTIONS, ODVariable, ObjectType,
                        _check_int, format_index)
 
@@ -60,7 +61,7 @@ class ObjectDictionary(Mapping):
         #: Data type indices usable as dummy mapping entries ([DummyUsage]).
         self.dummy_usage: set = set()
         #: Problems the importer noticed but could live with (Problem objects).
-        self.load_warnings: List[Any] = []
+        self.load_warnings: List[Problem] = []
         #: The file this dictionary was read from ('' when built in code).
         self.source = ""
         #: 'EDS', 'DCF', 'XDD' or 'XDC' for imported dictionaries, else ''.
@@ -98,7 +99,7 @@ class ObjectDictionary(Mapping):
         del self.indices[obj.index]
         obj.parent = None
 
-    def __getitem__(self, key: Union[int, str, Tuple[int, int]]) -> Any:
+    def __getitem__(self, key: Union[int, str, Tuple[int, int]]) -> ODObject:
         if isinstance(key, int) and not isinstance(key, bool):
             if key in self.indices:
                 return self.indices[key]
@@ -115,7 +116,7 @@ class ObjectDictionary(Mapping):
                 return found
         raise KeyError(f"{key!r} is not in the object dictionary")
 
-    def _lookup_text(self, text: str) -> Any:
+    def _lookup_text(self, text: str) -> Optional[ODObject]:
         found = _by_name(list(self.indices.values()), text, top_level=True)
         if found is not None:
             return found
@@ -178,11 +179,9 @@ class ObjectDictionary(Mapping):
                     yield obj.subindices[sub]
 
     # ------------------------------------------------------------ checks
-    def validate(self) -> List[Any]:
+    def validate(self) -> List[Problem]:
         """Problems of this dictionary (list of `Problem`, errors and warnings);
         see canopenfd.od.validate for the rules."""
-        from .validate import validate
-
         return validate(self)
 
     def diff(self, other: "ObjectDictionary") -> List[str]:
@@ -205,7 +204,7 @@ _VAR_FIELDS = ("name", "data_type", "access_type", "default_base", "relative_to_
                "factor", "denotation", "obj_flags", "object_type")
 
 
-def _same(a: Any, b: Any) -> bool:
+def _same(a: object, b: object) -> bool:
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
     return type(a) is type(b) and a == b

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import Any, Dict, Iterator, List, Optional, Union
+from typing import Dict, Iterator, List, Optional, Protocol, Sequence, TypeVar, Union
 
 from .datatypes import DataType
 from .errors import OdValueError
@@ -124,7 +124,19 @@ class ODArray(_Container):
         return None
 
 
-def _by_name(items: List[Any], name: str, top_level: bool = False) -> Any:
+class _Named(Protocol):
+    name: str
+    index: int
+
+    @property
+    def where(self) -> str:
+        ...
+
+
+N = TypeVar("N", bound=_Named)
+
+
+def _by_name(items: Sequence[N], name: str, top_level: bool = False) -> Optional[N]:
     """The item named `name`: exact match first, then a unique case-insensitive one."""
     exact = [item for item in items if item.name == name]
     if len(exact) == 1:

@@ -131,7 +131,7 @@ class Transfer:
 
     wait = result
 
-    def __await__(self) -> Generator[Any, None, Result]:
+    def __await__(self) -> Generator[object, None, Result]:
         loop = asyncio.get_running_loop()
         future = loop.create_future()
 
