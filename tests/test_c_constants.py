@@ -138,7 +138,7 @@ def test_guard_events_are_the_c_guard_events():
 
 
 def test_store_status_texts_cover_every_c_status():
-    from canopenfd.node import STORE_STATUS
+    from canopenfd.services.store import STORE_STATUS
     assert set(STORE_STATUS) == set(c_enum("co_store_status_t").members.values())
     assert STORE_STATUS[int(constants.StoreStatus.IO)] == "io-error"
 
@@ -155,6 +155,13 @@ def test_abort_texts_cover_exactly_the_c_abort_codes():
     assert set(ABORT_TEXT) == set(cia.values()) - {cia["CO_ABORT_NONE"]}
     usdo = c_enum("co_usdo_abort_t").members
     assert set(USDO_ABORT_TEXT) == set(usdo.values()) - {usdo["CO_USDO_ABORT_NONE"]}
+
+
+def test_general_errors_of_the_clients_are_the_c_codes():
+    """What cancel() sends by default (co_usdo_abort_t is outside the cdef)."""
+    from canopenfd.transfer import SdoClient, UsdoClient
+    assert UsdoClient.GENERAL_ERROR == c_enum("co_usdo_abort_t").members["CO_USDO_ABORT_UNKNOWN"]
+    assert SdoClient.GENERAL_ERROR == c_enum("co_abort_t").members["CO_ABORT_GENERAL"]
 
 
 def _package_sources():
