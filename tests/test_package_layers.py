@@ -187,6 +187,18 @@ def test_no_import_cycles_in_cli_and_decode():
         pytest.xfail("CLI/decoder cycles, owned by the cli/decode rebuild:\n" + _named(found))
 
 
+def test_every_package_is_listed_in_pyproject():
+    """`pip install .` installs only the packages pyproject.toml lists."""
+    tomllib = pytest.importorskip("tomllib")
+    pyproject = PACKAGE_DIR.parent / "pyproject.toml"
+    if not pyproject.exists():
+        pytest.skip("the package is installed outside its source tree")
+    listed = set(tomllib.loads(pyproject.read_text(encoding="utf-8"))
+                 ["tool"]["setuptools"]["packages"])
+    packages = {module.name for module in MODULES.values() if module.is_package}
+    assert packages <= listed, f"not in [tool.setuptools] packages: {sorted(packages - listed)}"
+
+
 def test_the_package_is_read():
     assert {"canopenfd", "canopenfd.network", "canopenfd.line", BINDING,
             BINDING + ".core"} <= set(MODULES)
