@@ -14,11 +14,12 @@ facade over it::
 
 __version__ = "0.1.0"
 
+from ._binding.constants import CommEvent
 from .decode import decode
 from .errors import (AbortError, CanopenFDError, ClosedError, CommandError, ConfigurationError,
                      InterfaceError)
 from .frame import Frame
-from .line import CommEvent, Line
+from .line import Line
 from .network import Network
 from .node import LocalNode, LocalValue, RemoteNode
 from .od import ObjectDictionary, OdFileError, OdValueError, import_od
