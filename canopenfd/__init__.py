@@ -14,20 +14,19 @@ facade over it::
 
 __version__ = "0.1.0"
 
+from ._binding.constants import CommEvent
 from .decode import decode
-from .emcy import Emcy
-from .indications import ODRequest
 from .errors import (AbortError, CanopenFDError, ClosedError, CommandError, ConfigurationError,
                      InterfaceError)
 from .frame import Frame
-from .line import CommEvent, Line
+from .line import Line
 from .network import Network
-from .nmt import NmtCommand, NmtState
 from .node import LocalNode, LocalValue, RemoteNode
 from .od import ObjectDictionary, OdFileError, OdValueError, import_od
-from .sdo import SdoAbortError
-from .transfer import Transfer
-from .usdo import UsdoAbortError, UsdoTransfer
+from .services.emcy import Emcy
+from .services.indications import ODRequest
+from .services.nmt import NmtCommand, NmtState
+from .transfer import SdoAbortError, Transfer, UsdoAbortError, UsdoTransfer
 
 __all__ = [
     "__version__",

@@ -10,11 +10,15 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import Any, Callable, List, Optional
+from typing import Callable, List, Optional, TypeVar
 
 from .errors import ClosedError, ConfigurationError
 
 log = logging.getLogger("canopenfd")
+
+#: A callback of any signature (what it returns is ignored).
+C = TypeVar("C", bound=Callable[..., object])
+T = TypeVar("T")
 
 
 class CallbackList:
@@ -22,17 +26,17 @@ class CallbackList:
 
     def __init__(self, what: str) -> None:
         self._what = what
-        self._callbacks: List[Callable[..., Any]] = []
+        self._callbacks: List[Callable[..., object]] = []
         self._lock = threading.Lock()
 
-    def add(self, callback: Callable[..., Any]) -> Callable[..., Any]:
+    def add(self, callback: C) -> C:
         if not callable(callback):
             raise ConfigurationError(f"{self._what} callback must be callable, got {callback!r}")
         with self._lock:
             self._callbacks.append(callback)
         return callback  # so on_xxx() also works as a decorator
 
-    def remove(self, callback: Callable[..., Any]) -> None:
+    def remove(self, callback: Callable[..., object]) -> None:
         with self._lock:
             if callback in self._callbacks:
                 self._callbacks.remove(callback)
@@ -40,7 +44,7 @@ class CallbackList:
     def __bool__(self) -> bool:
         return bool(self._callbacks)
 
-    def fire(self, *args: Any) -> None:
+    def fire(self, *args: object) -> None:
         with self._lock:
             callbacks = list(self._callbacks)
         for callback in callbacks:
@@ -63,8 +67,8 @@ class Waiter:
         self._closed = closed
         self._is_dispatcher = is_dispatcher
 
-    def wait(self, predicate: Callable[[], Any], timeout: Optional[float],
-             what: str, describe_timeout: Callable[[], str]) -> Any:
+    def wait(self, predicate: Callable[[], T], timeout: Optional[float],
+             what: str, describe_timeout: Callable[[], str]) -> T:
         """Wait until predicate() is true; returns its value.
 
         Raises TimeoutError with describe_timeout()'s text, ClosedError when the
@@ -88,3 +92,11 @@ class Waiter:
                 if remaining is not None and remaining <= 0:
                     raise TimeoutError(f"{what}: {describe_timeout()} after {timeout:g} s")
                 self.cond.wait(remaining)
+
+
+def chain(calls: List[Callable[[], None]]) -> Callable[[], None]:
+    """One callable running calls in order (what an event handler returns)."""
+    def run() -> None:
+        for call in calls:
+            call()
+    return run

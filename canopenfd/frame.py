@@ -4,15 +4,19 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
-# Flag bits of co_frame_t.flags (co_frame.h); kept here so this module and the
-# decoder work without the compiled extension.
-FLAG_FD = 0x01
-FLAG_BRS = 0x02
-FLAG_ESI = 0x04
-FLAG_EXT = 0x08
-FLAG_RTR = 0x10
+from ._binding.constants import FrameFlag
+
+if TYPE_CHECKING:  # pragma: no cover
+    import can
+
+# Flag bits of co_frame_t.flags, as plain ints.
+FLAG_FD = int(FrameFlag.FD)
+FLAG_BRS = int(FrameFlag.BRS)
+FLAG_ESI = int(FrameFlag.ESI)
+FLAG_EXT = int(FrameFlag.EXT)
+FLAG_RTR = int(FrameFlag.RTR)
 
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 
@@ -64,7 +68,7 @@ class Frame:
 
     # ---------------------------------------------------------------- python-can
     @classmethod
-    def from_message(cls, msg: Any) -> "Frame":
+    def from_message(cls, msg: can.Message) -> "Frame":
         """From a python-can `can.Message` (error frames are the caller's business)."""
         rtr = bool(msg.is_remote_frame)
         return cls(int(msg.arbitration_id), b"" if rtr else bytes(msg.data),
@@ -73,7 +77,7 @@ class Frame:
                    rtr=rtr, timestamp=float(msg.timestamp or 0.0),
                    rtr_len=int(msg.dlc) if rtr else 0)
 
-    def to_message(self) -> Any:
+    def to_message(self) -> can.Message:
         """To a python-can `can.Message` (imports python-can)."""
         import can
 

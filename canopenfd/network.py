@@ -1,5 +1,6 @@
 """`Network`: one C runtime (one thread running every line) plus the Python
-dispatcher thread that turns its events into callbacks."""
+dispatcher thread that turns its events into callbacks: each event goes to
+the line context of its line, whose event table hands it to a service."""
 
 from __future__ import annotations
 
@@ -7,11 +8,14 @@ import atexit
 import logging
 import threading
 import weakref
-from typing import Any, Dict, List, Optional
+from types import TracebackType
+from typing import Dict, List, Optional, Type
 
-from ._runtime import EVENT_BATCH, Runtime, ffi, frame_from_c, lib
+from ._binding.constants import Driver, EventKind, Mode
+from ._binding.context import RuntimeLineContext
+from ._binding.hostbus import HostBridge, PythonCanBus
+from ._binding.runtime import Event, Runtime
 from .errors import ClosedError, ConfigurationError
-from .hostbus import HostBridge
 from .line import Line
 
 log = logging.getLogger("canopenfd")
@@ -48,6 +52,7 @@ class Network:
         self._runtime = Runtime(event_capacity)
         self._lock = threading.RLock()     # lines table, close()
         self._lines: Dict[int, Line] = {}
+        self._contexts: Dict[int, RuntimeLineContext] = {}
         self._bridges: List[HostBridge] = []
         self._closed = False
         self._events_lost = 0
@@ -60,7 +65,8 @@ class Network:
     def __enter__(self) -> "Network":
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, kind: Optional[Type[BaseException]], value: Optional[BaseException],
+                 traceback: Optional[TracebackType]) -> None:
         self.close()
 
     def __repr__(self) -> str:
@@ -82,9 +88,9 @@ class Network:
         return self._events_lost
 
     # ---------------------------------------------------------------- lines
-    def open_line(self, channel: Optional[str] = None, *, bus: Any = None, mode: str = "fd",
-                  brs: bool = True, monitor: bool = False, rx_queue: int = 0,
-                  tx_queue: int = 0) -> Line:
+    def open_line(self, channel: Optional[str] = None, *, bus: Optional[PythonCanBus] = None,
+                  mode: str = "fd", brs: bool = True, monitor: bool = False,
+                  rx_queue: int = 0, tx_queue: int = 0) -> Line:
         """Open a line and return it.
 
         channel: "mem:NAME" for the in-process bus NAME, otherwise a SocketCAN
@@ -113,20 +119,20 @@ class Network:
         if bus is not None:
             if not (callable(getattr(bus, "recv", None)) and callable(getattr(bus, "send", None))):
                 raise ConfigurationError(f"bus must be a python-can Bus, got {bus!r}")
-            driver = lib.CO_DRIVER_HOST
+            driver = Driver.HOST
             label = str(getattr(bus, "channel_info", None) or type(bus).__name__)
         else:
             if not isinstance(channel, str) or not channel.strip():
                 raise ConfigurationError(
                     f"channel must be an interface name or 'mem:NAME', got {channel!r}")
             if channel.startswith("mem:"):
-                driver = lib.CO_DRIVER_MEMBUS
+                driver = Driver.MEMBUS
                 label = channel[4:]
                 if not label:
                     raise ConfigurationError(
                         f"channel {channel!r}: the in-process bus needs a name ('mem:NAME')")
             else:
-                driver = lib.CO_DRIVER_SOCKETCAN
+                driver = Driver.SOCKETCAN
                 label = channel
         fd = mode == "fd"
         brs = bool(brs) and fd
@@ -135,9 +141,13 @@ class Network:
             if self._closed:
                 raise ClosedError(f"open_line({name!r}): the network is closed")
             index = self._runtime.add_line(
-                driver, label, lib.CO_MODE_FD if fd else lib.CO_MODE_CLASSIC, brs,
+                driver, label, Mode.FD if fd else Mode.CLASSIC, brs,
                 rx_queue, tx_queue, monitor, what=f"cannot open {mode} line {name!r}")
-            line = Line(self, index, name, mode, brs, bool(monitor))
+            context = RuntimeLineContext(self._runtime, index, mode, name,
+                                         closed=lambda: self._closed,
+                                         on_dispatcher=self._on_dispatcher)
+            line = Line(self, context, brs, bool(monitor))
+            self._contexts[index] = context
             self._lines[index] = line
             if bus is not None:
                 bridge = HostBridge(self._runtime, index, bus, name)
@@ -159,8 +169,10 @@ class Network:
         for bridge in self._bridges:
             bridge.stop()
         self._runtime.stop()
-        for line in self.lines:
-            line._wake()
+        with self._lock:
+            contexts = list(self._contexts.values())
+        for context in contexts:
+            context.wake()
         if self._on_dispatcher():
             self._free_on_exit = True  # the dispatcher frees once the callback returns
             return
@@ -184,40 +196,30 @@ class Network:
 
     # ---------------------------------------------------------------- dispatch
     def _dispatch(self) -> None:
-        events = ffi.new("co_rt_event_t[]", EVENT_BATCH)
         try:
             while not self._closed:
-                n = self._runtime.wait_events(events, EVENT_BATCH, _WAIT_MS)
-                if n < 0:
-                    break  # CO_RT_ERR_CLOSED
-                for i in range(n):
+                events = self._runtime.read_events(_WAIT_MS)
+                if events is None:
+                    break  # the runtime stopped
+                for event in events:
                     try:
-                        self._deliver(events[i])
+                        self._deliver(event)
                     except Exception:  # noqa: BLE001 - one bad event must not stop the rest
                         log.exception("canopenfd: event %d of line %d could not be delivered",
-                                      events[i].kind, events[i].line)
+                                      event.kind, event.line)
         finally:
             if self._free_on_exit:
                 self._finish()
 
-    def _deliver(self, ev: Any) -> None:
+    def _deliver(self, ev: Event) -> None:
         kind = ev.kind
-        if kind == lib.CO_EV_EVENTS_LOST:
+        if kind == EventKind.EVENTS_LOST:
             self._events_lost += ev.a
             log.warning("canopenfd: %d runtime events lost (callbacks too slow?)", ev.a)
             return
         with self._lock:
-            line = self._lines.get(ev.line)
-        if line is None:
+            context = self._contexts.get(ev.line)
+        if context is None:
             log.debug("event %d for unknown line %d ignored", kind, ev.line)
             return
-        frame = None
-        data = b""
-        if kind == lib.CO_EV_FRAME:
-            frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
-        elif kind == lib.CO_EV_PDO_FRAME:
-            frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
-        elif kind in (lib.CO_EV_EMCY, lib.CO_EV_PDO):
-            # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
-            data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
-        line._handle(kind, ev.node, ev.a, ev.b, frame, ev.time_us, data)
+        context.dispatch(ev)

@@ -44,6 +44,9 @@ fi
 say "python environment ($VENV)"
 [ -x "$VENV/bin/python" ] || python3 -m venv "$VENV" || { echo "python3 -m venv failed"; exit 1; }
 "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
+# setuptools copies build/lib into the wheel: modules moved or removed since an
+# earlier build would be installed again from there.
+rm -rf build/lib build/lib.* build/bdist.*
 "$VENV/bin/python" -m pip install -q ".[test]" || { echo "pip install .[test] failed"; exit 1; }
 
 status=0

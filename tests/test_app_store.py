@@ -1,4 +1,4 @@
-"""Parameter stores kept by the application (canopenfd.store): load at boot
+"""Parameter stores kept by the application (canopenfd.services.store): load at boot
 and resets, saves from the application and over the network (USDO 0x1010,
 answered only after the store's save() returned), failures reported with the
 CiA abort code and never half-applied."""
@@ -9,7 +9,7 @@ import pytest
 
 from canopenfd import AbortError, ConfigurationError
 from canopenfd.od import demo_od
-from canopenfd.store import MemoryStore
+from canopenfd.services.store import MemoryStore
 from helpers import Recorder, scaled
 
 NODE, CLIENT = 5, 2

@@ -1,4 +1,4 @@
-"""PDO configuration (canopenfd.pdo): node.tpdo / node.rpdo with python-canopen's
+"""PDO configuration (canopenfd.services.pdo): node.tpdo / node.rpdo with python-canopen's
 names. save() is checked frame by frame on the bus (the CiA 301 procedure over
 SDO on classic lines, USDO on fd lines), read() against what was saved on our
 own server and on python-canopen's LocalNode, and every check that must refuse
@@ -15,7 +15,7 @@ import pytest
 import canopenfd
 from canopenfd import AbortError, ConfigurationError, SdoAbortError, UsdoAbortError
 from canopenfd.od import DataType, ODArray, ODRecord, ODVariable, demo_od
-from canopenfd.pdo import PdoMap, PdoMaps, PdoVariable
+from canopenfd.services.pdo import PdoMap, PdoMaps, PdoVariable
 from helpers import Recorder, scaled
 
 can = pytest.importorskip("can")

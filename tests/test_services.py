@@ -15,7 +15,7 @@ import pytest
 
 import canopenfd
 from canopenfd import ConfigurationError, NmtState, SdoAbortError
-from canopenfd.emcy import Emcy
+from canopenfd.services.emcy import Emcy
 from canopenfd.od import DataType, ODArray, ODRecord, ODVariable, demo_od
 from canopenfd.services import GuardEvent
 from helpers import Recorder, scaled

@@ -20,7 +20,7 @@ from typing import Any, Iterator, List, Optional, Tuple
 from ..errors import CanopenFDError
 from ..line import Line
 from ..network import Network
-from ..node import check_ms, check_node_id
+from .._checks import check_ms, check_node_id
 from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
 
 EXIT_OK = 0

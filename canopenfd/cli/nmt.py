@@ -7,7 +7,7 @@ import threading
 from typing import Any
 
 from ..errors import CanopenFDError
-from ..nmt import NmtCommand, parse_node_target
+from ..services.nmt import NmtCommand, parse_node_target
 from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, command_line,
                      print_error)
 

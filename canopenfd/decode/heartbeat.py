@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Set
 
-from ..nmt import NmtState
+from .._binding.constants import NmtState
 
 ERROR_CONTROL_BASE = 0x700
 

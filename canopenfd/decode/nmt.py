@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..nmt import NmtCommand
+from .._binding.constants import NmtCommand
 from .raw import hex_bytes
 
 NMT_ID = 0x000

@@ -123,7 +123,7 @@ class DataType(enum.IntEnum):
         return f"{info.low}..{info.high}"
 
     @classmethod
-    def parse(cls, value: Any) -> "DataType":
+    def parse(cls, value: object) -> "DataType":
         """A DataType from itself, its index (int) or its name ('UNSIGNED16')."""
         if isinstance(value, cls):
             return value
@@ -194,7 +194,7 @@ _MS_PER_DAY = 86_400_000
 _MS_MASK = 0x0FFFFFFF
 
 
-def _check_time_fields(kind: str, ms: Any, days: Any, ms_limit: int) -> None:
+def _check_time_fields(kind: str, ms: object, days: object, ms_limit: int) -> None:
     for field, value, limit in (("ms", ms, ms_limit), ("days", days, 0xFFFF)):
         if isinstance(value, bool) or not isinstance(value, int):
             raise OdValueError(f"{kind}.{field} must be an int, got {value!r}")
@@ -259,7 +259,7 @@ Value = Union[bool, int, float, str, bytes, TimeOfDay, TimeDifference]
 
 
 # ------------------------------------------------------------------ checks
-def _describe(value: Any) -> str:
+def _describe(value: object) -> str:
     text = repr(value)
     if len(text) > 40:
         text = text[:37] + "..."
@@ -274,7 +274,7 @@ def _check_visible(text: str) -> None:
                 f"(U+{ord(char):04X}) at position {pos}")
 
 
-def check(dtype: DataType, value: Any) -> Value:
+def check(dtype: DataType, value: object) -> Value:
     """`value` as the Python type of `dtype`, range-checked; OdValueError if it
     does not fit. REAL32 values come back rounded to single precision, so what
     is stored equals what a round trip over the wire gives."""
@@ -358,10 +358,10 @@ _ZEROS: Dict[str, Value] = {
 
 
 # ------------------------------------------------------------------ wire format
-def encode(dtype: DataType, value: Any) -> bytes:
+def encode(dtype: DataType, value: object) -> bytes:
     """The little-endian wire bytes of `value` (checked with `check`)."""
     dtype = DataType.parse(dtype)
-    checked: Any = check(dtype, value)
+    checked: Any = check(dtype, value)   # Value, narrowed by info.kind below
     info = _INFO[dtype]
     if info.kind == "bool":
         return b"\x01" if checked else b"\x00"

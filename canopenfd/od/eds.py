@@ -34,16 +34,19 @@ from __future__ import annotations
 import datetime as _dt
 import os
 import re
-from typing import Any, Callable, Dict, List, Optional, Tuple, Union
+from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
 
-from .datatypes import DataType
+from .datatypes import DataType, Value
 from .errors import OdFileError, OdValueError
 from .fileio import Source, read_source
 from .ini import IniFile, Key, Section, parse_ini
 from .model import (ACCESS_TYPES, ODArray, ODRecord, ODVariable, ObjectDictionary,
                     ObjectType, format_index)
+from .objects import ODObject
 from .textvalues import format_value, parse_int, parse_value
 from .validate import WARNING, Problem, find_link_cycle
+
+T = TypeVar("T")
 
 __all__ = ["import_eds", "export_eds", "export_dcf"]
 
@@ -102,7 +105,7 @@ class _Reader:
         return number
 
     def typed(self, section: Section, key_name: str, dtype: DataType,
-              allow_node_id: bool = True) -> Tuple[Any, bool, Optional[str]]:
+              allow_node_id: bool = True) -> Tuple[Optional[Value], bool, Optional[str]]:
         """(value, relative, text) of a value key; (None, False, None) when absent."""
         key = section.get(key_name)
         if key is None:
@@ -116,7 +119,7 @@ class _Reader:
             raise self.fail(section, f"{key.name} {_shown(text)}: {exc.problem}", key) from None
         return value, relative, text
 
-    def guard(self, section: Section, key: Optional[Key], action: Callable[[], Any]) -> Any:
+    def guard(self, section: Section, key: Optional[Key], action: Callable[[], T]) -> T:
         """Run a model setter; its OdValueError becomes an OdFileError here."""
         try:
             return action()
@@ -385,7 +388,7 @@ def _read_objects(reader: _Reader, od: ObjectDictionary,
 
 def _read_object(reader: _Reader, index: int, section: Section,
                  subs: List[Tuple[int, Section]],
-                 extras: Dict[Tuple[int, str], Section]) -> Any:
+                 extras: Dict[Tuple[int, str], Section]) -> Optional[ODObject]:
     name = section.value("ParameterName")
     if not name:
         raise reader.fail(section, "ParameterName is missing")
@@ -436,7 +439,8 @@ def _read_object(reader: _Reader, index: int, section: Section,
     return container
 
 
-def _build_compact(reader: _Reader, section: Section, container: Any, count: int) -> None:
+def _build_compact(reader: _Reader, section: Section, container: Union[ODRecord, ODArray],
+                   count: int) -> None:
     count_entry = ODVariable("NrOfObjects", container.index, 0, DataType.UNSIGNED8, "ro", count)
     container.add_member(count_entry)
     template = reader.variable(section, container.index, 1, container.name, template=True)
@@ -448,7 +452,8 @@ def _build_compact(reader: _Reader, section: Section, container: Any, count: int
         container.add_member(var)
 
 
-def _apply_compact_extra(reader: _Reader, section: Section, kind: str, container: Any) -> None:
+def _apply_compact_extra(reader: _Reader, section: Section, kind: str,
+                         container: Union[ODRecord, ODArray]) -> None:
     """[xxxxName] / [xxxxValue] / [xxxxDenotation]: per-sub names, defaults, denotations."""
     count = reader.int_key(section, "NrOfEntries", None, 0, 0xFFFFFFFF)
     if count is not None and count > _MAX_SUBS:
@@ -614,7 +619,7 @@ def _write_section(lines: List[str], name: str, keys: Dict[str, str]) -> None:
     lines.append("")
 
 
-def _write_object(lines: List[str], obj: Any) -> None:
+def _write_object(lines: List[str], obj: ODObject) -> None:
     if isinstance(obj, ODVariable):
         _write_variable(lines, f"{obj.index:04X}", obj)
     else:

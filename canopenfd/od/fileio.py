@@ -9,13 +9,13 @@ naming the file.
 from __future__ import annotations
 
 import os
-from typing import IO, Any, Optional, Tuple, Union
+from typing import IO, Optional, Tuple, Union
 
 from .errors import OdFileError
 
 MAX_FILE_SIZE = 16 * 1024 * 1024
 
-Source = Union[str, "os.PathLike[str]", IO[Any]]
+Source = Union[str, "os.PathLike[str]", IO[str], IO[bytes]]
 
 EDS_SUFFIXES = (".eds", ".dcf")
 XDD_SUFFIXES = (".xdd", ".xdc")

@@ -9,12 +9,33 @@ COB-IDs); warnings are things CiA asks for that a node can live without
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, Iterable, List, Optional, Tuple
+from typing import Dict, Iterable, Iterator, List, Optional, Protocol, Tuple
 
 from .datatypes import DataType, zero_value
 from .errors import OdValueError
-from .model import (ODArray, ODRecord, ODVariable, ObjectDictionary, _Container,
-                    format_index)
+from .objects import ODArray, ODObject, ODRecord, _Container
+from .variable import ODVariable, format_index
+
+
+class ObjectDictionary(Protocol):
+    """What validation reads of an ObjectDictionary (model.py, whose validate()
+    calls this module: a Protocol keeps the import one way)."""
+
+    indices: Dict[int, ODObject]
+
+    @property
+    def mode(self) -> Optional[str]:
+        ...
+
+    @property
+    def node_id(self) -> Optional[int]:
+        ...
+
+    def get_variable(self, index: int, subindex: int = 0) -> Optional[ODVariable]:
+        ...
+
+    def entries(self) -> Iterator[ODVariable]:
+        ...
 
 __all__ = ["Problem", "validate"]
 

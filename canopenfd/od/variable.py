@@ -55,7 +55,7 @@ def format_index(index: int, subindex: Optional[int] = None) -> str:
     return f"0x{index:04X}" if subindex is None else f"0x{index:04X}:{subindex:02X}"
 
 
-def _check_int(value: Any, low: int, high: int, what: str) -> int:
+def _check_int(value: object, low: int, high: int, what: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
         raise OdValueError(f"{what} must be an int {low}..{high}, got {value!r}")
     return value
@@ -71,14 +71,15 @@ class ODVariable:
 
     def __init__(self, name: str, index: int, subindex: int = 0,
                  data_type: Union[DataType, int, str] = DataType.UNSIGNED32,
-                 access_type: str = "rw", default: Any = None, *,
+                 access_type: str = "rw", default: object = None, *,
                  relative_to_node_id: bool = False,
-                 low_limit: Any = None, high_limit: Any = None,
+                 low_limit: object = None, high_limit: object = None,
                  pdo_mapping: bool = False, pdo_direction: Optional[str] = None,
                  store: Optional[bool] = None, line_mode: Optional[str] = None,
                  max_length: Optional[int] = None, description: str = "",
                  unit: str = "", factor: float = 1.0) -> None:
-        #: The ObjectDictionary, ODRecord or ODArray owning this entry.
+        #: The ObjectDictionary, ODRecord or ODArray owning this entry (Any: those
+        #: classes are built on this module; it tells them apart by their attributes).
         self.parent: Any = None
         self.index = _check_int(index, 1, 0xFFFF, "index")
         self.subindex = _check_int(subindex, 0, 0xFF, "sub-index")
@@ -139,7 +140,7 @@ class ODVariable:
 
     @property
     def od(self) -> Any:
-        """The ObjectDictionary this entry belongs to, or None."""
+        """The ObjectDictionary this entry belongs to, or None (Any: see `parent`)."""
         parent = self.parent.parent if self.in_object else self.parent
         return parent if hasattr(parent, "indices") else None
 
@@ -207,7 +208,7 @@ class ODVariable:
         return len(self.default_bytes())
 
     # ------------------------------------------------------------ default / value
-    def _checked(self, value: Any) -> Value:
+    def _checked(self, value: object) -> Value:
         try:
             return check(self._data_type, value)
         except OdValueError as exc:
@@ -228,7 +229,7 @@ class ODVariable:
         return self._resolve(self._default, self.relative_to_node_id)
 
     @default.setter
-    def default(self, value: Any) -> None:
+    def default(self, value: object) -> None:
         self._default = None if value is None else self._checked(value)
         self.relative_to_node_id = False
         self.default_expr = None
@@ -238,7 +239,7 @@ class ODVariable:
         """The default without the node-id (the offset of a relative default)."""
         return self._default
 
-    def set_default(self, value: Any, relative_to_node_id: bool = False,
+    def set_default(self, value: object, relative_to_node_id: bool = False,
                     expr: Optional[str] = None) -> None:
         """Set the default, optionally as an offset added to the node-id."""
         self._default = None if value is None else self._checked(value)
@@ -264,7 +265,7 @@ class ODVariable:
         return self._resolve(self._value, self.value_relative_to_node_id)
 
     @value.setter
-    def value(self, value: Any) -> None:
+    def value(self, value: object) -> None:
         self._value = None if value is None else self._checked(value)
         self.value_relative_to_node_id = False
         self.value_expr = None
@@ -273,7 +274,7 @@ class ODVariable:
     def value_base(self) -> Optional[Value]:
         return self._value
 
-    def set_value(self, value: Any, relative_to_node_id: bool = False,
+    def set_value(self, value: object, relative_to_node_id: bool = False,
                   expr: Optional[str] = None) -> None:
         self._value = None if value is None else self._checked(value)
         self.value_relative_to_node_id = bool(relative_to_node_id)
@@ -291,7 +292,7 @@ class ODVariable:
         return self.default_expr
 
     # ------------------------------------------------------------ limits
-    def _checked_limit(self, value: Any, which: str) -> Union[int, float, None]:
+    def _checked_limit(self, value: object, which: str) -> Union[int, float, None]:
         if value is None:
             return None
         if not self._data_type.is_numeric:
@@ -305,7 +306,7 @@ class ODVariable:
         return self._low_limit
 
     @low_limit.setter
-    def low_limit(self, value: Any) -> None:
+    def low_limit(self, value: object) -> None:
         self._low_limit = self._checked_limit(value, "low_limit")
 
     @property
@@ -314,7 +315,7 @@ class ODVariable:
         return self._high_limit
 
     @high_limit.setter
-    def high_limit(self, value: Any) -> None:
+    def high_limit(self, value: object) -> None:
         self._high_limit = self._checked_limit(value, "high_limit")
 
     min = low_limit  # python-canopen names
@@ -414,7 +415,7 @@ class ODVariable:
         self._line_mode = value
 
     # ------------------------------------------------------------ values
-    def check_value(self, value: Any) -> Value:
+    def check_value(self, value: object) -> Value:
         """`value` checked against the type, the limits and `max_length`."""
         return self._check_limits(self._checked(value))
 
@@ -432,7 +433,7 @@ class ODVariable:
                     f"{length} bytes, more than the {self._max_length} allowed"))
         return checked
 
-    def encode_raw(self, value: Any) -> bytes:
+    def encode_raw(self, value: object) -> bytes:
         """Wire bytes of `value`, refused when it breaks type, limits or length."""
         return encode(self._data_type, self.check_value(value))
 

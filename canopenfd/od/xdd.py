@@ -30,13 +30,14 @@ and ENTITY declarations are refused (see `xmltree`), sizes are capped.
 from __future__ import annotations
 
 import re
-from typing import Any, Dict, List, Optional, Tuple, Union
+from typing import Callable, Dict, List, Optional, Tuple, Union
 
-from .datatypes import DataType
+from .datatypes import DataType, Value
 from .errors import OdFileError, OdValueError
 from .fileio import Source, read_source
 from .model import (ACCESS_TYPES, ODArray, ODRecord, ODVariable, ObjectDictionary,
                     ObjectType, format_index)
+from .objects import ODObject
 from .textvalues import parse_int, parse_value
 from .validate import WARNING, Problem
 from .xmltree import Node, parse_xml
@@ -203,13 +204,14 @@ class _Reader:
         return var
 
     def value(self, node: Node, attr: str, text: str, dtype: DataType,
-              owner: Optional[int]) -> Tuple[Any, bool]:
+              owner: Optional[int]) -> Tuple[Optional[Value], bool]:
         try:
             return parse_value(dtype, text)
         except OdValueError as exc:
             raise self.fail(node, f"{attr} {text[:40]!r}: {exc.problem}", owner) from None
 
-    def guard(self, node: Node, owner: Optional[int], attr: str, action: Any) -> None:
+    def guard(self, node: Node, owner: Optional[int], attr: str,
+              action: Callable[[], object]) -> None:
         try:
             action()
         except OdValueError as exc:
@@ -359,7 +361,7 @@ def _read_dummies(root: Node, od: ObjectDictionary) -> None:
             od.dummy_usage.add(int(match.group(1), 16))
 
 
-def _read_object(reader: _Reader, node: Node) -> Any:
+def _read_object(reader: _Reader, node: Node) -> Optional[ODObject]:
     index = reader.hex_attr(node, "index", 0xFFFF, None)
     if index is None or index == 0:
         raise reader.fail(node, "index is missing" if index is None else "index 0 is not valid")

@@ -23,25 +23,30 @@ from __future__ import annotations
 
 import collections
 import time
-from typing import TYPE_CHECKING, Any, Callable, Deque, Dict, List, Optional, Tuple
+import logging
+from typing import Callable, Deque, Dict, Iterable, List, Optional, Set, Tuple, Union
 
-from ._callbacks import CallbackList
-from ._runtime import decode_emcy
-from .decode_services import emcy_code_text, emcy_status_text, error_register_text
-from .errors import ConfigurationError
+from .._binding.constants import EmcyStatus, EventKind
+from .._binding.context import Deferred, LineContext
+from .._binding.runtime import Event, decode_emcy
+from .._callbacks import CallbackList, chain
+from .._checks import check_node_id
+from ..decode.emcy import emcy_code_text, emcy_status_text, error_register_text
+from ..errors import ConfigurationError
+from .served_od import ServedDictionary
+from .views import LocalNodeView, NodeView
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .node import LocalNode, RemoteNode
+__all__ = ["Emcy", "EmcyProducer", "EmcyConsumer", "LineEmcy", "LOG_SIZE"]
 
-__all__ = ["Emcy", "EmcyProducer", "EmcyConsumer", "LOG_SIZE"]
+log = logging.getLogger("canopenfd")
 
 #: EMCYs a RemoteNode keeps in `emcy.log`.
 LOG_SIZE = 100
 
-_PRIORITY_MASK = 0x07
-_NON_RECOVERABLE = 0x08
-_OCCURRED = 0x10
-_REPEATED = 0x20
+_PRIORITY_MASK = int(EmcyStatus.PRIORITY_MASK)
+_NON_RECOVERABLE = int(EmcyStatus.NON_RECOVERABLE)
+_OCCURRED = int(EmcyStatus.OCCURRED)
+_REPEATED = int(EmcyStatus.REPEATED)
 _TIME_MAX = (1 << 48) - 1
 
 
@@ -149,7 +154,11 @@ class Emcy:
         return f"<Emcy {self}>"
 
 
-def _int(value: Any, name: str, low: int, high: int, where: str) -> int:
+#: What the producer's fields accept (checked one by one, with a message each).
+FieldValue = Union[int, bool, bytes]
+
+
+def _int(value: object, name: str, low: int, high: int, where: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
         raise ConfigurationError(f"{where}: {name} must be an int {low}..{high:#x}, "
                                  f"got {value!r}")
@@ -166,32 +175,38 @@ class EmcyProducer:
     (heartbeat or life guarding lost 0x8130, bus-off 0x8140, error passive
     0x8120, RPDO length 0x8210/0x8220, ...)."""
 
-    def __init__(self, node: "LocalNode") -> None:
+    def __init__(self, context: LineContext, node: LocalNodeView, served: ServedDictionary,
+                 where: str) -> None:
+        self._context = context
         self.node = node
+        self._served = served
+        self._where = where
 
     def __repr__(self) -> str:
         return f"<EmcyProducer of {self.node!r}>"
 
-    def _what(self, verb: str, code: Any) -> str:
+    def _what(self, verb: str, code: object) -> str:
         code_text = f"0x{code:04X}" if isinstance(code, int) and not isinstance(code, bool) \
             else repr(code)
-        return f"{verb} EMCY {code_text} on {self.node._where}"
+        return f"{verb} EMCY {code_text} on {self._where}"
 
-    def _fields(self, code: Any, data: Any, register_bits: Any, logical_device: Any,
-                spec_number: Any, priority: Any, non_recoverable: Any, time_stamp: Any,
-                where: str) -> dict:
-        _int(code, "code", 1, 0xFFFF, where)
+    def _fields(self, code: object, data: object, register_bits: object,
+                logical_device: object, spec_number: object, priority: object,
+                non_recoverable: object, time_stamp: object,
+                where: str) -> Dict[str, FieldValue]:
+        checked_code = _int(code, "code", 1, 0xFFFF, where)
         if not isinstance(data, (bytes, bytearray, memoryview)) or len(data) > 5:
             raise ConfigurationError(f"{where}: data (manufacturer-specific error field) must "
                                      f"be bytes of length 0..5, got {data!r}")
-        fields = {"code": code, "msef": bytes(data),
+        fields: Dict[str, FieldValue] = {
+                  "code": checked_code, "msef": bytes(data),
                   "register_bits": _int(register_bits, "register_bits", 0, 0xFF, where),
                   "logical_device": _int(logical_device, "logical_device", 0, 0xFF, where),
                   "spec_number": _int(spec_number, "spec_number", 0, 0xFFFF, where),
                   "priority": _int(priority, "priority", 0, 7, where),
                   "non_recoverable": int(bool(non_recoverable)),
                   "time_stamp": _int(time_stamp, "time_stamp", 0, _TIME_MAX, where)}
-        if self.node.line.mode != "fd":
+        if self._context.mode != "fd":
             fd_only = [name for name in ("logical_device", "spec_number", "priority",
                                          "non_recoverable", "time_stamp") if fields[name]]
             if fd_only:
@@ -214,7 +229,7 @@ class EmcyProducer:
         where = self._what("raise", code)
         fields = self._fields(code, data, register_bits, logical_device, spec_number, priority,
                               non_recoverable, time_stamp, where)
-        return self.node.line._rt.emcy(self.node.line.index, fields, False, where) == 0
+        return self._context.runtime.emcy(self._context.index, fields, False, where) == 0
 
     def clear(self, code: int, data: bytes = b"", *, logical_device: int = 0,
               time_stamp: int = 0) -> bool:
@@ -223,13 +238,13 @@ class EmcyProducer:
         clear. Returns False (nothing sent) when it was not active."""
         where = self._what("clear", code)
         fields = self._fields(code, data, 0, logical_device, 0, 0, False, time_stamp, where)
-        return self.node.line._rt.emcy(self.node.line.index, fields, True, where) == 0
+        return self._context.runtime.emcy(self._context.index, fields, True, where) == 0
 
-    def _state(self) -> dict:
-        where = f"EMCY state of {self.node._where}"
+    def _state(self) -> Dict[str, int]:
+        where = f"EMCY state of {self._where}"
         if not self.node.booted:
             raise ConfigurationError(f"{where}: the node is not booted yet")
-        return self.node.line._rt.emcy_state(self.node.line.index, where)
+        return self._context.runtime.emcy_state(self._context.index, where)
 
     @property
     def error_register(self) -> int:
@@ -253,8 +268,8 @@ class EmcyProducer:
         a network write of 0 to 0x1003:00 clears it."""
         if self.node.od is None or 0x1003 not in self.node.od:
             return []
-        count = self.node[(0x1003, 0)].raw
-        return [self.node[(0x1003, sub)].raw for sub in range(1, count + 1)]
+        count = self._served.variable_value(0x1003, 0).raw
+        return [self._served.variable_value(0x1003, sub).raw for sub in range(1, count + 1)]
 
     @property
     def dropped(self) -> int:
@@ -266,15 +281,17 @@ class EmcyConsumer:
     """The EMCYs of one remote node (`remote_node.emcy`): the line consumes
     them from the first use of `remote_node.emcy` on (CAN-ID 0x80 + node-id)."""
 
-    def __init__(self, node: "RemoteNode") -> None:
+    def __init__(self, context: LineContext, node: NodeView, where: str,
+                 line_emcy: "LineEmcy") -> None:
+        self._context = context
         self.node = node
+        self._where = where
         self._callbacks = CallbackList(f"node {node.node_id} EMCY")
         #: The recent EMCYs, oldest first (at most LOG_SIZE).
         self.log: Deque[Emcy] = collections.deque(maxlen=LOG_SIZE)
         self._active: Dict[Tuple[int, int], Emcy] = {}
         self._seq = 0
-        node.line._rt.emcy_watch(node.line.index, node.node_id, True,
-                                 f"EMCY consumer of {node._where}")
+        line_emcy.add_consumer(node.node_id, self._event)
 
     def __repr__(self) -> str:
         return f"<EmcyConsumer of {self.node!r}>"
@@ -291,26 +308,25 @@ class EmcyConsumer:
         """Codes active as the EMCYs seen say (oldest first): a code joins
         when it occurs and leaves with its fd removal; a classic reset
         (0x0000) clears them all (the EMCY does not say which went away)."""
-        with self.node.line._cond:
+        with self._context.cond:
             return [key[0] for key in self._active]
 
     @property
     def active_emcys(self) -> List[Emcy]:
         """The last EMCY of each active error."""
-        with self.node.line._cond:
+        with self._context.cond:
             return list(self._active.values())
 
     def reset(self) -> None:
         """Forget the log and the active errors (python-canopen)."""
-        with self.node.line._cond:
+        with self._context.cond:
             self.log.clear()
             self._active.clear()
 
     def wait(self, code: Optional[int] = None, timeout: Optional[float] = 10.0) -> Emcy:
         """Block until an EMCY (of `code`, when given) arrives after this call;
         returns it. TimeoutError when none came in time."""
-        line = self.node.line
-        with line._cond:
+        with self._context.cond:
             start = self._seq
         found: List[Emcy] = []
 
@@ -323,8 +339,8 @@ class EmcyConsumer:
             return False
 
         what = "an EMCY" if code is None else f"EMCY 0x{code:04X}"
-        line._waiter.wait(arrived, timeout, f"{self.node._where}: wait for {what}",
-                          lambda: f"no {what}")
+        self._context.waiter.wait(arrived, timeout, f"{self._where}: wait for {what}",
+                                  lambda: f"no {what}")
         return found[0]
 
     def _event(self, emcy: Emcy) -> Callable[[], None]:
@@ -341,3 +357,64 @@ class EmcyConsumer:
             self._active[key] = emcy
         return lambda: self._callbacks.fire(emcy)
 
+
+class LineEmcy:
+    """The EMCYs a line consumes (events EMCY): `line.on_emcy` callbacks and
+    the remote nodes' consumers. The runtime hears a node's EMCYs while its
+    consumer is in use or `on_emcy(nodes=...)` asked for them (or the local
+    node's 0x1028 lists it)."""
+
+    def __init__(self, context: LineContext) -> None:
+        self._context = context
+        self._callbacks = CallbackList(f"{context.where} EMCY")
+        self._nodes: Set[int] = set()        # consumed for on_emcy(nodes=...)
+        self._consumers: Dict[int, Callable[[Emcy], Callable[[], None]]] = {}
+        self._consuming: Set[int] = set()    # nodes whose consumer is in use
+        context.subscribe(EventKind.EMCY, self._event)
+
+    def add_callback(self, callback: Callable[[Emcy], None],
+                     nodes: Optional[Iterable[int]] = None) -> Callable[[Emcy], None]:
+        """line.on_emcy: callback(Emcy) for every EMCY consumed; start
+        consuming those of `nodes`."""
+        context = self._context
+        for node_id in (nodes or ()):
+            node_id = check_node_id(node_id, f"on_emcy on {context.where}")
+            context.runtime.emcy_watch(context.index, node_id, True,
+                                       f"EMCY of node {node_id} on {context.where}")
+            self._nodes.add(node_id)
+        return self._callbacks.add(callback)
+
+    def add_consumer(self, node_id: int, record: Callable[[Emcy], Callable[[], None]]) -> None:
+        """A remote node's consumer: gets its node's EMCYs once `consume` ran."""
+        with self._context.cond:
+            self._consumers[node_id] = record
+
+    def consume(self, node_id: int, what: str) -> None:
+        """The node's consumer is used: the runtime hears its EMCYs from now on."""
+        context = self._context
+        with context.cond:
+            if node_id not in self._consuming:
+                context.runtime.emcy_watch(context.index, node_id, True, what)
+                self._consuming.add(node_id)
+
+    def release(self, node_id: int, what: str) -> None:
+        """The node is removed: stop hearing it unless on_emcy(nodes=) asked for it."""
+        context = self._context
+        with context.cond:
+            if node_id in self._consuming and node_id not in self._nodes:
+                context.runtime.emcy_watch(context.index, node_id, False, what)
+            self._consuming.discard(node_id)
+            self._consumers.pop(node_id, None)
+
+    def _event(self, event: Event) -> Deferred:
+        """CO_EV_EMCY: node = producer, a = 1 FD / 0 classic, data = the EMCY."""
+        emcy = Emcy.decode(event.node, event.data, bool(event.a))
+        if emcy is None:
+            log.warning("%s: malformed EMCY of node %d ignored: %s", self._context.where,
+                        event.node, event.data.hex(" "))
+            return None
+        calls = [lambda: self._callbacks.fire(emcy)]
+        record = self._consumers.get(event.node) if event.node in self._consuming else None
+        if record is not None:
+            calls.insert(0, record(emcy))
+        return chain(calls)

@@ -12,25 +12,29 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Tuple, Union
 
-from ._runtime import lib
-from .errors import AbortError, ConfigurationError
-from .od import ODVariable
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .node import LocalNode
+from .._binding.constants import AbortCode, EventKind, Indicate
+from .._binding.context import Deferred, LineContext
+from .._binding.runtime import Event
+from ..errors import AbortError, ConfigurationError
+from ..od import ODVariable
+from ..od.datatypes import Value
+from .served_od import Key, ServedDictionary
+from .views import LocalNodeView
 
 log = logging.getLogger(__name__)
 
 #: CiA 301 "general error": what a callback that raised anything but AbortError answers.
-GENERAL_ERROR = 0x08000000
+GENERAL_ERROR = int(AbortCode.GENERAL)
 
-READ = lib.CO_RT_INDICATE_READ
-WRITE = lib.CO_RT_INDICATE_WRITE
+READ = int(Indicate.READ)
+WRITE = int(Indicate.WRITE)
 _KIND_NAMES = {READ: "read", WRITE: "write"}
 
-Callback = Callable[["ODRequest"], Any]
+#: What a callback returns: None (accept), an abort code, or the deferred request.
+Answer = Union[None, int, "ODRequest"]
+Callback = Callable[["ODRequest"], Answer]
 
 
 class ODRequest:
@@ -45,9 +49,11 @@ class ODRequest:
     run in registration order and the first refusal wins (test, then execute).
     """
 
-    def __init__(self, node: "LocalNode", variable: Any, kind: int, token: int,
-                 callbacks: List[Callback]) -> None:
-        self.node = node
+    def __init__(self, context: LineContext, served: ServedDictionary, variable: ODVariable,
+                 kind: int, token: int, callbacks: List[Callback]) -> None:
+        self._context = context
+        self._served = served
+        self.node = served.node
         #: The ODVariable accessed.
         self.variable = variable
         #: 'read' or 'write'.
@@ -77,15 +83,15 @@ class ODRequest:
         """A write: the bytes the network wants to write. A read: the entry's
         current bytes (what will be sent unless a callback changes the value)."""
         if self.kind == "read":
-            return self.node[(self.index, self.subindex)].data
+            return self._served.variable_value(self.index, self.subindex).data
         if self._data is None:
-            line = self.node.line
-            self._data = line._rt.od_request_value(line.index, self._token,
-                                                   f"value of {self!r}")
+            context = self._context
+            self._data = context.runtime.od_request_value(context.index, self._token,
+                                                          f"value of {self!r}")
         return self._data
 
     @property
-    def value(self) -> Any:
+    def value(self) -> Value:
         """`data` decoded by the entry's type (what `.raw` would give)."""
         return self.variable.decode_raw(self.data)
 
@@ -103,7 +109,7 @@ class ODRequest:
             self._deferred = False
         self._run()
 
-    def refuse(self, code: Any = GENERAL_ERROR) -> None:
+    def refuse(self, code: Union[int, AbortError] = GENERAL_ERROR) -> None:
         """Refuse the access with a CiA 301 abort code (an int or an AbortError)."""
         if isinstance(code, AbortError):
             code = code.code
@@ -152,29 +158,36 @@ class ODRequest:
             if self._answered:
                 raise ConfigurationError(f"{self!r} was answered already")
             self._answered = True
-        line = self.node.line
-        line._rt.od_answer(line.index, self._token, code, f"answer to {self!r}")
+        context = self._context
+        context.runtime.od_answer(context.index, self._token, code, f"answer to {self!r}")
 
 
 class Indications:
     """The before-read / check-write callbacks of one local node."""
 
-    def __init__(self, node: "LocalNode") -> None:
+    def __init__(self, context: LineContext, node: LocalNodeView, served: ServedDictionary,
+                 where: str, persist: Callable[[int], Callable[[], None]]) -> None:
+        self._context = context
         self._node = node
+        self._served = served
+        self._where = where
+        # the answer to a network save / restore into an application store
+        self._persist = persist
         self._lock = threading.Lock()
         # (first key, last key) -> kinds registered in the runtime
         self._ranges: Dict[Tuple[int, int], int] = {}
         # (index, sub or None for the whole object, kind) -> callbacks
         self._callbacks: Dict[Tuple[int, Optional[int], int], List[Callback]] = {}
+        context.subscribe(EventKind.OD_REQUEST, self._event)
 
-    def add(self, key: Any, kind: int, callback: Optional[Callback]) -> Any:
+    def add(self, key: Key, kind: int, callback: Optional[Callback]
+            ) -> Union[Callback, Callable[[Callback], Callback]]:
         if callback is None:   # used as a decorator
-            return lambda function: self.add(key, kind, function)
-        node = self._node
+            return lambda function: self.add(key, kind, function)  # type: ignore[return-value]
         if not callable(callback):
-            raise ConfigurationError(f"{node._where}: {_KIND_NAMES[kind]} callback must be "
+            raise ConfigurationError(f"{self._where}: {_KIND_NAMES[kind]} callback must be "
                                      f"callable, got {callback!r}")
-        entry = node._entry(key)
+        entry = self._served.entry(key)
         index = entry.index
         sub = entry.subindex if isinstance(entry, ODVariable) else None
         first = index << 8 | (sub if sub is not None else 0)
@@ -183,7 +196,7 @@ class Indications:
             self._callbacks.setdefault((index, sub, kind), []).append(callback)
             known = self._ranges.get((first, last), 0)
             self._ranges[(first, last)] = known | kind
-        if not known & kind and node.booted:
+        if not known & kind and self._node.booted:
             self._register(first, last, kind)
         return callback
 
@@ -202,23 +215,26 @@ class Indications:
             self._register(first, last, kinds)
 
     def _register(self, first: int, last: int, kinds: int) -> None:
-        node = self._node
-        node.line._rt.od_indicate(node.line.index, first, last, kinds,
-                                  f"indication 0x{first >> 8:04X} on {node._where}")
+        context = self._context
+        context.runtime.od_indicate(context.index, first, last, kinds,
+                                    f"indication 0x{first >> 8:04X} on {self._where}")
 
-    def event(self, key: int, token: int) -> Optional[Callable[[], None]]:
-        """CO_EV_OD_REQUEST: the access to answer (dispatcher thread)."""
-        node = self._node
+    def _event(self, event: Event) -> Deferred:
+        """CO_EV_OD_REQUEST: the access to answer (a = index << 8 | sub, b = token)."""
+        key, token = event.a, event.b
         index, sub, kind = key >> 8, key & 0xFF, token >> 24
-        if kind == lib.CO_RT_INDICATE_STORE:
-            return node._event_persist(token)
-        variable = node.od.get_variable(index, sub) if node.od is not None else None
+        if kind == Indicate.STORE:
+            return self._persist(token)
+        od = self._node.od
+        variable = od.get_variable(index, sub) if od is not None else None
         with self._lock:
             callbacks = (list(self._callbacks.get((index, sub, kind), [])) +
                          list(self._callbacks.get((index, None, kind), [])))
         if variable is None:
-            log.error("%s: request for unknown entry 0x%04X:%02X refused", node._where, index,
+            log.error("%s: request for unknown entry 0x%04X:%02X refused", self._where, index,
                       sub)
-            line = node.line
-            return lambda: line._rt.od_answer(line.index, token, GENERAL_ERROR, "refuse")
-        return ODRequest(node, variable, kind, token, callbacks)._run
+            context = self._context
+            return lambda: context.runtime.od_answer(context.index, token, GENERAL_ERROR,
+                                                     "refuse")
+        # accept() starts the callback chain (as a deferred request goes on)
+        return ODRequest(self._context, self._served, variable, kind, token, callbacks).accept

@@ -60,15 +60,21 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 import time
-from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple, Union
+from typing import Callable, Dict, Iterator, List, NamedTuple, Optional, Protocol, Tuple, Union
 
-from ._callbacks import CallbackList
-from .errors import AbortError, ConfigurationError
-from .od import ODArray, ODRecord, ODVariable, ObjectDictionary
-from .od.datatypes import DataType, decode
+from .._binding.constants import EventKind
+from .._binding.context import Deferred, LineContext
+from .._binding.runtime import Event
+from .._callbacks import CallbackList
+from ..errors import AbortError, ConfigurationError
+from ..frame import Frame
+from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
+from ..od.datatypes import DataType, Value, decode
+from .served_od import LocalValue, ServedDictionary
+from .views import LocalNodeView, NodeView
 
-__all__ = ["PdoMaps", "PdoMap", "PdoVariable", "PDO_NOT_VALID", "RTR_NOT_ALLOWED",
-           "FRAME_29BIT", "DUMMY_BITS"]
+__all__ = ["PdoMaps", "PdoMap", "PdoVariable", "PdoAccess", "LocalPdoAccess",
+           "RemotePdoAccess", "PDO_NOT_VALID", "RTR_NOT_ALLOWED", "FRAME_29BIT", "DUMMY_BITS"]
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +85,11 @@ FRAME_29BIT = 1 << 29
 
 #: Dummy mapping entries (RPDOs only): data type index -> length in bits.
 DUMMY_BITS = {0x0002: 8, 0x0003: 16, 0x0004: 32, 0x0005: 8, 0x0006: 16, 0x0007: 32}
+
+#: How add_variable names an entry: index, name, (index, sub) or 'INDEX:SUB'...
+EntryKey = Union[int, str, Tuple[int, int]]
+#: ... and the sub-index (number or name) when index is an object.
+SubKey = Union[int, str, None]
 
 _MAX_ENTRIES = 64
 _BITS = {"classic": 64, "fd": 512}
@@ -94,62 +105,90 @@ _ABSENT = (0x06090011, 0x06020000)
 
 
 # ------------------------------------------------------------------ node access
-def pdo_maps(node: Any, kind: str) -> "PdoMaps":
-    """The PdoMaps of a node (`node.tpdo` / `node.rpdo`): made once per node
-    and object dictionary, so settings made on `node.tpdo[1]` stay there."""
-    od = _node_od(node)
-    if od is None:
-        how = "line.add_node(N, od=...)" if _is_remote(node) else "create_local_node(N, od=...)"
-        raise ConfigurationError(f"{_node_where(node)}: no object dictionary, so no PDO "
-                                 f"objects are known ({how})")
-    cache: Dict[str, PdoMaps] = node.__dict__.setdefault("_pdo_maps", {})
-    maps = cache.get(kind)
-    if maps is None or maps.od is not od:
-        maps = cache[kind] = PdoMaps(node, kind)
-    return maps
+class PdoAccess(Protocol):
+    """How one node's PDO objects are read and written."""
 
+    #: A remote node (through USDO / SDO), else the local node (its own OD).
+    remote: bool
 
-def _is_remote(node: Any) -> bool:
-    from .node import RemoteNode
-    return isinstance(node, RemoteNode)
-
-
-def _node_od(node: Any) -> Optional[ObjectDictionary]:
-    return node.object_dictionary if _is_remote(node) else node.od
-
-
-def _node_where(node: Any) -> str:
-    return f"{'node' if _is_remote(node) else 'local node'} {node.node_id}"
-
-
-class _Access:
-    """How one node's PDO objects are read and written: the transfer API
-    (USDO on fd lines, SDO on classic lines) for remote nodes, the served OD
-    for the local node."""
-
-    def __init__(self, node: Any) -> None:
-        self.node = node
-        self.remote = _is_remote(node)
-
-    def _client(self) -> Any:
-        return self.node.usdo if self.node.line.mode == "fd" else self.node.sdo
-
-    def _local_value(self, index: int, sub: int) -> Any:
-        if not self.node.booted:
-            raise ConfigurationError(f"{_node_where(self.node)} is not booted yet: its PDO "
-                                     "objects cannot be read or written")
-        return self.node[(index, sub)]
+    @property
+    def booted(self) -> bool:
+        """The node can be read and written (a remote node: always, as far as we know)."""
+        ...
 
     def read(self, index: int, sub: int) -> bytes:
-        if self.remote:
-            return self._client().upload((index, sub))
-        return self._local_value(index, sub).data
+        ...
 
     def write(self, index: int, sub: int, data: bytes) -> None:
-        if self.remote:
-            self._client().download((index, sub), data)
-        else:
-            self._local_value(index, sub).data = data
+        ...
+
+
+class RemoteTransfers(Protocol):
+    """A remote node's USDO / SDO access (`remote.usdo`, `remote.sdo`)."""
+
+    def upload(self, key: Tuple[int, int]) -> bytes:
+        ...
+
+    def download(self, key: Tuple[int, int], data: bytes) -> None:
+        ...
+
+
+class RemotePdoAccess:
+    """A remote node's PDO objects, through its transfer API (USDO on fd
+    lines, SDO on classic lines)."""
+
+    remote = True
+    booted = True
+
+    def __init__(self, transfers: RemoteTransfers) -> None:
+        self._transfers = transfers
+
+    def read(self, index: int, sub: int) -> bytes:
+        return self._transfers.upload((index, sub))
+
+    def write(self, index: int, sub: int, data: bytes) -> None:
+        self._transfers.download((index, sub), data)
+
+
+class LocalPdoAccess:
+    """The local node's PDO objects, in the OD it serves (once booted)."""
+
+    remote = False
+
+    def __init__(self, node: LocalNodeView, served: ServedDictionary) -> None:
+        self._node = node
+        self._served = served
+
+    @property
+    def booted(self) -> bool:
+        return self._node.booted
+
+    def _value(self, index: int, sub: int) -> LocalValue:
+        if not self._node.booted:
+            raise ConfigurationError(f"{_where_of(self._node, False)} is not booted yet: its "
+                                     "PDO objects cannot be read or written")
+        return self._served.variable_value(index, sub)
+
+    def read(self, index: int, sub: int) -> bytes:
+        return self._value(index, sub).data
+
+    def write(self, index: int, sub: int, data: bytes) -> None:
+        self._value(index, sub).data = data
+
+
+def _where_of(node: NodeView, remote: bool) -> str:
+    return f"{'node' if remote else 'local node'} {node.node_id}"
+
+
+class _Wiring(NamedTuple):
+    """What the PdoMaps of a node hand each of its PdoMaps."""
+
+    context: LineContext
+    access: PdoAccess
+    # local RPDOs: PDO number -> the map's reception handler
+    receivers: Dict[int, Callable[[bytes], Deferred]]
+    # each map's "stop hearing your CAN-ID" (the node is removed)
+    stops: List[Callable[[str], None]]
 
 
 def _add_context(exc: AbortError, pdo: str, step: str) -> None:
@@ -167,22 +206,25 @@ class PdoMaps(Mapping):
     mapping object (`node.tpdo[0x1A00]`). Only the PDOs the node's OD has
     (a communication object with sub 1) are there."""
 
-    def __init__(self, node: Any, kind: str) -> None:
+    def __init__(self, context: LineContext, node: NodeView, kind: str, od: ObjectDictionary,
+                 access: PdoAccess) -> None:
         if kind not in _COMM:
             raise ConfigurationError(f"PDO kind must be 'tpdo' or 'rpdo', got {kind!r}")
         self.node = node
         self.kind = kind
-        self.od = _node_od(node)
-        self._access = _Access(node)
+        self.od = od
+        self._where = _where_of(node, access.remote)
+        self._wiring = _Wiring(context, access, {}, [])
         #: {number: PdoMap} (python-canopen's name)
         self.maps: Dict[int, PdoMap] = {}
-        if self.od is not None:
-            for number in range(1, 513):
-                if self.od.get_variable(_COMM[kind] + number - 1, 1) is not None:
-                    self.maps[number] = PdoMap(self, number)
+        for number in range(1, 513):
+            if od.get_variable(_COMM[kind] + number - 1, 1) is not None:
+                self.maps[number] = PdoMap(self, number, self._wiring)
+        if kind == "rpdo" and not access.remote:
+            context.subscribe(EventKind.PDO, self._event_received)
 
     def __repr__(self) -> str:
-        return f"<PdoMaps {self.kind.upper()} {list(self.maps)} of {_node_where(self.node)}>"
+        return f"<PdoMaps {self.kind.upper()} {list(self.maps)} of {self._where}>"
 
     @property
     def map(self) -> "PdoMaps":
@@ -197,7 +239,7 @@ class PdoMaps(Mapping):
             return key - mapping + 1
         return key
 
-    def __getitem__(self, key: Any) -> Any:
+    def __getitem__(self, key: Union[int, str]) -> Union["PdoMap", "PdoVariable"]:
         """The PdoMap of a number or index; for a name, the first mapped
         PdoVariable of that name in any of these PDOs (python-canopen)."""
         if isinstance(key, int) and not isinstance(key, bool):
@@ -205,14 +247,14 @@ class PdoMaps(Mapping):
             if number in self.maps:
                 return self.maps[number]
             have = ", ".join(str(n) for n in self.maps) or "none"
-            raise KeyError(f"{_node_where(self.node)} has no {self.kind.upper()} {key} in its "
+            raise KeyError(f"{self._where} has no {self.kind.upper()} {key} in its "
                            f"object dictionary (it has: {have})")
         if isinstance(key, str):
             for pdo_map in self.maps.values():
                 for var in pdo_map.map:
                     if key in (var.name, getattr(var.od, "name", None)):
                         return var
-        raise KeyError(f"{_node_where(self.node)}: no {self.kind.upper()} {key!r}")
+        raise KeyError(f"{self._where}: no {self.kind.upper()} {key!r}")
 
     def __iter__(self) -> Iterator[int]:
         return iter(self.maps)
@@ -230,6 +272,17 @@ class PdoMaps(Mapping):
         for pdo_map in self.maps.values():
             if pdo_map.cob_id is not None:
                 pdo_map.save()
+
+    def stop_watching(self, what: str) -> None:
+        """Stop hearing this node's PDOs on their CAN-IDs (the line calls it
+        when the node is removed)."""
+        for stop in self._wiring.stops:
+            stop(what)
+
+    def _event_received(self, event: Event) -> Deferred:
+        """CO_EV_PDO (the local node's RPDOs): a = the PDO number, data = its values."""
+        receive = self._wiring.receivers.get(event.a)
+        return receive(event.data) if receive is not None else None
 
 
 # ------------------------------------------------------------------ one PDO
@@ -287,7 +340,7 @@ class PdoVariable:
         return value.to_bytes(size, "little")
 
     @property
-    def raw(self) -> Any:
+    def raw(self) -> Value:
         """The typed value in the PDO's `data` (bytes when the type is unknown)."""
         data = self.get_data()
         if self.od is None:
@@ -305,8 +358,11 @@ class PdoMap:
     mapped PdoVariables. None = not known (not read, not set): not written.
     """
 
-    def __init__(self, maps: PdoMaps, number: int) -> None:
+    def __init__(self, maps: PdoMaps, number: int, wiring: _Wiring) -> None:
         self.pdo_node = maps
+        self._context = wiring.context
+        self._access = wiring.access
+        self._remote = wiring.access.remote
         self.number = number
         self.is_rpdo = maps.kind == "rpdo"
         self.com_index = _COMM[maps.kind] + number - 1
@@ -349,16 +405,18 @@ class PdoMap:
         self._waits = 0
         #: Frames heard on a remote PDO's CAN-ID too short for its mapping (ignored).
         self.short_frames = 0
+        wiring.receivers[number] = self._event_received
+        wiring.stops.append(self._stop_watch)
 
     # ------------------------------------------------------------ identity
     @property
-    def node(self) -> Any:
+    def node(self) -> NodeView:
         return self.pdo_node.node
 
     @property
     def where(self) -> str:
         """'node 5 TPDO1' — the place named in messages."""
-        return f"{_node_where(self.node)} {self.label}"
+        return f"{_where_of(self.node, self._remote)} {self.label}"
 
     @property
     def name(self) -> str:
@@ -367,7 +425,7 @@ class PdoMap:
 
     @property
     def mode(self) -> str:
-        return self.node.line.mode
+        return self._context.mode
 
     @property
     def max_bits(self) -> int:
@@ -421,7 +479,7 @@ class PdoMap:
                        f"{', '.join(v.name for v in self.map) or 'nothing'})")
 
     # ------------------------------------------------------------ parameters
-    def _field(self, field: str, value: Any, low: int, high: int, expected: str) -> int:
+    def _field(self, field: str, value: object, low: int, high: int, expected: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
             raise ConfigurationError(f"{self.where}: {field} must be {expected}, got {value!r}")
         return value
@@ -447,7 +505,7 @@ class PdoMap:
         why = "RPDOs" if self.is_rpdo else "fd lines"
         return f"0, 1..240, 254 or 255 (252/253 are for TPDOs on classic lines, not {why})"
 
-    def _check_trans_type(self, value: Any) -> int:
+    def _check_trans_type(self, value: object) -> int:
         allowed = isinstance(value, int) and not isinstance(value, bool) and (
             0 <= value <= 240 or value in (254, 255) or
             (value in (252, 253) and not self.is_rpdo and self.mode == "classic"))
@@ -507,19 +565,20 @@ class PdoMap:
         if not self.is_rpdo:
             raise ConfigurationError(f"{where}: this is a TPDO of the local node; the "
                                      "runtime sends it (receptions are RPDOs)")
-        if not self.node.booted:
+        if not self._access.booted:
             raise ConfigurationError(f"{where}: the node is not booted yet")
 
     def _listen(self, what: str) -> CallbackList:
-        if _is_remote(self.node):
+        if self._remote:
             return self._watch(what)
         self._local_rpdo(what)
-        line = self.node.line
-        with line._cond:
+        context = self._context
+        with context.cond:
             if self._callbacks is None:
                 if not self.map and not self._read_values:
                     self.read()          # the mapping the OD has now, to decode
-                line._rt.pdo_listen(line.index, self.number, True, f"{self.where}: {what}")
+                context.runtime.pdo_listen(context.index, self.number, True,
+                                           f"{self.where}: {what}")
                 self._callbacks = CallbackList(f"{self.where} reception")
             return self._callbacks
 
@@ -530,8 +589,7 @@ class PdoMap:
     def _watch(self, what: str) -> CallbackList:
         """Start hearing this remote PDO's CAN-ID (the COB-ID read or set;
         else the OD's, with its mapping when none was made here)."""
-        line = self.node.line
-        with line._cond:
+        with self._context.cond:
             if self._callbacks is None:
                 self._callbacks = CallbackList(f"{self.where} reception")
             if self._watched is None:
@@ -547,7 +605,7 @@ class PdoMap:
                     raise ConfigurationError(f"{self.where}: {what}: COB-ID 0x{self._cob_id:X} "
                                              "is not an 11-bit CAN-ID (extended=False)")
                 key = self._frame_key()
-                line._pdo_watch(self, key, f"{self.where}: {what}")
+                self._context.pdo_watches.watch(key, self._event_frame, f"{self.where}: {what}")
                 self._watched = key
             return self._callbacks
 
@@ -557,22 +615,21 @@ class PdoMap:
             return
         key = self._frame_key()
         if key != self._watched and (self.extended or self._cob_id <= 0x7FF):
-            line = self.node.line
-            with line._cond:
-                line._pdo_watch(self, key, f"{self.where}: {what}")
-                line._pdo_unwatch(self, self._watched, f"{self.where}: {what}")
+            watches = self._context.pdo_watches
+            with self._context.cond:
+                watches.watch(key, self._event_frame, f"{self.where}: {what}")
+                watches.unwatch(self._watched, self._event_frame, f"{self.where}: {what}")
                 self._watched = key
 
     def _stop_watch(self, what: str) -> None:
         """Stop hearing the CAN-ID (no callback and no wait left, node removed)."""
         if self._watched is not None:
-            line = self.node.line
-            with line._cond:
-                line._pdo_unwatch(self, self._watched, what)
+            with self._context.cond:
+                self._context.pdo_watches.unwatch(self._watched, self._event_frame, what)
                 self._watched = None
 
     def _release(self, what: str) -> None:
-        if _is_remote(self.node) and not self._callbacks and self._waits == 0:
+        if self._remote and not self._callbacks and self._waits == 0:
             self._stop_watch(f"{self.where}: {what}")
 
     def add_callback(self, callback: Callable[["PdoMap"], None]) -> Callable[["PdoMap"], None]:
@@ -595,16 +652,16 @@ class PdoMap:
     def wait_for_reception(self, timeout: Optional[float] = 10.0) -> float:
         """Block until the PDO is received after this call; returns the
         reception time (time.time()). TimeoutError when none came in time."""
-        line = self.node.line
-        with line._cond:
+        context = self._context
+        with context.cond:
             self._listen("wait_for_reception")
             self._waits += 1
             start = self._received
         try:
-            line._waiter.wait(lambda: self._received > start, timeout,
-                              f"{self.where}: wait_for_reception", lambda: "no reception")
+            context.waiter.wait(lambda: self._received > start, timeout,
+                                f"{self.where}: wait_for_reception", lambda: "no reception")
         finally:
-            with line._cond:
+            with context.cond:
                 self._waits -= 1
                 self._release("wait_for_reception")
         return self.timestamp  # type: ignore[return-value]
@@ -616,7 +673,7 @@ class PdoMap:
         self.timestamp = now
         self._received += 1
 
-    def _event_received(self, data: bytes) -> Optional[Callable[[], None]]:
+    def _event_received(self, data: bytes) -> Deferred:
         """A reception (dispatcher thread, under the line's condition)."""
         if len(data) != (self.length + 7) // 8:
             try:                # the mapping changed (over the network): read it again
@@ -628,7 +685,7 @@ class PdoMap:
         callbacks = self._callbacks
         return (lambda: callbacks.fire(self)) if callbacks else None
 
-    def _event_frame(self, frame: Any) -> Optional[Callable[[], None]]:
+    def _event_frame(self, frame: Frame) -> Deferred:
         """A frame on a watched remote PDO's CAN-ID (dispatcher thread, under
         the line's condition): `data` = its first ceil(length / 8) bytes (all
         of them while nothing is mapped)."""
@@ -647,15 +704,15 @@ class PdoMap:
         """Send this TPDO of the local node now (an application event: types
         0, 254 and 255 take it, in OPERATIONAL); the values come from the
         OD (`node[...].raw = ...` first). The error names why when it cannot."""
-        if _is_remote(self.node):
+        if self._remote:
             raise ConfigurationError(f"{self.where}: transmit() sends the local node's TPDOs; "
                                      "a remote node sends its own")
         if self.is_rpdo:
             raise ConfigurationError(f"{self.where}: transmit() is for TPDOs")
-        if not self.node.booted:
+        if not self._access.booted:
             raise ConfigurationError(f"{self.where}: the node is not booted yet")
-        line = self.node.line
-        line._rt.pdo_trigger(line.index, self.number, f"{self.where}: transmit()")
+        context = self._context
+        context.runtime.pdo_trigger(context.index, self.number, f"{self.where}: transmit()")
 
     # ------------------------------------------------------------ mapping
     def clear(self) -> None:
@@ -665,7 +722,8 @@ class PdoMap:
         self.data = bytearray()
         self._map_changed = True
 
-    def _resolve(self, index: Any, subindex: Any) -> Tuple[int, int, Optional[ODVariable]]:
+    def _resolve(self, index: EntryKey, subindex: SubKey
+                 ) -> Tuple[int, int, Optional[ODVariable]]:
         if isinstance(index, tuple) and len(index) == 2:
             index, subindex = index
         if isinstance(index, int) and not isinstance(index, bool) and index in DUMMY_BITS \
@@ -688,9 +746,9 @@ class PdoMap:
             return index, subindex, None
         raise ConfigurationError(f"{self.where}: {index!r}"
                                  f"{'' if subindex == 0 else f' sub {subindex!r}'} is not in "
-                                 f"the object dictionary of {_node_where(self.node)}")
+                                 f"the object dictionary of {_where_of(self.node, self._remote)}")
 
-    def add_variable(self, index: Any, subindex: Any = 0,
+    def add_variable(self, index: EntryKey, subindex: SubKey = 0,
                      length: Optional[int] = None) -> PdoVariable:
         """Map the next entry: by index and sub-index (ints), a name
         ("Statusword", "Demo record.Setpoint"), (index, sub) or 'INDEX:SUB'.
@@ -826,7 +884,7 @@ class PdoMap:
         size = self._size(index, sub, size)
         step = f"{step} (0x{index:04X}:{sub:02X})"
         try:
-            data = self.pdo_node._access.read(index, sub)
+            data = self._access.read(index, sub)
         except AbortError as exc:
             if optional and exc.code in _ABSENT:
                 return None
@@ -929,7 +987,7 @@ class PdoMap:
         refusal raises the abort exception naming this PDO and the step, and
         the procedure stops there (the PDO stays invalid)."""
         plan = self._plan()
-        access = self.pdo_node._access
+        access = self._access
         for step, index, sub, value, size in plan:
             try:
                 access.write(index, sub, value.to_bytes(size, "little"))

@@ -1,24 +1,23 @@
 """Thin, thread-safe wrapper around one `co_rt_t` of the cffi binding.
 
-It is the only module that calls `canopenfd._core` directly: it turns negative
-status codes into exceptions carrying `co_rt_last_error`'s text, and it makes
-every call after `free()` raise ClosedError instead of touching freed memory.
+It turns negative status codes into exceptions carrying `co_rt_last_error`'s
+text, and it makes every call after `free()` raise ClosedError instead of
+touching freed memory.
 """
 
 from __future__ import annotations
 
 import threading
-from typing import Optional
+from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple, Type, Union
 
-from .errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
-from .frame import Frame
-
-try:
-    from ._core import ffi, lib
-except ImportError as exc:  # pragma: no cover - only without a build
-    raise ImportError(
-        "canopenfd._core (the compiled C stack) is missing: install the package with "
-        "'pip install .' (or 'pip install -e .') so build_ext.py compiles it") from exc
+from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
+from ..frame import Frame
+from ..od import ObjectDictionary
+from ..od.datatypes import Value
+from .constants import EventKind
+from .core import CData, ffi, lib
+from .od_tables import definitions
+from .transfers import TransferRequest
 
 _ERRORS = {
     lib.CO_RT_ERR_ARGUMENT: ConfigurationError,
@@ -36,11 +35,24 @@ EVENT_BATCH = 64
 HOST_BATCH = 32
 
 
+class Event(NamedTuple):
+    """One runtime event (co_rt_event_t) in Python values."""
+
+    kind: int                 # EventKind
+    line: int
+    node: int
+    a: int
+    b: int
+    time_us: int              # CLOCK_MONOTONIC
+    frame: Optional[Frame]    # FRAME (monitor lines), PDO_FRAME
+    data: bytes               # EMCY: the encoded EMCY; PDO: the RPDO's mapped values
+
+
 def status_text(status: int) -> str:
     return ffi.string(lib.co_rt_status_text(status)).decode("utf-8", "replace")
 
 
-def frame_to_c(frame: Frame, out) -> None:
+def frame_to_c(frame: Frame, out: CData) -> None:
     """Fill a co_frame_t (cdata) from a Frame."""
     out.id = frame.id
     out.len = len(frame.data) if not frame.rtr else frame.rtr_len
@@ -48,7 +60,7 @@ def frame_to_c(frame: Frame, out) -> None:
     ffi.memmove(out.data, frame.data, len(frame.data))
 
 
-def frame_from_c(cframe, timestamp: float = 0.0, tx: bool = False) -> Frame:
+def frame_from_c(cframe: CData, timestamp: float = 0.0, tx: bool = False) -> Frame:
     """A Frame from a co_frame_t (cdata)."""
     flags = cframe.flags
     length = min(cframe.len, 64)
@@ -67,6 +79,7 @@ class Runtime:
         # until they left (stop() has woken them).
         self._idle = threading.Condition(self._lock)
         self._waiters = 0
+        self._events = ffi.new("co_rt_event_t[]", EVENT_BATCH)
         self._rt = ffi.NULL
         self._stopped = False
         rt = lib.co_rt_new(event_capacity)
@@ -105,10 +118,14 @@ class Runtime:
                 lib.co_rt_free(self._rt)
                 self._rt = ffi.NULL
 
-    def _live(self, what: str):
+    def _live(self, what: str) -> CData:
         if self._stopped or self._rt == ffi.NULL:
             raise ClosedError(f"{what}: the network is closed")
         return self._rt
+
+    def require_open(self, what: str) -> None:
+        """ClosedError ("what: the network is closed") once stopped."""
+        self._live(what)
 
     # ------------------------------------------------------------ errors
     def last_error(self) -> str:
@@ -118,7 +135,8 @@ class Runtime:
         lib.co_rt_last_error(self._rt, buf, 512)
         return ffi.string(buf).decode("utf-8", "replace")
 
-    def _raise(self, status: int, what: str, overrides: Optional[dict] = None) -> None:
+    def _raise(self, status: int, what: str,
+               overrides: Optional[Dict[int, Type[CanopenFDError]]] = None) -> None:
         text = self.last_error() or status_text(status)
         kind = (overrides or {}).get(status) or _ERRORS.get(status, CanopenFDError)
         raise kind(f"{what}: {text}")
@@ -158,15 +176,19 @@ class Runtime:
                 self._raise(rc, what)
 
     # ------------------------------------------------------------ object dictionary
-    def od_define(self, line: int, defs, count: int, store_path: Optional[str],
+    def od_define(self, line: int, od: ObjectDictionary, node_id: int,
+                  overrides: Dict[Tuple[int, int], Value], store_path: Optional[str],
                   what: str) -> None:
+        """Define the local node's OD (co_od_def_t table from od, `overrides`
+        replacing start values) before the node is created."""
+        defs, count, _keep = definitions(od, node_id, overrides)
         path = ffi.new("char[]", store_path.encode("utf-8")) if store_path else ffi.NULL
         with self._lock:
             rc = lib.co_rt_od_define(self._live(what), line, defs, count, path)
             if rc < 0:
                 self._raise(rc, what)
 
-    def od_read(self, line: int, index: int, sub: int, what: str) -> "tuple[int, bytes]":
+    def od_read(self, line: int, index: int, sub: int, what: str) -> Tuple[int, bytes]:
         """(abort code or 0, value bytes); grows the buffer when it is too small."""
         size = 64
         length = ffi.new("uint32_t *")
@@ -260,9 +282,10 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
-    def transfer_start(self, line: int, request, what: str) -> int:
+    def transfer_start(self, line: int, request: TransferRequest, what: str) -> int:
+        c_request = request.to_c()
         with self._lock:
-            rc = lib.co_rt_transfer_start(self._live(what), line, request)
+            rc = lib.co_rt_transfer_start(self._live(what), line, c_request)
             if rc < 0:
                 self._raise(rc, what)
         return rc
@@ -273,7 +296,7 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
-    def transfer_result(self, line: int, handle: int, what: str) -> dict:
+    def transfer_result(self, line: int, handle: int, what: str) -> Dict[str, int]:
         out = ffi.new("co_rt_transfer_result_t *")
         with self._lock:
             rc = lib.co_rt_transfer_result(self._live(what), line, handle, out)
@@ -308,7 +331,7 @@ class Runtime:
                 self._raise(rc, what)
         return bytes(ffi.buffer(buf, rc))
 
-    def usdo_answers(self, line: int, handle: int, what: str) -> list:
+    def usdo_answers(self, line: int, handle: int, what: str) -> List[Tuple[int, int, bytes]]:
         """[(node, abort, data bytes)] of a USDO broadcast."""
         out = ffi.new("co_rt_usdo_answer_t[]", 127)
         with self._lock:
@@ -338,7 +361,8 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
-    def _counters(self, fetch, ctype: str, line: int, what: str) -> dict:
+    def _counters(self, fetch: Callable[[CData, int, CData], int], ctype: str, line: int,
+                  what: str) -> Dict[str, int]:
         """{counter: value} of a flat stats struct filled by fetch(rt, line, out)."""
         out = ffi.new(ctype + " *")
         with self._lock:
@@ -347,20 +371,20 @@ class Runtime:
                 self._raise(rc, what)
         return {name: getattr(out, name) for name, _ in ffi.typeof(ctype).fields}
 
-    def line_stats(self, line: int, what: str) -> dict:
+    def line_stats(self, line: int, what: str) -> Dict[str, int]:
         return self._counters(lib.co_rt_line_stats, "co_line_stats_t", line, what)
 
-    def driver_stats(self, line: int, what: str) -> dict:
+    def driver_stats(self, line: int, what: str) -> Dict[str, int]:
         return self._counters(lib.co_rt_driver_stats, "co_rt_driver_stats_t", line, what)
 
-    def service_stats(self, line: int, what: str) -> dict:
+    def service_stats(self, line: int, what: str) -> Dict[str, Union[int, Dict[str, int]]]:
         """{service: {counter: value}} of co_rt_service_stats_t."""
         out = ffi.new("co_rt_service_stats_t *")
         with self._lock:
             rc = lib.co_rt_service_stats(self._live(what), line, out)
             if rc < 0:
                 self._raise(rc, what)
-        result = {}
+        result: Dict[str, Union[int, Dict[str, int]]] = {}
         for name, field in ffi.typeof("co_rt_service_stats_t").fields:
             value = getattr(out, name)
             if field.type.kind == "struct":
@@ -386,9 +410,9 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
-    def remote_states(self, line: int, what: str) -> dict:
+    def remote_states(self, line: int, what: str) -> Dict[int, int]:
         """{node_id: state code} of every node 1..127 the line has heard of."""
-        result = {}
+        result: Dict[int, int] = {}
         unknown = lib.CO_NMT_UNKNOWN
         with self._lock:
             rt = self._live(what)
@@ -401,7 +425,7 @@ class Runtime:
         return result
 
     # ------------------------------------------------------------ process data and errors
-    def _call(self, what: str, fn, *args) -> int:
+    def _call(self, what: str, fn: Callable[..., int], *args: object) -> int:
         """Call lib.fn(rt, *args) under the lock; a negative status raises."""
         with self._lock:
             rc = fn(self._live(what), *args)
@@ -409,7 +433,8 @@ class Runtime:
                 self._raise(rc, what)
         return rc
 
-    def emcy(self, line: int, fields: dict, clear: bool, what: str) -> int:
+    def emcy(self, line: int, fields: Mapping[str, Union[int, bool, bytes]], clear: bool,
+             what: str) -> int:
         """Raise (or clear) an error of the local node's EMCY producer:
         0 = sent or queued, 1 = already active, 2 = clear of an error not active."""
         error = ffi.new("co_rt_emcy_t *")
@@ -420,7 +445,7 @@ class Runtime:
                 setattr(error, name, value)
         return self._call(what, lib.co_rt_emcy, line, error, int(clear))
 
-    def emcy_state(self, line: int, what: str) -> dict:
+    def emcy_state(self, line: int, what: str) -> Dict[str, int]:
         out = ffi.new("co_rt_emcy_state_t *")
         self._call(what, lib.co_rt_emcy_state, line, out)
         return {name: getattr(out, name)
@@ -457,7 +482,7 @@ class Runtime:
               what: str) -> None:
         self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)
 
-    def host_receive(self, line: int, cframe) -> int:
+    def host_receive(self, line: int, cframe: CData) -> int:
         """Hand a frame to a host-driver line; returns the status (no raise:
         the caller is a bridge thread that decides what to do)."""
         with self._lock:
@@ -467,20 +492,41 @@ class Runtime:
 
     # The two blocking waits run without the lock (they may block for a while);
     # Network.close() joins their threads before free(), so _rt stays valid.
-    def wait_events(self, events, max_events: int, timeout_ms: int) -> int:
+    def read_events(self, timeout_ms: int) -> Optional[List[Event]]:
+        """The events posted since the last call (up to EVENT_BATCH), waiting up
+        to timeout_ms for one; None once the runtime stopped. One thread only
+        (the dispatcher): the buffer is reused."""
         rt = self._rt
         if rt == ffi.NULL:
-            return lib.CO_RT_ERR_CLOSED
-        return lib.co_rt_wait_events(rt, events, max_events, timeout_ms)
+            return None
+        n = lib.co_rt_wait_events(rt, self._events, EVENT_BATCH, timeout_ms)
+        if n < 0:
+            return None   # CO_RT_ERR_CLOSED
+        return [_event(self._events[i]) for i in range(n)]
 
-    def host_transmit(self, line: int, frames, max_frames: int, timeout_ms: int) -> int:
+    def host_transmit(self, line: int, frames: CData, max_frames: int, timeout_ms: int) -> int:
         rt = self._rt
         if rt == ffi.NULL:
             return lib.CO_RT_ERR_CLOSED
         return lib.co_rt_host_transmit(rt, line, frames, max_frames, timeout_ms)
 
 
-def decode_emcy(data: bytes, fd: bool) -> Optional[dict]:
+def _event(ev: CData) -> Event:
+    """An Event from a co_rt_event_t (cdata)."""
+    kind = ev.kind
+    frame = None
+    data = b""
+    if kind == EventKind.FRAME:
+        frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6, tx=bool(ev.a))
+    elif kind == EventKind.PDO_FRAME:
+        frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
+    elif kind in (EventKind.EMCY, EventKind.PDO):
+        # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
+        data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
+    return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data)
+
+
+def decode_emcy(data: bytes, fd: bool) -> Optional[Dict[str, Union[int, bytes]]]:
     """Every field of an EMCY (co_emcy_msg_t) as a dict, None when malformed."""
     out = ffi.new("co_emcy_msg_t *")
     decode = lib.co_emcy_decode_fd if fd else lib.co_emcy_decode_classic

@@ -7,16 +7,18 @@
     await remote.sdo.aupload("Identity object.Vendor-ID")
 
 Expedited, segmented and block transfers (CRC, sub-block repetition) run in
-the C core; see canopenfd.transfer for waiting, streams and progress.
+the C core; see transfer.client for waiting, streams and progress.
 """
 
 from __future__ import annotations
 
-from typing import Any, Dict, Optional
+from typing import Optional
 
-from .errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
-from .od import ODVariable
-from .transfer import TransferClient
+from .._binding.constants import AbortCode
+from .._binding.context import LineContext
+from .._binding.transfers import TransferRequest
+from ..errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
+from .client import TransferClient
 
 __all__ = ["SdoAbortError", "SdoClient"]
 
@@ -39,10 +41,10 @@ class SdoClient(TransferClient):
 
     PROTOCOL = "SDO"
     MODES = ("auto", "expedited", "segmented", "block")
-    GENERAL_ERROR = 0x08000000
+    GENERAL_ERROR = int(AbortCode.GENERAL)
 
-    def __init__(self, line: Any) -> None:
-        super().__init__(line)
+    def __init__(self, context: LineContext) -> None:
+        super().__init__(context)
         #: AUTO picks block transfer from this size on (None: never).
         self.block_threshold: Optional[int] = DEFAULT_BLOCK_THRESHOLD
 
@@ -51,7 +53,7 @@ class SdoClient(TransferClient):
         return SdoAbortError(code, node, index, sub, from_server, what)
 
     def _request(self, node: int, index: int, sub: int, upload: bool, timeout: float,
-                 what: str) -> Any:
+                 what: str) -> TransferRequest:
         request = super()._request(node, index, sub, upload, timeout, what)
         threshold = self.block_threshold
         if threshold is not None and (isinstance(threshold, bool) or

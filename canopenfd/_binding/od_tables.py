@@ -7,11 +7,11 @@ as wire bytes, so the C side never interprets Python objects.
 
 from __future__ import annotations
 
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
-from ._core import ffi, lib
-from .od import DataType, ObjectDictionary, ODVariable
-from .od.datatypes import encode
+from ..od import DataType, ObjectDictionary, ODVariable
+from ..od.datatypes import Value, encode
+from .core import CData, ffi, lib
 
 _ACCESS = {
     "ro": lib.CO_ACCESS_RO, "wo": lib.CO_ACCESS_WO, "rw": lib.CO_ACCESS_RW,
@@ -55,12 +55,13 @@ def _size(var: ODVariable, start: bytes) -> int:
 
 
 def definitions(od: ObjectDictionary, node_id: int,
-                overrides: Optional[Dict[Tuple[int, int], Any]] = None) -> Tuple[Any, int, List[Any]]:
+                overrides: Optional[Dict[Tuple[int, int], Value]] = None
+                ) -> Tuple[CData, int, List[CData]]:
     """(co_od_def_t array, count, keep-alive list) for `od` on node `node_id`.
     `overrides` maps (index, sub) to a start value replacing the default."""
     entries = list(od.entries())
     defs = ffi.new("co_od_def_t[]", max(len(entries), 1))
-    keep: List[Any] = [defs]
+    keep: List[CData] = [defs]
     for i, var in enumerate(entries):
         d = defs[i]
         start, relative = _start_value(var, node_id)

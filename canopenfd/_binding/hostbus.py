@@ -12,11 +12,27 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Optional, Protocol
 
-from ._runtime import HOST_BATCH, Runtime, ffi, lib
+from .core import ffi, lib
+from .runtime import HOST_BATCH, Runtime
+
+if TYPE_CHECKING:  # pragma: no cover
+    import can
 
 log = logging.getLogger("canopenfd")
+
+
+
+class PythonCanBus(Protocol):
+    """What the bridge uses of a python-can `can.BusABC`."""
+
+    def recv(self, timeout: Optional[float] = None) -> Optional[can.Message]:
+        ...
+
+    def send(self, msg: can.Message, timeout: Optional[float] = None) -> None:
+        ...
+
 
 _RECV_TIMEOUT_S = 0.1
 _TRANSMIT_TIMEOUT_MS = 100
@@ -25,7 +41,7 @@ _TRANSMIT_TIMEOUT_MS = 100
 class HostBridge:
     """The two frame-moving threads of one host-driver line."""
 
-    def __init__(self, runtime: Runtime, line: int, bus: Any, label: str) -> None:
+    def __init__(self, runtime: Runtime, line: int, bus: PythonCanBus, label: str) -> None:
         self._rt = runtime
         self._line = line
         self._bus = bus

@@ -1,0 +1,25 @@
+"""Argument checks shared by lines, nodes and services."""
+
+from __future__ import annotations
+
+from .errors import ConfigurationError
+
+__all__ = ["check_node_id", "check_ms"]
+
+
+def check_node_id(node_id: object, where: str) -> int:
+    """A node-id 1..127 or ConfigurationError naming the value and the place."""
+    if isinstance(node_id, bool) or not isinstance(node_id, int):
+        raise ConfigurationError(f"{where}: node-id must be an int 1..127, got {node_id!r}")
+    if not 1 <= node_id <= 127:
+        raise ConfigurationError(f"{where}: node-id {node_id} outside 1..127")
+    return node_id
+
+
+def check_ms(value: object, name: str, where: str) -> int:
+    """A time in ms 0..65535 (16-bit CANopen object) or ConfigurationError."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigurationError(f"{where}: {name} must be an int 0..65535 ms, got {value!r}")
+    if not 0 <= value <= 0xFFFF:
+        raise ConfigurationError(f"{where}: {name} {value} ms outside 0..65535")
+    return value

@@ -1,0 +1,221 @@
+"""The object dictionary a local node serves, as Python reaches it.
+
+    node["Producer heartbeat time"].raw = 100     # LocalValue: typed, checked
+    node[0x1018][1].raw                           # LocalObject of an ARRAY / RECORD
+    node.serve_domain(0x2100, 16 << 20)           # a DOMAIN kept in the stack's memory
+    node.on_object_changed(print)                 # after network and PDO writes
+
+The C runtime holds the values; reads and writes go through it, atomically
+with respect to its thread. The OD is defined in C once, at boot.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Callable, Dict, Optional, Tuple, Union
+
+from .._binding.constants import EventKind, OdOrigin
+from .._binding.context import Deferred, LineContext
+from .._binding.runtime import Event
+from .._callbacks import CallbackList
+from ..errors import AbortError, ConfigurationError
+from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary, export_dcf, export_eds
+from ..od.datatypes import DataType, Value
+from ..od.fileio import Source
+from .views import LocalNodeView
+
+__all__ = ["ServedDictionary", "LocalValue", "LocalObject", "Key", "ODEntry"]
+
+#: An entry by index, "index:sub", (index, sub), name or "Object.Sub".
+Key = Union[int, str, Tuple[int, int]]
+ODEntry = Union[ODVariable, ODRecord, ODArray]
+
+#: The writers on_object_changed names (the runtime reports no others).
+_ORIGIN_NAMES = {int(OdOrigin.NETWORK): "network", int(OdOrigin.PDO): "pdo"}
+
+
+class ServedDictionary:
+    """A local node's served OD: typed values, memory domains and change
+    callbacks (events OD_CHANGED)."""
+
+    def __init__(self, context: LineContext, node: LocalNodeView, where: str) -> None:
+        self._context = context
+        #: The node serving it (`node.od` is the dictionary).
+        self.node = node
+        #: "local node 1 on line 'vcan0'", for messages.
+        self.where = where
+        self._domains: Dict[Tuple[int, int], int] = {}
+        self._changed = CallbackList(f"node {node.node_id} object changed")
+        context.subscribe(EventKind.OD_CHANGED, self._event_changed)
+
+    # ------------------------------------------------------------ entries and values
+    def entry(self, key: Key) -> ODEntry:
+        """The OD entry of a key; ConfigurationError without an OD, KeyError when absent."""
+        od = self.node.od
+        if od is None:
+            raise ConfigurationError(f"{self.where} serves no object dictionary "
+                                     "(create it with od=...)")
+        return od[key]
+
+    def value(self, key: Key) -> Union["LocalValue", "LocalObject"]:
+        entry = self.entry(key)
+        if isinstance(entry, ODVariable):
+            return LocalValue(self, entry)
+        return LocalObject(self, entry)
+
+    def variable_value(self, index: int, sub: int) -> "LocalValue":
+        """The LocalValue of entry index:sub."""
+        entry = self.entry((index, sub))
+        if not isinstance(entry, ODVariable):
+            raise ConfigurationError(f"{self.where}: 0x{index:04X}:{sub:02X} is not a value")
+        return LocalValue(self, entry)
+
+    def read(self, index: int, sub: int, what: str) -> Tuple[int, bytes]:
+        """(abort code or 0, the entry's bytes)."""
+        context = self._context
+        return context.runtime.od_read(context.index, index, sub, f"{what} on {context.where}")
+
+    def write(self, index: int, sub: int, data: bytes, what: str) -> int:
+        """0, or the abort code the node refused the value with."""
+        context = self._context
+        return context.runtime.od_write(context.index, index, sub, data,
+                                        f"{what} on {context.where}")
+
+    @property
+    def has_1017(self) -> bool:
+        od = self.node.od
+        return od is not None and isinstance(od.get_variable(0x1017, 0), ODVariable)
+
+    # ------------------------------------------------------------ boot
+    def define(self, overrides: Dict[Tuple[int, int], Value], store_path: Optional[str]) -> None:
+        """Define the OD in the runtime (before the node is created): `overrides`
+        replace start values, `store_path` is the parameter file (or None)."""
+        od = self._od()
+        context = self._context
+        context.runtime.od_define(context.index, od, self.node.node_id, overrides, store_path,
+                                  f"object dictionary of {self.where}")
+
+    def serve_domain(self, key: Key, capacity: int) -> None:
+        entry = self.entry(key)
+        what = f"serve_domain({key!r}) on {self.where}"
+        if not isinstance(entry, ODVariable) or entry.data_type != DataType.DOMAIN:
+            raise ConfigurationError(f"{what}: {entry!r} is not a DOMAIN entry")
+        if isinstance(capacity, bool) or not isinstance(capacity, int) or \
+                not 0 < capacity < 1 << 32:
+            raise ConfigurationError(f"{what}: capacity must be 1..2^32-1 bytes, got "
+                                     f"{capacity!r}")
+        where = (entry.index, entry.subindex)
+        if where in self._domains:
+            raise ConfigurationError(f"{what}: the domain already has memory")
+        self._domains[where] = capacity
+        if self.node.booted:
+            self._give_domain(entry.index, entry.subindex, capacity)
+
+    def give_domains(self) -> None:
+        """At boot, once the OD is defined: the memory of every domain served so far."""
+        for (index, sub), capacity in self._domains.items():
+            self._give_domain(index, sub, capacity)
+
+    def _give_domain(self, index: int, sub: int, capacity: int) -> None:
+        context = self._context
+        context.runtime.od_domain(context.index, index, sub, capacity,
+                                  f"memory domain 0x{index:04X}:{sub:02X} of {self.where}")
+
+    # ------------------------------------------------------------ exports
+    def _od(self) -> ObjectDictionary:
+        od = self.node.od
+        if od is None:
+            raise ConfigurationError(f"{self.where} serves no object dictionary")
+        return od
+
+    def export_eds(self, dest: Optional[Source] = None) -> Optional[str]:
+        return export_eds(self._od(), dest)
+
+    def export_dcf(self, dest: Optional[Source] = None) -> Optional[str]:
+        snapshot = copy.deepcopy(self._od())
+        snapshot.node_id = self.node.node_id
+        for variable in snapshot.entries():
+            if variable.data_type == DataType.DOMAIN or not self.node.booted:
+                continue
+            variable.value = self.variable_value(variable.index, variable.subindex).raw
+        return export_dcf(snapshot, dest)
+
+    # ------------------------------------------------------------ changes
+    def on_changed(self, callback: Callable[["LocalValue", str], None]
+                   ) -> Callable[["LocalValue", str], None]:
+        return self._changed.add(callback)
+
+    def _event_changed(self, event: Event) -> Deferred:
+        """CO_EV_OD_CHANGED: a = index << 8 | sub, b = co_od_origin_t."""
+        od = self.node.od
+        var = od.get_variable(event.a >> 8, event.a & 0xFF) if od is not None else None
+        if var is None:
+            return None
+        value = LocalValue(self, var)
+        name = _ORIGIN_NAMES.get(event.b, str(event.b))
+        return lambda: self._changed.fire(value, name)
+
+
+class LocalObject:
+    """An ARRAY or RECORD of a local node's OD: index it by sub-index or name."""
+
+    def __init__(self, served: ServedDictionary, obj: Union[ODRecord, ODArray]) -> None:
+        self._served = served
+        self.node = served.node
+        self.object = obj
+
+    def __repr__(self) -> str:
+        return f"<LocalObject 0x{self.object.index:04X} {self.object.name!r} of {self.node!r}>"
+
+    def __getitem__(self, sub: Union[int, str]) -> "LocalValue":
+        return LocalValue(self._served, self.object[sub])
+
+    @property
+    def raw(self) -> Value:
+        raise ConfigurationError(
+            f"{self._served.where}: 0x{self.object.index:04X} {self.object.name!r} is an "
+            f"{type(self.object).__name__[2:].upper()}; give a sub-index, e.g. "
+            f"node[0x{self.object.index:04X}][1].raw")
+
+
+class LocalValue:
+    """One entry of a local node's object dictionary: `.raw` is the typed value
+    (checked against type, length and limits), `.data` the wire bytes.
+
+    Reads and writes are atomic with respect to the stack's thread. A refused
+    write raises AbortError with the CiA abort code, or OdValueError when the
+    value cannot even be encoded; either way nothing changes."""
+
+    def __init__(self, served: ServedDictionary, variable: ODVariable) -> None:
+        self._served = served
+        self.node = served.node
+        self.variable = variable
+
+    def __repr__(self) -> str:
+        return f"<LocalValue {self.variable.where} {self.variable.qualname!r} of {self.node!r}>"
+
+    def _what(self, verb: str) -> str:
+        return f"{verb} {self.variable.where} {self.variable.qualname!r}"
+
+    @property
+    def data(self) -> bytes:
+        var = self.variable
+        code, data = self._served.read(var.index, var.subindex, self._what("read"))
+        if code:
+            raise AbortError(code, self.node.node_id, var.index, var.subindex, self._what("read"))
+        return data
+
+    @data.setter
+    def data(self, data: bytes) -> None:
+        var = self.variable
+        code = self._served.write(var.index, var.subindex, bytes(data), self._what("write"))
+        if code:
+            raise AbortError(code, self.node.node_id, var.index, var.subindex, self._what("write"))
+
+    @property
+    def raw(self) -> Value:
+        return self.variable.decode_raw(self.data)
+
+    @raw.setter
+    def raw(self, value: Value) -> None:
+        self.data = self.variable.encode_raw(value)
