@@ -279,7 +279,8 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
  * thread is woken by the runtime thread directly, not through the event
  * queue, so a blocking request costs one wake-up less. */
 int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
-/* ---- process data and errors (co_rt_services.c) ---- */
+/* ---- process data and errors (co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c,
+ * co_rt_guard.c, co_rt_stats.c) ---- */
 
 /* An error the application raises or clears on its local node's EMCY
  * producer (FD lines send every field, classic lines code, register, msef). */

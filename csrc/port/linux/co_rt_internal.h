@@ -1,6 +1,17 @@
-/* Linux runtime internals shared by its source files (co_runtime.c: thread,
- * lines, drivers, commands; co_rt_od.c: the local node's object dictionary
- * and its Python indications). Not part of the Python API. */
+/* Runtime internals shared by its source files, one file per concern:
+ *   co_runtime.c     life cycle (new, start, stop, free), error text, clock
+ *   co_rt_loop.c     the thread: turns, waiting, wake-ups, kicks, transfer-end waits
+ *   co_rt_mailbox.c  commands in (a bounded ring with its own lock)
+ *   co_rt_events.c   events out (a bounded ring, the "events lost" marker)
+ *   co_rt_lines.c    adding a line: queues, the stack, its driver
+ *   co_rt_membus.c, co_rt_socketcan.c, co_rt_host.c   one file per driver
+ *   co_rt_commands.c checking and applying mailbox commands
+ *   co_rt_node.c     the local node: creation, its OD hooks, NMT/heartbeat view
+ *   co_rt_od.c, co_rt_store.c, co_rt_client.c        OD access, app store, clients
+ *   co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c, co_rt_guard.c
+ *                    one service's runtime glue each (its state: rt_<service>_t)
+ *   co_rt_stats.c    counter snapshots
+ * Not part of the Python API. */
 #ifndef CO_RT_INTERNAL_H
 #define CO_RT_INTERNAL_H
 
@@ -122,6 +133,22 @@ typedef struct rt_domain {
     uint32_t capacity;
 } rt_domain_t;
 
+/* PDO glue (co_rt_pdo.c). Per line: PDOs of other nodes that Python hears
+ * (CO_EV_PDO_FRAME): CAN-ID, with bit 29 for a 29-bit one; watch_of maps an
+ * 11-bit id to its slot + 1. Per local node: the RPDOs Python listens to. */
+typedef struct rt_pdo {
+    uint32_t watch_ids[RT_PDO_WATCHES];
+    uint32_t watch_frames[RT_PDO_WATCHES];   /* frames seen per watch */
+    uint8_t watch_count;
+    uint8_t watch_of[CO_LINE_ID_MAP_SIZE];
+    bool listen[CO_PDO_MAX_NUMBER];          /* by RPDO number - 1 */
+} rt_pdo_t;
+
+/* SYNC glue (co_rt_sync.c). */
+typedef struct rt_sync {
+    bool events;                             /* Python hears every SYNC */
+} rt_sync_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -153,16 +180,9 @@ typedef struct rt_line {
     rt_app_store_t app_store;        /* application store (instead of a file) */
     co_store_file_t *store_file;
     struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
-    /* Process data and errors (co_rt_services.c). Per line: */
-    bool sync_events;                /* Python hears every SYNC */
-    /* PDOs of other nodes that Python hears (CO_EV_PDO_FRAME): CAN-ID, with
-     * bit 29 for a 29-bit one; watch_of maps an 11-bit id to its slot + 1. */
-    uint32_t watch_ids[RT_PDO_WATCHES];
-    uint32_t watch_frames[RT_PDO_WATCHES];   /* frames seen per watch */
-    uint8_t watch_count;
-    uint8_t watch_of[CO_LINE_ID_MAP_SIZE];
-    /* ... and per local node: */
-    bool pdo_listen[CO_PDO_MAX_NUMBER];   /* RPDOs Python listens to, by number - 1 */
+    /* Runtime state of the services' glue (EMCY, TIME and guarding keep none). */
+    rt_pdo_t pdo;
+    rt_sync_t sync;
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
@@ -218,31 +238,122 @@ struct co_rt {
     char error[RT_ERROR_SIZE];
 };
 
-/* Shared helpers (co_runtime.c). */
+/* ---------------------------------------------------------------- co_runtime.c */
 __attribute__((format(printf, 2, 3)))
 void rt_set_error(co_rt_t *rt, const char *fmt, ...);
 /* Sets the error text and returns CO_RT_ERR_ARGUMENT. */
 __attribute__((format(printf, 2, 3)))
 int rt_argument_error(co_rt_t *rt, const char *fmt, ...);
-/* The line, or NULL with the error set (host_only: host-driver lines only). */
-rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only);
+/* Memory of the stack's parts: from the heap, at set-up only. */
+extern const co_stack_allocator_t rt_heap;
+/* Waiting on a condition variable with a monotonic deadline. */
+void rt_cond_init_monotonic(pthread_cond_t *cond);
+struct timespec rt_deadline_after_ms(int timeout_ms);
+/* One wait step: false once the timeout (< 0: none) has passed. */
+bool rt_wait_step(pthread_cond_t *cond, pthread_mutex_t *lock, int timeout_ms,
+                  const struct timespec *deadline);
+
+/* ---------------------------------------------------------------- co_rt_loop.c */
+/* Open / close what the thread sleeps on (at co_rt_new / destroy). */
+bool rt_loop_open(co_rt_t *rt);
+void rt_loop_close(co_rt_t *rt);
+/* The runtime thread's body. */
+void *rt_loop_main(void *arg);
 /* Wake the thread (a deadline or the tx queue changed). */
 void rt_wake(co_rt_t *rt);
 /* Under rt->lock, from an application thread that just queued frames or
  * armed timers (a transfer started or cancelled): hand the frames to the
- * sockets and move the timerfd earlier at once, instead of waking the
+ * sockets and move the timer earlier at once, instead of waking the
  * runtime thread for it; wakes it only for lines only it can flush
  * (in-process buses, host lines). */
 void rt_kick(co_rt_t *rt);
+/* rt_kick, then release rt->lock; returns status (the API calls' tail). */
+int rt_kick_unlock(co_rt_t *rt, int status);
 /* Under rt->lock: a client transfer ended (wakes co_rt_transfer_wait). */
 void rt_transfer_ended(co_rt_t *rt);
 /* Block until done_gen differs from gen or timeout_ms passed (< 0: no
  * limit); false on timeout or when the runtime stopped. */
 bool rt_wait_transfer_end(co_rt_t *rt, uint64_t gen, int timeout_ms);
 uint64_t rt_transfer_generation(co_rt_t *rt);
+/* Wake whoever waits for a transfer's end with CLOSED. */
+void rt_transfer_waits_close(co_rt_t *rt);
+/* Monitor lines: post the frames queued in rx not yet shown (any driver). */
+void rt_post_new_rx(rt_line_t *l);
+
+/* Process one line; returns when it needs to run again. Inline: the loop
+ * runs it for every line in every round. */
+static inline uint64_t rt_line_step(rt_line_t *l, uint64_t now)
+{
+    if (l->monitor) {
+        rt_post_new_rx(l);
+    }
+    uint64_t next = co_line_process(&l->line, now);
+    l->rx_seen = co_line_rx_count(&l->line);
+    return l->rx_seen == 0 ? next : now;
+}
+
+static inline uint64_t rt_min_u64(uint64_t a, uint64_t b) { return a < b ? a : b; }
+
+/* ---------------------------------------------------------------- co_rt_mailbox.c */
+/* Queue a validated command: CO_RT_OK, CO_RT_ERR_FULL or CO_RT_ERR_CLOSED. */
+int rt_mailbox_post(rt_mailbox_t *m, const co_rt_command_t *command);
+/* Take up to max commands in order; returns how many. */
+uint32_t rt_mailbox_take(rt_mailbox_t *m, co_rt_command_t *out, uint32_t max);
+void rt_mailbox_close(rt_mailbox_t *m);
+
+/* ---------------------------------------------------------------- co_rt_events.c */
+bool rt_events_open(rt_events_t *q, uint32_t capacity);
+void rt_events_free(rt_events_t *q);
 /* Post an event of line l; false when the queue was full (dropped, counted). */
 bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
              const co_frame_t *frame);
+/* Wake every waiter with CLOSED; how many still wait. */
+void rt_events_close(rt_events_t *q);
+uint32_t rt_events_waiters(rt_events_t *q);
+
+/* ---------------------------------------------------------------- co_rt_lines.c */
+/* The line, or NULL with the error set (host_only: host-driver lines only). */
+rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only);
+void rt_line_free(rt_line_t *l);
+
+/* ---------------------------------------------------------------- drivers */
+/* co_rt_membus.c: under rt->lock, join (or create) the line's named bus. */
+int rt_membus_join(co_rt_t *rt, rt_line_t *l);
+/* Move the frames of every bus; returns how many moved. */
+uint32_t rt_membus_transfer(co_rt_t *rt);
+void rt_membus_free_all(co_rt_t *rt);
+/* co_rt_socketcan.c */
+void rt_socket_init(rt_line_t *l);
+int rt_socket_open(co_rt_t *rt, rt_line_t *l);
+/* Under rt->lock: add the open socket to what the thread waits on. */
+int rt_socket_register(co_rt_t *rt, rt_line_t *l);
+void rt_socket_close(rt_line_t *l);
+/* Re-open lost interfaces that are due. */
+void rt_socket_reopen_due(co_rt_t *rt, uint64_t now);
+/* The socket is readable / writable / failed (epoll events). */
+void rt_socket_ready(co_rt_t *rt, rt_line_t *l, uint32_t events);
+/* Send what the line queued; returns when to try again. */
+uint64_t rt_socket_flush(co_rt_t *rt, rt_line_t *l, uint64_t now);
+/* co_rt_host.c */
+bool rt_host_init(rt_line_t *l, uint32_t capacity);
+void rt_host_free(rt_line_t *l);
+/* Hand the line's tx frames to co_rt_host_transmit's queue. */
+void rt_host_flush(rt_line_t *l);
+void rt_host_close(rt_line_t *l);
+uint32_t rt_host_waiters(rt_line_t *l);
+
+/* ---------------------------------------------------------------- co_rt_commands.c */
+/* In the thread: carry out a mailbox command (a failure is posted). */
+void rt_command_apply(co_rt_t *rt, const co_rt_command_t *cmd, uint64_t now);
+
+/* ---------------------------------------------------------------- co_rt_node.c */
+/* Under rt->lock: create and boot the line's local node (a = node-id,
+ * b = heartbeat ms); on failure the line is left as it was. */
+int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd);
+/* From co_rt_command: rt_node_create under the lock, errors at once. */
+int rt_node_create_now(co_rt_t *rt, const co_rt_command_t *cmd);
+/* The line, locked, with a local node (or NULL with the error set, unlocked). */
+rt_line_t *rt_node_line(co_rt_t *rt, int line, const char *what);
 
 static inline bool rt_has_store(const rt_line_t *l)
 {
@@ -254,10 +365,7 @@ static inline bool rt_has_node(const rt_line_t *l)
     return co_stack_has_node(&l->stack);
 }
 
-/* Memory of the stack's parts (co_runtime.c): from the heap, at set-up only. */
-extern const co_stack_allocator_t rt_heap;
-
-/* co_rt_od.c */
+/* ---------------------------------------------------------------- co_rt_od.c */
 void rt_od_release(rt_line_t *l);
 /* Park a network access until the application answers (CO_EV_OD_REQUEST
  * with this kind): CO_OD_SPLIT, or an abort code when it cannot wait. */
@@ -267,19 +375,7 @@ uint32_t rt_od_park(rt_line_t *l, co_od_xfer_t *xfer, uint32_t key, const uint8_
 void rt_od_drop_requests(rt_line_t *l);
 void rt_od_free_domains(rt_line_t *l);
 
-/* co_rt_services.c: process data and errors. */
-/* Before the stack: hear watched PDO frames before any service takes them. */
-bool rt_services_line_watch(rt_line_t *l);
-/* The stack's line indications that post to Python. */
-extern const co_stack_indications_t rt_services_indications;
-/* After the stack: Python hears SYNC through a listener. */
-bool rt_services_line_init(rt_line_t *l);
-/* A node that could not be created: forget what Python listened to. */
-void rt_services_node_detach(rt_line_t *l);
-/* RPDO n was applied: posted to Python when it listens to it. */
-void rt_services_pdo_received(rt_line_t *l, uint16_t number);
-
-/* co_rt_store.c: the application store. */
+/* ---------------------------------------------------------------- co_rt_store.c */
 /* Stage buffers sized for the sealed OD (node attach); the image capacity
  * the store needs is put in *capacity. */
 int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity);
@@ -291,7 +387,26 @@ bool rt_app_store_hook(rt_line_t *l);
 uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort);
 void rt_app_store_free(rt_line_t *l);
 
-/* co_rt_client.c: the client transfers of a line (USDO or SDO). */
+/* ---------------------------------------------------------------- co_rt_client.c */
 void rt_client_free(rt_line_t *l);
+
+/* ---------------------------------------------------------------- services' glue */
+/* The stack's indications that post to Python, one per service file. */
+void rt_emcy_on_received(co_stack_t *stack, uint8_t node_id, const co_emcy_msg_t *msg,
+                         void *user);
+void rt_time_on_received(co_stack_t *stack, const co_time_of_day_t *tod, void *user);
+void rt_guard_on_event(co_stack_t *stack, uint8_t node_id, co_guard_event_t event,
+                       co_nmt_state_t state, void *user);
+/* co_rt_pdo.c: before the stack, hear watched PDO frames before any
+ * service takes them. */
+bool rt_pdo_line_init(rt_line_t *l);
+/* RPDO n was applied: posted to Python when it listens to it. */
+void rt_pdo_received(rt_line_t *l, uint16_t number);
+/* A node that could not be created: forget what Python listened to. */
+void rt_pdo_node_detach(rt_line_t *l);
+/* Frames seen on the watched CAN-IDs (service stats). */
+uint32_t rt_pdo_watched_frames(const rt_line_t *l);
+/* co_rt_sync.c: after the stack, Python hears SYNC through a listener. */
+bool rt_sync_line_init(rt_line_t *l);
 
 #endif
