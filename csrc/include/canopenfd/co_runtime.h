@@ -1,6 +1,8 @@
-/* Linux runtime: runs the core of every line of a network on one C thread
- * (epoll over the sockets, a timerfd for the next deadline, an eventfd for
- * wake-ups) without the GIL. Python talks to it through this header only:
+/* Runtime: runs the core of every line of a network on one C thread without
+ * the GIL (on Linux epoll over the sockets, a timerfd for the next deadline,
+ * an eventfd for wake-ups; on Windows and macOS, or on Linux with
+ * CANOPENFD_PORTABLE_LOOP=1, a condition variable until the next deadline,
+ * and no SocketCAN lines). Python talks to it through this header only:
  * commands go in through a mailbox, events come out through a bounded queue. */
 #ifndef CO_RUNTIME_H
 #define CO_RUNTIME_H

@@ -1,7 +1,8 @@
-/* Runtime: SocketCAN lines. The socket sits in the thread's epoll set; reads
- * take only what the line's rx queue can hold, a frame leaves the tx queue
- * only once the kernel took it, a vanished or downed interface reports
- * IFACE_DOWN and is re-opened every RT_REOPEN_US. */
+/* Runtime: SocketCAN lines (Linux, under the epoll waiter only). The socket
+ * sits in the thread's epoll set; reads take only what the line's rx queue
+ * can hold, a frame leaves the tx queue only once the kernel took it, a
+ * vanished or downed interface reports IFACE_DOWN and is re-opened every
+ * RT_REOPEN_US. */
 #define _GNU_SOURCE
 
 #include "co_rt_internal.h"
@@ -49,7 +50,7 @@ static bool socket_watch(co_rt_t *rt, rt_line_t *l, int op, bool want_out)
 {
     struct epoll_event ev = {.events = EPOLLIN | (want_out ? EPOLLOUT : 0u),
                              .data.ptr = &l->sc.tag};
-    return epoll_ctl(rt->epfd, op, l->sc.sock.fd, &ev) == 0;
+    return epoll_ctl(rt->epoll.epfd, op, l->sc.sock.fd, &ev) == 0;
 }
 
 int rt_socket_register(co_rt_t *rt, rt_line_t *l)

@@ -35,7 +35,7 @@ static const co_stack_indications_t line_indications = {
 
 rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only)
 {
-    int count = __atomic_load_n(&rt->line_count, __ATOMIC_ACQUIRE);
+    int count = rt_atomic_load_acquire(&rt->line_count);
     if (line < 0 || line >= count) {
         rt_argument_error(rt, "line %d does not exist (%d open)", line, count);
         return NULL;
@@ -135,6 +135,24 @@ static rt_line_t *line_new(co_rt_t *rt, const co_rt_line_config_t *c)
     return l;
 }
 
+/* SocketCAN lines exist on Linux under the epoll loop only; elsewhere the
+ * refusal names what to use instead. */
+static int open_socketcan(co_rt_t *rt, rt_line_t *l)
+{
+#if CO_RT_HAVE_SOCKETCAN
+    if (!rt->portable_loop) {
+        return rt_socket_open(rt, l);
+    }
+    rt_set_error(rt, "%s: SocketCAN lines need the epoll loop, but %s=1 selects the portable "
+                 "loop (mem: and python-can lines only); unset it to open SocketCAN interfaces",
+                 l->channel, RT_PORTABLE_LOOP_ENV);
+#else
+    rt_set_error(rt, "%s: SocketCAN exists only on Linux; open an in-process bus ('mem:NAME') "
+                 "or a python-can Bus instead", l->channel);
+#endif
+    return CO_RT_ERR_SOCKET;
+}
+
 /* Under rt->lock: hook the line into its driver and publish it. */
 static int register_line(co_rt_t *rt, rt_line_t *l)
 {
@@ -153,7 +171,7 @@ static int register_line(co_rt_t *rt, rt_line_t *l)
     }
     l->index = rt->line_count;
     rt->lines[l->index] = l;
-    __atomic_store_n(&rt->line_count, l->index + 1, __ATOMIC_RELEASE);
+    rt_atomic_store_release(&rt->line_count, l->index + 1);
     return CO_RT_OK;
 }
 
@@ -171,17 +189,17 @@ int co_rt_add_line(co_rt_t *rt, const co_rt_line_config_t *config)
         rt_set_error(rt, "%s: out of memory for the line's queues", config->channel);
         return CO_RT_ERR_NO_MEMORY;
     }
-    pthread_mutex_lock(&rt->life_lock);
+    rt_mutex_lock(&rt->life_lock);
     status = rt->closed ? CO_RT_ERR_CLOSED : CO_RT_OK;
     if (status == CO_RT_OK && l->driver == CO_DRIVER_SOCKETCAN) {
-        status = rt_socket_open(rt, l);
+        status = open_socketcan(rt, l);
     }
     if (status == CO_RT_OK) {
-        pthread_mutex_lock(&rt->lock);
+        rt_mutex_lock(&rt->lock);
         status = register_line(rt, l);
-        pthread_mutex_unlock(&rt->lock);
+        rt_mutex_unlock(&rt->lock);
     }
-    pthread_mutex_unlock(&rt->life_lock);
+    rt_mutex_unlock(&rt->life_lock);
     if (status != CO_RT_OK) {
         rt_line_free(l);
         return status;

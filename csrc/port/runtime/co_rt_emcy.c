@@ -66,7 +66,7 @@ int co_rt_emcy_state(co_rt_t *rt, int line, co_rt_emcy_state_t *out)
                                 .active = co_emcy_active_count(emcy),
                                 .sent = emcy->stats.sent,
                                 .dropped = emcy->stats.dropped};
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
 
@@ -80,7 +80,7 @@ int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch)
         return rt_argument_error(rt, "line %d: EMCY of node %d: node-ids are 1..127", line,
                                  node_id);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     if (!watch) {
         co_emcy_consumer_unwatch(co_stack_emcy_consumer(&l->stack), (uint8_t)node_id);
@@ -89,6 +89,6 @@ int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch)
                      line, node_id, 0x80 + node_id);
         status = CO_RT_ERR_STATE;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }

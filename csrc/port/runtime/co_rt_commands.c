@@ -87,7 +87,7 @@ static int check_command_args(co_rt_t *rt, const rt_line_t *l, const co_rt_comma
 
 static int validate_command(co_rt_t *rt, const co_rt_command_t *cmd)
 {
-    int count = __atomic_load_n(&rt->line_count, __ATOMIC_ACQUIRE);
+    int count = rt_atomic_load_acquire(&rt->line_count);
     if (cmd->line < 0 || cmd->line >= count) {
         return rt_argument_error(rt, "line %d does not exist (%d open)", cmd->line, count);
     }

@@ -1,13 +1,15 @@
 /* Runtime (see co_runtime.h): its life cycle, error text and clock.
  *
- * One pthread per runtime runs every line (co_rt_loop.c): epoll over the
- * SocketCAN sockets, one timerfd armed at the earliest deadline and one
- * eventfd for wake-ups.
+ * One thread per runtime runs every line (co_rt_loop.c). On Linux it sleeps
+ * in epoll over the SocketCAN sockets, one timerfd armed at the earliest
+ * deadline and one eventfd for wake-ups; elsewhere, or on Linux with
+ * CANOPENFD_PORTABLE_LOOP=1, on a condition variable until the deadline
+ * (no SocketCAN lines then).
  *
  * Locks (taken in this order, never the other way round):
  *   life_lock    start / stop / add_line transitions
  *   lock         lines, buses, drivers and core objects; held by the thread
- *                except while it sleeps in epoll_wait, taken briefly by
+ *                except while it sleeps, taken briefly by
  *                add_line, host_receive and the snapshot calls
  *   host.lock    per host line: frames waiting for co_rt_host_transmit
  *   events.lock  the bounded event ring
@@ -15,40 +17,32 @@
  * never waits for the lines to be processed.
  *
  * No Python is ever called from the thread, so it runs without the GIL. */
-#define _GNU_SOURCE
-
 #include "co_rt_internal.h"
 
-#include <errno.h>
-#include <pthread.h>
-#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 uint64_t co_rt_now_us(void)
 {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+    return rt_os_now_us();
 }
 
 /* ================================================================ errors */
 
-__attribute__((format(printf, 2, 3)))
+RT_PRINTF_FORMAT(2, 3)
 void rt_set_error(co_rt_t *rt, const char *fmt, ...)
 {
     va_list args;
     va_start(args, fmt);
-    pthread_mutex_lock(&rt->error_lock);
+    rt_mutex_lock(&rt->error_lock);
     vsnprintf(rt->error, sizeof rt->error, fmt, args);
-    pthread_mutex_unlock(&rt->error_lock);
+    rt_mutex_unlock(&rt->error_lock);
     va_end(args);
 }
 
-__attribute__((format(printf, 2, 3)))
+RT_PRINTF_FORMAT(2, 3)
 int rt_argument_error(co_rt_t *rt, const char *fmt, ...)
 {
     char text[RT_ERROR_SIZE];
@@ -65,9 +59,9 @@ void co_rt_last_error(co_rt_t *rt, char *buf, size_t size)
     if (!rt || !buf || size == 0) {
         return;
     }
-    pthread_mutex_lock(&rt->error_lock);
+    rt_mutex_lock(&rt->error_lock);
     snprintf(buf, size, "%s", rt->error);
-    pthread_mutex_unlock(&rt->error_lock);
+    rt_mutex_unlock(&rt->error_lock);
 }
 
 const char *co_rt_status_text(int status)
@@ -106,39 +100,21 @@ const co_stack_allocator_t rt_heap = {heap_allocate, heap_release, NULL};
 
 /* ================================================================ waiting */
 
-void rt_cond_init_monotonic(pthread_cond_t *cond)
+uint64_t rt_deadline_after_ms(int timeout_ms)
 {
-    pthread_condattr_t attr;
-    pthread_condattr_init(&attr);
-    pthread_condattr_setclock(&attr, CLOCK_MONOTONIC);
-    pthread_cond_init(cond, &attr);
-    pthread_condattr_destroy(&attr);
+    return timeout_ms < 0 ? CO_TIME_NEVER : rt_os_now_us() + (uint64_t)timeout_ms * 1000u;
 }
 
-struct timespec rt_deadline_after_ms(int timeout_ms)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    ts.tv_sec += timeout_ms / 1000;
-    ts.tv_nsec += (long)(timeout_ms % 1000) * 1000000L;
-    if (ts.tv_nsec >= 1000000000L) {
-        ts.tv_sec++;
-        ts.tv_nsec -= 1000000000L;
-    }
-    return ts;
-}
-
-bool rt_wait_step(pthread_cond_t *cond, pthread_mutex_t *lock, int timeout_ms,
-                  const struct timespec *deadline)
+bool rt_wait_step(rt_cond_t *cond, rt_mutex_t *lock, int timeout_ms, uint64_t deadline_us)
 {
     if (timeout_ms == 0) {
         return false;
     }
     if (timeout_ms < 0) {
-        pthread_cond_wait(cond, lock);
+        rt_cond_wait(cond, lock);
         return true;
     }
-    return pthread_cond_timedwait(cond, lock, deadline) != ETIMEDOUT;
+    return rt_cond_wait_until(cond, lock, deadline_us);
 }
 
 /* ================================================================ lifecycle */
@@ -151,13 +127,21 @@ static void rt_destroy(co_rt_t *rt)
     rt_membus_free_all(rt);
     rt_loop_close(rt);
     rt_events_free(&rt->events);
-    pthread_mutex_destroy(&rt->mail.lock);
-    pthread_mutex_destroy(&rt->done_lock);
-    pthread_cond_destroy(&rt->done_ready);
-    pthread_mutex_destroy(&rt->error_lock);
-    pthread_mutex_destroy(&rt->lock);
-    pthread_mutex_destroy(&rt->life_lock);
+    rt_mutex_destroy(&rt->mail.lock);
+    rt_mutex_destroy(&rt->done_lock);
+    rt_cond_destroy(&rt->done_ready);
+    rt_mutex_destroy(&rt->error_lock);
+    rt_mutex_destroy(&rt->lock);
+    rt_mutex_destroy(&rt->life_lock);
     free(rt);
+}
+
+/* Linux: CANOPENFD_PORTABLE_LOOP=1 runs the loop that other systems use
+ * (tests of that loop, and SocketCAN-free set-ups). */
+static bool portable_loop_asked(void)
+{
+    const char *value = getenv(RT_PORTABLE_LOOP_ENV);
+    return value != NULL && strcmp(value, "1") == 0;
 }
 
 co_rt_t *co_rt_new(uint32_t event_capacity)
@@ -169,12 +153,13 @@ co_rt_t *co_rt_new(uint32_t event_capacity)
     if (!rt) {
         return NULL;
     }
-    pthread_mutex_init(&rt->life_lock, NULL);
-    pthread_mutex_init(&rt->lock, NULL);
-    pthread_mutex_init(&rt->error_lock, NULL);
-    pthread_mutex_init(&rt->mail.lock, NULL);
-    pthread_mutex_init(&rt->done_lock, NULL);
-    rt_cond_init_monotonic(&rt->done_ready);
+    rt_mutex_init(&rt->life_lock);
+    rt_mutex_init(&rt->lock);
+    rt_mutex_init(&rt->error_lock);
+    rt_mutex_init(&rt->mail.lock);
+    rt_mutex_init(&rt->done_lock);
+    rt_cond_init(&rt->done_ready);
+    rt->portable_loop = !CO_RT_HAVE_SOCKETCAN || portable_loop_asked();
     bool events = rt_events_open(&rt->events, event_capacity ? event_capacity
                                                              : RT_DEFAULT_EVENTS);
     if (!rt_loop_open(rt) || !events) {
@@ -190,23 +175,18 @@ int co_rt_start(co_rt_t *rt)
         return CO_RT_ERR_ARGUMENT;
     }
     int status = CO_RT_OK;
-    pthread_mutex_lock(&rt->life_lock);
+    rt_mutex_lock(&rt->life_lock);
     if (rt->closed) {
         status = CO_RT_ERR_CLOSED;
     } else if (!rt->started) {
-        /* Signals belong to the application's threads (Python's main one). */
-        sigset_t all, previous;
-        sigfillset(&all);
-        pthread_sigmask(SIG_SETMASK, &all, &previous);
-        int err = pthread_create(&rt->thread, NULL, rt_loop_main, rt);
-        pthread_sigmask(SIG_SETMASK, &previous, NULL);
+        int err = rt_thread_start(&rt->thread, rt_loop_main, rt);
         if (err != 0) {
             rt_set_error(rt, "cannot start the runtime thread: %s", strerror(err));
             status = CO_RT_ERR_NO_MEMORY;
         }
         rt->started = err == 0;
     }
-    pthread_mutex_unlock(&rt->life_lock);
+    rt_mutex_unlock(&rt->life_lock);
     return status;
 }
 
@@ -225,20 +205,20 @@ void co_rt_stop(co_rt_t *rt)
     if (!rt) {
         return;
     }
-    pthread_mutex_lock(&rt->life_lock);
+    rt_mutex_lock(&rt->life_lock);
     if (!rt->closed) {
         rt->closed = true;
         rt_mailbox_close(&rt->mail);
-        pthread_mutex_lock(&rt->lock);
+        rt_mutex_lock(&rt->lock);
         rt->stopping = true;
-        pthread_mutex_unlock(&rt->lock);
+        rt_mutex_unlock(&rt->lock);
         if (rt->started) {
             rt_wake(rt);
-            pthread_join(rt->thread, NULL);
+            rt_thread_join(&rt->thread);
         }
         close_waiters(rt);
     }
-    pthread_mutex_unlock(&rt->life_lock);
+    rt_mutex_unlock(&rt->life_lock);
 }
 
 static uint32_t waiter_count(co_rt_t *rt)
@@ -258,7 +238,7 @@ void co_rt_free(co_rt_t *rt)
     co_rt_stop(rt);
     /* Woken waiters are on their way out; let them leave before the memory goes. */
     while (waiter_count(rt) > 0) {
-        nanosleep(&(struct timespec){0, 200000L}, NULL);
+        rt_os_sleep_us(200);
     }
     rt_destroy(rt);
 }

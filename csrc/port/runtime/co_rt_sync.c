@@ -58,7 +58,7 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
         return rt_argument_error(rt, "line %d: SYNC counter overflow %d: 0 (no counter) or "
                                  "2..240", line, overflow);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_line_set_time(&l->line, co_rt_now_us());
     co_sync_t *sync = co_stack_sync(&l->stack);
     uint32_t id = sync->config.cob_id & 0x7FFu;
@@ -86,8 +86,8 @@ int co_rt_sync_listen(co_rt_t *rt, int line, int listen)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     l->sync.events = listen != 0;
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }

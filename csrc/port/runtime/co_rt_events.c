@@ -8,8 +8,8 @@
 
 bool rt_events_open(rt_events_t *q, uint32_t capacity)
 {
-    pthread_mutex_init(&q->lock, NULL);
-    rt_cond_init_monotonic(&q->ready);
+    rt_mutex_init(&q->lock);
+    rt_cond_init(&q->ready);
     q->capacity = capacity;
     q->ring = calloc(capacity, sizeof *q->ring);
     return q->ring != NULL;
@@ -18,8 +18,8 @@ bool rt_events_open(rt_events_t *q, uint32_t capacity)
 void rt_events_free(rt_events_t *q)
 {
     free(q->ring);
-    pthread_mutex_destroy(&q->lock);
-    pthread_cond_destroy(&q->ready);
+    rt_mutex_destroy(&q->lock);
+    rt_cond_destroy(&q->ready);
 }
 
 static void ring_push(rt_events_t *q, const co_rt_event_t *ev)
@@ -42,7 +42,7 @@ static void push_lost_marker(rt_events_t *q)
 
 static bool events_post(rt_events_t *q, const co_rt_event_t *ev)
 {
-    pthread_mutex_lock(&q->lock);
+    rt_mutex_lock(&q->lock);
     push_lost_marker(q);
     bool queued = q->count < q->capacity;
     if (queued) {
@@ -51,9 +51,9 @@ static bool events_post(rt_events_t *q, const co_rt_event_t *ev)
         q->lost++;
     }
     if (q->waiters > 0) {
-        pthread_cond_signal(&q->ready);
+        rt_cond_signal(&q->ready);
     }
-    pthread_mutex_unlock(&q->lock);
+    rt_mutex_unlock(&q->lock);
     return queued;
 }
 
@@ -74,11 +74,11 @@ int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_m
         return CO_RT_ERR_ARGUMENT;
     }
     rt_events_t *q = &rt->events;
-    struct timespec deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
-    pthread_mutex_lock(&q->lock);
+    uint64_t deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
+    rt_mutex_lock(&q->lock);
     q->waiters++;
     while (q->count == 0 && !q->closed &&
-           rt_wait_step(&q->ready, &q->lock, timeout_ms, &deadline)) {
+           rt_wait_step(&q->ready, &q->lock, timeout_ms, deadline)) {
     }
     int n = 0;
     for (; n < max && q->count > 0; n++) {
@@ -89,22 +89,22 @@ int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_m
     push_lost_marker(q);
     int result = (n == 0 && q->closed) ? CO_RT_ERR_CLOSED : n;
     q->waiters--;
-    pthread_mutex_unlock(&q->lock);
+    rt_mutex_unlock(&q->lock);
     return result;
 }
 
 void rt_events_close(rt_events_t *q)
 {
-    pthread_mutex_lock(&q->lock);
+    rt_mutex_lock(&q->lock);
     q->closed = true;
-    pthread_cond_broadcast(&q->ready);
-    pthread_mutex_unlock(&q->lock);
+    rt_cond_broadcast(&q->ready);
+    rt_mutex_unlock(&q->lock);
 }
 
 uint32_t rt_events_waiters(rt_events_t *q)
 {
-    pthread_mutex_lock(&q->lock);
+    rt_mutex_lock(&q->lock);
     uint32_t n = q->waiters;
-    pthread_mutex_unlock(&q->lock);
+    rt_mutex_unlock(&q->lock);
     return n;
 }

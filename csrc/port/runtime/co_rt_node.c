@@ -188,13 +188,13 @@ int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 int rt_node_create_now(co_rt_t *rt, const co_rt_command_t *cmd)
 {
     rt_line_t *l = rt->lines[cmd->line];
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_CLOSED;
     if (!rt->stopping) {
         rt_line_step(l, co_rt_now_us());
         status = rt_node_create(rt, l, cmd);
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     if (status == CO_RT_OK) {
         rt_wake(rt);
     }
@@ -207,9 +207,9 @@ rt_line_t *rt_node_line(co_rt_t *rt, int line, const char *what)
     if (!l) {
         return NULL;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     if (!rt_has_node(l)) {
-        pthread_mutex_unlock(&rt->lock);
+        rt_mutex_unlock(&rt->lock);
         rt_set_error(rt, "line %d: %s needs a local node", line, what);
         return NULL;
     }
@@ -224,9 +224,9 @@ int co_rt_local_state(co_rt_t *rt, int line)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int state = rt_has_node(l) ? (int)co_node_state(co_stack_node(&l->stack)) : CO_RT_ERR_STATE;
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return state;
 }
 
@@ -239,8 +239,8 @@ int co_rt_remote_state(co_rt_t *rt, int line, int node_id)
     if (node_id < 1 || node_id > 127) {
         return rt_argument_error(rt, "node-id %d outside 1..127", node_id);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int state = co_stack_hb_consumer(&l->stack)->last_state[node_id];
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return state;
 }

@@ -7,7 +7,7 @@
 int rt_mailbox_post(rt_mailbox_t *m, const co_rt_command_t *command)
 {
     int status = CO_RT_OK;
-    pthread_mutex_lock(&m->lock);
+    rt_mutex_lock(&m->lock);
     if (m->closed) {
         status = CO_RT_ERR_CLOSED;
     } else if (m->count == RT_MAILBOX_SIZE) {
@@ -16,26 +16,26 @@ int rt_mailbox_post(rt_mailbox_t *m, const co_rt_command_t *command)
         m->ring[(m->head + m->count) % RT_MAILBOX_SIZE] = *command;
         m->count++;
     }
-    pthread_mutex_unlock(&m->lock);
+    rt_mutex_unlock(&m->lock);
     return status;
 }
 
 uint32_t rt_mailbox_take(rt_mailbox_t *m, co_rt_command_t *out, uint32_t max)
 {
     uint32_t n = 0;
-    pthread_mutex_lock(&m->lock);
+    rt_mutex_lock(&m->lock);
     for (; n < max && m->count > 0; n++) {
         out[n] = m->ring[m->head];
         m->head = (m->head + 1) % RT_MAILBOX_SIZE;
         m->count--;
     }
-    pthread_mutex_unlock(&m->lock);
+    rt_mutex_unlock(&m->lock);
     return n;
 }
 
 void rt_mailbox_close(rt_mailbox_t *m)
 {
-    pthread_mutex_lock(&m->lock);
+    rt_mutex_lock(&m->lock);
     m->closed = true;
-    pthread_mutex_unlock(&m->lock);
+    rt_mutex_unlock(&m->lock);
 }

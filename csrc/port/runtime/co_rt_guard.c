@@ -28,7 +28,7 @@ int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_facto
                                  "node 1..127, time 0..65535 ms, factor 0..255", line,
                                  node_id, guard_ms, life_factor);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_line_set_time(&l->line, co_rt_now_us());
     int status = CO_RT_OK;
     if (guard_ms == 0) {

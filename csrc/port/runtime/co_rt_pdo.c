@@ -79,7 +79,7 @@ static rt_line_t *pdo_line(co_rt_t *rt, int line)
 {
     rt_line_t *l = rt_node_line(rt, line, "a PDO");
     if (l && co_stack_pdo(&l->stack) == NULL) {
-        pthread_mutex_unlock(&rt->lock);
+        rt_mutex_unlock(&rt->lock);
         rt_set_error(rt, "line %d: the local node has no object dictionary, so no PDOs", line);
         return NULL;
     }
@@ -115,7 +115,7 @@ int co_rt_pdo_trigger_object(co_rt_t *rt, int line, int index, int sub)
         return CO_RT_ERR_STATE;
     }
     if (index < 0 || index > 0xFFFF || sub < 0 || sub > 0xFF) {
-        pthread_mutex_unlock(&rt->lock);
+        rt_mutex_unlock(&rt->lock);
         return rt_argument_error(rt, "line %d: no object %X:%X", line, index, sub);
     }
     co_line_set_time(&l->line, co_rt_now_us());
@@ -168,7 +168,7 @@ int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch)
         return rt_argument_error(rt, "line %d: PDO CAN-ID 0x%X: 11 bits, or 29 bits with bit "
                                  "29 set", line, (unsigned)can_id);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int slot = watch_find(&l->pdo, can_id);
     int status = CO_RT_OK;
     if (watch && slot < 0) {
@@ -176,7 +176,7 @@ int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch)
     } else if (!watch && slot >= 0) {
         watch_remove(&l->pdo, slot);
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -190,6 +190,6 @@ int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen)
         return CO_RT_ERR_STATE;
     }
     l->pdo.listen[rpdo_number - 1] = listen != 0;
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }

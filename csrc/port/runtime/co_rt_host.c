@@ -9,8 +9,8 @@
 bool rt_host_init(rt_line_t *l, uint32_t capacity)
 {
     rt_host_t *h = &l->host;
-    pthread_mutex_init(&h->lock, NULL);
-    rt_cond_init_monotonic(&h->ready);
+    rt_mutex_init(&h->lock);
+    rt_cond_init(&h->ready);
     if (capacity == 0) {
         return true;
     }
@@ -24,8 +24,8 @@ bool rt_host_init(rt_line_t *l, uint32_t capacity)
 
 void rt_host_free(rt_line_t *l)
 {
-    pthread_mutex_destroy(&l->host.lock);
-    pthread_cond_destroy(&l->host.ready);
+    rt_mutex_destroy(&l->host.lock);
+    rt_cond_destroy(&l->host.ready);
     free(l->host.slots);
 }
 
@@ -37,7 +37,7 @@ void rt_host_flush(rt_line_t *l)
     rt_host_t *h = &l->host;
     co_frame_t frame;
     uint32_t moved = 0;
-    pthread_mutex_lock(&h->lock);
+    rt_mutex_lock(&h->lock);
     while (!co_queue_is_full(&h->out) && co_line_tx_pop(&l->line, &frame)) {
         co_queue_push(&h->out, &frame);
         moved++;
@@ -47,25 +47,25 @@ void rt_host_flush(rt_line_t *l)
     }
     h->stalled = co_line_tx_count(&l->line) != 0;
     if (moved > 0 && h->waiters > 0) {
-        pthread_cond_broadcast(&h->ready);
+        rt_cond_broadcast(&h->ready);
     }
-    pthread_mutex_unlock(&h->lock);
+    rt_mutex_unlock(&h->lock);
 }
 
 void rt_host_close(rt_line_t *l)
 {
     rt_host_t *h = &l->host;
-    pthread_mutex_lock(&h->lock);
+    rt_mutex_lock(&h->lock);
     h->closed = true;
-    pthread_cond_broadcast(&h->ready);
-    pthread_mutex_unlock(&h->lock);
+    rt_cond_broadcast(&h->ready);
+    rt_mutex_unlock(&h->lock);
 }
 
 uint32_t rt_host_waiters(rt_line_t *l)
 {
-    pthread_mutex_lock(&l->host.lock);
+    rt_mutex_lock(&l->host.lock);
     uint32_t n = l->host.waiters;
-    pthread_mutex_unlock(&l->host.lock);
+    rt_mutex_unlock(&l->host.lock);
     return n;
 }
 
@@ -75,10 +75,10 @@ int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame)
     if (!l || !frame) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     bool closed = rt->stopping;
     bool queued = !closed && co_line_receive(&l->line, frame);
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     if (closed) {
         return CO_RT_ERR_CLOSED;
     }
@@ -96,11 +96,11 @@ int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int 
         return CO_RT_ERR_ARGUMENT;
     }
     rt_host_t *h = &l->host;
-    struct timespec deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
-    pthread_mutex_lock(&h->lock);
+    uint64_t deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
+    rt_mutex_lock(&h->lock);
     h->waiters++;
     while (co_queue_is_empty(&h->out) && !h->closed &&
-           rt_wait_step(&h->ready, &h->lock, timeout_ms, &deadline)) {
+           rt_wait_step(&h->ready, &h->lock, timeout_ms, deadline)) {
     }
     int n = 0;
     while (n < max && co_queue_pop(&h->out, &frames[n])) {
@@ -109,7 +109,7 @@ int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int 
     bool refill = n > 0 && h->stalled;
     int result = (n == 0 && h->closed) ? CO_RT_ERR_CLOSED : n;
     h->waiters--;
-    pthread_mutex_unlock(&h->lock);
+    rt_mutex_unlock(&h->lock);
     if (refill) {
         rt_wake(rt);   /* the line has more frames waiting for room */
     }
@@ -125,11 +125,11 @@ int co_rt_host_comm_event(co_rt_t *rt, int line, int event)
     if (event < CO_COMM_BUS_OFF || event > CO_COMM_BUS_OFF_RECOVERED) {
         return rt_argument_error(rt, "communication event %d unknown", event);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     bool closed = rt->stopping;
     if (!closed) {
         co_line_comm_event(&l->line, (co_comm_event_t)event);
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return closed ? CO_RT_ERR_CLOSED : CO_RT_OK;
 }

@@ -2,48 +2,81 @@
  * the mailbox (each command's line processed first, so timers it arms start
  * from the current time), process every line and move membus frames until
  * nothing moves (bounded rounds), hand tx frames to the drivers, arm the
- * timer at the earliest deadline. Between turns it sleeps in epoll over the
- * sockets, a timerfd and an eventfd, without rt->lock. */
-#define _GNU_SOURCE
-
+ * timer at the earliest deadline. Between turns it sleeps without rt->lock
+ * in one of two waiters: epoll over the sockets, a timerfd and an eventfd
+ * (../linux/co_rt_wait_epoll.c, Linux), or a condition variable until the
+ * deadline (co_rt_wait_portable.c, anywhere; no SocketCAN lines then). */
 #include "co_rt_internal.h"
 
-#include <string.h>
-#include <sys/epoll.h>
-#include <sys/eventfd.h>
-#include <sys/timerfd.h>
-#include <time.h>
-#include <unistd.h>
+/* ================================================================ the waiter */
+
+static void waiter_arm(co_rt_t *rt, uint64_t deadline, uint64_t now)
+{
+#if CO_RT_HAVE_SOCKETCAN
+    if (!rt->portable_loop) {
+        rt_epoll_arm(rt, deadline, now);
+        return;
+    }
+#endif
+    (void)now;
+    rt_portable_arm(rt, deadline);
+}
+
+static void waiter_sleep(co_rt_t *rt)
+{
+#if CO_RT_HAVE_SOCKETCAN
+    if (!rt->portable_loop) {
+        rt_epoll_sleep(rt);
+        return;
+    }
+#endif
+    rt_portable_sleep(rt);
+}
+
+bool rt_loop_open(co_rt_t *rt)
+{
+    rt->armed_us = CO_TIME_NEVER;
+#if CO_RT_HAVE_SOCKETCAN
+    if (!rt->portable_loop) {
+        return rt_epoll_open(rt);
+    }
+#endif
+    return rt_portable_open(rt);
+}
+
+void rt_loop_close(co_rt_t *rt)
+{
+#if CO_RT_HAVE_SOCKETCAN
+    if (!rt->portable_loop) {
+        rt_epoll_close(rt);
+        return;
+    }
+#endif
+    rt_portable_close(rt);
+}
 
 /* ================================================================ wake-ups */
 
 void rt_wake(co_rt_t *rt)
 {
-    const uint64_t one = 1;
-    /* EAGAIN only when the counter is saturated: the thread wakes anyway. */
-    ssize_t done = write(rt->wakefd, &one, sizeof one);
-    (void)done;
+#if CO_RT_HAVE_SOCKETCAN
+    if (!rt->portable_loop) {
+        rt_epoll_wake(rt);
+        return;
+    }
+#endif
+    rt_portable_wake(rt);
 }
 
 static void arm_timer(co_rt_t *rt, uint64_t deadline, uint64_t now)
 {
     /* A timer armed at or before the deadline stays: at worst it fires early
-     * and that turn arms the right one. Saves a syscall per turn while a
+     * and that turn arms the right one. Saves a call per turn while a
      * transfer pushes its timeout later with every frame. */
     if (rt->armed_us <= deadline && rt->armed_us > now) {
         return;
     }
-    struct itimerspec spec;
-    memset(&spec, 0, sizeof spec);
-    if (deadline != CO_TIME_NEVER) {
-        uint64_t at = deadline > now ? deadline : now;
-        spec.it_value.tv_sec = (time_t)(at / 1000000u);
-        spec.it_value.tv_nsec = (long)(at % 1000000u) * 1000L;
-        if (spec.it_value.tv_sec == 0 && spec.it_value.tv_nsec == 0) {
-            spec.it_value.tv_nsec = 1;   /* zero would disarm */
-        }
-    }
-    timerfd_settime(rt->timerfd, TFD_TIMER_ABSTIME, &spec, NULL);
+    waiter_arm(rt, deadline, now);
     rt->armed_us = deadline;
 }
 
@@ -76,7 +109,7 @@ void rt_kick(co_rt_t *rt)
 int rt_kick_unlock(co_rt_t *rt, int status)
 {
     rt_kick(rt);
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -84,38 +117,38 @@ int rt_kick_unlock(co_rt_t *rt, int status)
 
 void rt_transfer_ended(co_rt_t *rt)
 {
-    pthread_mutex_lock(&rt->done_lock);
+    rt_mutex_lock(&rt->done_lock);
     rt->done_gen++;
-    pthread_cond_broadcast(&rt->done_ready);
-    pthread_mutex_unlock(&rt->done_lock);
+    rt_cond_broadcast(&rt->done_ready);
+    rt_mutex_unlock(&rt->done_lock);
 }
 
 uint64_t rt_transfer_generation(co_rt_t *rt)
 {
-    pthread_mutex_lock(&rt->done_lock);
+    rt_mutex_lock(&rt->done_lock);
     uint64_t gen = rt->done_gen;
-    pthread_mutex_unlock(&rt->done_lock);
+    rt_mutex_unlock(&rt->done_lock);
     return gen;
 }
 
 bool rt_wait_transfer_end(co_rt_t *rt, uint64_t gen, int timeout_ms)
 {
-    struct timespec deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
-    pthread_mutex_lock(&rt->done_lock);
+    uint64_t deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
+    rt_mutex_lock(&rt->done_lock);
     while (rt->done_gen == gen && !rt->done_closed &&
-           rt_wait_step(&rt->done_ready, &rt->done_lock, timeout_ms, &deadline)) {
+           rt_wait_step(&rt->done_ready, &rt->done_lock, timeout_ms, deadline)) {
     }
     bool changed = rt->done_gen != gen;
-    pthread_mutex_unlock(&rt->done_lock);
+    rt_mutex_unlock(&rt->done_lock);
     return changed;
 }
 
 void rt_transfer_waits_close(co_rt_t *rt)
 {
-    pthread_mutex_lock(&rt->done_lock);
+    rt_mutex_lock(&rt->done_lock);
     rt->done_closed = true;
-    pthread_cond_broadcast(&rt->done_ready);
-    pthread_mutex_unlock(&rt->done_lock);
+    rt_cond_broadcast(&rt->done_ready);
+    rt_mutex_unlock(&rt->done_lock);
 }
 
 /* ================================================================ a turn */
@@ -189,81 +222,15 @@ static void iterate(co_rt_t *rt)
     arm_timer(rt, next, now);
 }
 
-/* ================================================================ sleeping */
+/* ================================================================ the thread */
 
-static void drain_fd(int fd)
-{
-    uint64_t value;
-    ssize_t done = read(fd, &value, sizeof value);
-    (void)done;
-}
-
-static void handle_ready(co_rt_t *rt, const struct epoll_event *ev)
-{
-    const rt_tag_t *tag = ev->data.ptr;
-    switch (tag->kind) {
-    case TAG_WAKE:
-        drain_fd(rt->wakefd);
-        break;
-    case TAG_TIMER:
-        drain_fd(rt->timerfd);
-        rt->armed_us = CO_TIME_NEVER;
-        break;
-    case TAG_SOCKET:
-        rt_socket_ready(rt, tag->line, ev->events);
-        break;
-    default:
-        break;
-    }
-}
-
-void *rt_loop_main(void *arg)
+void rt_loop_main(void *arg)
 {
     co_rt_t *rt = arg;
-    struct epoll_event ready[RT_EPOLL_BATCH];
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     while (!rt->stopping) {
         iterate(rt);
-        pthread_mutex_unlock(&rt->lock);
-        int n = epoll_wait(rt->epfd, ready, RT_EPOLL_BATCH, -1);
-        pthread_mutex_lock(&rt->lock);
-        rt->wakeups += n > 0;
-        for (int i = 0; i < n; i++) {
-            handle_ready(rt, &ready[i]);
-        }
+        waiter_sleep(rt);
     }
-    pthread_mutex_unlock(&rt->lock);
-    return NULL;
-}
-
-static bool watch_fd(co_rt_t *rt, int fd, rt_tag_t *tag)
-{
-    struct epoll_event ev = {.events = EPOLLIN, .data.ptr = tag};
-    return epoll_ctl(rt->epfd, EPOLL_CTL_ADD, fd, &ev) == 0;
-}
-
-bool rt_loop_open(co_rt_t *rt)
-{
-    rt->armed_us = CO_TIME_NEVER;
-    rt->epfd = epoll_create1(EPOLL_CLOEXEC);
-    rt->wakefd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
-    rt->timerfd = timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
-    rt->wake_tag = (rt_tag_t){TAG_WAKE, NULL};
-    rt->timer_tag = (rt_tag_t){TAG_TIMER, NULL};
-    return rt->epfd >= 0 && rt->wakefd >= 0 && rt->timerfd >= 0 &&
-           watch_fd(rt, rt->wakefd, &rt->wake_tag) && watch_fd(rt, rt->timerfd, &rt->timer_tag);
-}
-
-static void close_fd(int fd)
-{
-    if (fd >= 0) {
-        close(fd);
-    }
-}
-
-void rt_loop_close(co_rt_t *rt)
-{
-    close_fd(rt->epfd);
-    close_fd(rt->wakefd);
-    close_fd(rt->timerfd);
+    rt_mutex_unlock(&rt->lock);
 }

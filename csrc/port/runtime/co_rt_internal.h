@@ -1,16 +1,20 @@
 /* Runtime internals shared by its source files, one file per concern:
  *   co_runtime.c     life cycle (new, start, stop, free), error text, clock
- *   co_rt_loop.c     the thread: turns, waiting, wake-ups, kicks, transfer-end waits
+ *   co_rt_loop.c     the thread: turns, wake-ups, kicks, transfer-end waits; it
+ *                    sleeps in one of two waiters:
+ *   co_rt_wait_portable.c  a condition variable until the next deadline (any OS)
+ *   ../linux/co_rt_wait_epoll.c  epoll + timerfd + eventfd (Linux; SocketCAN needs it)
  *   co_rt_mailbox.c  commands in (a bounded ring with its own lock)
  *   co_rt_events.c   events out (a bounded ring, the "events lost" marker)
  *   co_rt_lines.c    adding a line: queues, the stack, its driver
- *   co_rt_membus.c, co_rt_socketcan.c, co_rt_host.c   one file per driver
+ *   co_rt_membus.c, co_rt_host.c, ../linux/co_rt_socketcan.c   one file per driver
  *   co_rt_commands.c checking and applying mailbox commands
  *   co_rt_node.c     the local node: creation, its OD hooks, NMT/heartbeat view
  *   co_rt_od.c, co_rt_store.c, co_rt_client.c        OD access, app store, clients
  *   co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c, co_rt_guard.c
  *                    one service's runtime glue each (its state: rt_<service>_t)
  *   co_rt_stats.c    counter snapshots
+ * The OS itself is reached through co_rt_os.h only (../posix, ../windows).
  * Not part of the Python API. */
 #ifndef CO_RT_INTERNAL_H
 #define CO_RT_INTERNAL_H
@@ -29,7 +33,8 @@
 #include "canopenfd/co_membus.h"
 #include "canopenfd/co_socketcan.h"
 
-#include <pthread.h>
+#include "co_rt_os.h"
+
 #include <stdbool.h>
 #include <stdint.h>
 
@@ -57,6 +62,9 @@ enum {
 
 #define RT_REOPEN_US 500000u       /* retry period for a vanished interface */
 #define RT_NOBUFS_RETRY_US 1000u   /* ENOBUFS does not wake EPOLLOUT: poll instead */
+
+/* The environment variable that selects the portable loop on Linux. */
+#define RT_PORTABLE_LOOP_ENV "CANOPENFD_PORTABLE_LOOP"
 
 enum { TAG_WAKE = 1, TAG_TIMER = 2, TAG_SOCKET = 3 };
 
@@ -86,8 +94,8 @@ typedef struct rt_socket {
 } rt_socket_t;
 
 typedef struct rt_host {
-    pthread_mutex_t lock;
-    pthread_cond_t ready;
+    rt_mutex_t lock;
+    rt_cond_t ready;
     co_frame_queue_t out;  /* frames for co_rt_host_transmit */
     co_frame_t *slots;
     uint32_t waiters;
@@ -187,9 +195,28 @@ typedef struct rt_line {
     rt_host_t host;
 } rt_line_t;
 
+/* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
+ * at the earliest deadline, an eventfd for wake-ups. */
+typedef struct rt_epoll_waiter {
+    int epfd;
+    int wakefd;
+    int timerfd;
+    rt_tag_t wake_tag;
+    rt_tag_t timer_tag;
+} rt_epoll_waiter_t;
+
+/* The portable waiter (co_rt_wait_portable.c): a condition variable waited
+ * on until the deadline, signalled by rt_wake and by an earlier deadline. */
+typedef struct rt_portable_waiter {
+    rt_mutex_t lock;
+    rt_cond_t wake;
+    bool woken;
+    uint64_t deadline;     /* CO_TIME_NEVER: none */
+} rt_portable_waiter_t;
+
 typedef struct rt_events {
-    pthread_mutex_t lock;
-    pthread_cond_t ready;
+    rt_mutex_t lock;
+    rt_cond_t ready;
     co_rt_event_t *ring;
     uint32_t capacity;
     uint32_t head;
@@ -200,7 +227,7 @@ typedef struct rt_events {
 } rt_events_t;
 
 typedef struct rt_mailbox {
-    pthread_mutex_t lock;
+    rt_mutex_t lock;
     co_rt_command_t ring[RT_MAILBOX_SIZE];
     uint32_t head;
     uint32_t count;
@@ -208,20 +235,20 @@ typedef struct rt_mailbox {
 } rt_mailbox_t;
 
 struct co_rt {
-    pthread_mutex_t life_lock;
-    pthread_mutex_t lock;
-    pthread_mutex_t error_lock;
-    pthread_t thread;
+    rt_mutex_t life_lock;
+    rt_mutex_t lock;
+    rt_mutex_t error_lock;
+    rt_thread_t thread;
     bool started;
     bool closed;           /* stopped for good (under life_lock) */
     bool stopping;         /* under lock: refuse host calls, leave the loop */
-    int epfd;
-    int wakefd;
-    int timerfd;
-    rt_tag_t wake_tag;
-    rt_tag_t timer_tag;
-    uint64_t armed_us;     /* deadline the timerfd holds */
-    uint32_t wakeups;      /* epoll_wait returns with something ready */
+    /* What the thread sleeps on: epoll (Linux, unless RT_PORTABLE_LOOP_ENV
+     * is 1) or the portable waiter; fixed at co_rt_new. */
+    bool portable_loop;
+    rt_epoll_waiter_t epoll;
+    rt_portable_waiter_t portable;
+    uint64_t armed_us;     /* deadline the waiter's timer holds */
+    uint32_t wakeups;      /* the thread woke with something to do */
     int line_count;        /* published with release ordering after lines[] */
     rt_line_t *lines[RT_MAX_LINES];
     int bus_count;
@@ -231,34 +258,32 @@ struct co_rt {
     /* Client transfers that ended: done_gen counts them, done_ready wakes
      * threads blocked in co_rt_transfer_wait (own lock: never waits for a
      * turn of the runtime thread). */
-    pthread_mutex_t done_lock;
-    pthread_cond_t done_ready;
+    rt_mutex_t done_lock;
+    rt_cond_t done_ready;
     uint64_t done_gen;
     bool done_closed;
     char error[RT_ERROR_SIZE];
 };
 
 /* ---------------------------------------------------------------- co_runtime.c */
-__attribute__((format(printf, 2, 3)))
+RT_PRINTF_FORMAT(2, 3)
 void rt_set_error(co_rt_t *rt, const char *fmt, ...);
 /* Sets the error text and returns CO_RT_ERR_ARGUMENT. */
-__attribute__((format(printf, 2, 3)))
+RT_PRINTF_FORMAT(2, 3)
 int rt_argument_error(co_rt_t *rt, const char *fmt, ...);
 /* Memory of the stack's parts: from the heap, at set-up only. */
 extern const co_stack_allocator_t rt_heap;
-/* Waiting on a condition variable with a monotonic deadline. */
-void rt_cond_init_monotonic(pthread_cond_t *cond);
-struct timespec rt_deadline_after_ms(int timeout_ms);
+/* The deadline of a wait of timeout_ms (< 0: none) from now. */
+uint64_t rt_deadline_after_ms(int timeout_ms);
 /* One wait step: false once the timeout (< 0: none) has passed. */
-bool rt_wait_step(pthread_cond_t *cond, pthread_mutex_t *lock, int timeout_ms,
-                  const struct timespec *deadline);
+bool rt_wait_step(rt_cond_t *cond, rt_mutex_t *lock, int timeout_ms, uint64_t deadline_us);
 
 /* ---------------------------------------------------------------- co_rt_loop.c */
 /* Open / close what the thread sleeps on (at co_rt_new / destroy). */
 bool rt_loop_open(co_rt_t *rt);
 void rt_loop_close(co_rt_t *rt);
 /* The runtime thread's body. */
-void *rt_loop_main(void *arg);
+void rt_loop_main(void *arg);
 /* Wake the thread (a deadline or the tx queue changed). */
 void rt_wake(co_rt_t *rt);
 /* Under rt->lock, from an application thread that just queued frames or
@@ -294,6 +319,23 @@ static inline uint64_t rt_line_step(rt_line_t *l, uint64_t now)
 
 static inline uint64_t rt_min_u64(uint64_t a, uint64_t b) { return a < b ? a : b; }
 
+/* The waiters. open/close at co_rt_new/destroy; wake from any thread; arm
+ * (under rt->lock) makes the thread wake at deadline; sleep is entered and
+ * left with rt->lock held, released while asleep, and handles what woke it
+ * (sockets ready, the timer fired: armed_us = CO_TIME_NEVER). */
+bool rt_portable_open(co_rt_t *rt);
+void rt_portable_close(co_rt_t *rt);
+void rt_portable_wake(co_rt_t *rt);
+void rt_portable_arm(co_rt_t *rt, uint64_t deadline);
+void rt_portable_sleep(co_rt_t *rt);
+#if CO_RT_HAVE_SOCKETCAN
+bool rt_epoll_open(co_rt_t *rt);
+void rt_epoll_close(co_rt_t *rt);
+void rt_epoll_wake(co_rt_t *rt);
+void rt_epoll_arm(co_rt_t *rt, uint64_t deadline, uint64_t now);
+void rt_epoll_sleep(co_rt_t *rt);
+#endif
+
 /* ---------------------------------------------------------------- co_rt_mailbox.c */
 /* Queue a validated command: CO_RT_OK, CO_RT_ERR_FULL or CO_RT_ERR_CLOSED. */
 int rt_mailbox_post(rt_mailbox_t *m, const co_rt_command_t *command);
@@ -322,8 +364,12 @@ int rt_membus_join(co_rt_t *rt, rt_line_t *l);
 /* Move the frames of every bus; returns how many moved. */
 uint32_t rt_membus_transfer(co_rt_t *rt);
 void rt_membus_free_all(co_rt_t *rt);
-/* co_rt_socketcan.c */
+/* co_rt_socketcan.c (Linux): SocketCAN lines. Elsewhere, and under the
+ * portable loop, co_rt_add_line refuses them, so only the init, close and
+ * the loop's calls (which find no SocketCAN line) remain, as no-ops. */
+#if CO_RT_HAVE_SOCKETCAN
 void rt_socket_init(rt_line_t *l);
+/* Open the interface; CO_RT_OK or a status with the error set. */
 int rt_socket_open(co_rt_t *rt, rt_line_t *l);
 /* Under rt->lock: add the open socket to what the thread waits on. */
 int rt_socket_register(co_rt_t *rt, rt_line_t *l);
@@ -334,6 +380,28 @@ void rt_socket_reopen_due(co_rt_t *rt, uint64_t now);
 void rt_socket_ready(co_rt_t *rt, rt_line_t *l, uint32_t events);
 /* Send what the line queued; returns when to try again. */
 uint64_t rt_socket_flush(co_rt_t *rt, rt_line_t *l, uint64_t now);
+#else
+static inline void rt_socket_init(rt_line_t *l) { l->sc.sock.fd = -1; }
+static inline int rt_socket_register(co_rt_t *rt, rt_line_t *l)
+{
+    (void)rt;
+    (void)l;
+    return CO_RT_ERR_SOCKET;
+}
+static inline void rt_socket_close(rt_line_t *l) { (void)l; }
+static inline void rt_socket_reopen_due(co_rt_t *rt, uint64_t now)
+{
+    (void)rt;
+    (void)now;
+}
+static inline uint64_t rt_socket_flush(co_rt_t *rt, rt_line_t *l, uint64_t now)
+{
+    (void)rt;
+    (void)l;
+    (void)now;
+    return CO_TIME_NEVER;
+}
+#endif
 /* co_rt_host.c */
 bool rt_host_init(rt_line_t *l, uint32_t capacity);
 void rt_host_free(rt_line_t *l);

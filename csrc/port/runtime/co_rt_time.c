@@ -15,7 +15,7 @@ int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_line_set_time(&l->line, co_rt_now_us());
     co_time_t *time = co_stack_time(&l->stack);
     if (!time->od && !(time->cob_id & CO_TIME_PRODUCER_BIT)) {

@@ -10,9 +10,9 @@ int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out)
     if (!l || !out) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     *out = *co_line_stats(&l->line);
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
 
@@ -22,7 +22,7 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
     if (!l || !out) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     const co_sc_stats_t *sc = &l->sc.sock.stats;
     *out = (co_rt_driver_stats_t){.kernel_drops = sc->kernel_drops,
                                   .error_frames = sc->error_frames,
@@ -34,10 +34,10 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
                                   .tx_frames = sc->tx_frames,
                                   .tx_calls = sc->tx_calls,
                                   .loop_wakeups = rt->wakeups};
-    pthread_mutex_unlock(&rt->lock);
-    pthread_mutex_lock(&l->host.lock);
+    rt_mutex_unlock(&rt->lock);
+    rt_mutex_lock(&l->host.lock);
     out->host_pending = co_queue_count(&l->host.out);
-    pthread_mutex_unlock(&l->host.lock);
+    rt_mutex_unlock(&l->host.lock);
     return CO_RT_OK;
 }
 
@@ -48,7 +48,7 @@ int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
         return CO_RT_ERR_ARGUMENT;
     }
     memset(out, 0, sizeof *out);
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_stack_t *s = &l->stack;
     if (co_stack_pdo(s)) {
         out->pdo = co_stack_pdo(s)->stats;
@@ -66,6 +66,6 @@ int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
     out->sync = co_stack_sync(s)->stats;
     out->time = co_stack_time(s)->stats;
     out->pdo_watched = rt_pdo_watched_frames(l);
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
