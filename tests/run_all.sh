@@ -2,7 +2,7 @@
 # The whole test suite, from a fresh Debian machine with Python and gcc:
 #   1. installs what it needs (Debian packages when root, a venv with the package + test deps),
 #   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer (plus the
-#      core's clang check, and Cortex-M cross build),
+#      core's clang check, Cortex-M cross build and the Windows compile check with mingw),
 #   3. pytest over the in-process bus and python-can's virtual bus, then its mem:/python-can
 #      subset again under the portable loop (what Windows and macOS run),
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
@@ -20,9 +20,10 @@ rm -f "$RESULTS"/*.xml "$RESULTS"/*.txt
 say() { printf '\n=== %s ===\n' "$*"; }
 
 # ---------------------------------------------------------------- 1. setup
-# gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c).
+# gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c);
+# gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c).
 debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2
-                 gcc-arm-none-eabi libnewlib-arm-none-eabi)
+                 gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64)
 have_vcan=0
 if bash tests/vm/have_vcan.sh; then have_vcan=1; else
     debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)
