@@ -17,6 +17,9 @@
 #ifndef WIN32_LEAN_AND_MEAN
 #define WIN32_LEAN_AND_MEAN
 #endif
+#ifndef NOMINMAX
+#define NOMINMAX   /* no min/max macros in the runtime's files */
+#endif
 #include <windows.h>
 #else
 #include <pthread.h>
