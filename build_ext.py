@@ -7,14 +7,18 @@ them).
 
     python3 build_ext.py        # build canopenfd/_core*.so in place (development)
     pip install .               # setuptools runs this through setup.py's cffi_modules
+    python3 build_ext.py --sources win32   # the C files a platform's build compiles
+
+The C sources are chosen per platform (c_sources): the portable core, membus
+and runtime everywhere; SocketCAN, the epoll waiter and the POSIX OS layer on
+Linux; the POSIX OS layer on macOS; the Windows OS layer on Windows. cffi is
+imported only to build, so listing the sources needs nothing installed.
 """
 import glob
 import os
 import re
 import shutil
 import sys
-
-from cffi import FFI
 
 ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -36,9 +40,18 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_runtime.h",
 ]
 # Public headers: csrc/include/canopenfd (included as "canopenfd/co_x.h"); the
-# internal ones sit beside their sources and are found there.
-INCLUDE_DIRS = ["csrc/include"]
-SOURCE_DIRS = ["csrc/core", "csrc/drivers", "csrc/port/linux"]
+# internal ones sit beside their sources, and the runtime's (co_rt_internal.h,
+# co_rt_os.h) are also reached from its per-OS directories.
+INCLUDE_DIRS = ["csrc/include", "csrc/port/runtime"]
+# Directories (every .c in them) or files, compiled on every platform ...
+PORTABLE_SOURCES = ["csrc/core", "csrc/drivers/co_membus.c", "csrc/port/runtime",
+                    "csrc/port/store"]
+# ... and per platform: SocketCAN and the epoll waiter exist on Linux only.
+PLATFORM_SOURCES = {
+    "linux": ["csrc/drivers/co_socketcan.c", "csrc/port/linux", "csrc/port/posix"],
+    "darwin": ["csrc/port/posix"],
+    "win32": ["csrc/port/windows"],
+}
 
 _BLOCK = re.compile(r"/\*\s*cffi:begin\s*\*/(.*?)/\*\s*cffi:end\s*\*/", re.S)
 
@@ -63,14 +76,42 @@ def _paths(relative, absolute):
     return [os.path.join(ROOT, p) if absolute else p for p in relative]
 
 
-def c_sources():
+def platform_family(platform=None):
+    """linux, darwin or win32 (any other POSIX system builds like macOS)."""
+    platform = platform or sys.platform
+    if platform.startswith("linux"):
+        return "linux"
+    if platform in ("win32", "cygwin"):
+        return "win32"
+    return "darwin"
+
+
+def c_sources(platform=None):
+    """The C files the extension compiles on a platform (sys.platform by default)."""
     found = []
-    for directory in SOURCE_DIRS:
-        found += sorted(glob.glob(os.path.join(ROOT, directory, "*.c")))
-    return [os.path.relpath(p, ROOT) for p in found]
+    for entry in PORTABLE_SOURCES + PLATFORM_SOURCES[platform_family(platform)]:
+        path = os.path.join(ROOT, entry)
+        found += [path] if entry.endswith(".c") else sorted(glob.glob(os.path.join(path, "*.c")))
+    return [os.path.relpath(p, ROOT).replace(os.sep, "/") for p in found]
+
+
+def compile_args(platform=None):
+    if platform_family(platform) == "win32":
+        # MSVC: C11 (designated initializers, compound literals, inline); the
+        # gcc flags below mean nothing to it.
+        return ["/std:c11", "/O2"]
+    # C99 for the core; the Linux-only files define _GNU_SOURCE themselves.
+    return ["-std=c99", "-O2", "-Wall", "-Wextra"]
+
+
+def libraries(platform=None):
+    # Windows: the OS layer needs only kernel32, which MSVC links anyway.
+    return [] if platform_family(platform) == "win32" else ["pthread"]
 
 
 def make_builder(absolute_paths):
+    from cffi import FFI   # only to build: listing the sources needs no cffi
+
     builder = FFI()
     builder.cdef(cdef_text())
     builder.set_source(
@@ -78,15 +119,15 @@ def make_builder(absolute_paths):
         "".join(f'#include "canopenfd/{os.path.basename(h)}"\n' for h in CDEF_HEADERS),
         sources=_paths(c_sources(), absolute_paths),
         include_dirs=_paths(INCLUDE_DIRS, absolute_paths),
-        # C99 for the core; the Linux files define _GNU_SOURCE themselves.
-        extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra"],
-        libraries=["pthread"],
+        extra_compile_args=compile_args(),
+        libraries=libraries(),
     )
     return builder
 
 
-# What setup.py's cffi_modules picks up.
-ffibuilder = make_builder(absolute_paths=os.path.abspath(os.getcwd()) != ROOT)
+def ffibuilder():
+    """What setup.py's cffi_modules calls (cffi accepts a function)."""
+    return make_builder(absolute_paths=os.path.abspath(os.getcwd()) != ROOT)
 
 
 def _in_place_name(built):
@@ -111,4 +152,7 @@ def build_in_place():
 
 
 if __name__ == "__main__":
-    build_in_place()
+    if len(sys.argv) == 3 and sys.argv[1] == "--sources":
+        print("\n".join(c_sources(sys.argv[2])))
+    else:
+        build_in_place()

@@ -2,8 +2,9 @@
 # The whole test suite, from a fresh Debian machine with Python and gcc:
 #   1. installs what it needs (Debian packages when root, a venv with the package + test deps),
 #   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer (plus the
-#      core's clang check and Cortex-M cross build),
-#   3. pytest over the in-process bus and python-can's virtual bus,
+#      core's clang check, Cortex-M cross build and the Windows compile check with mingw),
+#   3. pytest over the in-process bus and python-can's virtual bus, then its mem:/python-can
+#      subset again under the portable loop (what Windows and macOS run),
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
 #      otherwise inside a small qemu VM booted with a stock Debian kernel (tests/vm/).
 # Exits non-zero when any stage fails; the last line sums up every test run.
@@ -19,9 +20,10 @@ rm -f "$RESULTS"/*.xml "$RESULTS"/*.txt
 say() { printf '\n=== %s ===\n' "$*"; }
 
 # ---------------------------------------------------------------- 1. setup
-# gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c).
+# gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c);
+# gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c).
 debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2
-                 gcc-arm-none-eabi libnewlib-arm-none-eabi)
+                 gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64)
 have_vcan=0
 if bash tests/vm/have_vcan.sh; then have_vcan=1; else
     debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)
@@ -64,6 +66,17 @@ make -s -C examples/c linux || status=1
 # tested, not the source tree's canopenfd/ without its compiled core.
 say "pytest: in-process bus, python-can virtual bus, CLI"
 "$VENV/bin/pytest" -p no:cacheprovider -m "not vcan" --junitxml="$RESULTS/pytest-local.xml" tests || status=1
+
+# The loop Windows and macOS run (a condition variable until the next deadline instead of
+# epoll), on Linux: the tests of mem: and python-can lines that exercise the real loop
+# (NMT/heartbeat timing, USDO/SDO transfers, PDOs, SYNC/TIME/EMCY, waits, shutdown).
+say "pytest: mem:/python-can subset under the portable loop (CANOPENFD_PORTABLE_LOOP=1)"
+portable_subset=(tests/test_membus.py tests/test_hostbus.py tests/test_services.py
+                 tests/test_service_stats.py tests/test_usdo_client.py tests/test_usdo_server.py
+                 tests/test_sdo_client.py tests/test_pdo_config.py tests/test_indications.py
+                 tests/test_local_od.py tests/test_app_store.py tests/test_portable_loop.py)
+CANOPENFD_PORTABLE_LOOP=1 "$VENV/bin/pytest" -p no:cacheprovider -m "not vcan" \
+    --junitxml="$RESULTS/pytest-portable-loop.xml" "${portable_subset[@]}" || status=1
 
 # ---------------------------------------------------------------- 4. vcan lane
 run_vcan() {

@@ -1,6 +1,8 @@
-/* Linux runtime: runs the core of every line of a network on one C thread
- * (epoll over the sockets, a timerfd for the next deadline, an eventfd for
- * wake-ups) without the GIL. Python talks to it through this header only:
+/* Runtime: runs the core of every line of a network on one C thread without
+ * the GIL (on Linux epoll over the sockets, a timerfd for the next deadline,
+ * an eventfd for wake-ups; on Windows and macOS, or on Linux with
+ * CANOPENFD_PORTABLE_LOOP=1, a condition variable until the next deadline,
+ * and no SocketCAN lines). Python talks to it through this header only:
  * commands go in through a mailbox, events come out through a bounded queue. */
 #ifndef CO_RUNTIME_H
 #define CO_RUNTIME_H
@@ -279,7 +281,8 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
  * thread is woken by the runtime thread directly, not through the event
  * queue, so a blocking request costs one wake-up less. */
 int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
-/* ---- process data and errors (co_rt_services.c) ---- */
+/* ---- process data and errors (co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c,
+ * co_rt_guard.c, co_rt_stats.c) ---- */
 
 /* An error the application raises or clears on its local node's EMCY
  * producer (FD lines send every field, classic lines code, register, msef). */

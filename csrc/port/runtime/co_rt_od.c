@@ -1,6 +1,5 @@
-/* Linux runtime: the local node's object dictionary (definition, atomic
+/* Runtime: the local node's object dictionary (definition, atomic
  * application access, store calls) and the Python indications on it. */
-#define _GNU_SOURCE
 
 #include "co_rt_internal.h"
 
@@ -68,7 +67,7 @@ int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t cou
     if (!defs && count > 0) {
         return rt_argument_error(rt, "line %d: no OD entries given", line);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     if (rt_has_node(l) || l->has_od) {
         rt_set_error(rt, "line %d: the object dictionary must be defined once, before the local "
@@ -77,7 +76,7 @@ int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t cou
     } else {
         status = od_fill(rt, l, defs, count);
         if (status == CO_RT_OK && store_path && store_path[0]) {
-            l->store_path = strdup(store_path);
+            l->store_path = rt_os_strdup(store_path);
             status = l->store_path ? CO_RT_OK : CO_RT_ERR_NO_MEMORY;
         }
         if (status == CO_RT_OK) {
@@ -86,7 +85,7 @@ int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t cou
             rt_od_release(l);
         }
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -202,7 +201,7 @@ int co_rt_od_domain(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint32_t
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     const co_od_entry_t *e = l->has_od ? co_od_find(&l->od, index, sub) : NULL;
     if (!l->has_od) {
@@ -237,7 +236,7 @@ int co_rt_od_domain(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint32_t
             l->domain_count++;
         }
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -258,7 +257,7 @@ int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *b
     if (!l || !buf || !length) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_od_t *od = served_od(rt, l);
     rt_domain_t *d = od ? domain_of(l, index, sub) : NULL;
     int result = CO_RT_ERR_STATE;
@@ -267,7 +266,7 @@ int co_rt_od_read(co_rt_t *rt, int line, uint16_t index, uint8_t sub, uint8_t *b
     } else if (od) {
         result = (int)co_od_get(od, index, sub, buf, capacity, length);
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }
 
@@ -286,7 +285,7 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
     if (!l || (!data && length > 0)) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_od_t *od = served_od(rt, l);
     int result = CO_RT_ERR_STATE;
     if (od) {
@@ -311,7 +310,7 @@ int co_rt_od_write(co_rt_t *rt, int line, uint16_t index, uint8_t sub, const uin
     if (result == 0) {
         rt_kick(rt);   /* a frame may wait (a TPDO), a deadline may have moved earlier */
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }
 
@@ -339,14 +338,14 @@ static int store_call(co_rt_t *rt, int line, int group_mask, bool save)
         return rt_argument_error(rt, "parameter group mask %d outside 1..%d", group_mask,
                               CO_GROUP_ALL);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     co_store_t *store = served_store(rt, l);
     int result = CO_RT_ERR_STATE;
     if (store) {
         result = (int)(save ? co_store_save(store, (uint8_t)group_mask)
                             : co_store_restore_defaults(store, (uint8_t)group_mask));
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }
 
@@ -366,9 +365,9 @@ int co_rt_store_status(co_rt_t *rt, int line)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int result = served_store(rt, l) ? (int)co_stack_node(&l->stack)->store_status : CO_RT_ERR_STATE;
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }
 
@@ -453,7 +452,7 @@ int co_rt_od_indicate(co_rt_t *rt, int line, uint16_t first_index, uint8_t first
         return rt_argument_error(rt, "line %d: indication range 0x%04X:%02X..0x%04X:%02X is "
                                  "empty", line, first_index, first_sub, last_index, last_sub);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     if (!l->has_od) {
         rt_set_error(rt, "line %d: define the object dictionary before its indications", line);
@@ -474,7 +473,7 @@ int co_rt_od_indicate(co_rt_t *rt, int line, uint16_t first_index, uint8_t first
             status = CO_RT_ERR_FULL;
         }
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -498,7 +497,7 @@ int co_rt_od_request_value(co_rt_t *rt, int line, uint32_t token, uint8_t *buf,
     if (!l || !length || (!buf && capacity > 0)) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_request_t *r = waiting_request(rt, l, token);
     if (r) {
@@ -514,7 +513,7 @@ int co_rt_od_request_value(co_rt_t *rt, int line, uint32_t token, uint8_t *buf,
             status = CO_RT_OK;
         }
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -528,7 +527,7 @@ int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort)
         return rt_argument_error(rt, "line %d: 0x%08X is not an abort code", line,
                                  (unsigned)abort);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_request_t *r = waiting_request(rt, l, token);
     if (r) {
@@ -544,7 +543,7 @@ int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort)
         }
         status = CO_RT_OK;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     rt_wake(rt);   /* the answer frame waits in the tx queue */
     return status;
 }

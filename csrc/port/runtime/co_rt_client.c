@@ -1,18 +1,15 @@
-/* Linux runtime: the client transfers of a line — USDO on fd lines, SDO on
+/* Runtime: the client transfers of a line — USDO on fd lines, SDO on
  * classic lines, behind one API. Transfers run in the runtime thread; the
  * application (Python) starts them from any thread, hears
  * CO_EV_TRANSFER_DONE, collects the result and releases the handle. Data
  * moves between the core clients and memory or a file here, never frame by
  * frame through Python. */
-#define _GNU_SOURCE
 
 #include "co_rt_internal.h"
 
 #include <errno.h>
-#include <time.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 enum {
     RT_USDO_CLIENT_SESSIONS = 64,      /* USDO transfers in flight per line */
@@ -90,8 +87,8 @@ static uint32_t read_source(rt_req_t *r, uint32_t offset, uint8_t *buf, uint32_t
     } else {
         uint32_t got = 0;
         while (got < want) {
-            ssize_t n = pread(r->fd, buf + got, want - got,
-                              (off_t)(r->fd_offset + offset + got));
+            int64_t n = rt_os_pread(r->fd, buf + got, want - got,
+                                    r->fd_offset + offset + got);
             if (n < 0 && errno == EINTR) {
                 continue;
             }
@@ -114,8 +111,8 @@ static data_error_t write_sink(rt_req_t *r, uint32_t offset, const uint8_t *data
     if (r->fd >= 0) {
         uint32_t done = 0;
         while (done < len) {
-            ssize_t n = pwrite(r->fd, data + done, len - done,
-                               (off_t)(r->fd_offset + offset + done));
+            int64_t n = rt_os_pwrite(r->fd, data + done, len - done,
+                                     r->fd_offset + offset + done);
             if (n < 0 && errno == EINTR) {
                 continue;
             }
@@ -433,7 +430,7 @@ int co_rt_usdo_client(co_rt_t *rt, int line, int node_id)
         return rt_argument_error(rt, "line %d: USDO client node-id %d outside 1..127", line,
                                  node_id);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_OK;
     if (l->client) {
         if (l->client->usdo->node_id != node_id) {
@@ -444,7 +441,7 @@ int co_rt_usdo_client(co_rt_t *rt, int line, int node_id)
     } else if (!client_of(rt, l, (uint8_t)node_id)) {
         status = CO_RT_ERR_STATE;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -458,7 +455,7 @@ int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *
     if (status != CO_RT_OK) {
         return status;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     rt_client_t *c = client_of(rt, l, 0);
     rt_req_t *r = c ? prepare(rt, c, request) : NULL;
     if (!r) {
@@ -485,7 +482,7 @@ int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *
     if (status >= 0) {
         rt_kick(rt);   /* frames wait in the tx queue, a timer was armed */
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -507,7 +504,7 @@ int co_rt_transfer_cancel(co_rt_t *rt, int line, int handle, uint32_t code)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_req_t *r = request_of(rt, l, handle);
     if (r && l->client->fd && code > 0xFF) {
@@ -520,7 +517,7 @@ int co_rt_transfer_cancel(co_rt_t *rt, int line, int handle, uint32_t code)
         status = CO_RT_OK;
     }
     rt_kick(rt);
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -530,7 +527,7 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
     if (!l || !out) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_req_t *r = request_of(rt, l, handle);
     if (r && l->client->fd) {
@@ -557,7 +554,7 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
                                          .error_number = r->error_number};
         status = CO_RT_OK;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -574,28 +571,24 @@ int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms)
     if (!rt_checked_line(rt, line, false)) {
         return CO_RT_ERR_ARGUMENT;
     }
-    struct timespec start;
-    clock_gettime(CLOCK_MONOTONIC, &start);
+    uint64_t start = rt_os_now_us();
     for (;;) {
         uint64_t gen = rt_transfer_generation(rt);
-        pthread_mutex_lock(&rt->lock);
+        rt_mutex_lock(&rt->lock);
         int ended = transfer_ended(rt, line, handle);
-        pthread_mutex_unlock(&rt->lock);
+        rt_mutex_unlock(&rt->lock);
         if (ended != 0) {
             return ended;
         }
         int left = timeout_ms;
         if (timeout_ms > 0) {
-            struct timespec now;
-            clock_gettime(CLOCK_MONOTONIC, &now);
-            long long spent = (long long)(now.tv_sec - start.tv_sec) * 1000 +
-                              (now.tv_nsec - start.tv_nsec) / 1000000;
-            left = spent >= timeout_ms ? 0 : (int)(timeout_ms - spent);
+            uint64_t spent = (rt_os_now_us() - start) / 1000u;
+            left = spent >= (uint64_t)timeout_ms ? 0 : (int)(timeout_ms - (int)spent);
         }
         if (left == 0 || !rt_wait_transfer_end(rt, gen, left)) {
-            pthread_mutex_lock(&rt->lock);
+            rt_mutex_lock(&rt->lock);
             ended = transfer_ended(rt, line, handle);
-            pthread_mutex_unlock(&rt->lock);
+            rt_mutex_unlock(&rt->lock);
             return ended;
         }
     }
@@ -607,7 +600,7 @@ int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_
     if (!l || (!buf && capacity > 0)) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_req_t *r = request_of(rt, l, handle);
     if (r && r->held > capacity) {
@@ -620,7 +613,7 @@ int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_
         }
         status = r->fd < 0 ? (int)r->held : 0;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -630,7 +623,7 @@ int co_rt_usdo_answers(co_rt_t *rt, int line, int handle, co_rt_usdo_answer_t *o
     if (!l || (!out && max > 0) || max < 0) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_req_t *r = request_of(rt, l, handle);
     if (r) {
@@ -640,7 +633,7 @@ int co_rt_usdo_answers(co_rt_t *rt, int line, int handle, co_rt_usdo_answer_t *o
         }
         status = (int)n;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }
 
@@ -650,7 +643,7 @@ int co_rt_transfer_release(co_rt_t *rt, int line, int handle)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int status = CO_RT_ERR_STATE;
     rt_req_t *r = request_of(rt, l, handle);
     if (r) {
@@ -660,6 +653,6 @@ int co_rt_transfer_release(co_rt_t *rt, int line, int handle)
         req_clear(r);
         status = CO_RT_OK;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return status;
 }

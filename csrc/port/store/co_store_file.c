@@ -6,7 +6,9 @@
  * whose blocks never made it: a truncated or zero-filled image), and the
  * directory is fsynced after it (otherwise the rename itself may be lost and a
  * "successful" save comes back as the old image after a power cut). */
-#define _GNU_SOURCE
+#if defined(__linux__)
+#define _GNU_SOURCE   /* O_CLOEXEC, O_DIRECTORY, fsync under -std=c99 */
+#endif
 
 #include "canopenfd/co_store_file.h"
 
@@ -14,9 +16,31 @@
 #include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
+
+#if defined(_WIN32)
+#ifndef WIN32_LEAN_AND_MEAN
+#define WIN32_LEAN_AND_MEAN
+#endif
+#include <windows.h>
+#include <io.h>
+#include <sys/stat.h>
+#else
 #include <sys/stat.h>
 #include <unistd.h>
+#endif
 
+/* The CRT spells the open flags with a leading underscore only. */
+#ifndef O_CREAT
+#define O_CREAT _O_CREAT
+#define O_TRUNC _O_TRUNC
+#define O_WRONLY _O_WRONLY
+#define O_RDONLY _O_RDONLY
+#endif
+#ifndef O_CLOEXEC
+#define O_CLOEXEC 0   /* Windows: _O_NOINHERIT is added by system_open */
+#endif
+
+#if !defined(_WIN32)
 /* ------------------------------------------------------- real system calls */
 
 static int posix_open(void *user, const char *path, int flags, mode_t mode)
@@ -67,14 +91,102 @@ static int posix_unlink(void *user, const char *path)
     return unlink(path);
 }
 
-static const co_store_file_ops_t posix_ops = {
+static const co_store_file_ops_t system_ops = {
     posix_open, posix_open_dir, posix_read, posix_write,
     posix_fsync, posix_close, posix_rename, posix_unlink
 };
 
 const co_store_file_ops_t *co_store_file_posix_ops(void)
 {
-    return &posix_ops;
+    return &system_ops;
+}
+
+#else
+/* -------------------------------------------- real system calls (Windows) */
+
+/* Paths come as UTF-8 (Python's str); Windows takes them as UTF-16. */
+static bool wide_path(const char *path, wchar_t *out, int capacity)
+{
+    if (MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, path, -1, out, capacity) == 0) {
+        errno = ENAMETOOLONG;
+        return false;
+    }
+    return true;
+}
+
+static int win_open(void *user, const char *path, int flags, co_store_file_mode_t mode)
+{
+    (void)user;
+    wchar_t wide[CO_STORE_FILE_PATH_MAX];
+    if (!wide_path(path, wide, CO_STORE_FILE_PATH_MAX)) {
+        return -1;
+    }
+    /* binary: text mode would rewrite the image's 0x0A bytes */
+    return _wopen(wide, flags | _O_BINARY | _O_NOINHERIT,
+                  (mode & 0200) ? (_S_IREAD | _S_IWRITE) : _S_IREAD);
+}
+
+static co_store_file_ssize_t win_read(void *user, int fd, void *buf, size_t n)
+{
+    (void)user;
+    return _read(fd, buf, n > 0x7FFFFFFFu ? 0x7FFFFFFFu : (unsigned)n);
+}
+
+static co_store_file_ssize_t win_write(void *user, int fd, const void *buf, size_t n)
+{
+    (void)user;
+    return _write(fd, buf, n > 0x7FFFFFFFu ? 0x7FFFFFFFu : (unsigned)n);
+}
+
+static int win_fsync(void *user, int fd)
+{
+    (void)user;
+    return _commit(fd);   /* FlushFileBuffers on the file's handle */
+}
+
+static int win_close(void *user, int fd)
+{
+    (void)user;
+    return _close(fd);
+}
+
+static int win_rename(void *user, const char *from, const char *to)
+{
+    (void)user;
+    wchar_t wide_from[CO_STORE_FILE_PATH_MAX];
+    wchar_t wide_to[CO_STORE_FILE_PATH_MAX];
+    if (!wide_path(from, wide_from, CO_STORE_FILE_PATH_MAX) ||
+        !wide_path(to, wide_to, CO_STORE_FILE_PATH_MAX)) {
+        return -1;
+    }
+    /* rename() refuses an existing target on Windows; WRITE_THROUGH returns
+     * only once the move is on disk (what the directory fsync does on POSIX) */
+    if (!MoveFileExW(wide_from, wide_to, MOVEFILE_REPLACE_EXISTING | MOVEFILE_WRITE_THROUGH)) {
+        errno = GetLastError() == ERROR_ACCESS_DENIED ? EACCES : EIO;
+        return -1;
+    }
+    return 0;
+}
+
+static int win_unlink(void *user, const char *path)
+{
+    (void)user;
+    wchar_t wide[CO_STORE_FILE_PATH_MAX];
+    if (!wide_path(path, wide, CO_STORE_FILE_PATH_MAX)) {
+        return -1;
+    }
+    return _wunlink(wide);
+}
+
+static const co_store_file_ops_t system_ops = {
+    win_open, NULL, win_read, win_write,
+    win_fsync, win_close, win_rename, win_unlink
+};
+#endif
+
+const co_store_file_ops_t *co_store_file_system_ops(void)
+{
+    return &system_ops;
 }
 
 /* ------------------------------------------------------------------- init */
@@ -102,7 +214,7 @@ bool co_store_file_init(co_store_file_t *f, const char *path)
         memcpy(f->dir_path, path, (size_t)(slash - path));
         f->dir_path[slash - path] = '\0';
     }
-    f->ops = &posix_ops;
+    f->ops = &system_ops;
     f->ops_user = NULL;
     return true;
 }
@@ -121,7 +233,7 @@ static bool write_all(co_store_file_t *f, int fd, const uint8_t *data, uint32_t 
 {
     uint32_t done = 0;
     while (done < length) {
-        ssize_t n = f->ops->write(f->ops_user, fd, data + done, length - done);
+        co_store_file_ssize_t n = f->ops->write(f->ops_user, fd, data + done, length - done);
         if (n < 0) {
             if (errno == EINTR)
                 continue;
@@ -171,6 +283,8 @@ static co_store_status_t file_save(void *user, const uint8_t *image, uint32_t le
         (void)ops->unlink(f->ops_user, f->tmp_path);
         return failed(f, "rename", err);
     }
+    if (ops->open_dir == NULL)
+        return CO_STORE_OK;   /* the rename is durable by itself (Windows) */
     dir = ops->open_dir(f->ops_user, f->dir_path);
     if (dir < 0)
         return failed(f, "open_dir", errno);
@@ -189,7 +303,7 @@ static bool read_up_to(co_store_file_t *f, int fd, uint8_t *buf, uint32_t cap, u
 {
     uint32_t done = 0;
     while (done < cap) {
-        ssize_t n = f->ops->read(f->ops_user, fd, buf + done, cap - done);
+        co_store_file_ssize_t n = f->ops->read(f->ops_user, fd, buf + done, cap - done);
         if (n < 0) {
             if (errno == EINTR)
                 continue;

@@ -1,9 +1,8 @@
-/* Linux runtime: a parameter store kept by the application (Python) instead
+/* Runtime: a parameter store kept by the application (Python) instead
  * of a file. The runtime thread never waits on the application: loads come
  * from a RAM copy of the application's image, and each new image is staged
  * until the application says it is on its medium; a network "save" is
  * answered only then (CiA 301: the answer follows the save). */
-#define _GNU_SOURCE
 
 #include "co_rt_internal.h"
 
@@ -138,7 +137,7 @@ int co_rt_store_application(co_rt_t *rt, int line, const uint8_t *image, uint32_
         return rt_argument_error(rt, "line %d: store load status %d (OK, EMPTY or IO)", line,
                                  status);
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int result = CO_RT_OK;
     if (!l->has_od || rt_has_node(l) || rt_has_store(l)) {
         rt_set_error(rt, "line %d: an application store comes once, after the object "
@@ -158,7 +157,7 @@ int co_rt_store_application(co_rt_t *rt, int line, const uint8_t *image, uint32_
             a->enabled = true;
         }
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }
 
@@ -179,7 +178,7 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
     if (!l || !length || (!buf && capacity > 0)) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int result = CO_RT_ERR_STATE;
     rt_app_store_t *a = app_store_of(rt, l);
     if (a && !a->staged_pending) {
@@ -195,7 +194,7 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
             result = CO_RT_OK;
         }
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }
 
@@ -205,7 +204,7 @@ int co_rt_store_finish(co_rt_t *rt, int line, int ok)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    pthread_mutex_lock(&rt->lock);
+    rt_mutex_lock(&rt->lock);
     int result = CO_RT_ERR_STATE;
     rt_app_store_t *a = app_store_of(rt, l);
     if (a && !a->staged_pending) {
@@ -214,6 +213,6 @@ int co_rt_store_finish(co_rt_t *rt, int line, int ok)
         (void)rt_app_store_persisted(l, ok ? 0u : CO_ABORT_DATA_STORE);
         result = CO_RT_OK;
     }
-    pthread_mutex_unlock(&rt->lock);
+    rt_mutex_unlock(&rt->lock);
     return result;
 }

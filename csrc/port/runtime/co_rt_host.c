@@ -1,0 +1,135 @@
+/* Runtime: host-driver lines (any python-can Bus). Two Python threads move
+ * the frames: one hands received frames in (co_rt_host_receive), one waits
+ * for frames to send (co_rt_host_transmit) on a queue of its own, filled
+ * by the runtime thread at the end of each turn. */
+#include "co_rt_internal.h"
+
+#include <stdlib.h>
+
+bool rt_host_init(rt_line_t *l, uint32_t capacity)
+{
+    rt_host_t *h = &l->host;
+    rt_mutex_init(&h->lock);
+    rt_cond_init(&h->ready);
+    if (capacity == 0) {
+        return true;
+    }
+    h->slots = calloc(capacity, sizeof *h->slots);
+    if (!h->slots) {
+        return false;
+    }
+    co_queue_init(&h->out, h->slots, capacity);
+    return true;
+}
+
+void rt_host_free(rt_line_t *l)
+{
+    rt_mutex_destroy(&l->host.lock);
+    rt_cond_destroy(&l->host.ready);
+    free(l->host.slots);
+}
+
+void rt_host_flush(rt_line_t *l)
+{
+    if (co_line_tx_count(&l->line) == 0) {
+        return;
+    }
+    rt_host_t *h = &l->host;
+    co_frame_t frame;
+    uint32_t moved = 0;
+    rt_mutex_lock(&h->lock);
+    while (!co_queue_is_full(&h->out) && co_line_tx_pop(&l->line, &frame)) {
+        co_queue_push(&h->out, &frame);
+        moved++;
+        if (l->monitor) {
+            rt_post(l, CO_EV_FRAME, 0, 1, 0, &frame);
+        }
+    }
+    h->stalled = co_line_tx_count(&l->line) != 0;
+    if (moved > 0 && h->waiters > 0) {
+        rt_cond_broadcast(&h->ready);
+    }
+    rt_mutex_unlock(&h->lock);
+}
+
+void rt_host_close(rt_line_t *l)
+{
+    rt_host_t *h = &l->host;
+    rt_mutex_lock(&h->lock);
+    h->closed = true;
+    rt_cond_broadcast(&h->ready);
+    rt_mutex_unlock(&h->lock);
+}
+
+uint32_t rt_host_waiters(rt_line_t *l)
+{
+    rt_mutex_lock(&l->host.lock);
+    uint32_t n = l->host.waiters;
+    rt_mutex_unlock(&l->host.lock);
+    return n;
+}
+
+int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame)
+{
+    rt_line_t *l = rt ? rt_checked_line(rt, line, true) : NULL;
+    if (!l || !frame) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    bool closed = rt->stopping;
+    bool queued = !closed && co_line_receive(&l->line, frame);
+    rt_mutex_unlock(&rt->lock);
+    if (closed) {
+        return CO_RT_ERR_CLOSED;
+    }
+    if (!queued) {
+        return CO_RT_ERR_FULL;   /* counted as rx overflow by the line */
+    }
+    rt_wake(rt);
+    return CO_RT_OK;
+}
+
+int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int timeout_ms)
+{
+    rt_line_t *l = rt ? rt_checked_line(rt, line, true) : NULL;
+    if (!l || !frames || max <= 0) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_host_t *h = &l->host;
+    uint64_t deadline = rt_deadline_after_ms(timeout_ms > 0 ? timeout_ms : 0);
+    rt_mutex_lock(&h->lock);
+    h->waiters++;
+    while (co_queue_is_empty(&h->out) && !h->closed &&
+           rt_wait_step(&h->ready, &h->lock, timeout_ms, deadline)) {
+    }
+    int n = 0;
+    while (n < max && co_queue_pop(&h->out, &frames[n])) {
+        n++;
+    }
+    bool refill = n > 0 && h->stalled;
+    int result = (n == 0 && h->closed) ? CO_RT_ERR_CLOSED : n;
+    h->waiters--;
+    rt_mutex_unlock(&h->lock);
+    if (refill) {
+        rt_wake(rt);   /* the line has more frames waiting for room */
+    }
+    return result;
+}
+
+int co_rt_host_comm_event(co_rt_t *rt, int line, int event)
+{
+    rt_line_t *l = rt ? rt_checked_line(rt, line, true) : NULL;
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (event < CO_COMM_BUS_OFF || event > CO_COMM_BUS_OFF_RECOVERED) {
+        return rt_argument_error(rt, "communication event %d unknown", event);
+    }
+    rt_mutex_lock(&rt->lock);
+    bool closed = rt->stopping;
+    if (!closed) {
+        co_line_comm_event(&l->line, (co_comm_event_t)event);
+    }
+    rt_mutex_unlock(&rt->lock);
+    return closed ? CO_RT_ERR_CLOSED : CO_RT_OK;
+}

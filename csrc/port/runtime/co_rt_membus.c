@@ -1,0 +1,86 @@
+/* Runtime: in-process buses (channel "mem:NAME"), named per runtime, i.e.
+ * per Network. The thread moves their frames between its turns' rounds. */
+#include "co_rt_internal.h"
+
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static rt_line_t *line_of(co_line_t *line)
+{
+    return (rt_line_t *)(void *)((char *)line - offsetof(rt_line_t, line));
+}
+
+static void on_membus_sent(co_line_t *from, const co_frame_t *frame, void *user)
+{
+    (void)user;
+    rt_line_t *l = line_of(from);
+    if (l->monitor) {
+        rt_post(l, CO_EV_FRAME, 0, 1, 0, frame);
+    }
+}
+
+uint32_t rt_membus_transfer(co_rt_t *rt)
+{
+    uint32_t moved = 0;
+    for (int i = 0; i < rt->bus_count; i++) {
+        moved += co_membus_transfer(&rt->buses[i]->bus, on_membus_sent, rt);
+    }
+    return moved;
+}
+
+static rt_bus_t *find_bus(co_rt_t *rt, const char *name)
+{
+    for (int i = 0; i < rt->bus_count; i++) {
+        if (strcmp(rt->buses[i]->name, name) == 0) {
+            return rt->buses[i];
+        }
+    }
+    return NULL;
+}
+
+static int new_bus(co_rt_t *rt, const rt_line_t *l, rt_bus_t **out)
+{
+    if (rt->bus_count == RT_MAX_BUSES) {
+        rt_set_error(rt, "membus %s: already %d buses in this runtime", l->channel, RT_MAX_BUSES);
+        return CO_RT_ERR_FULL;
+    }
+    rt_bus_t *bus = calloc(1, sizeof *bus);
+    if (!bus) {
+        return CO_RT_ERR_NO_MEMORY;
+    }
+    snprintf(bus->name, sizeof bus->name, "%s", l->channel);
+    bus->mode = co_line_mode(&l->line);
+    co_membus_init(&bus->bus);
+    rt->buses[rt->bus_count++] = bus;
+    *out = bus;
+    return CO_RT_OK;
+}
+
+int rt_membus_join(co_rt_t *rt, rt_line_t *l)
+{
+    static const char *const mode_names[] = {"classic", "fd"};
+    rt_bus_t *bus = find_bus(rt, l->channel);
+    int status = bus ? CO_RT_OK : new_bus(rt, l, &bus);
+    if (status != CO_RT_OK) {
+        return status;
+    }
+    if (bus->mode != co_line_mode(&l->line)) {
+        rt_set_error(rt, "membus %s: open in %s mode, a %s line cannot join it", bus->name,
+                  mode_names[bus->mode], mode_names[co_line_mode(&l->line)]);
+        return CO_RT_ERR_MODE;
+    }
+    if (!co_membus_attach(&bus->bus, &l->line)) {
+        rt_set_error(rt, "membus %s: already %d lines", bus->name, CO_MEMBUS_MAX_LINES);
+        return CO_RT_ERR_FULL;
+    }
+    return CO_RT_OK;
+}
+
+void rt_membus_free_all(co_rt_t *rt)
+{
+    for (int i = 0; i < rt->bus_count; i++) {
+        free(rt->buses[i]);
+    }
+}
