@@ -188,3 +188,12 @@ def test_every_c_name_the_package_uses_exists_in_c():
                     attr not in cdef_names:
                 missing.append(f"{where}:{node.lineno}: lib.{attr}")
     assert not missing, "names of C constants that C does not have:\n" + "\n".join(missing)
+
+
+def test_every_command_kind_has_its_named_arguments():
+    """co_rt_command_t's args hold one member per command kind, named after it
+    (the binding fills the member by the kind's name)."""
+    from canopenfd._binding.constants import CommandKind
+    from canopenfd._binding.core import ffi
+    members = {name for name, _ in ffi.typeof("co_rt_command_t").fields[2][1].type.fields}
+    assert members == {kind.name.lower() for kind in CommandKind}

@@ -14,7 +14,7 @@ from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationErr
 from ..frame import Frame
 from ..od import ObjectDictionary
 from ..od.datatypes import Value
-from .constants import EventKind
+from .constants import CommandKind, EventKind
 from .core import CData, ffi, lib
 from .od_tables import definitions
 from .transfers import TransferRequest
@@ -160,16 +160,19 @@ class Runtime:
                 self._raise(rc, what, {lib.CO_RT_ERR_STATE: InterfaceError})
         return rc
 
-    def command(self, kind: int, line: int, a: int = 0, b: int = 0, c: int = 0,
-                frame: Optional[Frame] = None, what: str = "command") -> None:
+    def command(self, kind: int, line: int, what: str = "command",
+                frame: Optional[Frame] = None, **fields: int) -> None:
+        """Post a command; `fields` fill the member of co_rt_command_t's args
+        named after the kind (node_create: node_id, heartbeat_ms; nmt_send:
+        command, node_id, include_self; ...), `frame` that of SEND_FRAME."""
         cmd = ffi.new("co_rt_command_t *")
         cmd.kind = kind
         cmd.line = line
-        cmd.a = a
-        cmd.b = b
-        cmd.c = c
+        args = getattr(cmd.args, CommandKind(kind).name.lower())
         if frame is not None:
-            frame_to_c(frame, cmd.frame)
+            frame_to_c(frame, args)
+        for name, value in fields.items():
+            setattr(args, name, value)
         with self._lock:
             rc = lib.co_rt_command(self._live(what), cmd)
             if rc < 0:

@@ -104,9 +104,10 @@ class NmtMaster:
         target = parse_node_target(node_id)
         context = self._context
         label = "all" if target == 0 else f"node {target}"
-        context.runtime.command(CommandKind.NMT_SEND, context.index, int(command), target,
-                                int(bool(include_self)),
-                                what=f"NMT {command.label} {label} on {context.where}")
+        context.runtime.command(CommandKind.NMT_SEND, context.index,
+                                what=f"NMT {command.label} {label} on {context.where}",
+                                command=int(command), node_id=target,
+                                include_self=int(bool(include_self)))
 
     def send_command(self, code: Union[NmtCommand, int, str]) -> None:
         """python-canopen's `network.nmt.send_command(code)`: to all nodes."""
@@ -157,8 +158,9 @@ class NmtSlave:
     def create(self) -> None:
         """Create the node in the runtime and boot it (boot-up, PRE-OPERATIONAL)."""
         context = self._context
-        context.runtime.command(CommandKind.NODE_CREATE, context.index, self.node_id,
-                                self.heartbeat_ms, what=f"boot of {self._where}")
+        context.runtime.command(CommandKind.NODE_CREATE, context.index,
+                                what=f"boot of {self._where}", node_id=self.node_id,
+                                heartbeat_ms=self.heartbeat_ms)
         self.booted = True
 
     @property
@@ -172,8 +174,9 @@ class NmtSlave:
         if not self.booted:
             raise ConfigurationError(f"{self._where} is not booted yet: call boot() first")
         context = self._context
-        context.runtime.command(CommandKind.NMT_LOCAL, context.index, int(command),
-                                what=f"NMT {command.label} on {self._where}")
+        context.runtime.command(CommandKind.NMT_LOCAL, context.index,
+                                what=f"NMT {command.label} on {self._where}",
+                                command=int(command))
 
     def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
         target = NmtState.parse(state)
@@ -189,8 +192,9 @@ class NmtSlave:
         context = self._context
         with context.cond:
             if self.booted:
-                context.runtime.command(CommandKind.HEARTBEAT_TIME, context.index, ms,
-                                        what=f"heartbeat_ms = {ms} on {self._where}")
+                context.runtime.command(CommandKind.HEARTBEAT_TIME, context.index,
+                                        what=f"heartbeat_ms = {ms} on {self._where}",
+                                        time_ms=ms)
             else:
                 self.heartbeat_default_ms = ms  # becomes the node's 0x1017 default
             self.heartbeat_ms = ms
@@ -202,8 +206,9 @@ class NmtSlave:
     @allow_operational.setter
     def allow_operational(self, allowed: bool) -> None:
         context = self._context
-        context.runtime.command(CommandKind.ALLOW_OPERATIONAL, context.index, int(allowed),
-                                what=f"allow_operational = {allowed} on {self._where}")
+        context.runtime.command(CommandKind.ALLOW_OPERATIONAL, context.index,
+                                what=f"allow_operational = {allowed} on {self._where}",
+                                allow=int(allowed))
         self._allow_operational = allowed
 
     def on_state_change(self, callback: Callable[[NmtState, NmtState], None]
@@ -264,13 +269,13 @@ class HeartbeatMonitor:
     def watch(self, timeout_ms: int, what: str) -> None:
         """Monitor the node (consumer time timeout_ms, 0 = states only)."""
         context = self._context
-        context.runtime.command(CommandKind.HB_WATCH, context.index, self.node_id, timeout_ms,
-                                what=what)
+        context.runtime.command(CommandKind.HB_WATCH, context.index, what=what,
+                                node_id=self.node_id, time_ms=timeout_ms)
 
     def unwatch(self, what: str) -> None:
         context = self._context
-        context.runtime.command(CommandKind.HB_UNWATCH, context.index, self.node_id,
-                                what=what)
+        context.runtime.command(CommandKind.HB_UNWATCH, context.index, what=what,
+                                node_id=self.node_id)
 
     def track_runtime_state(self) -> None:
         """Start from the state the runtime already knows (a node heard before)."""

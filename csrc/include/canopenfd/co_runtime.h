@@ -51,23 +51,31 @@ typedef struct co_rt_line_config {
 } co_rt_line_config_t;
 
 typedef enum co_rt_command_kind {
-    CO_CMD_NODE_CREATE = 1,      /* a = node-id, b = heartbeat ms: create + boot local node */
-    CO_CMD_NMT_SEND = 2,         /* a = command, b = node-id (0 = all), c = include self */
-    CO_CMD_NMT_LOCAL = 3,        /* a = command applied to the local node */
-    CO_CMD_HEARTBEAT_TIME = 4,   /* a = 0x1017 producer time ms */
-    CO_CMD_HB_WATCH = 5,         /* a = node-id, b = consumer time ms (0 = states only) */
-    CO_CMD_HB_UNWATCH = 6,       /* a = node-id */
-    CO_CMD_ALLOW_OPERATIONAL = 7,/* a = 0 veto "to operational", 1 allow */
-    CO_CMD_SEND_FRAME = 8        /* frame sent as is (tools, tests) */
+    CO_CMD_NODE_CREATE = 1,      /* create + boot the local node */
+    CO_CMD_NMT_SEND = 2,         /* an NMT command on the line */
+    CO_CMD_NMT_LOCAL = 3,        /* an NMT command applied to the local node only */
+    CO_CMD_HEARTBEAT_TIME = 4,   /* the local node's 0x1017 producer time */
+    CO_CMD_HB_WATCH = 5,         /* watch a node's heartbeat */
+    CO_CMD_HB_UNWATCH = 6,
+    CO_CMD_ALLOW_OPERATIONAL = 7,/* veto or allow "to operational" */
+    CO_CMD_SEND_FRAME = 8        /* a frame sent as is (tools, tests) */
 } co_rt_command_kind_t;
 
+/* What a command carries: the member of `args` named after its kind. */
 typedef struct co_rt_command {
     int kind;                  /* co_rt_command_kind_t */
     int line;                  /* line index from co_rt_add_line */
-    uint32_t a;
-    uint32_t b;
-    uint32_t c;
-    co_frame_t frame;
+    union {
+        struct { uint32_t node_id; uint32_t heartbeat_ms; } node_create;
+        struct { uint32_t command; uint32_t node_id; uint32_t include_self; } nmt_send;
+        /* node_id 0 = all nodes; include_self: applied to the local node too */
+        struct { uint32_t command; } nmt_local;
+        struct { uint32_t time_ms; } heartbeat_time;
+        struct { uint32_t node_id; uint32_t time_ms; } hb_watch;   /* time 0 = states only */
+        struct { uint32_t node_id; } hb_unwatch;
+        struct { uint32_t allow; } allow_operational;
+        co_frame_t send_frame;
+    } args;
 } co_rt_command_t;
 
 typedef enum co_rt_event_kind {

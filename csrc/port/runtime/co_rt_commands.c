@@ -61,25 +61,27 @@ static int check_command_args(co_rt_t *rt, const rt_line_t *l, const co_rt_comma
 {
     switch (cmd->kind) {
     case CO_CMD_NODE_CREATE:
-        return first_error(check_node_id(rt, cmd->a, false),
-                           check_ms(rt, "heartbeat time", cmd->b));
+        return first_error(check_node_id(rt, cmd->args.node_create.node_id, false),
+                           check_ms(rt, "heartbeat time", cmd->args.node_create.heartbeat_ms));
     case CO_CMD_NMT_SEND:
-        return first_error(check_nmt_command(rt, cmd->a), check_node_id(rt, cmd->b, true));
+        return first_error(check_nmt_command(rt, cmd->args.nmt_send.command),
+                           check_node_id(rt, cmd->args.nmt_send.node_id, true));
     case CO_CMD_NMT_LOCAL:
-        return check_nmt_command(rt, cmd->a);
+        return check_nmt_command(rt, cmd->args.nmt_local.command);
     case CO_CMD_HEARTBEAT_TIME:
-        return check_ms(rt, "heartbeat time", cmd->a);
+        return check_ms(rt, "heartbeat time", cmd->args.heartbeat_time.time_ms);
     case CO_CMD_HB_WATCH:
-        return first_error(check_node_id(rt, cmd->a, false),
-                           check_ms(rt, "heartbeat consumer time", cmd->b));
+        return first_error(check_node_id(rt, cmd->args.hb_watch.node_id, false),
+                           check_ms(rt, "heartbeat consumer time", cmd->args.hb_watch.time_ms));
     case CO_CMD_HB_UNWATCH:
-        return check_node_id(rt, cmd->a, false);
+        return check_node_id(rt, cmd->args.hb_unwatch.node_id, false);
     case CO_CMD_ALLOW_OPERATIONAL:
-        return cmd->a <= 1 ? CO_RT_OK
-                           : rt_argument_error(rt, "allow-operational flag %u is not 0 or 1",
-                                            (unsigned)cmd->a);
+        return cmd->args.allow_operational.allow <= 1
+                   ? CO_RT_OK
+                   : rt_argument_error(rt, "allow-operational flag %u is not 0 or 1",
+                                       (unsigned)cmd->args.allow_operational.allow);
     case CO_CMD_SEND_FRAME:
-        return check_frame(rt, l, &cmd->frame);
+        return check_frame(rt, l, &cmd->args.send_frame);
     default:
         return rt_argument_error(rt, "command kind %d unknown", cmd->kind);
     }
@@ -138,12 +140,15 @@ static int cmd_queued(co_rt_t *rt, const rt_line_t *l, bool queued)
 
 static int cmd_hb_watch(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
-    co_hb_config_result_t r = co_hb_consumer_watch(co_stack_hb_consumer(&l->stack), (uint8_t)cmd->a, (uint16_t)cmd->b);
+    uint32_t node_id = cmd->args.hb_watch.node_id;
+    co_hb_config_result_t r = co_hb_consumer_watch(co_stack_hb_consumer(&l->stack),
+                                                   (uint8_t)node_id,
+                                                   (uint16_t)cmd->args.hb_watch.time_ms);
     if (r == CO_HB_CONFIG_OK) {
         return CO_RT_OK;
     }
     rt_set_error(rt, "line %d: cannot watch node %u (heartbeat config result %d)", l->index,
-              (unsigned)cmd->a, (int)r);
+              (unsigned)node_id, (int)r);
     return r == CO_HB_CONFIG_NO_ROOM ? CO_RT_ERR_FULL : CO_RT_ERR_ARGUMENT;
 }
 
@@ -175,28 +180,31 @@ static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     case CO_CMD_NODE_CREATE:
         return rt_node_create(rt, l, cmd);
     case CO_CMD_NMT_SEND:
-        return cmd_queued(rt, l, co_nmt_master_send(&l->line, local, (co_nmt_command_t)cmd->a,
-                                                    (uint8_t)cmd->b, cmd->c != 0));
+        return cmd_queued(rt, l, co_nmt_master_send(&l->line, local,
+                                                    (co_nmt_command_t)cmd->args.nmt_send.command,
+                                                    (uint8_t)cmd->args.nmt_send.node_id,
+                                                    cmd->args.nmt_send.include_self != 0));
     case CO_CMD_NMT_LOCAL:
         if (local) {
-            co_nmt_apply(local, (co_nmt_command_t)cmd->a);
+            co_nmt_apply(local, (co_nmt_command_t)cmd->args.nmt_local.command);
         }
         return need_node(rt, l, cmd->kind);
     case CO_CMD_HEARTBEAT_TIME:
         if (local) {
-            co_node_set_heartbeat(co_stack_node(&l->stack), (uint16_t)cmd->a);
+            co_node_set_heartbeat(co_stack_node(&l->stack),
+                                  (uint16_t)cmd->args.heartbeat_time.time_ms);
         }
         return need_node(rt, l, cmd->kind);
     case CO_CMD_HB_WATCH:
         return cmd_hb_watch(rt, l, cmd);
     case CO_CMD_HB_UNWATCH:
-        hb_unwatch(l, (uint8_t)cmd->a);
+        hb_unwatch(l, (uint8_t)cmd->args.hb_unwatch.node_id);
         return CO_RT_OK;
     case CO_CMD_ALLOW_OPERATIONAL:
-        l->allow_operational = cmd->a != 0;
+        l->allow_operational = cmd->args.allow_operational.allow != 0;
         return CO_RT_OK;
     case CO_CMD_SEND_FRAME:
-        return cmd_queued(rt, l, co_line_send_raw(&l->line, &cmd->frame));
+        return cmd_queued(rt, l, co_line_send_raw(&l->line, &cmd->args.send_frame));
     default:
         return CO_RT_ERR_ARGUMENT;   /* validated in co_rt_command */
     }

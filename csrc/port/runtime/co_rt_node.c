@@ -156,11 +156,11 @@ int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
                      co_stack_node(&l->stack)->nmt.node_id);
         return CO_RT_ERR_STATE;
     }
-    co_stack_node_config_t config = {.node_id = (uint8_t)cmd->a,
-                                     .heartbeat_ms = (uint16_t)cmd->b,
+    co_stack_node_config_t config = {.node_id = (uint8_t)cmd->args.node_create.node_id,
+                                     .heartbeat_ms = (uint16_t)cmd->args.node_create.heartbeat_ms,
                                      .ind = &node_indications,
                                      .user = l};
-    int status = l->has_od ? prepare_od(rt, l, (uint8_t)cmd->a, &config) : CO_RT_OK;
+    int status = l->has_od ? prepare_od(rt, l, config.node_id, &config) : CO_RT_OK;
     if (status == CO_RT_OK) {
         co_stack_status_t s = co_stack_node_init(&l->stack, &config);
         status = s == CO_STACK_OK ? CO_RT_OK : stack_error(rt, l, s);
