@@ -2,6 +2,8 @@
  * node over caller memory (see co_stack.h). */
 #include "canopenfd/co_stack.h"
 
+#include "canopenfd/co_assert.h"
+
 #include <string.h>
 
 enum { OWNER_LINE = 0, OWNER_NODE = 1, OWNER_CLIENT = 2 };
@@ -95,13 +97,16 @@ static co_stack_status_t fail(co_stack_t *s, co_stack_part_t part, co_stack_stat
 /* ---------------------------------------------------------------- sizing */
 
 /* What one part-group asks of the allocator, in the order it asks. */
+enum { PLAN_MAX = 12 };   /* blocks one part-group asks for at most (node: 10) */
+
 typedef struct plan {
-    size_t sizes[12];
+    size_t sizes[PLAN_MAX];
     uint8_t count;
 } plan_t;
 
 static void plan_add(plan_t *p, size_t size)
 {
+    CO_ASSERT(p->count < PLAN_MAX);
     p->sizes[p->count++] = size ? size : 1u;
 }
 
@@ -670,6 +675,9 @@ co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_
 
 void co_stack_client_deinit(co_stack_t *stack)
 {
+    if (!stack || !stack->line) {
+        return;
+    }
     if (CO_CONFIG_FD && stack->has_usdo_client) {
         co_usdo_client_deinit(&stack->usdo_client);
         stack->has_usdo_client = false;
