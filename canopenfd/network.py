@@ -24,6 +24,7 @@ _WAIT_MS = 200          # dispatcher wake-up period (to notice close())
 _JOIN_TIMEOUT_S = 5.0   # generous: close() must never hang, but slow VMs exist
 _MAX_QUEUE = 1 << 20
 _MODES = ("fd", "classic")
+_EV_EVENTS_LOST = int(EventKind.EVENTS_LOST)   # a plain int: compared on every event
 
 # Networks still open at interpreter exit are closed then, so the C thread
 # never outlives the interpreter that owns its callbacks.
@@ -213,7 +214,7 @@ class Network:
 
     def _deliver(self, ev: Event) -> None:
         kind = ev.kind
-        if kind == EventKind.EVENTS_LOST:
+        if kind == _EV_EVENTS_LOST:
             self._events_lost += ev.a
             log.warning("canopenfd: %d runtime events lost (callbacks too slow?)", ev.a)
             return

@@ -291,3 +291,84 @@ def test_read_and_write_pick_the_type_from_the_od(rig):
     assert raw.read((0x1017, 0)) == (77).to_bytes(2, "little")
     with pytest.raises(ConfigurationError, match="must be bytes"):
         raw.write(0x1017, 5)
+
+
+def test_blocking_forms_wait_in_c_without_a_done_event(rig, monkeypatch):
+    """upload()/download() block in the runtime (co_rt_transfer_wait) and ask
+    for no TRANSFER_DONE event, so the dispatcher thread does not wake and
+    compete for the GIL; an awaited transfer still gets its event."""
+    from canopenfd._binding.constants import EventKind
+    from canopenfd.network import Network
+    done_events = []
+    deliver = Network._deliver
+
+    def counting(self, event):
+        if event.kind == EventKind.TRANSFER_DONE:
+            done_events.append(event.a)
+        deliver(self, event)
+
+    monkeypatch.setattr(Network, "_deliver", counting)
+    server, line, _ = rig
+    remote = line.add_node(SERVER)
+    for _ in range(5):
+        remote.usdo.download(0x1017, (100).to_bytes(2, "little"))
+        assert remote.usdo.upload(0x1017) == (100).to_bytes(2, "little")
+    line.usdo.download(SERVER, DOMAIN, 0, b"y" * 3000)                  # segmented
+    assert line.usdo.upload(SERVER, DOMAIN) == b"y" * 3000
+    time.sleep(scaled(0.05))
+    assert done_events == []
+
+    async def main():
+        return await remote.usdo.aupload(0x1017)
+
+    assert asyncio.run(main()) == (100).to_bytes(2, "little")
+    assert len(done_events) == 1     # the awaiting task heard it through the event
+
+
+def test_an_await_and_a_blocking_wait_on_one_transfer_both_end(rig, monkeypatch):
+    """A transfer that ends while a thread waits for it in C posts no
+    TRANSFER_DONE event; that thread tells the awaiting task."""
+    from canopenfd._binding.constants import EventKind
+    from canopenfd.network import Network
+    done_events = []
+    deliver = Network._deliver
+
+    def counting(self, event):
+        if event.kind == EventKind.TRANSFER_DONE:
+            done_events.append(event.a)
+        deliver(self, event)
+
+    monkeypatch.setattr(Network, "_deliver", counting)
+    server, line, _ = rig
+    payload = os.urandom(2 * MiB)
+    server[DOMAIN].data = payload
+    transfer = line.usdo.start_upload(SERVER, DOMAIN, 0)    # segmented: takes a while
+    awaited = Recorder()
+
+    async def main():
+        awaited(await transfer)
+
+    waiter = threading.Thread(target=lambda: asyncio.run(main()))
+    waiter.start()
+    assert transfer.result() == payload
+    waiter.join(scaled(5))
+    assert awaited.snapshot() == [payload]
+    assert done_events == []
+
+
+def test_a_blocking_upload_from_a_callback_completes(net, bus_name):
+    """Callbacks run on the dispatcher thread, which cannot also deliver the
+    transfer's end: the blocking form polls the runtime instead."""
+    line = net.open_line(bus_name, mode="fd")
+    remote = line.add_node(SERVER)
+    got = Recorder()
+
+    def read_identity():
+        try:
+            got(remote.usdo.upload((0x1018, 1)))
+        except Exception as exc:  # noqa: BLE001 - handed to the test
+            got(exc)
+
+    remote.on_bootup(read_identity)
+    server = make_server(net, bus_name)
+    assert got.wait_count(1, scaled(5))[0] == server[0x1018][1].data

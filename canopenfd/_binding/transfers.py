@@ -38,6 +38,7 @@ class TransferRequest:
     max_size: int = 0                 # upload to memory: largest accepted (0 = default)
     block_threshold: int = 0          # SDO AUTO: block from this size
     progress: bool = False            # post progress events
+    done_event: bool = True           # post TRANSFER_DONE (False: the caller waits in C)
 
     def to_c(self) -> CData:
         """The co_rt_transfer_request_t (cdata) of this request."""
@@ -57,6 +58,7 @@ class TransferRequest:
         request.timeout_ms = self.timeout_ms
         request.block_threshold = self.block_threshold
         request.progress = int(self.progress)
+        request.no_done_event = int(not self.done_event)
         return request
 
 

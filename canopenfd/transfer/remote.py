@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import tempfile
 from types import TracebackType
-from typing import Any, BinaryIO, Optional, Tuple, Type, Union
+from typing import Any, BinaryIO, Dict, Optional, Tuple, Type, Union
 
 from ..errors import ConfigurationError
 from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
@@ -68,16 +68,23 @@ class RemoteAccess:
         return self._client.start_upload(self._node.node_id, index, sub, **options)
 
     def start_download(self, key: Key, data: DownloadSource, **options: Any) -> Transfer:
-        index, sub, variable = self._key(key)
-        if variable is not None and self._client.SENDS_DATA_TYPE:
-            options.setdefault("data_type", int(variable.data_type))
+        index, sub = self._download_options(key, options)
         return self._client.start_download(self._node.node_id, index, sub, data, **options)
 
     def upload(self, key: Key, **options: Any) -> bytes:
-        return self.start_upload(key, **options).result()  # type: ignore[return-value]
+        index, sub, _ = self._key(key)
+        return self._client.upload(self._node.node_id, index, sub, **options)
 
     def download(self, key: Key, data: DownloadSource, **options: Any) -> None:
-        self.start_download(key, data, **options).result()
+        index, sub = self._download_options(key, options)
+        self._client.download(self._node.node_id, index, sub, data, **options)
+
+    def _download_options(self, key: Key, options: Dict[str, Any]) -> Tuple[int, int]:
+        """index, sub of key; with the node's OD the entry's data type goes into options."""
+        index, sub, variable = self._key(key)
+        if variable is not None and self._client.SENDS_DATA_TYPE:
+            options.setdefault("data_type", int(variable.data_type))
+        return index, sub
 
     async def aupload(self, key: Key, **options: Any) -> bytes:
         return await self.start_upload(key, **options)  # type: ignore[return-value]

@@ -233,8 +233,9 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
 int co_rt_store_finish(co_rt_t *rt, int line, int ok);
 
 /* ---- Client transfers: USDO on fd lines, SDO on classic lines. They run in
- * the runtime thread; the caller starts them, is told CO_EV_TRANSFER_DONE,
- * collects the result and releases the handle. */
+ * the runtime thread; the caller starts them, is told CO_EV_TRANSFER_DONE
+ * (or waits with co_rt_transfer_wait), collects the result and releases the
+ * handle. */
 typedef struct co_rt_transfer_request {
     int server;                /* node-id 1..127; USDO: 0 = broadcast */
     uint16_t index;
@@ -250,10 +251,13 @@ typedef struct co_rt_transfer_request {
     uint32_t timeout_ms;       /* per frame; broadcast: the answer window; 0 = 1000 */
     uint32_t block_threshold;  /* SDO AUTO: block from this size (0 = 1024, 0xFFFFFFFF never) */
     int progress;              /* post CO_EV_TRANSFER_PROGRESS (at most every 50 ms) */
+    int no_done_event;         /* 1: post no CO_EV_TRANSFER_DONE; the caller blocks in
+                                  co_rt_transfer_wait (or polls co_rt_transfer_result), so
+                                  the event loop has nothing to do when the transfer ends */
 } co_rt_transfer_request_t;
 
 typedef struct co_rt_transfer_result {
-    int running;               /* 1 until CO_EV_TRANSFER_DONE */
+    int running;               /* 1 until the transfer ended */
     uint32_t abort;            /* 0 = ok; USDO: the one-byte code, SDO: the CiA 301 code */
     uint8_t abort_from_server; /* 1: the server aborted; 0: we did (timeout, cancel, ...) */
     uint8_t type;              /* USDO upload: data type byte the server sent */
@@ -287,7 +291,10 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
 /* Block (without the GIL) until the transfer ended: 1 = ended, 0 = still
  * running after timeout_ms (< 0: no limit), < 0 = error. The application
  * thread is woken by the runtime thread directly, not through the event
- * queue, so a blocking request costs one wake-up less. */
+ * queue, so a blocking request costs one wake-up less. A transfer that ends
+ * while a caller waits for it here posts no CO_EV_TRANSFER_DONE: the 1
+ * returned is the news, and that caller tells whoever else in the
+ * application waits for the end. */
 int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
 /* ---- process data and errors (co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c,
  * co_rt_guard.c, co_rt_stats.c) ---- */

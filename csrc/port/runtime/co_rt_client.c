@@ -34,6 +34,8 @@ typedef struct rt_req {
     bool used;                         /* a handle exists */
     bool running;
     bool progress;
+    bool done_event;                   /* post CO_EV_TRANSFER_DONE when it ends ... */
+    uint16_t waiters;                  /* ... unless callers wait in co_rt_transfer_wait */
     uint64_t progress_at;              /* next progress event not before */
     /* download from memory (the caller's buffer) or a file */
     const uint8_t *src;
@@ -206,7 +208,10 @@ static void finished(rt_req_t *r)
     r->running = false;
     rt_transfer_ended(r->line->rt);
     rt_client_t *c = r->line->client;
-    if (!c->closing) {
+    /* A caller blocked in co_rt_transfer_wait hears of the end directly; an
+     * event as well would wake the application's event thread at the same
+     * moment, and the two would compete for the application (Python's GIL). */
+    if (!c->closing && r->done_event && r->waiters == 0) {
         rt_post(r->line, CO_EV_TRANSFER_DONE, 0, (uint32_t)handle_of(c, r), 0, NULL);
     }
 }
@@ -389,6 +394,7 @@ static rt_req_t *prepare(co_rt_t *rt, rt_client_t *c, const co_rt_transfer_reque
     r->src = q->data;
     r->max_size = q->max_size ? q->max_size : RT_CLIENT_DEFAULT_MAX;
     r->progress = q->progress != 0;
+    r->done_event = q->no_done_event == 0;
     if (c->fd) {
         prepare_usdo(r, q);
     } else {
@@ -559,11 +565,22 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
 }
 
 /* Under rt->lock: 1 = ended, 0 = running, < 0 = no such transfer. */
-static int transfer_ended(co_rt_t *rt, int line, int handle)
+/* 1 ended, 0 running, CO_RT_ERR_STATE released; waiting (+1 / -1, rt->lock
+ * held) counts the caller in or out of the transfer's waiters. A request
+ * released meanwhile was cleared, waiters too: nothing to count out. */
+static int transfer_ended(co_rt_t *rt, int line, int handle, int waiting)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
     rt_req_t *r = l ? request_of(rt, l, handle) : NULL;
-    return r ? !r->running : CO_RT_ERR_STATE;
+    if (!r) {
+        return CO_RT_ERR_STATE;
+    }
+    if (waiting < 0 && r->waiters > 0) {
+        r->waiters--;
+    } else if (waiting > 0 && r->running) {
+        r->waiters++;
+    }
+    return !r->running;
 }
 
 int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms)
@@ -575,7 +592,7 @@ int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms)
     for (;;) {
         uint64_t gen = rt_transfer_generation(rt);
         rt_mutex_lock(&rt->lock);
-        int ended = transfer_ended(rt, line, handle);
+        int ended = transfer_ended(rt, line, handle, +1);
         rt_mutex_unlock(&rt->lock);
         if (ended != 0) {
             return ended;
@@ -585,10 +602,11 @@ int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms)
             uint64_t spent = (rt_os_now_us() - start) / 1000u;
             left = spent >= (uint64_t)timeout_ms ? 0 : (int)(timeout_ms - (int)spent);
         }
-        if (left == 0 || !rt_wait_transfer_end(rt, gen, left)) {
-            rt_mutex_lock(&rt->lock);
-            ended = transfer_ended(rt, line, handle);
-            rt_mutex_unlock(&rt->lock);
+        bool woken = left != 0 && rt_wait_transfer_end(rt, gen, left);
+        rt_mutex_lock(&rt->lock);
+        ended = transfer_ended(rt, line, handle, -1);
+        rt_mutex_unlock(&rt->lock);
+        if (!woken || ended != 0) {
             return ended;
         }
     }
