@@ -3,6 +3,7 @@
 #   1. installs what it needs (Debian packages when root, a venv with the package + test deps),
 #   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer (plus the
 #      core's clang check, Cortex-M cross build and the Windows compile check with mingw),
+#      and the runtime driven from threads under ThreadSanitizer and LeakSanitizer,
 #   3. pytest over the in-process bus and python-can's virtual bus, then its mem:/python-can
 #      subset again under the portable loop (what Windows and macOS run),
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
@@ -57,6 +58,12 @@ status=0
 say "C unit tests (plain, then ASan+UBSan; clang check, Cortex-M cross build)"
 make -C tests/c 2>&1 | tee "$RESULTS/c-tests.txt"
 [ "${PIPESTATUS[0]}" = 0 ] || status=1
+# The runtime (core + Linux port, the extension's sources) driven from threads while it is
+# stopped under them: ThreadSanitizer, then ASan+LeakSanitizer+UBSan (tests/stress/).
+say "runtime under threads (ThreadSanitizer, then ASan+LSan+UBSan)"
+make -s -C tests/stress run 2>&1 | tee "$RESULTS/stress.txt"
+[ "${PIPESTATUS[0]}" = 0 ] || status=1
+
 # The C-only example device; built here because the vcan lane runs it and
 # the VM sees the tree read-only (tests/test_c_example.py checks it).
 make -s -C examples/c linux || status=1
@@ -106,6 +113,15 @@ text = open(sys.argv[1] + "/c-tests.txt").read()
 m = re.findall(r"c-tests[^:\n]*: (\d+) passed, (\d+) failed", text)
 if m:
     passed += int(m[-1][0]); failed += int(m[-1][1])
+# Other stages end their output with "<stage>: N passed, M failed" (the last one counts).
+for path in sorted(glob.glob(sys.argv[1] + "/*.txt")):
+    if path.endswith(("/c-tests.txt", "/pytest-vm.txt")):
+        continue
+    m = re.findall(r"^\w+: (\d+) passed, (\d+) failed$", open(path).read(), re.M)
+    if m:
+        passed += int(m[-1][0]); failed += int(m[-1][1])
+    else:
+        failed += 1   # the stage printed no summary at all
 vm = glob.glob(sys.argv[1] + "/pytest-vm.txt")
 if vm:
     # pytest's closing line, e.g. "==== 12 passed, 1 failed, 2 skipped in 80s ===="

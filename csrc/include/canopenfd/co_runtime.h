@@ -291,7 +291,9 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
 /* Block (without the GIL) until the transfer ended: 1 = ended, 0 = still
  * running after timeout_ms (< 0: no limit), < 0 = error. The application
  * thread is woken by the runtime thread directly, not through the event
- * queue, so a blocking request costs one wake-up less. A transfer that ends
+ * queue, so a blocking request costs one wake-up less. CO_RT_ERR_CLOSED
+ * once the runtime stopped with the transfer unfinished (co_rt_transfer_start
+ * refuses with it too). A transfer that ends
  * while a caller waits for it here posts no CO_EV_TRANSFER_DONE: the 1
  * returned is the news, and that caller tells whoever else in the
  * application waits for the end. */

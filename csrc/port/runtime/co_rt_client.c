@@ -462,6 +462,12 @@ int co_rt_transfer_start(co_rt_t *rt, int line, const co_rt_transfer_request_t *
         return status;
     }
     rt_mutex_lock(&rt->lock);
+    if (rt->stopping) {
+        /* nothing would ever run it: its waiter would wait for good */
+        rt_set_error(rt, "runtime stopped");
+        rt_mutex_unlock(&rt->lock);
+        return CO_RT_ERR_CLOSED;
+    }
     rt_client_t *c = client_of(rt, l, 0);
     rt_req_t *r = c ? prepare(rt, c, request) : NULL;
     if (!r) {
@@ -565,7 +571,8 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
 }
 
 /* Under rt->lock: 1 = ended, 0 = running, < 0 = no such transfer. */
-/* 1 ended, 0 running, CO_RT_ERR_STATE released; waiting (+1 / -1, rt->lock
+/* 1 ended, 0 running, CO_RT_ERR_STATE released, CO_RT_ERR_CLOSED running
+ * but the runtime stopped (it never ends then); waiting (+1 / -1, rt->lock
  * held) counts the caller in or out of the transfer's waiters. A request
  * released meanwhile was cleared, waiters too: nothing to count out. */
 static int transfer_ended(co_rt_t *rt, int line, int handle, int waiting)
@@ -577,7 +584,11 @@ static int transfer_ended(co_rt_t *rt, int line, int handle, int waiting)
     }
     if (waiting < 0 && r->waiters > 0) {
         r->waiters--;
-    } else if (waiting > 0 && r->running) {
+    }
+    if (r->running && rt->stopping) {
+        return CO_RT_ERR_CLOSED;
+    }
+    if (waiting > 0 && r->running) {
         r->waiters++;
     }
     return !r->running;
