@@ -14,6 +14,8 @@
 #
 #        bench/vcan_bench.sh --sdo [sdo_bench.py options] [IFACE]   (make -C bench sdo)
 #        bench/vcan_bench.sh --pdo [pdo_bench.py options] [IFACE]   (make -C bench pdo)
+#        bench/vcan_bench.sh --soak [soak.py options]               (make -C bench soak)
+#   every service at once on vcan0 (fd) and vcan2 (classic) for --minutes (bench/soak.py)
 #   PDO latency and a sustained stream (bench/pdo_bench.py, ours vs python-canopen)
 #   on an FD interface (MTU 72; --classic: MTU 16).
 #   classic SDO throughput instead (bench/sdo_bench.py: our client and python-canopen's,
@@ -40,6 +42,11 @@ main() {
     local root=$PWD iface=vcan0 a why missing=() here=0 raw=1 usdo=1 asan=0
     local raw_args=() usdo_args=() args=("$@") i=0
 
+    if [[ ${1:-} == --soak ]]; then
+        shift
+        run_soak "$root" "$@"
+        return
+    fi
     if [[ ${1:-} == --sdo || ${1:-} == --pdo ]]; then
         local kind=${1#--}
         shift
@@ -181,6 +188,31 @@ run_python_bench() {
     *) exit "$rc" ;;
     esac
     exit 0
+}
+
+# --soak: bench/soak.py on vcan0 (fd, MTU 72) and vcan2 (classic, MTU 16), here (vcan +
+# root) or in the VM, which gets the soak's minutes plus 10 minutes.
+run_soak() {
+    local root=$1 minutes=60 prev="" a rc=0
+    shift
+    for a in "$@"; do
+        [[ $prev != --minutes ]] || minutes=$a
+        prev=$a
+    done
+    [[ $minutes =~ ^[0-9]+([.][0-9]+)?$ ]] || die "bad --minutes '$minutes'"
+    if [[ ${CANOPENFD_IN_VM:-} == 1 ]] || bash tests/vm/have_vcan.sh 2> /dev/null; then
+        if [[ ${CANOPENFD_IN_VM:-} != 1 ]]; then
+            bash tests/vm/setup_vcan.sh --ifaces "vcan0:72 vcan2:16" || die "cannot create vcan"
+        fi
+        echo "(kernel $(uname -r), $(nproc) CPUs, $(cpu_name))"
+        exec python3 "$root/bench/soak.py" "$@"
+    fi
+    echo "vcan_bench: this kernel has no vcan: running bench/soak.py inside the qemu VM" >&2
+    echo "(host: $(cpu_name), $(nproc) CPUs, kernel $(uname -r))"
+    CANOPENFD_VM_TIMEOUT=${CANOPENFD_VM_TIMEOUT:-$(awk -v m="$minutes" 'BEGIN { print int(m * 60) + 600 }')} \
+        bash tests/vm/run_in_vm.sh --ifaces "vcan0:72 vcan2:16" -- \
+        bash "$root/bench/vcan_bench.sh" --soak "$@" || rc=$?
+    exit "$rc"
 }
 
 # Run raw_socketcan, then usdo_bench, on $1; exit with the first non-zero status.
