@@ -437,6 +437,78 @@ def test_close_wakes_waiters_with_closed_error(bus_name):
     assert isinstance(errors.wait_count(1)[0], ClosedError)
 
 
+def test_close_with_transfers_waits_and_callbacks_in_flight(bus_name):
+    """close() while transfers run (waited for in C, awaited, polled), a
+    blocking wait waits and a callback runs on the dispatcher: every waiter
+    gets ClosedError (or its transfer's end), every thread ends, nothing hangs
+    (daemon threads: a waiter left hanging fails the test, not the suite)."""
+    import asyncio
+
+    from canopenfd.od import DataType, ODVariable, demo_od
+
+    net = canopenfd.Network()
+    line = net.open_line(bus_name, mode="fd")
+    od = demo_od("fd")
+    domains = range(0x2300, 0x2304)    # one per transfer: a server refuses two at once (0x20)
+    for index in domains:
+        od.add_object(ODVariable(f"Domain {index:X}", index, 0, DataType.DOMAIN, "rw",
+                                 max_length=4 << 20))
+    device = line.create_local_node(5, od=od, boot=False)
+    for index in domains:
+        device.serve_domain(index, 4 << 20)
+    device.boot()
+    for index in domains:
+        device[index].data = bytes(4 << 20)        # long segmented uploads
+    tool = net.open_line(bus_name, mode="fd")
+    remote = tool.add_node(5)
+    outcomes = Recorder()
+    in_callback = threading.Event()
+
+    def record(call):
+        try:
+            call()
+            outcomes("ended")
+        except ClosedError:
+            outcomes("closed")
+        except Exception as exc:  # noqa: BLE001 - anything else fails the test below
+            outcomes(exc)
+
+    def slow_callback():
+        in_callback.set()
+        time.sleep(0.3)                             # the dispatcher is busy at the close
+
+    tool.add_node(9).on_bootup(slow_callback)
+    transfers = [remote.usdo.start_upload(index) for index in domains[:3]]
+    threads = [threading.Thread(target=record, args=(t.result,), daemon=True) for t in transfers[:2]]
+    threads.append(threading.Thread(target=record, args=(
+        lambda: asyncio.run(_awaited(transfers[2])),), daemon=True))
+    threads.append(threading.Thread(target=record, args=(
+        lambda: tool.add_node(10).wait_for_bootup(timeout=30),), daemon=True))
+    threads.append(threading.Thread(target=record, args=(
+        lambda: remote.usdo.upload(domains[3]),), daemon=True))  # waits in C, no event
+    for thread in threads:
+        thread.start()
+    net.open_line(bus_name).create_local_node(9)    # node 9's boot-up: the slow callback
+    assert in_callback.wait(wait(5))
+    time.sleep(0.02)
+    start = time.monotonic()
+    net.close()
+    for thread in threads:
+        thread.join(wait(10))
+    assert not any(thread.is_alive() for thread in threads), "a waiter still waits"
+    assert time.monotonic() - start < wait(10)
+    results = outcomes.snapshot()
+    assert len(results) == len(threads)
+    assert all(r in ("closed", "ended") for r in results), results
+    assert results.count("closed") >= 1
+    net._dispatcher.join(wait(5))
+    assert not net._dispatcher.is_alive()
+
+
+async def _awaited(transfer):
+    return await transfer
+
+
 def test_close_from_a_callback(bus_name):
     net = canopenfd.Network()
     watcher = net.open_line(bus_name)

@@ -128,6 +128,11 @@ class LineContext(Protocol):
     def unsubscribe(self, kind: EventKind, node: Optional[int] = None) -> None:
         ...
 
+    def on_close(self, hook: Callable[[], None]) -> None:
+        """hook() once the network closed (the runtime stopped): for what waits
+        on events that will never come now."""
+        ...
+
 
 class _LineShare:
     """What the contexts of one line share: the condition, the waiter, the
@@ -139,6 +144,7 @@ class _LineShare:
         self.waiter = Waiter(self.cond, closed, on_dispatcher)
         self.pdo_watches = PdoWatches(runtime, index, self.cond, closed)
         self.handlers: Dict[_HandlerKey, EventHandler] = {}
+        self.close_hooks: List[Callable[[], None]] = []
         self.local_node_id: Optional[int] = None
 
 
@@ -165,6 +171,7 @@ class RuntimeLineContext:
         self.waiter = self._line.waiter
         self.pdo_watches = self._line.pdo_watches
         self._subscribed: List[_HandlerKey] = []
+        self._close_hooks: List[Callable[[], None]] = []
         if share is None:
             self.subscribe(EventKind.PDO_FRAME, self.pdo_watches.event)
 
@@ -212,12 +219,21 @@ class RuntimeLineContext:
             if key in self._subscribed:
                 self._subscribed.remove(key)
 
+    def on_close(self, hook: Callable[[], None]) -> None:
+        with self.cond:
+            self._line.close_hooks.append(hook)
+            self._close_hooks.append(hook)
+
     def release(self) -> None:
-        """Remove every subscription made through this context."""
+        """Remove every subscription and close hook made through this context."""
         with self.cond:
             for key in self._subscribed:
                 self._line.handlers.pop(key, None)
             self._subscribed = []
+            for hook in self._close_hooks:
+                if hook in self._line.close_hooks:
+                    self._line.close_hooks.remove(hook)
+            self._close_hooks = []
 
     def dispatch(self, event: Event) -> None:
         """One runtime event of this line (dispatcher thread)."""
@@ -232,6 +248,10 @@ class RuntimeLineContext:
             run()
 
     def wake(self) -> None:
-        """Wake every blocking call of the line (the network closes)."""
+        """Wake every blocking call of the line and run the close hooks (the
+        network closed: no event comes any more)."""
         with self.cond:
             self.cond.notify_all()
+            hooks = list(self._line.close_hooks)
+        for hook in hooks:
+            hook()

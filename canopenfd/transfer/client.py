@@ -146,7 +146,13 @@ class Transfer:
             except BaseException as exc:  # noqa: BLE001 - handed to the awaiting task
                 future.set_exception(exc)
 
-        self._completion.add_callback(lambda: loop.call_soon_threadsafe(settle))
+        def wake_loop() -> None:
+            try:
+                loop.call_soon_threadsafe(settle)
+            except RuntimeError:
+                pass   # the loop closed meanwhile: nobody awaits any more
+
+        self._completion.add_callback(wake_loop)
         return future.__await__()
 
     def cancel(self, code: Optional[int] = None) -> None:
@@ -188,6 +194,7 @@ class TransferEngine:
         self._pending: Dict[int, _Pending] = {}
         context.subscribe(EventKind.TRANSFER_DONE, self._event_done)
         context.subscribe(EventKind.TRANSFER_PROGRESS, self._event_progress)
+        context.on_close(self._network_closed)
 
     def start(self, request: TransferRequest, keep: Union[None, CBuffer, BinaryIO],
               progress: Optional[Progress], what: str) -> Transfer:
@@ -274,6 +281,14 @@ class TransferEngine:
             else:
                 out[node] = data if transfer.upload else None
         return out
+
+    def _network_closed(self) -> None:
+        """No done event comes any more: whoever awaits a running transfer
+        collects it now (and gets the ClosedError)."""
+        with self._lock:
+            completions = [pending.completion for pending in self._pending.values()]
+        for completion in completions:
+            completion.set()
 
     def _event_done(self, event: Event) -> Deferred:
         """CO_EV_TRANSFER_DONE: a = the handle."""
