@@ -3,6 +3,7 @@
 #   1. installs what it needs (Debian packages when root, a venv with the package + test deps),
 #   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer (plus the
 #      core's clang check, Cortex-M cross build and the Windows compile check with mingw),
+#      then the core's libFuzzer harnesses for a bounded time each (tests/fuzz),
 #   3. pytest over the in-process bus and python-can's virtual bus, then its mem:/python-can
 #      subset again under the portable loop (what Windows and macOS run),
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
@@ -21,9 +22,11 @@ say() { printf '\n=== %s ===\n' "$*"; }
 
 # ---------------------------------------------------------------- 1. setup
 # gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c);
-# gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c).
+# gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c);
+# libclang-rt-14-dev: clang's libFuzzer and sanitizer runtimes (tests/fuzz).
 debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2
-                 gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64)
+                 gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64
+                 libclang-rt-14-dev)
 have_vcan=0
 if bash tests/vm/have_vcan.sh; then have_vcan=1; else
     debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)
@@ -56,6 +59,11 @@ status=0
 # ---------------------------------------------------------------- 2. C tests
 say "C unit tests (plain, then ASan+UBSan; clang check, Cortex-M cross build)"
 make -C tests/c 2>&1 | tee "$RESULTS/c-tests.txt"
+[ "${PIPESTATUS[0]}" = 0 ] || status=1
+# The core's decoders and state machines under libFuzzer (ASan+UBSan), FUZZ_SECONDS
+# (15) each over the seed corpora, after replaying every saved regression input.
+say "C fuzz harnesses (libFuzzer + ASan/UBSan, ${FUZZ_SECONDS:-15} s each)"
+make -C tests/fuzz ci 2>&1 | tee "$RESULTS/fuzz.txt"
 [ "${PIPESTATUS[0]}" = 0 ] || status=1
 # The C-only example device; built here because the vcan lane runs it and
 # the VM sees the tree read-only (tests/test_c_example.py checks it).
@@ -106,6 +114,14 @@ text = open(sys.argv[1] + "/c-tests.txt").read()
 m = re.findall(r"c-tests[^:\n]*: (\d+) passed, (\d+) failed", text)
 if m:
     passed += int(m[-1][0]); failed += int(m[-1][1])
+fz = glob.glob(sys.argv[1] + "/fuzz.txt")
+if fz:
+    # "fuzz: N passed, M failed" counts harnesses; no such line: the stage broke
+    m = re.findall(r"^fuzz: (\d+) passed, (\d+) failed", open(fz[0]).read(), re.M)
+    if m:
+        passed += int(m[-1][0]); failed += int(m[-1][1])
+    else:
+        failed += 1
 vm = glob.glob(sys.argv[1] + "/pytest-vm.txt")
 if vm:
     # pytest's closing line, e.g. "==== 12 passed, 1 failed, 2 skipped in 80s ===="
