@@ -4,6 +4,7 @@
 #   2. C unit tests, plain and under AddressSanitizer + UndefinedBehaviorSanitizer (plus the
 #      core's clang check, Cortex-M cross build and the Windows compile check with mingw),
 #      and the runtime driven from threads under ThreadSanitizer and LeakSanitizer,
+#      then the core's libFuzzer harnesses for a bounded time each (tests/fuzz),
 #   3. pytest over the in-process bus and python-can's virtual bus, then its mem:/python-can
 #      subset again under the portable loop (what Windows and macOS run),
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
@@ -22,9 +23,11 @@ say() { printf '\n=== %s ===\n' "$*"; }
 
 # ---------------------------------------------------------------- 1. setup
 # gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c);
-# gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c).
+# gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c);
+# libclang-rt-14-dev: clang's libFuzzer and sanitizer runtimes (tests/fuzz).
 debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2
-                 gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64)
+                 gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64
+                 libclang-rt-14-dev)
 have_vcan=0
 if bash tests/vm/have_vcan.sh; then have_vcan=1; else
     debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)
@@ -62,6 +65,12 @@ make -C tests/c 2>&1 | tee "$RESULTS/c-tests.txt"
 # stopped under them: ThreadSanitizer, then ASan+LeakSanitizer+UBSan (tests/stress/).
 say "runtime under threads (ThreadSanitizer, then ASan+LSan+UBSan)"
 make -s -C tests/stress run 2>&1 | tee "$RESULTS/stress.txt"
+[ "${PIPESTATUS[0]}" = 0 ] || status=1
+
+# The core's decoders and state machines under libFuzzer (ASan+UBSan), FUZZ_SECONDS
+# (15) each over the seed corpora, after replaying every saved regression input.
+say "C fuzz harnesses (libFuzzer + ASan/UBSan, ${FUZZ_SECONDS:-15} s each)"
+make -C tests/fuzz ci 2>&1 | tee "$RESULTS/fuzz.txt"
 [ "${PIPESTATUS[0]}" = 0 ] || status=1
 
 # The C-only example device; built here because the vcan lane runs it and
@@ -117,9 +126,10 @@ if m:
 for path in sorted(glob.glob(sys.argv[1] + "/*.txt")):
     if path.endswith(("/c-tests.txt", "/pytest-vm.txt")):
         continue
-    m = re.findall(r"^\w+: (\d+) passed, (\d+) failed$", open(path).read(), re.M)
+    m = re.findall(r"^\w+: (\d+) passed, (\d+) failed(?:, (\d+) skipped)?", open(path).read(),
+                   re.M)
     if m:
-        passed += int(m[-1][0]); failed += int(m[-1][1])
+        passed += int(m[-1][0]); failed += int(m[-1][1]); skipped += int(m[-1][2] or 0)
     else:
         failed += 1   # the stage printed no summary at all
 vm = glob.glob(sys.argv[1] + "/pytest-vm.txt")
