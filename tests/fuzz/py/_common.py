@@ -145,7 +145,8 @@ def main(name: str, check: Callable[[bytes], None], suffixes: Sequence[str],
         corpus = os.path.join(ROOT, "build", "pyfuzz", name, "corpus")
         os.makedirs(corpus, exist_ok=True)
         for path in seed_files(suffixes):
-            target = os.path.join(corpus, "seed-" + os.path.relpath(path, ROOT).replace(os.sep, "_"))
+            flat = os.path.relpath(path, ROOT).replace(os.sep, "_")
+            target = os.path.join(corpus, "seed-" + flat)
             if not os.path.exists(target):
                 shutil.copyfile(path, target)
         args.append(corpus)
