@@ -5,8 +5,9 @@
 #      core's clang check, Cortex-M cross build and the Windows compile check with mingw),
 #      and the runtime driven from threads under ThreadSanitizer and LeakSanitizer,
 #      then the core's libFuzzer harnesses for a bounded time each (tests/fuzz),
-#   3. pytest over the in-process bus and python-can's virtual bus, then its mem:/python-can
-#      subset again under the portable loop (what Windows and macOS run),
+#   3. pytest over the in-process bus and python-can's virtual bus, the atheris fuzz harnesses
+#      of the OD file importers (~20 s each), then pytest's mem:/python-can subset again under
+#      the portable loop (what Windows and macOS run),
 #   4. the vcan lane (real kernel SocketCAN, CAN FD): directly where this kernel has vcan,
 #      otherwise inside a small qemu VM booted with a stock Debian kernel (tests/vm/).
 # Exits non-zero when any stage fails; the last line sums up every test run.
@@ -83,6 +84,38 @@ make -s -C examples/c linux || status=1
 say "pytest: in-process bus, python-can virtual bus, CLI"
 "$VENV/bin/pytest" -p no:cacheprovider -m "not vcan" --junitxml="$RESULTS/pytest-local.xml" tests || status=1
 
+# The atheris harnesses of tests/fuzz/py (README-py.md): the object-dictionary file importers
+# (EDS/DCF, XDD/XDC, import_od + the C definition tables) on mutated bytes, each for a bounded
+# time from the test files as seeds; an escaping exception fails the harness and leaves the
+# input in $RESULTS/pyfuzz/. atheris is in the test extra where it has wheels (Linux x86_64,
+# CPython <= 3.13); elsewhere it needs clang with libFuzzer, so the stage is skipped.
+pyfuzz_harnesses=(fuzz_eds fuzz_xdd fuzz_import_od)
+pyfuzz_seconds=${CANOPENFD_PYFUZZ_SECONDS:-20}
+say "pyfuzz: atheris harnesses of the OD file importers (${pyfuzz_seconds} s each)"
+if "$VENV/bin/python" -c "import atheris" 2>/dev/null; then
+    mkdir -p "$RESULTS/pyfuzz"
+    pyfuzz_passed=0 pyfuzz_failed=0
+    for h in "${pyfuzz_harnesses[@]}"; do
+        log=$RESULTS/pyfuzz/$h.log
+        if "$VENV/bin/python" "tests/fuzz/py/$h.py" -max_total_time="$pyfuzz_seconds" -timeout=10 \
+                -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$RESULTS/pyfuzz/$h-" \
+                >"$log" 2>&1; then
+            pyfuzz_passed=$((pyfuzz_passed + 1))
+            echo "$h: passed, $(grep -o 'Done [0-9]* runs in [0-9]* second' "$log" | tail -1)"
+        else
+            pyfuzz_failed=$((pyfuzz_failed + 1))
+            echo "$h: FAILED (log: $log, input: $RESULTS/pyfuzz/$h-*)"
+            grep -v '^INFO: Instrumenting' "$log" | tail -40
+        fi
+    done
+    echo "pyfuzz: $pyfuzz_passed passed, $pyfuzz_failed failed" | tee "$RESULTS/pyfuzz.txt"
+    [ "$pyfuzz_failed" = 0 ] || status=1
+else
+    echo "pyfuzz: 0 passed, 0 failed, ${#pyfuzz_harnesses[@]} skipped (atheris is not installed:" \
+         "no wheel for this platform/Python; it builds only with clang and libFuzzer)" \
+        | tee "$RESULTS/pyfuzz.txt"
+fi
+
 # The loop Windows and macOS run (a condition variable until the next deadline instead of
 # epoll), on Linux: the tests of mem: and python-can lines that exercise the real loop
 # (NMT/heartbeat timing, USDO/SDO transfers, PDOs, SYNC/TIME/EMCY, waits, shutdown).
@@ -116,7 +149,7 @@ fi
 # ---------------------------------------------------------------- summary
 say "summary"
 "$VENV/bin/python" - "$RESULTS" <<'PY'
-import glob, re, sys, xml.etree.ElementTree as ET
+import glob, os, re, sys, xml.etree.ElementTree as ET
 passed = failed = skipped = 0
 text = open(sys.argv[1] + "/c-tests.txt").read()
 m = re.findall(r"c-tests[^:\n]*: (\d+) passed, (\d+) failed", text)

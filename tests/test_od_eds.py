@@ -346,3 +346,40 @@ def test_mutated_files_fail_cleanly_or_round_trip():
         again = eds_from_text(export_eds(od), "again.eds", node_id=od.node_id)
         assert again.diff(od) == []
     assert loaded > 20
+
+
+# ------------------------------------------------------------------ fuzz findings
+# Found by tests/fuzz/py (atheris) or the review around it; each once escaped
+# as an undocumented exception (TypeError...) or was accepted silently.
+LISTS_2000 = "[OptionalObjects]\nSupportedObjects=1\n1=0x2000\n"
+
+
+@pytest.mark.parametrize("body, line, words", [
+    # an object list entry without an index (TypeError formatting None)
+    ("[MandatoryObjects]\nSupportedObjects=1\n1=\n" + VAR_2000, 5,
+     ["[MandatoryObjects]", "entry 1 names no object index"]),
+    ("[OptionalObjects]\nSupportedObjects=1\n1= ; to do\n" + VAR_2000, 5,
+     ["[OptionalObjects]", "entry 1 names no object index"]),
+    # a link entry empty or holding only a comment (TypeError)
+    (LISTS_2000 + VAR_2000 + "[2000ObjectLinks]\nObjectLinks=1\n1=\n", 12,
+     ["[2000ObjectLinks]", "entry 1 names no object index"]),
+    (LISTS_2000 + VAR_2000 + "[2000ObjectLinks]\nObjectLinks=1\n1=;0x2001\n", 12,
+     ["[2000ObjectLinks]", "entry 1 names no object index"]),
+    # two sections of one sub-index: the second silently replaced the first
+    (LISTS_2000 + "[2000]\nParameterName=R\nObjectType=0x9\nSubNumber=2\n"
+     "[2000sub1]\nParameterName=a\nDataType=0x0005\nAccessType=rw\n"
+     "[2000sub01]\nParameterName=b\nDataType=0x0005\nAccessType=rw\n", 14,
+     ["[2000sub01]", "sub-index 0x01 is defined twice (also [2000sub1] at line 10)"]),
+    # compact array keys: int() read '1_0' as 10 and Arabic-Indic digits as numbers
+    (LISTS_2000 + "[2000]\nParameterName=A\nObjectType=0x8\nDataType=0x0005\nAccessType=ro\n"
+     "CompactSubObj=12\n[2000Name]\n1_0=x\n", 13, ["[2000Name]", "key '1_0' is not a sub-index"]),
+    (LISTS_2000 + "[2000]\nParameterName=A\nObjectType=0x8\nDataType=0x0005\nAccessType=ro\n"
+     "CompactSubObj=2\n[2000Value]\n\u0661=5\n", 13, ["[2000Value]", "is not a sub-index"]),
+], ids=["list-empty", "list-comment", "link-empty", "link-comment", "sub-twice",
+        "compact-underscore", "compact-arabic-digit"])
+def test_fuzz_findings_name_file_line_and_problem(tmp_path, body, line, words):
+    path = tmp_path / "hostile.eds"
+    path.write_bytes((HEAD + body).encode("utf-8"))
+    for reader in (import_eds, import_od):
+        error = fails_fast(str(path), f"hostile.eds:{line} ", *words, reader=reader)
+        assert (error.file, error.line) == ("hostile.eds", line)

@@ -195,3 +195,60 @@ def test_file_size_cap(tmp_path):
         handle.write(b"<a>")
         handle.truncate(50 * 1024 * 1024)
     fails_fast(str(big), "big.xdd", "limited to 16 MiB")
+
+
+# ------------------------------------------------------------------ fuzz findings
+# Found by tests/fuzz/py (atheris) or the review around it.
+def xdc(objects: str, extra: str) -> bytes:
+    """An XDC whose object list is at line 4; `extra` (one line) at line 3."""
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<ISO15745ProfileContainer>\n{extra}\n'
+            f"<CANopenObjectList>\n{objects}\n</CANopenObjectList>\n"
+            f"</ISO15745ProfileContainer>\n").encode()
+
+
+@pytest.mark.parametrize("flags", ["-5", "4294967296", "99999999999999"])
+def test_fuzz_objflags_outside_32_bits(tmp_path, flags):
+    # accepted before: the EDS export wrote ObjFlags=0x-5, which no reader takes
+    path = tmp_path / "hostile.xdd"
+    path.write_bytes(xml(obj().replace("/>", f' objFlags="{flags}"/>')))
+    error = fails_fast(str(path), "hostile.xdd:4 ", 'index="2000"',
+                       f"objFlags {int(flags)} outside 0..0xFFFFFFFF")
+    assert (error.file, error.line) == ("hostile.xdd", 4)
+
+
+def test_fuzz_bit_rates_and_node_id_out_of_range_are_ignored():
+    """A 400-digit bit rate raised OverflowError; a rate or node-id an EDS cannot
+    hold reached the DCF export, which then could not be read back."""
+    from canopenfd.od import eds_from_text, export_dcf
+
+    for rate in ("9" * 400 + " kbps", "5000000 kbps", "0 kbps"):
+        data = xdc(obj(), f'<supportedBaudRate value="{rate}"/>'
+                          f'<deviceCommissioning nodeID="300" actualBaudRate="{rate}"/>')
+        od = import_xdd(io.BytesIO(data))
+        assert od.bitrate is None and od.node_id is None
+        assert not any(key.startswith("BaudRate_") for key in od.device_info)
+        warnings = " | ".join(str(w) for w in od.load_warnings)
+        assert "<stream>:3 <deviceCommissioning>: nodeID 300 is not a node-id" in warnings
+        assert "is not a bit rate of 1 bit/s..1 Gbit/s; ignored" in warnings
+        again = eds_from_text(export_dcf(od), "again.dcf")
+        assert again.bitrate is None and again.node_id is None and again.diff(od) == []
+    od = import_xdd(io.BytesIO(xdc(obj(), '<deviceCommissioning nodeID="0x20" '
+                                          'actualBaudRate="0.5 Mbps"/>')))
+    assert od.device_commissioning == {"NodeID": "32", "Baudrate": "500"}
+    again = eds_from_text(export_dcf(od), "again.dcf")
+    assert (again.node_id, again.bitrate) == (32, 500_000)
+
+
+def test_fuzz_denotation_and_unit_are_stripped_like_eds_values():
+    from canopenfd.od import eds_from_text, export_eds
+
+    od = import_xdd(io.BytesIO(xml(obj().replace("/>", ' denotation=" d " unit="u&#9;"/>'))))
+    assert (od[0x2000].denotation, od[0x2000].unit) == ("d", "u")
+    assert eds_from_text(export_eds(od), "again.eds").diff(od) == []
+
+
+def test_fuzz_text_stream_with_lone_surrogates():
+    # str.encode raised UnicodeEncodeError before expat saw the text
+    error = fails_fast(io.StringIO('<a>\n<b x="\udcff"/></a>'), "<stream>:2",
+                       "not well-formed XML")
+    assert error.line == 2

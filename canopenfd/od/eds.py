@@ -57,6 +57,7 @@ _LIST_SECTIONS = ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects")
 _MAX_SUBS = 256
 _MAX_LIST = 0xFFFF
 _INLINE_COMMENT = re.compile(r"\s*;.*$")
+_DECIMAL_RE = re.compile(r"[0-9]{1,10}")
 _STRING_KEYS = ("parametername", "denotation", "description", "unit")
 _EXT = "canopenfd_"  # lower case: INI key names are matched in lower case
 
@@ -103,6 +104,14 @@ class _Reader:
         if not low <= number <= high:
             raise self.fail(section, f"{key.name} {number} outside {low}..{high}", key)
         return number
+
+    def index_key(self, section: Section, key: Key, low: int) -> int:
+        """The object index a list or link entry (``1=0x1018``) names."""
+        index = self.int_key(section, key.name, None, low, 0xFFFF)
+        if index is None:
+            raise self.fail(section, f"entry {key.name} names no object index (empty value)",
+                            key)
+        return index
 
     def typed(self, section: Section, key_name: str, dtype: DataType,
               allow_node_id: bool = True) -> Tuple[Optional[Value], bool, Optional[str]]:
@@ -331,7 +340,7 @@ def _read_object_lists(reader: _Reader) -> Optional[Dict[int, Tuple[Section, Key
             if key is None:
                 raise reader.fail(section, f"SupportedObjects={count} but key {number} "
                                            f"is missing", section.get("SupportedObjects"))
-            index = reader.int_key(section, str(number), None, 1, 0xFFFF)
+            index = reader.index_key(section, key, 1)
             if index in found:
                 reader.warn(section, f"{format_index(index)} is listed twice", key)
             found[index] = (section, key)
@@ -355,7 +364,12 @@ def _read_objects(reader: _Reader, od: ObjectDictionary,
             sub = int(digits, 16) if len(digits) <= 8 else 1 << 32
             if sub > 0xFF:
                 raise reader.fail(section, f"sub-index 0x{match.group(2)[:10]} is above 0xFF")
-            subs.setdefault(int(match.group(1), 16), []).append((sub, section))
+            siblings = subs.setdefault(int(match.group(1), 16), [])
+            for other_sub, other in siblings:
+                if other_sub == sub:  # e.g. [1018sub1] and [1018sub01]
+                    raise reader.fail(section, f"sub-index 0x{sub:02X} is defined twice "
+                                               f"(also [{other.name}] at line {other.line})")
+            siblings.append((sub, section))
             continue
         match = _EXTRA_RE.match(title)
         if match:
@@ -464,10 +478,15 @@ def _apply_compact_extra(reader: _Reader, section: Section, kind: str,
         reader.warn(section, f"NrOfEntries={count} but {len(entries)} entries are given",
                     section.get("NrOfEntries"))
     for key in entries:
-        try:
-            sub = parse_int(key.name) if key.name.lower().startswith("0x") else int(key.name, 10)
+        try:  # decimal (ASCII digits only: int() would take '1_0' or Arabic digits), or 0x hex
+            if key.name.lower().startswith("0x"):
+                sub = parse_int(key.name)
+            elif _DECIMAL_RE.fullmatch(key.name):
+                sub = int(key.name, 10)
+            else:
+                raise ValueError(key.name)
         except (OdValueError, ValueError):
-            raise reader.fail(section, f"key {key.name!r} is not a sub-index", key) from None
+            raise reader.fail(section, f"key {_shown(key.name)} is not a sub-index", key) from None
         var = container.subindices.get(sub)
         if var is None or sub == 0:
             raise reader.fail(section, f"sub-index {sub} is not an entry of "
@@ -500,7 +519,7 @@ def _read_links(reader: _Reader, od: ObjectDictionary,
             if key is None:
                 raise reader.fail(section, f"ObjectLinks={count} but key {number} is missing",
                                   section.get("ObjectLinks"))
-            target = reader.int_key(section, str(number), None, 0, 0xFFFF)
+            target = reader.index_key(section, key, 0)
             if target == index:
                 raise reader.fail(section, f"{format_index(index)} links to itself", key)
             if target not in od.indices:

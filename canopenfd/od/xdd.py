@@ -64,6 +64,7 @@ _IEC_TYPES = {
 _PDO_311 = {"no": None, "default": "auto", "optional": "auto", "tpdo": "tpdo", "rpdo": "rpdo"}
 _PDO_FD = {"no": None, "": None, "t": "tpdo", "tx": "tpdo", "tpdo": "tpdo", "r": "rpdo",
            "rx": "rpdo", "rpdo": "rpdo", "tr": "both", "rt": "both", "both": "both"}
+_MAX_BITRATE = 1_000_000_000
 _RATE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(k|m)?\s*(?:bit/s|bps|baud)?", re.IGNORECASE)
 
 
@@ -197,9 +198,12 @@ class _Reader:
             if value is None and not text.strip():
                 continue  # defaultValue="" on a number: no default
             self.guard(node, owner, attr, lambda: setter(value, relative, text.strip()))
-        var.denotation = node.get("denotation") or ""
-        var.unit = node.get("unit") or ""
+        # stripped like every EDS value, so an EDS export reads back the same
+        var.denotation = (node.get("denotation") or "").strip()
+        var.unit = (node.get("unit") or "").strip()
         flags = self.dec_attr(node, "objFlags", owner)
+        if flags is not None and not 0 <= flags <= 0xFFFFFFFF:
+            raise self.fail(node, f"objFlags {flags} outside 0..0xFFFFFFFF (32 bits)", owner)
         var.obj_flags = flags or 0
         return var
 
@@ -320,22 +324,26 @@ def _read_identity(root: Node, od: ObjectDictionary) -> None:
 
 
 def _bitrate(text: str) -> Optional[int]:
-    """'250 Kbps' -> 250000, '1 Mbps' -> 1000000, '500/2000 kbps' -> 500000."""
+    """'250 Kbps' -> 250000, '1 Mbps' -> 1000000, '500/2000 kbps' -> 500000;
+    None for no rate or one outside 1 bit/s..1 Gbit/s (what an EDS can hold:
+    Baudrate is in kbit/s, at most 1000000)."""
     match = _RATE_RE.match(text)
-    if not match:
+    if not match or len(match.group(1)) > 20:
         return None
     number = float(match.group(1))
     unit = (match.group(2) or "").lower()
     scale = 1000 if unit == "k" else 1_000_000 if unit == "m" else 1
-    return int(number * scale)
+    rate = number * scale
+    return int(rate) if 1 <= rate <= _MAX_BITRATE else None
 
 
 def _read_commissioning(reader: _Reader, root: Node, od: ObjectDictionary,
                         node_id: Optional[int]) -> None:
     node = root.find("deviceCommissioning")
     if node is not None:
-        for attr, key in (("nodeID", "NodeID"), ("nodeName", "NodeName"),
-                          ("actualBaudRate", "Baudrate"), ("networkNumber", "NetNumber"),
+        # in the EDS [DeviceComissioning] key names; NodeID and Baudrate below,
+        # only when valid, in EDS notation (a DCF export must read back)
+        for attr, key in (("nodeName", "NodeName"), ("networkNumber", "NetNumber"),
                           ("networkName", "NetworkName"), ("CANopenManager", "CANopenManager")):
             if node.get(attr) is not None:
                 od.device_commissioning[key] = node.get(attr)
@@ -346,11 +354,18 @@ def _read_commissioning(reader: _Reader, root: Node, od: ObjectDictionary,
             except OdValueError as exc:
                 raise reader.fail(node, f"nodeID: {exc.problem}") from None
             if 1 <= xdc_node <= 127:
+                od.device_commissioning["NodeID"] = str(xdc_node)
                 if node_id is None:
                     node_id = xdc_node
             else:
                 reader.warn(node, f"nodeID {xdc_node} is not a node-id 1..127; ignored")
-        od.bitrate = _bitrate(node.get("actualBaudRate") or "")
+        rate_text = node.get("actualBaudRate") or ""
+        od.bitrate = _bitrate(rate_text)
+        if od.bitrate is None and rate_text.strip():
+            reader.warn(node, f"actualBaudRate {rate_text[:30]!r} is not a bit rate of "
+                              f"1 bit/s..1 Gbit/s; ignored")
+        elif od.bitrate is not None:
+            od.device_commissioning["Baudrate"] = str(od.bitrate // 1000)
     od.node_id = node_id
 
 

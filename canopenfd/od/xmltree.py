@@ -82,7 +82,8 @@ def _local(name: str) -> str:
 def parse_xml(data: Union[bytes, str], name: str) -> Node:
     """The root element of an XML document; OdFileError (file, line) on
     malformed, hostile or oversized input."""
-    raw = data.encode("utf-8") if isinstance(data, str) else data
+    # surrogatepass: a text stream decoded with surrogateescape; expat refuses those bytes
+    raw = data.encode("utf-8", "surrogatepass") if isinstance(data, str) else data
     if not raw.strip():
         raise OdFileError("the file is empty", name)
     scan = raw
