@@ -7,9 +7,10 @@ from __future__ import annotations
 import atexit
 import logging
 import threading
+import time
 import weakref
 from types import TracebackType
-from typing import Dict, List, Optional, Type
+from typing import Dict, List, Optional, Tuple, Type
 
 from ._binding.constants import Driver, EventKind, Mode
 from ._binding.context import RuntimeLineContext
@@ -25,6 +26,13 @@ _JOIN_TIMEOUT_S = 5.0   # generous: close() must never hang, but slow VMs exist
 _MAX_QUEUE = 1 << 20
 _MODES = ("fd", "classic")
 _EV_EVENTS_LOST = int(EventKind.EVENTS_LOST)   # a plain int: compared on every event
+
+
+def _event_name(kind: int) -> str:
+    try:
+        return EventKind(kind).name
+    except ValueError:
+        return f"kind {kind}"
 
 # Networks still open at interpreter exit are closed then, so the C thread
 # never outlives the interpreter that owns its callbacks.
@@ -44,12 +52,20 @@ class Network:
     run on this network's dispatcher thread, one at a time, in event order.
     """
 
-    def __init__(self, event_capacity: int = 0) -> None:
+    def __init__(self, event_capacity: int = 0, *, stall_report_s: float = 1.0) -> None:
+        """event_capacity: runtime events queued for the dispatcher (0 = default).
+        stall_report_s: a callback (or other event handling) holding the
+        dispatcher longer than this is logged as a warning and counted in
+        `dispatcher_stalls`: every other event of the network waits meanwhile."""
         if isinstance(event_capacity, bool) or not isinstance(event_capacity, int) \
                 or not 0 <= event_capacity <= _MAX_QUEUE:
             raise ConfigurationError(
                 f"event_capacity must be an int 0..{_MAX_QUEUE} (0 = default), "
                 f"got {event_capacity!r}")
+        if isinstance(stall_report_s, bool) or not isinstance(stall_report_s, (int, float)) \
+                or not 0 < stall_report_s <= 3600:
+            raise ConfigurationError(
+                f"stall_report_s must be a number of seconds in (0, 3600], got {stall_report_s!r}")
         self._runtime = Runtime(event_capacity)
         self._lock = threading.RLock()     # lines table, close()
         self._lines: Dict[int, Line] = {}
@@ -58,9 +74,17 @@ class Network:
         self._closed = False
         self._events_lost = 0
         self._free_on_exit = False  # close() ran in a callback: the dispatcher frees
+        # What the dispatcher handles now (monotonic start, the event), for the watchdog.
+        self._handling: Optional[Tuple[float, Event]] = None
+        self._stall_report_s = float(stall_report_s)
+        self._stalls = 0
+        self._stop_watch = threading.Event()
         self._dispatcher = threading.Thread(target=self._dispatch, name="canopenfd-dispatch",
                                             daemon=True)
+        self._watchdog = threading.Thread(target=self._watch_dispatcher,
+                                          name="canopenfd-watchdog", daemon=True)
         self._dispatcher.start()
+        self._watchdog.start()
         _open_networks.add(self)
 
     def __enter__(self) -> "Network":
@@ -87,6 +111,12 @@ class Network:
     def events_lost(self) -> int:
         """Events the runtime dropped because the Python side fell behind."""
         return self._events_lost
+
+    @property
+    def dispatcher_stalls(self) -> int:
+        """Times one event's handling (a callback) held the dispatcher longer
+        than stall_report_s (each is logged as a warning)."""
+        return self._stalls
 
     # ---------------------------------------------------------------- lines
     def open_line(self, channel: Optional[str] = None, *, bus: Optional[PythonCanBus] = None,
@@ -170,6 +200,7 @@ class Network:
         for bridge in self._bridges:
             bridge.stop()
         self._runtime.stop()
+        self._stop_watch.set()
         with self._lock:
             contexts = list(self._contexts.values())
         for context in contexts:
@@ -203,14 +234,39 @@ class Network:
                 if events is None:
                     break  # the runtime stopped
                 for event in events:
+                    self._handling = (time.monotonic(), event)
                     try:
                         self._deliver(event)
                     except Exception:  # noqa: BLE001 - one bad event must not stop the rest
                         log.exception("canopenfd: event %d of line %d could not be delivered",
                                       event.kind, event.line)
+                    self._handling = None
         finally:
+            self._handling = None
+            self._stop_watch.set()
             if self._free_on_exit:
                 self._finish()
+
+    def _watch_dispatcher(self) -> None:
+        """Report a callback that holds the dispatcher (every other event waits)."""
+        reported: Optional[Tuple[float, Event]] = None
+        step = min(0.25, self._stall_report_s / 4)
+        while not self._stop_watch.wait(step):
+            handling = self._handling
+            if handling is None or handling is reported:
+                continue
+            held = time.monotonic() - handling[0]
+            if held >= self._stall_report_s:
+                reported = handling
+                self._stalls += 1
+                event = handling[1]
+                with self._lock:
+                    line = self._lines.get(event.line)
+                log.warning("canopenfd: the handling of a %s event of %s has held the dispatcher "
+                            "for %.1f s (a blocking callback?): every other event of the network "
+                            "waits", _event_name(event.kind),
+                            f"line {line.channel!r}" if line is not None
+                            else f"line {event.line}", held)
 
     def _deliver(self, ev: Event) -> None:
         kind = ev.kind

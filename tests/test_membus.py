@@ -681,3 +681,32 @@ def test_driver_stats_of_an_in_process_line(net, bus_name):
     assert after["loop_wakeups"] > before["loop_wakeups"]
     assert line.stats["rx_frames"] >= 1
     assert [k for k in after if k != "loop_wakeups" and after[k] != 0] == []
+
+
+def test_a_blocking_callback_is_reported_and_the_events_behind_it_still_come(bus_name, caplog):
+    net = canopenfd.Network(stall_report_s=0.3)
+    try:
+        line = net.open_line(bus_name)
+        slow = line.add_node(5)
+        others = Recorder()
+        line.add_node(6).on_bootup(lambda: others("6"))
+        line.add_node(7).on_bootup(lambda: others("7"))
+        release = threading.Event()
+        slow.on_bootup(lambda: release.wait(wait(5)))   # blocks the dispatcher
+        with caplog.at_level("WARNING", logger="canopenfd"):
+            for node_id in (5, 6, 7):
+                net.open_line(bus_name).create_local_node(node_id)
+            deadline = time.monotonic() + wait(5)
+            while net.dispatcher_stalls == 0 and time.monotonic() < deadline:
+                time.sleep(0.02)
+            assert net.dispatcher_stalls == 1
+            assert others.snapshot() == []              # they wait behind it ...
+            release.set()
+            assert sorted(others.wait_count(2)) == ["6", "7"]   # ... and none is lost
+        text = " ".join(r.getMessage() for r in caplog.records)
+        assert "HEARTBEAT event of line" in text and "held the dispatcher" in text
+        assert net.dispatcher_stalls == 1                # reported once per stall
+    finally:
+        net.close()
+    with pytest.raises(ConfigurationError, match="stall_report_s"):
+        canopenfd.Network(stall_report_s=0)
