@@ -26,6 +26,7 @@ _JOIN_TIMEOUT_S = 5.0   # generous: close() must never hang, but slow VMs exist
 _MAX_QUEUE = 1 << 20
 _MODES = ("fd", "classic")
 _EV_EVENTS_LOST = int(EventKind.EVENTS_LOST)   # a plain int: compared on every event
+_BURST_END_S = 1.0     # no event lost for this long: the burst of losses is over
 
 
 def _event_name(kind: int) -> str:
@@ -78,6 +79,7 @@ class Network:
         self._handling: Optional[Tuple[float, Event]] = None
         self._stall_report_s = float(stall_report_s)
         self._stalls = 0
+        self._burst: Optional[List[float]] = None   # events lost: [first, last, count]
         self._stop_watch = threading.Event()
         self._dispatcher = threading.Thread(target=self._dispatch, name="canopenfd-dispatch",
                                             daemon=True)
@@ -247,11 +249,37 @@ class Network:
             if self._free_on_exit:
                 self._finish()
 
+    def _loss_burst(self, lost: int) -> None:
+        """Events the runtime dropped (its queue was full): one warning when a
+        burst starts, one with its total when it ended (no loss for 1 s), not
+        one per report: a sustained overload reports at every read."""
+        now = time.monotonic()
+        with self._lock:
+            burst = self._burst
+            if burst is None:
+                self._burst = [now, now, lost]
+            else:
+                burst[1] = now
+                burst[2] += lost
+        if burst is None:
+            log.warning("canopenfd: %d runtime events lost: the event queue is full (callbacks "
+                        "too slow?); the total follows when the losses stop", lost)
+
+    def _loss_burst_end(self, now: float) -> None:
+        with self._lock:
+            burst = self._burst
+            if burst is None or now - burst[1] < _BURST_END_S:
+                return
+            self._burst = None
+        log.warning("canopenfd: %d runtime events lost in %.1f s (%d lost since the network "
+                    "opened)", burst[2], burst[1] - burst[0], self._events_lost)
+
     def _watch_dispatcher(self) -> None:
         """Report a callback that holds the dispatcher (every other event waits)."""
         reported: Optional[Tuple[float, Event]] = None
         step = min(0.25, self._stall_report_s / 4)
         while not self._stop_watch.wait(step):
+            self._loss_burst_end(time.monotonic())
             handling = self._handling
             if handling is None or handling is reported:
                 continue
@@ -272,7 +300,7 @@ class Network:
         kind = ev.kind
         if kind == _EV_EVENTS_LOST:
             self._events_lost += ev.a
-            log.warning("canopenfd: %d runtime events lost (callbacks too slow?)", ev.a)
+            self._loss_burst(ev.a)
             return
         with self._lock:
             context = self._contexts.get(ev.line)

@@ -710,3 +710,27 @@ def test_a_blocking_callback_is_reported_and_the_events_behind_it_still_come(bus
         net.close()
     with pytest.raises(ConfigurationError, match="stall_report_s"):
         canopenfd.Network(stall_report_s=0)
+
+
+def test_events_lost_in_a_sustained_overload_are_reported_once_per_burst(bus_name, caplog):
+    net = canopenfd.Network(event_capacity=16)
+    try:
+        monitor = net.open_line(bus_name, monitor=True)
+        monitor.on_frame(lambda frame: time.sleep(0.001))   # slower than the sender
+        sender = net.open_line(bus_name)
+        with caplog.at_level("WARNING", logger="canopenfd"):
+            for i in range(3000):
+                sender.send_frame(0x100, bytes([i & 0xFF]))
+                if i % 100 == 0:
+                    time.sleep(0.005)    # the dispatcher reads meanwhile: losses at many reads
+            deadline = time.monotonic() + wait(10)
+            while not any("lost in" in r.getMessage() for r in caplog.records) and \
+                    time.monotonic() < deadline:
+                time.sleep(0.05)
+        lost = [r.getMessage() for r in caplog.records if "runtime events lost" in r.getMessage()]
+        assert net.events_lost > 0
+        assert len(lost) == 2, lost                      # the start, then the total
+        assert "the event queue is full" in lost[0]
+        assert f"({net.events_lost} lost since the network opened)" in lost[1]
+    finally:
+        net.close()
