@@ -95,10 +95,18 @@ typedef struct rt_socket {
 
 typedef struct rt_host {
     rt_mutex_t lock;
-    rt_cond_t ready;
+    rt_cond_t ready;       /* frames for co_rt_host_transmit */
+    rt_cond_t room;        /* the runtime thread drained the line's rx queue */
     co_frame_queue_t out;  /* frames for co_rt_host_transmit */
     co_frame_t *slots;
-    uint32_t waiters;
+    uint32_t waiters;      /* threads in co_rt_host_transmit */
+    uint32_t rx_waiters;   /* threads in co_rt_host_receive_frames waiting for room */
+    uint32_t rx_gen;       /* bumped each time room is signalled */
+    uint32_t rx_waits;     /* times a receive found the rx queue full and waited */
+    uint32_t rx_frames;    /* frames co_rt_host_receive(_frames) queued */
+    uint32_t rx_calls;     /* calls that queued frames (frames per call: batching) */
+    uint32_t tx_frames;    /* frames co_rt_host_transmit handed out */
+    uint32_t tx_calls;     /* calls that handed frames out */
     bool stalled;          /* the line holds frames the full out-queue refused */
     bool closed;
 } rt_host_t;
