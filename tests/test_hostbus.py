@@ -292,3 +292,26 @@ def test_close_ends_a_host_thread_blocked_on_a_full_rx_queue(buses):
         flooder.join()
     assert not [t for t in threading.enumerate()
                 if t.name.startswith("canopenfd-host") and t.is_alive()]
+
+
+def test_a_sender_faster_than_the_python_can_bus_is_refused_not_dropped(buses, networks):
+    from canopenfd.errors import CommandError
+
+    raw = buses()
+    line = networks().open_line(bus=buses(), mode="classic", tx_queue=32)
+    count, refused, i = 6000, 0, 0
+    while i < count:
+        try:
+            line.send_frame(0x181, i.to_bytes(4, "little"))
+            i += 1
+        except CommandError as exc:
+            assert "python-can bus takes frames slower" in str(exc)
+            refused += 1
+    got = []
+    while len(got) < count:
+        msg = raw.recv(scaled(5))
+        assert msg is not None, f"{len(got)} of {count} frames arrived"
+        got.append(int.from_bytes(msg.data, "little"))
+    assert got == list(range(count))
+    assert line.stats["tx_overflow"] == 0
+    assert refused > 0          # the line did push back

@@ -58,7 +58,9 @@ typedef enum co_rt_command_kind {
     CO_CMD_HB_WATCH = 5,         /* watch a node's heartbeat */
     CO_CMD_HB_UNWATCH = 6,
     CO_CMD_ALLOW_OPERATIONAL = 7,/* veto or allow "to operational" */
-    CO_CMD_SEND_FRAME = 8        /* a frame sent as is (tools, tests) */
+    CO_CMD_SEND_FRAME = 8        /* a frame sent as is (tools, tests); refused with
+                                    CO_RT_ERR_FULL while a host line's python-can bus
+                                    lags (its queues full): send it again later */
 } co_rt_command_kind_t;
 
 /* What a command carries: the member of `args` named after its kind. */

@@ -18,6 +18,7 @@ bool rt_host_init(rt_line_t *l, uint32_t capacity)
     if (capacity == 0) {
         return true;
     }
+    h->tx_limit = capacity - capacity / 4u;   /* the last quarter: the services' */
     h->slots = calloc(capacity, sizeof *h->slots);
     if (!h->slots) {
         return false;
@@ -49,6 +50,7 @@ void rt_host_flush(rt_line_t *l)
         rt_cond_broadcast(&h->room);
     }
     if (co_line_tx_count(&l->line) == 0) {
+        h->line_tx = 0;
         rt_mutex_unlock(&h->lock);
         return;
     }
@@ -59,7 +61,8 @@ void rt_host_flush(rt_line_t *l)
             rt_post(l, CO_EV_FRAME, 0, 1, 0, &frame);
         }
     }
-    h->stalled = co_line_tx_count(&l->line) != 0;
+    h->line_tx = co_line_tx_count(&l->line);
+    h->stalled = h->line_tx != 0;
     if (moved > 0 && h->waiters > 0) {
         rt_cond_broadcast(&h->ready);
     }
@@ -82,6 +85,41 @@ uint32_t rt_host_waiters(rt_line_t *l)
     uint32_t n = l->host.waiters + l->host.rx_waiters;
     rt_mutex_unlock(&l->host.lock);
     return n;
+}
+
+bool rt_host_reserve_send(rt_line_t *l)
+{
+    if (l->driver != CO_DRIVER_HOST) {
+        return true;
+    }
+    rt_host_t *h = &l->host;
+    rt_mutex_lock(&h->lock);
+    bool room = h->posted + h->line_tx < h->tx_limit;
+    if (room) {
+        h->posted++;
+    }
+    rt_mutex_unlock(&h->lock);
+    return room;
+}
+
+void rt_host_send_unreserve(rt_line_t *l)
+{
+    if (l->driver == CO_DRIVER_HOST) {
+        rt_mutex_lock(&l->host.lock);
+        l->host.posted--;
+        rt_mutex_unlock(&l->host.lock);
+    }
+}
+
+void rt_host_send_applied(rt_line_t *l, bool queued)
+{
+    if (l->driver != CO_DRIVER_HOST) {
+        return;
+    }
+    rt_mutex_lock(&l->host.lock);
+    l->host.posted--;
+    l->host.line_tx += queued ? 1u : 0u;
+    rt_mutex_unlock(&l->host.lock);
 }
 
 int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame)

@@ -107,6 +107,10 @@ typedef struct rt_host {
     uint32_t rx_calls;     /* calls that queued frames (frames per call: batching) */
     uint32_t tx_frames;    /* frames co_rt_host_transmit handed out */
     uint32_t tx_calls;     /* calls that handed frames out */
+    uint32_t posted;       /* CO_CMD_SEND_FRAMEs in the mailbox, not applied yet */
+    uint32_t line_tx;      /* the line's tx count: set by each flush, + each applied
+                              SEND_FRAME (posted + line_tx: what the tx queue gets) */
+    uint32_t tx_limit;     /* posted + line_tx above it: SEND_FRAME refused */
     bool stalled;          /* the line holds frames the full out-queue refused */
     bool closed;
 } rt_host_t;
@@ -417,6 +421,13 @@ void rt_host_free(rt_line_t *l);
 void rt_host_flush(rt_line_t *l);
 void rt_host_close(rt_line_t *l);
 uint32_t rt_host_waiters(rt_line_t *l);
+/* Host lines: reserve a tx slot for a CO_CMD_SEND_FRAME about to be posted;
+ * false (refuse it) when the frames posted and queued reach 3/4 of the tx
+ * queue (the python-can bus is slower than the sender). Always true for
+ * other lines. rt_host_send_applied: the command was applied (queued or not). */
+bool rt_host_reserve_send(rt_line_t *l);
+void rt_host_send_unreserve(rt_line_t *l);
+void rt_host_send_applied(rt_line_t *l, bool queued);
 
 /* ---------------------------------------------------------------- co_rt_commands.c */
 /* In the thread: carry out a mailbox command (a failure is posted). */
