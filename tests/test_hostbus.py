@@ -158,3 +158,160 @@ def test_close_stops_the_bridge_threads(buses):
     net.close()
     assert not [t for t in threading.enumerate()
                 if t.name.startswith("canopenfd-host") and t.is_alive()]
+
+
+# ------------------------------------------------------------------ no frame lost
+# The receiving lines get a small rx queue, so every transfer below runs into a
+# full queue many times: the host thread must wait (back-pressure into
+# python-can's buffer), never drop.
+
+_MIB = 1 << 20
+_DOMAIN = 0x2100
+
+
+class _Busy:
+    """A Python thread that never blocks: it competes for the GIL with the
+    bridge threads, like an application's own work."""
+
+    def __init__(self, on):
+        import threading
+        self._on = on
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self):
+        n = 0
+        while not self._stop.is_set():
+            for _ in range(1000):
+                n += 1
+
+    def __enter__(self):
+        if self._on:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        if self._on:
+            self._thread.join()
+
+
+def _pattern(size):
+    return bytes((i * 7 + (i >> 8)) & 0xFF for i in range(size))
+
+
+def _no_loss(*lines):
+    for line in lines:
+        stats = line.stats
+        assert (stats["rx_overflow"], stats["tx_overflow"]) == (0, 0), line
+    return sum(line.driver_stats["host_rx_waits"] for line in lines)
+
+
+def _server(line, mode):
+    from canopenfd.od import demo_od
+    node = line.create_local_node(2, od=demo_od(mode), boot=False)
+    node.serve_domain(_DOMAIN, 2 * _MIB)
+    node.boot()
+    return node
+
+
+@pytest.mark.parametrize("busy", [False, True], ids=["idle", "busy-thread"])
+def test_usdo_bulk_1mib_between_host_lines_loses_nothing(buses, networks, busy):
+    net = networks()
+    client = net.open_line(bus=buses(), mode="fd", rx_queue=32)
+    server_line = net.open_line(bus=buses(), mode="fd", rx_queue=32)
+    server = _server(server_line, "fd")
+    data = _pattern(_MIB)
+    with _Busy(busy):
+        client.usdo.download(2, _DOMAIN, 0, data, mode="bulk", timeout=scaled(5))
+    assert server[_DOMAIN].data == data
+    assert _no_loss(client, server_line) > 0   # the small queue filled: back-pressure
+
+
+@pytest.mark.parametrize("busy", [False, True], ids=["idle", "busy-thread"])
+def test_sdo_block_256k_between_host_lines_loses_nothing(buses, networks, busy):
+    net = networks()
+    client = net.open_line(bus=buses(), mode="classic", rx_queue=32)
+    server_line = net.open_line(bus=buses(), mode="classic", rx_queue=32)
+    server = _server(server_line, "classic")
+    data = _pattern(256 << 10)
+    with _Busy(busy):
+        client.sdo.download(2, _DOMAIN, 0, data, mode="block", timeout=scaled(5))
+    assert server[_DOMAIN].data == data
+    _no_loss(client, server_line)
+
+
+def test_burst_larger_than_the_rx_queue_arrives_whole_and_in_order(buses):
+    raw = buses()
+    count = 3000
+    with canopenfd.Network(event_capacity=2 * count) as net:
+        line = net.open_line(bus=buses(), mode="classic", monitor=True, rx_queue=16)
+        frames = Recorder()
+        line.on_frame(frames)
+        for i in range(count):   # sent before the line can drain: a burst
+            raw.send(can.Message(arbitration_id=0x181, data=i.to_bytes(4, "little"),
+                                 is_extended_id=False))
+        got = frames.wait_count(count, timeout=scaled(20))
+        received = [int.from_bytes(f.data, "little") for f in got if f.id == 0x181]
+        assert received == list(range(count))
+        assert (line.stats["rx_overflow"], net.events_lost) == (0, 0)
+        assert line.driver_stats["host_rx_waits"] > 0
+        drv = line.driver_stats
+        assert drv["rx_frames"] == count
+        assert drv["rx_calls"] < count // 2         # handed to C in batches
+
+
+def test_close_ends_a_host_thread_blocked_on_a_full_rx_queue(buses):
+    import threading
+    import time
+
+    raw = buses()
+    net = canopenfd.Network()
+    line = net.open_line(bus=buses(), mode="classic", monitor=True, rx_queue=2)
+    stop = threading.Event()
+
+    def flood():
+        msg = can.Message(arbitration_id=0x181, data=b"\x01", is_extended_id=False)
+        while not stop.is_set():
+            for _ in range(500):
+                raw.send(msg)
+            time.sleep(0.001)
+
+    flooder = threading.Thread(target=flood, daemon=True)
+    flooder.start()
+    try:
+        deadline = time.monotonic() + scaled(10)
+        while line.driver_stats["host_rx_waits"] < 5 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert line.driver_stats["host_rx_waits"] >= 5   # it keeps running into a full queue
+        start = time.monotonic()
+        net.close()
+        assert time.monotonic() - start < scaled(2)
+    finally:
+        stop.set()
+        flooder.join()
+    assert not [t for t in threading.enumerate()
+                if t.name.startswith("canopenfd-host") and t.is_alive()]
+
+
+def test_a_sender_faster_than_the_python_can_bus_is_refused_not_dropped(buses, networks):
+    from canopenfd.errors import CommandError
+
+    raw = buses()
+    line = networks().open_line(bus=buses(), mode="classic", tx_queue=32)
+    count, refused, i = 6000, 0, 0
+    while i < count:
+        try:
+            line.send_frame(0x181, i.to_bytes(4, "little"))
+            i += 1
+        except CommandError as exc:
+            assert "python-can bus takes frames slower" in str(exc)
+            refused += 1
+    got = []
+    while len(got) < count:
+        msg = raw.recv(scaled(5))
+        assert msg is not None, f"{len(got)} of {count} frames arrived"
+        got.append(int.from_bytes(msg.data, "little"))
+    assert got == list(range(count))
+    assert line.stats["tx_overflow"] == 0
+    assert refused > 0          # the line did push back

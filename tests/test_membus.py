@@ -672,7 +672,7 @@ def test_driver_stats_of_an_in_process_line(net, bus_name):
     before = line.driver_stats
     assert set(before) == {"kernel_drops", "error_frames", "tx_deferred", "tx_refused",
                            "iface_down", "host_pending", "rx_frames", "rx_calls", "tx_frames",
-                           "tx_calls", "loop_wakeups"}
+                           "tx_calls", "loop_wakeups", "host_rx_waits"}
     other.send_frame(0x123, b"\x01")
     deadline = time.monotonic() + wait(T)
     while line.stats["rx_frames"] == 0 and time.monotonic() < deadline:

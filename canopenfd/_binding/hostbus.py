@@ -3,15 +3,23 @@ driver is CO_DRIVER_HOST.
 
 Two daemon threads per line, because python-can has no way to wait for "a
 frame to receive or a frame to send" at once:
-  rx: bus.recv(0.1) -> co_rt_host_receive   (error frames ignored)
-  tx: co_rt_host_transmit(batch, 100 ms) -> bus.send
-Python code runs per frame here by nature; SocketCAN lines do not need this.
+  rx: bus.recv(0.1), then recv(0) for whatever python-can has ready (up to
+      HOST_BATCH frames) -> one co_rt_host_receive_frames call per batch,
+      which waits while the line's rx queue is full: back-pressure into
+      python-can's own buffer, no frame is dropped (error frames ignored)
+  tx: co_rt_host_transmit(batch, 100 ms) -> bus.send per frame; a refused
+      send (a full device queue) is retried, not dropped
+Python code runs per frame here by nature (python-can's API is per message);
+the C calls, and the GIL hand-overs each of them costs, happen per batch.
+SocketCAN lines do not need this.
 """
 
 from __future__ import annotations
 
 import logging
+import struct
 import threading
+import time
 from typing import TYPE_CHECKING, Optional, Protocol
 
 from .core import ffi, lib
@@ -21,7 +29,6 @@ if TYPE_CHECKING:  # pragma: no cover
     import can
 
 log = logging.getLogger("canopenfd")
-
 
 
 class PythonCanBus(Protocol):
@@ -36,6 +43,27 @@ class PythonCanBus(Protocol):
 
 _RECV_TIMEOUT_S = 0.1
 _TRANSMIT_TIMEOUT_MS = 100
+# How long one co_rt_host_receive_frames call waits for room before the rx
+# thread looks at its stop flag again (close() also wakes it at once).
+_ROOM_WAIT_MS = 100
+# A send python-can refuses (its device queue is full) is retried after a
+# pause growing from _SEND_RETRY_FIRST_S to _SEND_RETRY_MAX_S, for at most
+# _SEND_GIVE_UP_S in a row; only then is the frame counted lost.
+_SEND_RETRY_FIRST_S = 0.0002
+_SEND_RETRY_MAX_S = 0.01
+_SEND_GIVE_UP_S = 2.0
+
+# co_frame_t as bytes: id, len, flags, then the data
+_FRAME_SIZE = ffi.sizeof("co_frame_t")
+_DATA_OFFSET = ffi.offsetof("co_frame_t", "data")
+_HEAD = struct.Struct("<IBB")
+assert _HEAD.size == _DATA_OFFSET == ffi.offsetof("co_frame_t", "flags") + 1
+
+_FD = lib.CO_FRAME_FD
+_BRS = lib.CO_FRAME_BRS
+_ESI = lib.CO_FRAME_ESI
+_EXT = lib.CO_FRAME_EXT
+_RTR = lib.CO_FRAME_RTR
 
 
 class HostBridge:
@@ -74,59 +102,112 @@ class HostBridge:
 
     # ---------------------------------------------------------------- rx
     def _rx_loop(self) -> None:
-        cframe = ffi.new("co_frame_t *")
-        closed = lib.CO_RT_ERR_CLOSED
-        while not self._stop.is_set():
+        frames = ffi.new("co_frame_t[]", HOST_BATCH)
+        raw = ffi.buffer(frames)
+        pack_head = _HEAD.pack_into
+        recv = self._bus.recv
+        stop = self._stop
+        while not stop.is_set():
+            count = 0
+            failed: Optional[Exception] = None
             try:
-                msg = self._bus.recv(_RECV_TIMEOUT_S)
+                msg = recv(_RECV_TIMEOUT_S)
+                while msg is not None:
+                    if not msg.is_error_frame:
+                        remote = msg.is_remote_frame
+                        data = b"" if remote else msg.data
+                        size = len(data)
+                        if size > 64:
+                            self.rx_errors += 1
+                            log.warning("line %r: frame 0x%X of %d bytes ignored (at most 64)",
+                                        self._label, msg.arbitration_id, size)
+                        else:
+                            offset = count * _FRAME_SIZE
+                            pack_head(raw, offset, msg.arbitration_id,
+                                      msg.dlc if remote else size,
+                                      (_FD if msg.is_fd else 0)
+                                      | (_BRS if msg.bitrate_switch else 0)
+                                      | (_ESI if msg.error_state_indicator else 0)
+                                      | (_EXT if msg.is_extended_id else 0)
+                                      | (_RTR if remote else 0))
+                            if size:
+                                start = offset + _DATA_OFFSET
+                                raw[start:start + size] = data
+                            count += 1
+                            if count == HOST_BATCH:
+                                break
+                    msg = recv(0)
             except Exception as exc:  # noqa: BLE001 - a dead bus ends the thread
-                if not self._stop.is_set():
+                failed = exc
+            if count and not self._hand_in(frames, count):
+                return
+            if failed is not None:
+                if not stop.is_set():
                     log.error("line %r: python-can recv failed, receiving stops: %s",
-                              self._label, exc)
+                              self._label, failed)
                 return
-            if msg is None or msg.is_error_frame:
-                continue
-            data = bytes(msg.data) if not msg.is_remote_frame else b""
-            if len(data) > 64:
-                self.rx_errors += 1
-                log.warning("line %r: frame 0x%X of %d bytes ignored (at most 64)",
-                            self._label, msg.arbitration_id, len(data))
-                continue
-            cframe.id = msg.arbitration_id
-            cframe.len = msg.dlc if msg.is_remote_frame else len(data)
-            cframe.flags = ((lib.CO_FRAME_FD if msg.is_fd else 0)
-                            | (lib.CO_FRAME_BRS if msg.bitrate_switch else 0)
-                            | (lib.CO_FRAME_ESI if msg.error_state_indicator else 0)
-                            | (lib.CO_FRAME_EXT if msg.is_extended_id else 0)
-                            | (lib.CO_FRAME_RTR if msg.is_remote_frame else 0))
-            ffi.memmove(cframe.data, data, len(data))
-            if self._rt.host_receive(self._line, cframe) == closed:
-                return
+
+    def _hand_in(self, frames, count: int) -> bool:
+        """Give frames[0:count] to the line, waiting while its rx queue is
+        full; False when the runtime closed (or we were stopped meanwhile)."""
+        done = 0
+        while done < count:
+            taken = self._rt.host_receive_frames(self._line, frames + done, count - done,
+                                                 _ROOM_WAIT_MS)
+            if taken < 0:
+                return False  # CLOSED: the runtime stopped
+            done += taken
+            if done < count and self._stop.is_set():
+                return False
+        return True
 
     # ---------------------------------------------------------------- tx
     def _tx_loop(self) -> None:
         import can
 
         frames = ffi.new("co_frame_t[]", HOST_BATCH)
+        raw = ffi.buffer(frames)
+        unpack_head = _HEAD.unpack_from
+        message = can.Message
         while True:
             n = self._rt.host_transmit(self._line, frames, HOST_BATCH, _TRANSMIT_TIMEOUT_MS)
             if n < 0:
                 return  # CLOSED: the runtime stopped
             for i in range(n):
-                f = frames[i]
-                flags = f.flags
-                rtr = bool(flags & lib.CO_FRAME_RTR)
-                msg = can.Message(
-                    arbitration_id=f.id, is_extended_id=bool(flags & lib.CO_FRAME_EXT),
-                    is_remote_frame=rtr, is_fd=bool(flags & lib.CO_FRAME_FD),
-                    bitrate_switch=bool(flags & lib.CO_FRAME_BRS),
-                    error_state_indicator=bool(flags & lib.CO_FRAME_ESI),
-                    data=None if rtr else bytes(ffi.buffer(f.data, f.len)), dlc=f.len)
-                try:
-                    self._bus.send(msg)
-                except Exception as exc:  # noqa: BLE001 - counted and logged
-                    self.tx_errors += 1
-                    log.warning("line %r: python-can send of 0x%X failed: %s",
-                                self._label, f.id, exc)
+                offset = i * _FRAME_SIZE
+                can_id, length, flags = unpack_head(raw, offset)
+                rtr = bool(flags & _RTR)
+                start = offset + _DATA_OFFSET
+                msg = message(
+                    arbitration_id=can_id, is_extended_id=bool(flags & _EXT),
+                    is_remote_frame=rtr, is_fd=bool(flags & _FD),
+                    bitrate_switch=bool(flags & _BRS),
+                    error_state_indicator=bool(flags & _ESI),
+                    data=None if rtr else raw[start:start + length], dlc=length,
+                    check=False)
+                if not self._send(msg):
+                    return
             if self._stop.is_set() and n == 0:
                 return
+
+    def _send(self, msg: can.Message) -> bool:
+        """Send one message; a refusal (device queue full) is retried with a
+        growing pause for up to _SEND_GIVE_UP_S, then counted and logged.
+        False when stopped while retrying."""
+        pause = _SEND_RETRY_FIRST_S
+        give_up = None
+        while True:
+            try:
+                self._bus.send(msg)
+                return True
+            except Exception as exc:  # noqa: BLE001 - retried, then counted and logged
+                now = time.monotonic()
+                if give_up is None:
+                    give_up = now + _SEND_GIVE_UP_S
+                if now >= give_up or self._stop.is_set():
+                    self.tx_errors += 1
+                    log.warning("line %r: python-can send of 0x%X failed: %s",
+                                self._label, msg.arbitration_id, exc)
+                    return not self._stop.is_set()
+            time.sleep(pause)
+            pause = min(pause * 2, _SEND_RETRY_MAX_S)

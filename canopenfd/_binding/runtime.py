@@ -32,7 +32,7 @@ _ERRORS = {
 }
 
 EVENT_BATCH = 64
-HOST_BATCH = 32
+HOST_BATCH = 256
 
 
 class Event(NamedTuple):
@@ -506,6 +506,15 @@ class Runtime:
         if n < 0:
             return None   # CO_RT_ERR_CLOSED
         return [_event(self._events[i]) for i in range(n)]
+
+    def host_receive_frames(self, line: int, frames: CData, count: int, timeout_ms: int) -> int:
+        """Hand count frames to a host-driver line, waiting up to timeout_ms
+        while its rx queue is full (back-pressure); returns how many it took
+        or CO_RT_ERR_CLOSED. Runs without the lock, like host_transmit."""
+        rt = self._rt
+        if rt == ffi.NULL or self._stopped:
+            return lib.CO_RT_ERR_CLOSED
+        return lib.co_rt_host_receive_frames(rt, line, frames, count, timeout_ms)
 
     def host_transmit(self, line: int, frames: CData, max_frames: int, timeout_ms: int) -> int:
         rt = self._rt

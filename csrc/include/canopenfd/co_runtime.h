@@ -58,7 +58,9 @@ typedef enum co_rt_command_kind {
     CO_CMD_HB_WATCH = 5,         /* watch a node's heartbeat */
     CO_CMD_HB_UNWATCH = 6,
     CO_CMD_ALLOW_OPERATIONAL = 7,/* veto or allow "to operational" */
-    CO_CMD_SEND_FRAME = 8        /* a frame sent as is (tools, tests) */
+    CO_CMD_SEND_FRAME = 8        /* a frame sent as is (tools, tests); refused with
+                                    CO_RT_ERR_FULL while a host line's python-can bus
+                                    lags (its queues full): send it again later */
 } co_rt_command_kind_t;
 
 /* What a command carries: the member of `args` named after its kind. */
@@ -139,8 +141,17 @@ int co_rt_command(co_rt_t *rt, const co_rt_command_t *command);
  * events. Returns the count (0 on timeout) or CO_RT_ERR_CLOSED. */
 int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_ms);
 
-/* Host driver lines: hand a received frame to the line ... */
+/* Host driver lines: hand a received frame to the line (CO_RT_ERR_FULL when
+ * the rx queue is full: the frame is lost and counted as rx overflow) ... */
 int co_rt_host_receive(co_rt_t *rt, int line, const co_frame_t *frame);
+/* ... or hand count frames in at once, in order, without losing any: the
+ * rx queue takes what it has room for and, while it is full, the call waits
+ * up to timeout_ms (-1 = forever, 0 = not at all) for the runtime thread to
+ * drain it (back-pressure: the caller's own buffer holds the rest; nothing is
+ * counted as overflow). Returns the frames taken (< count only after the
+ * timeout: hand the rest in again) or CO_RT_ERR_CLOSED ... */
+int co_rt_host_receive_frames(co_rt_t *rt, int line, const co_frame_t *frames, int count,
+                              int timeout_ms);
 /* ... and wait for frames the line wants to send: returns count (0 on
  * timeout) or CO_RT_ERR_CLOSED. */
 int co_rt_host_transmit(co_rt_t *rt, int line, co_frame_t *frames, int max, int timeout_ms);
@@ -155,11 +166,17 @@ typedef struct co_rt_driver_stats {
     uint32_t tx_refused;         /* frames the kernel refused: dropped, reported as TX_OVERFLOW */
     uint32_t iface_down;         /* times the interface went down or away */
     uint32_t host_pending;       /* host lines: frames waiting for co_rt_host_transmit */
-    uint32_t rx_frames;          /* SocketCAN: frames read from the socket */
-    uint32_t rx_calls;           /* SocketCAN: reads that returned frames (frames per read) */
-    uint32_t tx_frames;          /* SocketCAN: frames written to the socket */
-    uint32_t tx_calls;           /* SocketCAN: writes that sent frames (frames per write) */
+    uint32_t rx_frames;          /* SocketCAN: frames read from the socket; host lines:
+                                    frames handed in by co_rt_host_receive(_frames) */
+    uint32_t rx_calls;           /* SocketCAN: reads that returned frames (frames per read);
+                                    host lines: receive calls that handed frames in */
+    uint32_t tx_frames;          /* SocketCAN: frames written to the socket; host lines:
+                                    frames co_rt_host_transmit handed out */
+    uint32_t tx_calls;           /* SocketCAN: writes that sent frames (frames per write);
+                                    host lines: co_rt_host_transmit calls with frames */
     uint32_t loop_wakeups;       /* times the network's runtime thread woke (all its lines) */
+    uint32_t host_rx_waits;      /* host lines: receives that found the rx queue full and
+                                    waited for room (back-pressure, nothing lost) */
 } co_rt_driver_stats_t;
 
 /* Object dictionary of the line's local node, defined before

@@ -108,7 +108,19 @@ int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
     if (command->kind == CO_CMD_NODE_CREATE) {
         return rt_node_create_now(rt, command);
     }
+    rt_line_t *l = rt->lines[command->line];
+    bool send = command->kind == CO_CMD_SEND_FRAME;
+    if (send && !rt_host_reserve_send(l)) {
+        /* Refused here, where the caller hears it, rather than lost as a tx
+         * overflow once the mailbox reaches the line's full tx queue. */
+        rt_set_error(rt, "line %d: its python-can bus takes frames slower than they are sent "
+                     "(host tx queue full); send again later", command->line);
+        return CO_RT_ERR_FULL;
+    }
     status = rt_mailbox_post(&rt->mail, command);
+    if (send && status != CO_RT_OK) {
+        rt_host_send_unreserve(l);
+    }
     if (status == CO_RT_ERR_FULL) {
         rt_set_error(rt, "command mailbox full (%d commands pending)", RT_MAILBOX_SIZE);
     }
@@ -204,7 +216,11 @@ static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
         l->allow_operational = cmd->args.allow_operational.allow != 0;
         return CO_RT_OK;
     case CO_CMD_SEND_FRAME:
-        return cmd_queued(rt, l, co_line_send_raw(&l->line, &cmd->args.send_frame));
+    {
+        bool queued = co_line_send_raw(&l->line, &cmd->args.send_frame);
+        rt_host_send_applied(l, queued);
+        return cmd_queued(rt, l, queued);
+    }
     default:
         return CO_RT_ERR_ARGUMENT;   /* validated in co_rt_command */
     }

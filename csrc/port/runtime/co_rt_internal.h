@@ -95,10 +95,22 @@ typedef struct rt_socket {
 
 typedef struct rt_host {
     rt_mutex_t lock;
-    rt_cond_t ready;
+    rt_cond_t ready;       /* frames for co_rt_host_transmit */
+    rt_cond_t room;        /* the runtime thread drained the line's rx queue */
     co_frame_queue_t out;  /* frames for co_rt_host_transmit */
     co_frame_t *slots;
-    uint32_t waiters;
+    uint32_t waiters;      /* threads in co_rt_host_transmit */
+    uint32_t rx_waiters;   /* threads in co_rt_host_receive_frames waiting for room */
+    uint32_t rx_gen;       /* bumped each time room is signalled */
+    uint32_t rx_waits;     /* times a receive found the rx queue full and waited */
+    uint32_t rx_frames;    /* frames co_rt_host_receive(_frames) queued */
+    uint32_t rx_calls;     /* calls that queued frames (frames per call: batching) */
+    uint32_t tx_frames;    /* frames co_rt_host_transmit handed out */
+    uint32_t tx_calls;     /* calls that handed frames out */
+    uint32_t posted;       /* CO_CMD_SEND_FRAMEs in the mailbox, not applied yet */
+    uint32_t line_tx;      /* the line's tx count: set by each flush, + each applied
+                              SEND_FRAME (posted + line_tx: what the tx queue gets) */
+    uint32_t tx_limit;     /* posted + line_tx above it: SEND_FRAME refused */
     bool stalled;          /* the line holds frames the full out-queue refused */
     bool closed;
 } rt_host_t;
@@ -409,6 +421,13 @@ void rt_host_free(rt_line_t *l);
 void rt_host_flush(rt_line_t *l);
 void rt_host_close(rt_line_t *l);
 uint32_t rt_host_waiters(rt_line_t *l);
+/* Host lines: reserve a tx slot for a CO_CMD_SEND_FRAME about to be posted;
+ * false (refuse it) when the frames posted and queued reach 3/4 of the tx
+ * queue (the python-can bus is slower than the sender). Always true for
+ * other lines. rt_host_send_applied: the command was applied (queued or not). */
+bool rt_host_reserve_send(rt_line_t *l);
+void rt_host_send_unreserve(rt_line_t *l);
+void rt_host_send_applied(rt_line_t *l, bool queued);
 
 /* ---------------------------------------------------------------- co_rt_commands.c */
 /* In the thread: carry out a mailbox command (a failure is posted). */

@@ -36,7 +36,15 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
                                   .loop_wakeups = rt->wakeups};
     rt_mutex_unlock(&rt->lock);
     rt_mutex_lock(&l->host.lock);
-    out->host_pending = co_queue_count(&l->host.out);
+    const rt_host_t *h = &l->host;
+    out->host_pending = co_queue_count(&h->out);
+    out->host_rx_waits = h->rx_waits;
+    if (l->driver == CO_DRIVER_HOST) {
+        out->rx_frames = h->rx_frames;
+        out->rx_calls = h->rx_calls;
+        out->tx_frames = h->tx_frames;
+        out->tx_calls = h->tx_calls;
+    }
     rt_mutex_unlock(&l->host.lock);
     return CO_RT_OK;
 }
