@@ -285,7 +285,10 @@ class Line:
         """Send one frame as is (tools, tests; no protocol check).
 
         fd/brs default to the line's mode; an FD payload whose length is not a
-        valid FD length is padded with zeros to the next one (12, 16, 20, ...)."""
+        valid FD length is padded with zeros to the next one (12, 16, 20, ...).
+        On a python-can line whose bus cannot keep up (3/4 of the line's send
+        queue waiting for it) the frame is refused with CommandError instead
+        of being lost: send it again later."""
         where = f"send_frame on {self._where}"
         data = bytes(data)
         fd = (self.mode == "fd") if fd is None else bool(fd)
