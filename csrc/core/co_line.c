@@ -203,6 +203,21 @@ bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
     return true;
 }
 
+/* Queue a frame already checked for the line; overflow and full events. */
+static bool queue_tx(co_line_t *line, const co_frame_t *frame)
+{
+    if (!co_queue_push(&line->tx, frame)) {
+        line->stats.tx_overflow++;
+        co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
+        return false;
+    }
+    if (!line->tx_was_full && co_queue_is_full(&line->tx)) {
+        line->tx_was_full = true;
+        co_line_comm_event(line, CO_COMM_TX_QUEUE_FULL);
+    }
+    return true;
+}
+
 bool co_line_send_raw(co_line_t *line, const co_frame_t *frame)
 {
     if (!co_frame_is_valid(frame) ||
@@ -210,16 +225,7 @@ bool co_line_send_raw(co_line_t *line, const co_frame_t *frame)
         line->stats.tx_invalid++;
         return false;
     }
-    if (!co_queue_push(&line->tx, frame)) {
-        line->stats.tx_overflow++;
-        co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
-        return false;
-    }
-    if (co_queue_is_full(&line->tx) && !line->tx_was_full) {
-        line->tx_was_full = true;
-        co_line_comm_event(line, CO_COMM_TX_QUEUE_FULL);
-    }
-    return true;
+    return queue_tx(line, frame);
 }
 
 bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
@@ -237,20 +243,19 @@ bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
     return co_line_send_raw(line, &fd);
 }
 
+/* The same as building the frame and co_line_send_frame, without a second
+ * copy: an 11-bit id and no flags, so the checks left are the id and the
+ * length (co_frame_set rounds an fd length to a valid one). */
 bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len)
 {
     co_frame_t frame;
-    if (len > CO_FRAME_MAX_DATA) {
+    if (id > 0x7FFu || len > (line->mode == CO_MODE_CLASSIC ? (size_t)CO_FRAME_CLASSIC_MAX
+                                                             : (size_t)CO_FRAME_MAX_DATA)) {
         line->stats.tx_invalid++;
         return false;
     }
-    frame.id = id;
-    frame.flags = 0;
-    frame.len = (uint8_t)len;
-    if (len > 0) {
-        memcpy(frame.data, data, len);
-    }
-    return co_line_send_frame(line, &frame);
+    (void)co_frame_set(&frame, id, line->tx_flags, data, len);
+    return queue_tx(line, &frame);
 }
 
 /* Offer a frame no range takes to the "other" receivers; count it when
