@@ -2,6 +2,15 @@
 
 #include <string.h>
 
+/* co_queue_drop_head for a queue known not to be empty, here so that the
+ * per-frame paths (dispatch, the driver's pop) need no call for it. */
+static inline void queue_drop_head(co_frame_queue_t *q)
+{
+    CO_ASSERT(q->count > 0 && q->count <= q->capacity && q->head < q->capacity);
+    q->head = (q->head + 1 == q->capacity) ? 0 : q->head + 1;
+    q->count--;
+}
+
 bool co_line_init(co_line_t *line, const co_line_config_t *config)
 {
     if (!config || !config->rx_slots || !config->tx_slots || config->rx_capacity == 0 ||
@@ -189,9 +198,13 @@ static void tx_space_notify(co_line_t *line)
 
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
 {
-    if (!co_queue_pop(&line->tx, out)) {
+    if (co_queue_is_empty(&line->tx)) {
         return false;
     }
+    if (out != NULL) {
+        *out = *co_queue_at(&line->tx, 0);
+    }
+    queue_drop_head(&line->tx);
     line->stats.tx_frames++;
     if (line->tx_space_count != 0) {   /* the only cost when nobody listens */
         tx_space_notify(line);
@@ -301,9 +314,17 @@ uint64_t co_line_process(co_line_t *line, uint64_t now_us)
     /* Only the frames present at entry: a handler that causes more input
      * (loopback drivers) cannot keep this call busy forever. */
     uint32_t pending = co_queue_count(&line->rx);
-    co_frame_t frame;
-    while (pending-- > 0 && co_queue_pop(&line->rx, &frame)) {
-        dispatch(line, &frame);
+    /* Dispatched in place, then dropped: no copy. A handler's pushes go to
+     * the tail and cannot reach the head slot while it is counted; should a
+     * handler take frames itself (co_line_rx_pop), its frame is gone already
+     * and is not dropped twice. */
+    while (pending-- > 0 && !co_queue_is_empty(&line->rx)) {
+        uint32_t head = line->rx.head;
+        const co_frame_t *frame = co_queue_at(&line->rx, 0);
+        dispatch(line, frame);
+        if (line->rx.head == head && !co_queue_is_empty(&line->rx)) {
+            queue_drop_head(&line->rx);
+        }
     }
     co_timer_list_run(&line->timers, line->now_us);
     return co_timer_list_next(&line->timers);
