@@ -570,6 +570,36 @@ static void test_tx_refuses_id_beyond_11_bits(void **state)
     assert_int_equal(co_line_tx_count(&fx->line), 0);
 }
 
+/* co_line_send's own checks (it does not go through co_line_send_raw): the id
+ * and the length for the line's mode, each refusal counted in tx_invalid and
+ * nothing queued; the limits themselves accepted. */
+static void test_tx_send_checks_id_and_length_per_mode(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
+    uint8_t d[65] = {0};
+    co_frame_t out;
+    assert_false(co_line_send(&fx->line, 0x800, d, 1));
+    assert_false(co_line_send(&fx->line, 0xFFFFFFFFu, d, 1));
+    assert_false(co_line_send(&fx->line, 0x7FF, d, 9));
+    assert_int_equal(fx->line.stats.tx_invalid, 3);
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
+    assert_true(co_line_send(&fx->line, 0x7FF, d, 8));
+    assert_true(co_line_tx_pop(&fx->line, &out));
+    assert_int_equal(out.len, 8);
+    assert_int_equal(out.flags, 0);
+
+    fx = fx_new(state, CO_MODE_FD, false, SMALL, SMALL);
+    assert_false(co_line_send(&fx->line, 0x800, d, 64));
+    assert_false(co_line_send(&fx->line, 0x7FF, d, 65));
+    assert_int_equal(fx->line.stats.tx_invalid, 2);
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
+    assert_true(co_line_send(&fx->line, 0x7FF, d, 9));
+    assert_true(co_line_tx_pop(&fx->line, &out));
+    assert_int_equal(out.len, 12);
+    assert_int_equal(out.flags, CO_FRAME_FD);
+    assert_int_equal(count_events(fx, CO_COMM_TX_OVERFLOW), 0);
+}
+
 static void test_tx_send_frame_on_fd_line_adds_flags_keeps_ext(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
@@ -1263,6 +1293,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_tx_room_keeps_a_quarter, setup, teardown),
         cmocka_unit_test_setup_teardown(test_queue_accessors_show_frames_in_order, setup, teardown),
         cmocka_unit_test_setup_teardown(test_tx_pop_without_out_takes_the_frame, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_send_checks_id_and_length_per_mode, setup, teardown),
         cmocka_unit_test_setup_teardown(test_handler_feeding_its_line_cannot_overwrite_its_frame,
                                         setup, teardown),
         cmocka_unit_test_setup_teardown(test_node_id_and_rejected_counters, setup, teardown),
