@@ -4,29 +4,32 @@
 
 static const uint8_t dlc_to_len[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64};
 
+/* DLC code of the smallest valid CAN FD length >= n, for n = 0..64: one load
+ * instead of a scan of dlc_to_len (the send and dispatch paths ask per frame). */
+static const uint8_t round_dlc[CO_FRAME_MAX_DATA + 1] = {
+    0,  1,  2,  3,  4,  5,  6,  7,  8,                          /* 0..8: themselves */
+    9,  9,  9,  9,                                              /* 9..12 -> 12 */
+    10, 10, 10, 10,                                             /* 13..16 -> 16 */
+    11, 11, 11, 11,                                             /* 17..20 -> 20 */
+    12, 12, 12, 12,                                             /* 21..24 -> 24 */
+    13, 13, 13, 13, 13, 13, 13, 13,                             /* 25..32 -> 32 */
+    14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, /* 33..48 -> 48 */
+    15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15  /* 49..64 -> 64 */
+};
+
 uint8_t co_fd_len_round(size_t n)
 {
-    for (unsigned dlc = 0; dlc < 16; dlc++) {
-        if (dlc_to_len[dlc] >= n) {
-            return dlc_to_len[dlc];
-        }
-    }
-    return 0xFF;
+    return n <= CO_FRAME_MAX_DATA ? dlc_to_len[round_dlc[n]] : 0xFF;
 }
 
 bool co_fd_len_valid(size_t len)
 {
-    return len <= CO_FRAME_MAX_DATA && co_fd_len_round(len) == len;
+    return len <= CO_FRAME_MAX_DATA && dlc_to_len[round_dlc[len]] == len;
 }
 
 uint8_t co_fd_len_to_dlc(size_t len)
 {
-    for (uint8_t dlc = 0; dlc < 16; dlc++) {
-        if (dlc_to_len[dlc] == len) {
-            return dlc;
-        }
-    }
-    return 0xFF;
+    return co_fd_len_valid(len) ? round_dlc[len] : 0xFF;
 }
 
 uint8_t co_fd_dlc_to_len(uint8_t dlc)
@@ -68,7 +71,10 @@ bool co_frame_set(co_frame_t *frame, uint32_t id, uint8_t flags,
         memcpy(frame->data, data, n);
     }
     /* Padding value for CANopen FD is unconfirmed (protocol notes §1.1); zero
-     * is the neutral choice and receivers use in-protocol sizes anyway. */
-    memset(frame->data + n, 0, CO_FRAME_MAX_DATA - n);
+     * is the neutral choice and receivers use in-protocol sizes anyway. Only
+     * the padding is written: bytes past len are not part of the frame. */
+    if (len > n) {
+        memset(frame->data + n, 0, len - n);
+    }
     return true;
 }

@@ -2,6 +2,15 @@
 
 #include <string.h>
 
+/* co_queue_drop_head for a queue known not to be empty, here so that the
+ * per-frame paths (dispatch, the driver's pop) need no call for it. */
+static inline void queue_drop_head(co_frame_queue_t *q)
+{
+    CO_ASSERT(q->count > 0 && q->count <= q->capacity && q->head < q->capacity);
+    q->head = (q->head + 1 == q->capacity) ? 0 : q->head + 1;
+    q->count--;
+}
+
 bool co_line_init(co_line_t *line, const co_line_config_t *config)
 {
     if (!config || !config->rx_slots || !config->tx_slots || config->rx_capacity == 0 ||
@@ -189,9 +198,13 @@ static void tx_space_notify(co_line_t *line)
 
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
 {
-    if (!co_queue_pop(&line->tx, out)) {
+    if (co_queue_is_empty(&line->tx)) {
         return false;
     }
+    if (out != NULL) {
+        *out = *co_queue_at(&line->tx, 0);
+    }
+    queue_drop_head(&line->tx);
     line->stats.tx_frames++;
     if (line->tx_space_count != 0) {   /* the only cost when nobody listens */
         tx_space_notify(line);
@@ -203,6 +216,21 @@ bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
     return true;
 }
 
+/* Queue a frame already checked for the line; overflow and full events. */
+static bool queue_tx(co_line_t *line, const co_frame_t *frame)
+{
+    if (!co_queue_push(&line->tx, frame)) {
+        line->stats.tx_overflow++;
+        co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
+        return false;
+    }
+    if (!line->tx_was_full && co_queue_is_full(&line->tx)) {
+        line->tx_was_full = true;
+        co_line_comm_event(line, CO_COMM_TX_QUEUE_FULL);
+    }
+    return true;
+}
+
 bool co_line_send_raw(co_line_t *line, const co_frame_t *frame)
 {
     if (!co_frame_is_valid(frame) ||
@@ -210,16 +238,7 @@ bool co_line_send_raw(co_line_t *line, const co_frame_t *frame)
         line->stats.tx_invalid++;
         return false;
     }
-    if (!co_queue_push(&line->tx, frame)) {
-        line->stats.tx_overflow++;
-        co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
-        return false;
-    }
-    if (co_queue_is_full(&line->tx) && !line->tx_was_full) {
-        line->tx_was_full = true;
-        co_line_comm_event(line, CO_COMM_TX_QUEUE_FULL);
-    }
-    return true;
+    return queue_tx(line, frame);
 }
 
 bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
@@ -237,20 +256,19 @@ bool co_line_send_frame(co_line_t *line, const co_frame_t *frame)
     return co_line_send_raw(line, &fd);
 }
 
+/* The same as building the frame and co_line_send_frame, without a second
+ * copy: an 11-bit id and no flags, so the checks left are the id and the
+ * length (co_frame_set rounds an fd length to a valid one). */
 bool co_line_send(co_line_t *line, uint32_t id, const uint8_t *data, size_t len)
 {
     co_frame_t frame;
-    if (len > CO_FRAME_MAX_DATA) {
+    if (id > 0x7FFu || len > (line->mode == CO_MODE_CLASSIC ? (size_t)CO_FRAME_CLASSIC_MAX
+                                                             : (size_t)CO_FRAME_MAX_DATA)) {
         line->stats.tx_invalid++;
         return false;
     }
-    frame.id = id;
-    frame.flags = 0;
-    frame.len = (uint8_t)len;
-    if (len > 0) {
-        memcpy(frame.data, data, len);
-    }
-    return co_line_send_frame(line, &frame);
+    (void)co_frame_set(&frame, id, line->tx_flags, data, len);
+    return queue_tx(line, &frame);
 }
 
 /* Offer a frame no range takes to the "other" receivers; count it when
@@ -296,9 +314,17 @@ uint64_t co_line_process(co_line_t *line, uint64_t now_us)
     /* Only the frames present at entry: a handler that causes more input
      * (loopback drivers) cannot keep this call busy forever. */
     uint32_t pending = co_queue_count(&line->rx);
-    co_frame_t frame;
-    while (pending-- > 0 && co_queue_pop(&line->rx, &frame)) {
-        dispatch(line, &frame);
+    /* Dispatched in place, then dropped: no copy. A handler's pushes go to
+     * the tail and cannot reach the head slot while it is counted; should a
+     * handler take frames itself (co_line_rx_pop), its frame is gone already
+     * and is not dropped twice. */
+    while (pending-- > 0 && !co_queue_is_empty(&line->rx)) {
+        uint32_t head = line->rx.head;
+        const co_frame_t *frame = co_queue_at(&line->rx, 0);
+        dispatch(line, frame);
+        if (line->rx.head == head && !co_queue_is_empty(&line->rx)) {
+            queue_drop_head(&line->rx);
+        }
     }
     co_timer_list_run(&line->timers, line->now_us);
     return co_timer_list_next(&line->timers);

@@ -53,14 +53,18 @@ static void deliver(co_membus_t *bus, const co_line_t *from, const co_frame_t *f
 uint32_t co_membus_transfer(co_membus_t *bus, co_membus_sent_fn sent, void *user)
 {
     uint32_t moved = 0;
-    co_frame_t frame;
     for (uint8_t i = 0; i < bus->count; i++) {
         co_line_t *from = bus->lines[i];
-        while (co_line_tx_pop(from, &frame)) {
+        /* Delivered from the sender's tx slot, then taken: no copy. The
+         * receivers only queue it (co_line_receive); nothing pops the
+         * sender's tx queue meanwhile, and pushes go to its tail. */
+        while (co_line_tx_count(from) != 0) {
+            const co_frame_t *frame = co_line_tx_at(from, 0);
             if (sent) {
-                sent(from, &frame, user);
+                sent(from, frame, user);
             }
-            deliver(bus, from, &frame);
+            deliver(bus, from, frame);
+            (void)co_line_tx_pop(from, NULL);
             moved++;
         }
     }

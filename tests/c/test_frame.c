@@ -108,6 +108,56 @@ static void test_fd_dlc_len_round_trip(void **state)
         assert_int_equal(co_fd_len_to_dlc(co_fd_dlc_to_len(dlc)), dlc);
 }
 
+/* Every length function against the ISO 11898-1 DLC table alone (dlc_table:
+ * the 16 codes and their payload lengths), for every length 0..64 and far
+ * beyond (the contract: 0xFF / invalid for anything over 64, never a length
+ * cut to 8 bits): round = the smallest table length >= n, valid = n is a
+ * table length, to_dlc = its code; co_frame_set pads exactly to the round. */
+static void check_len_against_dlc_table(size_t n)
+{
+    unsigned want_round = 0xFF, want_dlc = 0xFF;
+    int dlc;
+    for (dlc = 15; dlc >= 0; dlc--) {
+        if (dlc_table[dlc] >= n)
+            want_round = dlc_table[dlc];
+        if (dlc_table[dlc] == n)
+            want_dlc = (unsigned)dlc;
+    }
+    if (co_fd_len_round(n) != want_round)
+        fail_msg("co_fd_len_round(%zu) = %u, DLC table: %u", n, co_fd_len_round(n), want_round);
+    if (co_fd_len_valid(n) != (want_dlc != 0xFF))
+        fail_msg("co_fd_len_valid(%zu) = %d, DLC table: %d", n, (int)co_fd_len_valid(n),
+                 (int)(want_dlc != 0xFF));
+    if (co_fd_len_to_dlc(n) != want_dlc)
+        fail_msg("co_fd_len_to_dlc(%zu) = %u, DLC table: %u", n, co_fd_len_to_dlc(n), want_dlc);
+    if (n <= 64) {
+        uint8_t d[64];
+        co_frame_t f;
+        size_t i;
+        memset(d, 0x5A, sizeof d);
+        memset(&f, 0xAA, sizeof f);
+        assert_true(co_frame_set(&f, 0x123, CO_FRAME_FD, d, n));
+        assert_int_equal(f.len, want_round);
+        for (i = 0; i < f.len; i++)
+            if (f.data[i] != (i < n ? 0x5A : 0))
+                fail_msg("co_frame_set(%zu bytes): byte %zu is 0x%02X", n, i, f.data[i]);
+        assert_true(co_frame_is_valid(&f));
+    }
+}
+
+static void test_fd_len_functions_match_the_dlc_table(void **state)
+{
+    size_t n;
+    (void)state;
+    for (n = 0; n <= 1024; n++)
+        check_len_against_dlc_table(n);
+    for (n = 0; n <= 64; n++) {   /* lengths whose low 8 or 16 bits are a valid length */
+        check_len_against_dlc_table(n + 256);
+        check_len_against_dlc_table(n + 65536);
+        check_len_against_dlc_table((size_t)-1 - n);
+    }
+}
+
 /* ------------------------------------------------------------ validity */
 
 static bool valid(uint32_t id, uint8_t flags, uint8_t len)
@@ -283,6 +333,7 @@ int main(void)
         cmocka_unit_test(test_fd_len_to_dlc_table),
         cmocka_unit_test(test_fd_len_to_dlc_invalid_lengths_give_ff),
         cmocka_unit_test(test_fd_dlc_len_round_trip),
+        cmocka_unit_test(test_fd_len_functions_match_the_dlc_table),
         cmocka_unit_test(test_valid_11bit_id_limit),
         cmocka_unit_test(test_valid_29bit_id_limit),
         cmocka_unit_test(test_valid_classic_lengths_0_to_8_only),

@@ -570,6 +570,36 @@ static void test_tx_refuses_id_beyond_11_bits(void **state)
     assert_int_equal(co_line_tx_count(&fx->line), 0);
 }
 
+/* co_line_send's own checks (it does not go through co_line_send_raw): the id
+ * and the length for the line's mode, each refusal counted in tx_invalid and
+ * nothing queued; the limits themselves accepted. */
+static void test_tx_send_checks_id_and_length_per_mode(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
+    uint8_t d[65] = {0};
+    co_frame_t out;
+    assert_false(co_line_send(&fx->line, 0x800, d, 1));
+    assert_false(co_line_send(&fx->line, 0xFFFFFFFFu, d, 1));
+    assert_false(co_line_send(&fx->line, 0x7FF, d, 9));
+    assert_int_equal(fx->line.stats.tx_invalid, 3);
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
+    assert_true(co_line_send(&fx->line, 0x7FF, d, 8));
+    assert_true(co_line_tx_pop(&fx->line, &out));
+    assert_int_equal(out.len, 8);
+    assert_int_equal(out.flags, 0);
+
+    fx = fx_new(state, CO_MODE_FD, false, SMALL, SMALL);
+    assert_false(co_line_send(&fx->line, 0x800, d, 64));
+    assert_false(co_line_send(&fx->line, 0x7FF, d, 65));
+    assert_int_equal(fx->line.stats.tx_invalid, 2);
+    assert_int_equal(co_line_tx_count(&fx->line), 0);
+    assert_true(co_line_send(&fx->line, 0x7FF, d, 9));
+    assert_true(co_line_tx_pop(&fx->line, &out));
+    assert_int_equal(out.len, 12);
+    assert_int_equal(out.flags, CO_FRAME_FD);
+    assert_int_equal(count_events(fx, CO_COMM_TX_OVERFLOW), 0);
+}
+
 static void test_tx_send_frame_on_fd_line_adds_flags_keeps_ext(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
@@ -943,6 +973,69 @@ static void test_queue_accessors_show_frames_in_order(void **state)
     assert_int_equal(co_line_mode(&fx->line), CO_MODE_CLASSIC);
 }
 
+/* A driver that sent a frame from co_line_tx_at takes it with out = NULL: the
+ * same as a pop into a frame (order, statistics, queue-empty event). */
+static void test_tx_pop_without_out_takes_the_frame(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
+    const uint8_t d[1] = {1};
+    uint32_t i;
+    for (i = 0; i < SMALL; i++)
+        assert_true(co_line_send(&fx->line, 0x300 + i, d, 1));
+    assert_int_equal(count_events(fx, CO_COMM_TX_QUEUE_FULL), 1);
+    for (i = 0; i < SMALL; i++) {
+        assert_int_equal(co_line_tx_at(&fx->line, 0)->id, 0x300 + i);
+        assert_true(co_line_tx_pop(&fx->line, NULL));
+        assert_int_equal(co_line_tx_count(&fx->line), SMALL - 1 - i);
+        assert_int_equal(count_events(fx, CO_COMM_TX_QUEUE_EMPTY), i == SMALL - 1);
+    }
+    assert_false(co_line_tx_pop(&fx->line, NULL));
+    assert_int_equal(co_line_stats(&fx->line)->tx_frames, SMALL);
+}
+
+/* Handlers get their frame in place (no copy): frames a handler feeds back
+ * into the same line while the queue fills never overwrite it, and wait for
+ * the next process call. */
+typedef struct feeder {
+    fx_t *fx;
+    int calls;
+    int fed;
+    bool intact;
+} feeder_t;
+
+static void on_rx_feed(co_line_t *line, const co_frame_t *frame, void *user)
+{
+    feeder_t *f = user;
+    co_frame_t before = *frame;
+    const uint8_t d[8] = {9, 9, 9, 9, 9, 9, 9, 9};
+    co_frame_t fed = tu_frame(0x1FF, 0, d, 8);
+    f->calls++;
+    if (frame->id != 0x1FF) {
+        while (co_line_receive(line, &fed))
+            f->fed++;
+        f->intact = f->intact && memcmp(&before, frame, sizeof before) == 0;
+    }
+}
+
+static void test_handler_feeding_its_line_cannot_overwrite_its_frame(void **state)
+{
+    fx_t *fx = fx_new(state, CO_MODE_CLASSIC, false, SMALL, SMALL);
+    feeder_t f = {fx, 0, 0, true};
+    assert_true(co_line_subscribe(&fx->line, 0x100, 0x1FF, on_rx_feed, &f));
+    receive(fx, 0x101, 0, 8);
+    receive(fx, 0x102, 0, 8);
+    (void)co_line_process(&fx->line, 0);
+    assert_true(f.intact);
+    assert_int_equal(f.calls, 2);                   /* the fed frames wait */
+    /* first handler: the 2 free slots; second: the slot the first freed */
+    assert_int_equal(f.fed, 3);
+    assert_int_equal(co_line_rx_count(&fx->line), 3);
+    assert_int_equal(co_line_stats(&fx->line)->rx_overflow, 2);
+    (void)co_line_process(&fx->line, 1);
+    assert_int_equal(f.calls, 2 + 3);
+    assert_int_equal(co_line_rx_count(&fx->line), 0);
+}
+
 static void test_node_id_and_rejected_counters(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD, true, SMALL, SMALL);
@@ -1199,6 +1292,10 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_receiver_free_until_table_full, setup, teardown),
         cmocka_unit_test_setup_teardown(test_tx_room_keeps_a_quarter, setup, teardown),
         cmocka_unit_test_setup_teardown(test_queue_accessors_show_frames_in_order, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_pop_without_out_takes_the_frame, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_tx_send_checks_id_and_length_per_mode, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_handler_feeding_its_line_cannot_overwrite_its_frame,
+                                        setup, teardown),
         cmocka_unit_test_setup_teardown(test_node_id_and_rejected_counters, setup, teardown),
         cmocka_unit_test_setup_teardown(test_overlapping_subscribe_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(test_invalid_range_refused, setup, teardown),

@@ -169,7 +169,8 @@ bool co_line_receive(co_line_t *line, const co_frame_t *frame);
 /* Take the oldest received frame without dispatching it (a capture line of
  * a tool or test that handles frames itself); false when none. */
 bool co_line_rx_pop(co_line_t *line, co_frame_t *out);
-/* Driver side: next frame to transmit, false when none. */
+/* Driver side: next frame to transmit, false when none. out may be NULL: the
+ * frame is only taken (a driver that sent it from co_line_tx_at). */
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out);
 /* Driver side: report a communication-state change. */
 void co_line_comm_event(co_line_t *line, co_comm_event_t event);
