@@ -222,8 +222,22 @@ class Line:
     @property
     def stats(self) -> Dict[str, int]:
         """The line's counters (co_line_stats_t): frames, overflows and every
-        malformed or unhandled frame, by kind."""
-        return self._context.runtime.line_stats(self.index, f"stats of {self._where}")
+        malformed or unhandled frame, by kind; then what the event queue to
+        Python did with the line's events (co_rt_event_stats_t): posted,
+        coalesced (PDO values merged into a newer one of the same PDO while
+        the callbacks lagged; which PDO: `events_behind`) and lost."""
+        what = f"stats of {self._where}"
+        runtime = self._context.runtime
+        stats = runtime.line_stats(self.index, what)
+        stats.update(runtime.event_stats(self.index, what))
+        return stats
+
+    @property
+    def events_behind(self) -> Dict[str, int]:
+        """{listener: values it never saw}: PDOs ("node 2 RPDO1", "node 5
+        TPDO1" of a remote node) whose callbacks fell behind, so the runtime
+        kept only the newest value of each (see PdoMap.skipped)."""
+        return self._context.events_behind
 
     @property
     def driver_stats(self) -> Dict[str, int]:

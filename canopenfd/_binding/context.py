@@ -32,8 +32,9 @@ __all__ = ["Deferred", "EventHandler", "FrameHandler", "LineContext", "PdoWatche
 Deferred = Optional[Callable[[], None]]
 #: A service's handler of one event kind.
 EventHandler = Callable[[Event], Deferred]
-#: A watcher of one PDO CAN-ID: called with each frame heard on it.
-FrameHandler = Callable[[Frame], Deferred]
+#: A watcher of one PDO CAN-ID: called with each frame heard on it and the
+#: count of older frames on that id the runtime merged into it (a slow consumer).
+FrameHandler = Callable[[Frame, int], Deferred]
 
 _HandlerKey = Tuple[int, Optional[int]]
 
@@ -77,7 +78,7 @@ class PdoWatches:
         frame = event.frame
         if frame is None:
             return None
-        calls = [call for call in (handler(frame)
+        calls = [call for call in (handler(frame, event.coalesced)
                                    for handler in list(self.watchers.get(event.a, ())))
                  if call is not None]
         if not calls:
@@ -133,6 +134,12 @@ class LineContext(Protocol):
         on events that will never come now."""
         ...
 
+    def fell_behind(self, listener: str, skipped: int) -> None:
+        """The runtime merged `skipped` values for `listener` (e.g. "node 5
+        RPDO1") into later ones: its consumer was too slow. Counted per
+        listener in line.events_behind."""
+        ...
+
 
 class _LineShare:
     """What the contexts of one line share: the condition, the waiter, the
@@ -146,6 +153,8 @@ class _LineShare:
         self.handlers: Dict[_HandlerKey, EventHandler] = {}
         self.close_hooks: List[Callable[[], None]] = []
         self.local_node_id: Optional[int] = None
+        #: {listener: values merged away before it saw them} (fell_behind)
+        self.behind: Dict[str, int] = {}
 
 
 class RuntimeLineContext:
@@ -223,6 +232,15 @@ class RuntimeLineContext:
         with self.cond:
             self._line.close_hooks.append(hook)
             self._close_hooks.append(hook)
+
+    def fell_behind(self, listener: str, skipped: int) -> None:
+        behind = self._line.behind
+        behind[listener] = behind.get(listener, 0) + skipped
+
+    @property
+    def events_behind(self) -> Dict[str, int]:
+        with self.cond:
+            return dict(self._line.behind)
 
     def release(self) -> None:
         """Remove every subscription and close hook made through this context."""

@@ -31,7 +31,7 @@ _ERRORS = {
     lib.CO_RT_ERR_MODE: ConfigurationError,
 }
 
-EVENT_BATCH = 64
+EVENT_BATCH = 256   # events taken per wake-up of the dispatcher
 HOST_BATCH = 256
 
 
@@ -46,6 +46,7 @@ class Event(NamedTuple):
     time_us: int              # CLOCK_MONOTONIC
     frame: Optional[Frame]    # FRAME (monitor lines), PDO_FRAME
     data: bytes               # EMCY: the encoded EMCY; PDO: the RPDO's mapped values
+    coalesced: int = 0        # PDO, PDO_FRAME: older values of the source it replaced
 
 
 def status_text(status: int) -> str:
@@ -377,6 +378,9 @@ class Runtime:
     def line_stats(self, line: int, what: str) -> Dict[str, int]:
         return self._counters(lib.co_rt_line_stats, "co_line_stats_t", line, what)
 
+    def event_stats(self, line: int, what: str) -> Dict[str, int]:
+        return self._counters(lib.co_rt_event_stats, "co_rt_event_stats_t", line, what)
+
     def driver_stats(self, line: int, what: str) -> Dict[str, int]:
         return self._counters(lib.co_rt_driver_stats, "co_rt_driver_stats_t", line, what)
 
@@ -542,7 +546,7 @@ def _event(ev: CData) -> Event:
     elif kind in _EV_WITH_DATA:
         # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
         data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
-    return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data)
+    return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data, ev.coalesced)
 
 
 def decode_emcy(data: bytes, fd: bool) -> Optional[Dict[str, Union[int, bytes]]]:

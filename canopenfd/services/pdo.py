@@ -186,7 +186,7 @@ class _Wiring(NamedTuple):
     context: LineContext
     access: PdoAccess
     # local RPDOs: PDO number -> the map's reception handler
-    receivers: Dict[int, Callable[[bytes], Deferred]]
+    receivers: Dict[int, Callable[[bytes, int], Deferred]]
     # each map's "stop hearing your CAN-ID" (the node is removed)
     stops: List[Callable[[str], None]]
 
@@ -282,7 +282,7 @@ class PdoMaps(Mapping):
     def _event_received(self, event: Event) -> Deferred:
         """CO_EV_PDO (the local node's RPDOs): a = the PDO number, data = its values."""
         receive = self._wiring.receivers.get(event.a)
-        return receive(event.data) if receive is not None else None
+        return receive(event.data, event.coalesced) if receive is not None else None
 
 
 # ------------------------------------------------------------------ one PDO
@@ -405,6 +405,11 @@ class PdoMap:
         self._waits = 0
         #: Frames heard on a remote PDO's CAN-ID too short for its mapping (ignored).
         self.short_frames = 0
+        #: Values of this PDO received just before the one now in `data` that
+        #: no callback saw: the callbacks fell behind and the runtime kept only
+        #: the newest (0 while they keep up). `skipped_total` adds them all up.
+        self.skipped = 0
+        self.skipped_total = 0
         wiring.receivers[number] = self._event_received
         wiring.stops.append(self._stop_watch)
 
@@ -666,14 +671,18 @@ class PdoMap:
                 self._release("wait_for_reception")
         return self.timestamp  # type: ignore[return-value]
 
-    def _received_now(self) -> None:
+    def _received_now(self, skipped: int) -> None:
+        self.skipped = skipped
+        if skipped:
+            self.skipped_total += skipped
+            self._context.fell_behind(self.where, skipped)
         now = time.time()
         if self.timestamp is not None:
             self.period = now - self.timestamp
         self.timestamp = now
         self._received += 1
 
-    def _event_received(self, data: bytes) -> Deferred:
+    def _event_received(self, data: bytes, skipped: int) -> Deferred:
         """A reception (dispatcher thread, under the line's condition)."""
         if len(data) != (self.length + 7) // 8:
             try:                # the mapping changed (over the network): read it again
@@ -681,11 +690,11 @@ class PdoMap:
             except Exception:  # noqa: BLE001 - decoding is best effort; data still set
                 log.exception("%s: mapping could not be read again", self.where)
         self.data = bytearray(data)
-        self._received_now()
+        self._received_now(skipped)
         callbacks = self._callbacks
         return (lambda: callbacks.fire(self)) if callbacks else None
 
-    def _event_frame(self, frame: Frame) -> Deferred:
+    def _event_frame(self, frame: Frame, skipped: int) -> Deferred:
         """A frame on a watched remote PDO's CAN-ID (dispatcher thread, under
         the line's condition): `data` = its first ceil(length / 8) bytes (all
         of them while nothing is mapped)."""
@@ -696,7 +705,7 @@ class PdoMap:
                       self.where, len(frame.data), frame.id, need)
             return None
         self.data = bytearray(frame.data[:need] if self.map else frame.data)
-        self._received_now()
+        self._received_now(skipped)
         callbacks = self._callbacks
         return (lambda: callbacks.fire(self)) if callbacks else None
 

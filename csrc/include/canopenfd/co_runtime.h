@@ -117,10 +117,26 @@ typedef struct co_rt_event {
     uint32_t a;
     uint32_t b;
     uint64_t time_us;          /* CLOCK_MONOTONIC */
+    /* CO_EV_PDO, CO_EV_PDO_FRAME: newer events of the same source (the same
+     * RPDO, the same watched CAN-ID) replaced this many queued ones, because
+     * the queue was filling up: values the application never saw. */
+    uint32_t coalesced;
     co_frame_t frame;
 } co_rt_event_t;
 
-/* Create a runtime with an event queue of event_capacity entries (0 = default). */
+/* What the event queue did with one line's events. Coalescing: from 3/4 of
+ * the queue on, a PDO event replaces the queued one of its source (latest
+ * value kept, the count of replaced ones carried in `coalesced`) instead of
+ * taking a slot, so the last quarter stays free for events that cannot be
+ * merged (EMCY, heartbeat, transfers). */
+typedef struct co_rt_event_stats {
+    uint32_t events_posted;      /* events queued for the application */
+    uint32_t events_coalesced;   /* PDO events merged into a queued one of their source */
+    uint32_t events_lost;        /* events dropped: the queue was full */
+} co_rt_event_stats_t;
+
+/* Create a runtime with an event queue of event_capacity entries (0 = as many
+ * as 8 MiB hold, about 80 000; the memory is touched only as it fills). */
 co_rt_t *co_rt_new(uint32_t event_capacity);
 /* Stops the thread, closes every line, frees everything. */
 void co_rt_free(co_rt_t *rt);
@@ -390,6 +406,7 @@ int co_rt_transfer_release(co_rt_t *rt, int line, int handle);
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
 int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out);
+int co_rt_event_stats(co_rt_t *rt, int line, co_rt_event_stats_t *out);
 /* Local node state (co_nmt_state_t) or CO_RT_ERR_STATE when the line has none. */
 int co_rt_local_state(co_rt_t *rt, int line);
 /* Last state seen of a remote node (co_nmt_state_t, CO_NMT_UNKNOWN if none). */

@@ -1,7 +1,15 @@
 /* Runtime: the event queue out to the application. A bounded ring with its
  * own lock: the thread posts, Python waits in co_rt_wait_events. A full
  * queue drops and counts; CO_EV_EVENTS_LOST says so as soon as there is
- * room again. */
+ * room again.
+ *
+ * Coalescing: a slow consumer must not lose PDOs at random. Every queued PDO
+ * event (CO_EV_PDO, CO_EV_PDO_FRAME) is remembered in a small hash table of
+ * its source (line, kind, a) -> sequence number. From the high-water mark on
+ * (3/4 of the ring), a new event of a source that still has one queued
+ * replaces that one in place (latest value, its `coalesced` count grows)
+ * instead of taking a slot; the last quarter stays for events that cannot be
+ * merged. Each source keeps its order; the replaced values are counted. */
 #include "co_rt_internal.h"
 
 #include <stdlib.h>
@@ -11,13 +19,16 @@ bool rt_events_open(rt_events_t *q, uint32_t capacity)
     rt_mutex_init(&q->lock);
     rt_cond_init(&q->ready);
     q->capacity = capacity;
+    q->high_water = capacity - capacity / 4u;
     q->ring = calloc(capacity, sizeof *q->ring);
-    return q->ring != NULL;
+    q->slots = calloc(RT_COALESCE_SLOTS, sizeof *q->slots);
+    return q->ring != NULL && q->slots != NULL;
 }
 
 void rt_events_free(rt_events_t *q)
 {
     free(q->ring);
+    free(q->slots);
     rt_mutex_destroy(&q->lock);
     rt_cond_destroy(&q->ready);
 }
@@ -26,6 +37,7 @@ static void ring_push(rt_events_t *q, const co_rt_event_t *ev)
 {
     q->ring[(q->head + q->count) % q->capacity] = *ev;
     q->count++;
+    q->pushed++;
 }
 
 /* With q->lock held: report drops as soon as there is room again. */
@@ -40,15 +52,96 @@ static void push_lost_marker(rt_events_t *q)
     q->lost = 0;
 }
 
+static bool coalescable(const co_rt_event_t *ev)
+{
+    return (ev->kind == CO_EV_PDO || ev->kind == CO_EV_PDO_FRAME) &&
+           ev->line >= 0 && ev->line < RT_MAX_LINES;
+}
+
+/* Never 0 (0 marks a slot never used): the kind is never 0. */
+static uint64_t source_key(const co_rt_event_t *ev)
+{
+    return ((uint64_t)(uint32_t)ev->line << 40) | ((uint64_t)(uint8_t)ev->kind << 32) | ev->a;
+}
+
+static uint32_t slot_hash(uint64_t key)
+{
+    return (uint32_t)((key * 0x9E3779B97F4A7C15u) >> 40) & (RT_COALESCE_SLOTS - 1u);
+}
+
+static bool still_queued(const rt_events_t *q, uint64_t seq)
+{
+    return seq >= q->pushed - q->count && seq < q->pushed;
+}
+
+/* The slot of key, or (probing a few) a free one for it, or NULL. */
+static rt_coalesce_slot_t *slot_of(rt_events_t *q, uint64_t key, bool for_insert)
+{
+    uint32_t at = slot_hash(key);
+    rt_coalesce_slot_t *free_slot = NULL;
+    for (uint32_t i = 0; i < RT_COALESCE_PROBES; i++) {
+        rt_coalesce_slot_t *slot = &q->slots[(at + i) & (RT_COALESCE_SLOTS - 1u)];
+        if (slot->key == key) {
+            return slot;
+        }
+        if (!free_slot && (slot->key == 0 || !still_queued(q, slot->seq))) {
+            free_slot = slot;
+        }
+    }
+    return for_insert ? free_slot : NULL;
+}
+
+/* Merge ev into the queued event of its source, if it still has one. */
+static bool coalesce(rt_events_t *q, const co_rt_event_t *ev)
+{
+    rt_coalesce_slot_t *slot = slot_of(q, source_key(ev), false);
+    if (!slot || !still_queued(q, slot->seq)) {
+        return false;
+    }
+    uint64_t popped = q->pushed - q->count;
+    co_rt_event_t *queued = &q->ring[(q->head + (uint32_t)(slot->seq - popped)) % q->capacity];
+    uint64_t merged = (uint64_t)queued->coalesced + 1u + ev->coalesced;
+    *queued = *ev;
+    queued->coalesced = merged > UINT32_MAX ? UINT32_MAX : (uint32_t)merged;
+    return true;
+}
+
+static void remember(rt_events_t *q, const co_rt_event_t *ev, uint64_t seq)
+{
+    uint64_t key = source_key(ev);
+    rt_coalesce_slot_t *slot = slot_of(q, key, true);
+    if (slot) {  /* else: too many sources queued; this one just will not merge */
+        slot->key = key;
+        slot->seq = seq;
+    }
+}
+
 static bool events_post(rt_events_t *q, const co_rt_event_t *ev)
 {
     rt_mutex_lock(&q->lock);
     push_lost_marker(q);
-    bool queued = q->count < q->capacity;
-    if (queued) {
+    bool merge = coalescable(ev);
+    co_rt_event_stats_t *stats = ev->line >= 0 && ev->line < RT_MAX_LINES
+                                     ? &q->line_stats[ev->line] : NULL;
+    bool queued = true;
+    if (merge && q->count >= q->high_water && coalesce(q, ev)) {
+        if (stats) {
+            stats->events_coalesced++;
+        }
+    } else if (q->count < q->capacity) {
+        if (merge) {
+            remember(q, ev, q->pushed);
+        }
         ring_push(q, ev);
+        if (stats) {
+            stats->events_posted++;
+        }
     } else {
+        queued = false;
         q->lost++;
+        if (stats) {
+            stats->events_lost++;
+        }
     }
     if (q->waiters > 0) {
         rt_cond_signal(&q->ready);
@@ -107,4 +200,12 @@ uint32_t rt_events_waiters(rt_events_t *q)
     uint32_t n = q->waiters;
     rt_mutex_unlock(&q->lock);
     return n;
+}
+
+co_rt_event_stats_t rt_events_line_stats(rt_events_t *q, int line)
+{
+    rt_mutex_lock(&q->lock);
+    co_rt_event_stats_t stats = q->line_stats[line];
+    rt_mutex_unlock(&q->lock);
+    return stats;
 }

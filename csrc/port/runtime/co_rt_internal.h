@@ -43,8 +43,10 @@ enum {
     RT_MAX_BUSES = 64,
     RT_DEFAULT_QUEUE = 1024,
     RT_MAX_QUEUE = 1 << 20,
-    RT_DEFAULT_EVENTS = 4096,
+    RT_DEFAULT_EVENT_BYTES = 8 << 20, /* default event queue: what 8 MiB hold (~80 000) */
     RT_MAX_EVENT_CAPACITY = 1 << 22,
+    RT_COALESCE_SLOTS = 1024,     /* sources (PDOs) the event queue can coalesce at once */
+    RT_COALESCE_PROBES = 8,
     RT_MAILBOX_SIZE = 1024,
     RT_MAIL_CHUNK = 64,
     RT_TRANSFER_ROUNDS = 16,
@@ -226,16 +228,26 @@ typedef struct rt_portable_waiter {
     uint64_t deadline;     /* CO_TIME_NEVER: none */
 } rt_portable_waiter_t;
 
+/* The latest queued event of one coalescable source (see co_rt_events.c). */
+typedef struct rt_coalesce_slot {
+    uint64_t key;          /* line, kind and a of the source; 0 = never used */
+    uint64_t seq;          /* its sequence number (still queued while >= popped) */
+} rt_coalesce_slot_t;
+
 typedef struct rt_events {
     rt_mutex_t lock;
     rt_cond_t ready;
     co_rt_event_t *ring;
+    rt_coalesce_slot_t *slots;  /* RT_COALESCE_SLOTS, open addressing */
     uint32_t capacity;
+    uint32_t high_water;   /* from this many queued events on, sources coalesce */
     uint32_t head;
     uint32_t count;
+    uint64_t pushed;       /* events ever queued: the next one's sequence number */
     uint32_t lost;         /* dropped since the last CO_EV_EVENTS_LOST */
     uint32_t waiters;
     bool closed;
+    co_rt_event_stats_t line_stats[RT_MAX_LINES];
 } rt_events_t;
 
 typedef struct rt_mailbox {
@@ -363,6 +375,8 @@ bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
              const co_frame_t *frame);
 /* Wake every waiter with CLOSED; how many still wait. */
 void rt_events_close(rt_events_t *q);
+/* The event counters of one line (under the queue's lock). */
+co_rt_event_stats_t rt_events_line_stats(rt_events_t *q, int line);
 uint32_t rt_events_waiters(rt_events_t *q);
 
 /* ---------------------------------------------------------------- co_rt_lines.c */

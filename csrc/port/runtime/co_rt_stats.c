@@ -49,6 +49,16 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out)
     return CO_RT_OK;
 }
 
+int co_rt_event_stats(co_rt_t *rt, int line, co_rt_event_stats_t *out)
+{
+    rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
+    if (!l || !out) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    *out = rt_events_line_stats(&rt->events, line);
+    return CO_RT_OK;
+}
+
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);

@@ -160,8 +160,9 @@ co_rt_t *co_rt_new(uint32_t event_capacity)
     rt_mutex_init(&rt->done_lock);
     rt_cond_init(&rt->done_ready);
     rt->portable_loop = !CO_RT_HAVE_SOCKETCAN || portable_loop_asked();
-    bool events = rt_events_open(&rt->events, event_capacity ? event_capacity
-                                                             : RT_DEFAULT_EVENTS);
+    bool events = rt_events_open(&rt->events,
+                                 event_capacity ? event_capacity
+                                                : RT_DEFAULT_EVENT_BYTES / sizeof(co_rt_event_t));
     if (!rt_loop_open(rt) || !events) {
         rt_destroy(rt);
         return NULL;
