@@ -88,17 +88,28 @@ def receiver_node(net, iface, mode):
 
 
 # ====================================================================== (a) latency
-def latency(iface, mode, samples):
+def latency(iface, mode, samples, native=False):
+    """Callback latencies in ms: (ours, python-canopen's, missed per receiver).
+    native: ours over the in-process bus mem:, python-canopen over python-can's
+    `virtual` interface, its PDO sent by a raw virtual bus (no kernel)."""
     import canopen
     import canopenfd
     fd = mode == "fd"
-    send_net, recv_net = canopenfd.Network(), canopenfd.Network()
+    send_net = canopenfd.Network()
+    # mem: buses live in one Network: there both nodes share its runtime thread
+    recv_net = send_net if native else canopenfd.Network()
     theirs = canopen.Network()
+    our_channel = "mem:pdo-bench" if native else iface
+    their_sender = None
     try:
-        me = send_net.open_line(iface, mode=mode).create_local_node(SENDER, od=pdo_od(mode))
+        me = send_net.open_line(our_channel, mode=mode).create_local_node(
+            SENDER, od=pdo_od(mode))
         tpdo = configure(me.tpdo[1], COB_ID)
         me.apply("start")
-        _, rpdo = receiver_node(recv_net, iface, mode)
+        _, rpdo = receiver_node(recv_net, our_channel, mode)
+        if native:
+            import can
+            their_sender = can.Bus(interface="virtual", channel="pdo-bench")
         got = {"ours": {}, "theirs": {}}
         events = {"ours": threading.Event(), "theirs": threading.Event()}
 
@@ -109,6 +120,21 @@ def latency(iface, mode, samples):
         def their(can_id, data, timestamp):
             got["theirs"][int.from_bytes(bytes(data[:4]), "little")] = time.perf_counter()
             events["theirs"].set()
+
+        def send_ours(i):
+            me[VALUE].raw = i
+            start = time.perf_counter()
+            tpdo.transmit()
+            return start
+
+        def send_theirs(i):
+            if their_sender is None:
+                return send_ours(i)          # vcan: our TPDO, heard by both
+            msg = can.Message(arbitration_id=COB_ID, data=i.to_bytes(4, "little"),
+                              is_extended_id=False, is_fd=fd)
+            start = time.perf_counter()
+            their_sender.send(msg)
+            return start
         # One receiver at a time, in alternating rounds: both in one process
         # would race for the GIL at every PDO (python-canopen's notifier
         # thread, woken first, would delay our dispatcher and vice versa).
@@ -116,9 +142,13 @@ def latency(iface, mode, samples):
         ours_ms, theirs_ms, missed = [], [], {"ours": 0, "theirs": 0}
         rounds = 4
         for r in range(2 * rounds):
-            name, out = (("ours", ours_ms), ("theirs", theirs_ms))[r % 2]
+            name, out, send = (("ours", ours_ms, send_ours),
+                               ("theirs", theirs_ms, send_theirs))[r % 2]
             if name == "ours":
                 rpdo.add_callback(ours)
+            elif native:
+                theirs.connect(interface="virtual", channel="pdo-bench",
+                               receive_own_messages=False)
             else:
                 theirs.connect(interface="socketcan", channel=iface, fd=fd,
                                can_filters=[{"can_id": COB_ID, "can_mask": 0x7FF}])
@@ -126,9 +156,7 @@ def latency(iface, mode, samples):
             first = (r // 2) * (samples // rounds) + 1
             for i in range(first, first + samples // rounds):
                 events[name].clear()
-                me[VALUE].raw = i
-                start = time.perf_counter()
-                tpdo.transmit()
+                start = send(i)
                 if events[name].wait(2.0) and i in got[name]:
                     out.append((got[name][i] - start) * 1000.0)
                 else:
@@ -142,6 +170,8 @@ def latency(iface, mode, samples):
     finally:
         if theirs.bus is not None:
             theirs.disconnect()
+        if their_sender is not None:
+            their_sender.shutdown()
         send_net.close()
         recv_net.close()
 
@@ -212,12 +242,61 @@ def stream(iface, mode, seconds):
     return sent, out.stdout.strip(), results
 
 
+# ====================================================================== (c) starved
+def starved(mode, count):
+    """A PDO stream to a slow Python callback (200 us of work a PDO) while
+    another Python thread spins (any real application has one). The sender is
+    a tool line's send_frame() loop. Returns
+    (sent, callbacks, values merged away, events lost, seconds of sending)."""
+    import canopenfd
+    stop = threading.Event()
+
+    def spin():
+        x = 0
+        while not stop.is_set():
+            x += 1
+
+    with canopenfd.Network() as net:
+        _, rpdo = receiver_node(net, "mem:starved", mode)
+        tool = net.open_line("mem:starved", mode=mode)
+        calls = [0]
+
+        def on_pdo(pdo):        # an application's work: 200 us a PDO
+            calls[0] += 1
+            until = time.perf_counter() + 200e-6
+            while time.perf_counter() < until:
+                pass
+        rpdo.add_callback(on_pdo)
+        busy = threading.Thread(target=spin, daemon=True)
+        busy.start()
+        start = time.perf_counter()
+        data = bytes(4)
+        for i in range(count):
+            tool.send_frame(COB_ID, i.to_bytes(4, "little") if i % 64 == 0 else data)
+        sending = time.perf_counter() - start
+        deadline = time.monotonic() + 60
+        accounted = 0
+        while time.monotonic() < deadline:
+            accounted = calls[0] + getattr(rpdo, "skipped_total", 0)
+            if accounted + net.events_lost >= count:
+                break
+            time.sleep(0.01)
+        stop.set()
+        busy.join()
+        return count, calls[0], getattr(rpdo, "skipped_total", 0), net.events_lost, sending
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("iface", nargs="?", default="vcan0")
     ap.add_argument("-n", type=int, default=500, help="latency samples")
     ap.add_argument("-s", type=float, default=60.0, help="seconds of the sustained stream")
     ap.add_argument("--classic", action="store_true", help="classic frames (MTU 16 interface)")
+    ap.add_argument("--native", action="store_true",
+                    help="latency only, no kernel: ours over mem:, python-canopen over "
+                         "python-can's virtual interface")
+    ap.add_argument("--starved", type=int, default=200_000,
+                    help="--native: PDOs sent to a starved callback")
     ap.add_argument("--recv", choices=("ours", "theirs"), help=argparse.SUPPRESS)
     ap.add_argument("--mode", default="fd", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -230,8 +309,9 @@ def main() -> int:
     import logging
     logging.getLogger("canopen").setLevel(logging.CRITICAL)
     mode = "classic" if args.classic else "fd"
-    print(f"PDO bench over {args.iface} ({mode}), python {sys.version.split()[0]}")
-    ours_ms, theirs_ms, missed = latency(args.iface, mode, args.n)
+    where = "mem: / python-can virtual" if args.native else args.iface
+    print(f"PDO bench over {where} ({mode}), python {sys.version.split()[0]}")
+    ours_ms, theirs_ms, missed = latency(args.iface, mode, args.n, args.native)
     print(f"\n(a) latency TPDO transmit() at node {SENDER} -> Python callback, "
           f"{args.n} samples, one PDO in flight")
     print(f"{'receiver':<16} {'median ms':>10} {'p99 ms':>9} {'max ms':>9} {'missed':>7}")
@@ -242,6 +322,13 @@ def main() -> int:
                   f"{max(values):9.3f} {missed[key]:7d}")
         else:
             print(f"{name:<16} {'-':>10} {'-':>9} {'-':>9} {missed[key]:7d}")
+    if args.native:
+        sent, calls, merged, lost, seconds = starved(mode, args.starved)
+        print(f"\n(c) {sent} PDOs ({sent / seconds:.0f}/s) to a Python callback doing 200 us "
+              f"of work a PDO while another Python thread spins")
+        print(f"{'callbacks':>10} {'merged':>8} {'lost':>8}  (callbacks + merged + lost = sent)")
+        print(f"{calls:10d} {merged:8d} {lost:8d}")
+        return 0
     sent, flood_line, results = stream(args.iface, mode, args.s)
     print(f"\n(b) sustained stream {args.s:g} s: pdo_flood {flood_line}")
     print(f"{'receiver':<16} {'received':>10} {'lost':>8} {'lost %':>8} {'CPU s':>7} "

@@ -7,10 +7,11 @@ event delivery.
 
 from __future__ import annotations
 
+import collections
 import logging
 import threading
 import time
-from typing import Callable, List, Optional, TypeVar
+from typing import Callable, Deque, List, Optional, Tuple, TypeVar
 
 from .errors import ClosedError, ConfigurationError
 
@@ -20,14 +21,26 @@ log = logging.getLogger("canopenfd")
 C = TypeVar("C", bound=Callable[..., object])
 T = TypeVar("T")
 
+_BACKLOG = 10_000   # calls kept waiting behind a blocked callback of one list
+
 
 class CallbackList:
-    """Ordered callbacks of one kind of event."""
+    """Ordered callbacks of one kind of event.
+
+    They run one call at a time and in event order, even when a blocked
+    callback made the network hand its events to another dispatcher thread:
+    a fire() that finds the list busy on another thread queues its arguments
+    (at most _BACKLOG calls; beyond, the oldest are dropped and counted), and
+    the busy thread runs them once its call returns."""
 
     def __init__(self, what: str) -> None:
         self._what = what
         self._callbacks: List[Callable[..., object]] = []
         self._lock = threading.Lock()
+        self._runner: Optional[int] = None     # thread ident running the callbacks
+        self._backlog: Deque[Tuple[object, ...]] = collections.deque()
+        #: Calls dropped because the backlog behind a blocked callback was full.
+        self.dropped = 0
 
     def add(self, callback: C) -> C:
         if not callable(callback):
@@ -45,8 +58,37 @@ class CallbackList:
         return bool(self._callbacks)
 
     def fire(self, *args: object) -> None:
+        me = threading.get_ident()
         with self._lock:
+            runner = self._runner
+            if runner is not None and runner != me:
+                if len(self._backlog) >= _BACKLOG:
+                    self._backlog.popleft()
+                    self.dropped += 1
+                    if self.dropped == 1:
+                        log.error("%s callbacks are blocked: calls waiting for them are "
+                                  "dropped from now on (%d kept)", self._what, _BACKLOG)
+                self._backlog.append(args)
+                return
+            self._runner = me
             callbacks = list(self._callbacks)
+        try:
+            self._run(callbacks, args)
+        finally:
+            if runner is None:            # not a nested fire: run what waited, then free
+                self._drain()
+
+    def _drain(self) -> None:
+        while True:
+            with self._lock:
+                if not self._backlog:
+                    self._runner = None
+                    return
+                args = self._backlog.popleft()
+                callbacks = list(self._callbacks)
+            self._run(callbacks, args)
+
+    def _run(self, callbacks: List[Callable[..., object]], args: Tuple[object, ...]) -> None:
         for callback in callbacks:
             try:
                 callback(*args)

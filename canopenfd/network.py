@@ -1,16 +1,24 @@
 """`Network`: one C runtime (one thread running every line) plus the Python
 dispatcher thread that turns its events into callbacks: each event goes to
-the line context of its line, whose event table hands it to a service."""
+the line context of its line, whose event table hands it to a service.
+
+A callback that blocks must not hold every other event of the network: when
+one holds the dispatcher longer than stall_report_s, the watchdog reports it
+and hands the events still to come to a new dispatcher thread (at most
+_MAX_BLOCKED of them wait in callbacks at once). The blocked thread ends once
+its callback returns; a CallbackList keeps its own callbacks one at a time
+and in order meanwhile (what comes for it waits for it)."""
 
 from __future__ import annotations
 
 import atexit
+import collections
 import logging
 import threading
 import time
 import weakref
 from types import TracebackType
-from typing import Dict, List, Optional, Tuple, Type
+from typing import Deque, Dict, List, Optional, Set, Tuple, Type
 
 from ._binding.constants import Driver, EventKind, Mode
 from ._binding.context import RuntimeLineContext
@@ -27,6 +35,7 @@ _MAX_QUEUE = 1 << 20
 _MODES = ("fd", "classic")
 _EV_EVENTS_LOST = int(EventKind.EVENTS_LOST)   # a plain int: compared on every event
 _BURST_END_S = 1.0     # no event lost for this long: the burst of losses is over
+_MAX_BLOCKED = 4       # dispatcher threads left waiting in callbacks before no more relief
 
 
 def _event_name(kind: int) -> str:
@@ -50,14 +59,17 @@ class Network:
     """A set of CAN lines run by one C thread.
 
     Usable as a context manager; close() is idempotent. Callbacks of every line
-    run on this network's dispatcher thread, one at a time, in event order.
+    run on this network's dispatcher thread, one at a time, in event order; a
+    callback blocked longer than stall_report_s is reported and left behind
+    (the others go on; its own later calls wait for it).
     """
 
     def __init__(self, event_capacity: int = 0, *, stall_report_s: float = 1.0) -> None:
         """event_capacity: runtime events queued for the dispatcher (0 = default).
         stall_report_s: a callback (or other event handling) holding the
         dispatcher longer than this is logged as a warning and counted in
-        `dispatcher_stalls`: every other event of the network waits meanwhile."""
+        `dispatcher_stalls`, and a new dispatcher thread takes the other
+        events over meanwhile."""
         if isinstance(event_capacity, bool) or not isinstance(event_capacity, int) \
                 or not 0 <= event_capacity <= _MAX_QUEUE:
             raise ConfigurationError(
@@ -75,17 +87,23 @@ class Network:
         self._closed = False
         self._events_lost = 0
         self._free_on_exit = False  # close() ran in a callback: the dispatcher frees
-        # What the dispatcher handles now (monotonic start, the event), for the watchdog.
+        self._finished = False
+        # Events read but not delivered yet: whichever dispatcher is active takes
+        # them in order (a blocked one's successor goes on from there).
+        self._pending: Deque[Event] = collections.deque()
+        self._dispatch_lock = threading.Lock()    # _active, _handling, _threads
+        # What the active dispatcher handles now (monotonic start, the event), for the watchdog.
         self._handling: Optional[Tuple[float, Event]] = None
         self._stall_report_s = float(stall_report_s)
         self._stalls = 0
         self._burst: Optional[List[float]] = None   # events lost: [first, last, count]
         self._stop_watch = threading.Event()
-        self._dispatcher = threading.Thread(target=self._dispatch, name="canopenfd-dispatch",
-                                            daemon=True)
+        self._active = self._new_dispatcher()
+        #: every dispatcher thread still running: the active one and those blocked
+        self._threads: Set[threading.Thread] = {self._active}
         self._watchdog = threading.Thread(target=self._watch_dispatcher,
                                           name="canopenfd-watchdog", daemon=True)
-        self._dispatcher.start()
+        self._active.start()
         self._watchdog.start()
         _open_networks.add(self)
 
@@ -119,6 +137,13 @@ class Network:
         """Times one event's handling (a callback) held the dispatcher longer
         than stall_report_s (each is logged as a warning)."""
         return self._stalls
+
+    @property
+    def blocked_dispatchers(self) -> int:
+        """Dispatcher threads still waiting in a callback that blocked (their
+        events went to a new dispatcher thread)."""
+        with self._dispatch_lock:
+            return len(self._threads) - (1 if self._active in self._threads else 0)
 
     # ---------------------------------------------------------------- lines
     def open_line(self, channel: Optional[str] = None, *, bus: Optional[PythonCanBus] = None,
@@ -210,14 +235,20 @@ class Network:
         if self._on_dispatcher():
             self._free_on_exit = True  # the dispatcher frees once the callback returns
             return
-        self._dispatcher.join(_JOIN_TIMEOUT_S)
         self._finish()
 
     def _finish(self) -> None:
-        """Join the bridge threads, then free the runtime if nothing still waits in it."""
-        stuck = [b for b in self._bridges if not b.join(_JOIN_TIMEOUT_S)]
-        if self._dispatcher.is_alive() and not self._on_dispatcher():
-            stuck.append(self._dispatcher)  # type: ignore[arg-type]
+        """Join the bridge threads and the active dispatcher, then free the
+        runtime if nothing still waits in it. Dispatchers blocked in a
+        callback are not waited for: they never call into the runtime again."""
+        with self._dispatch_lock:
+            if self._finished:
+                return
+            self._finished = True
+            active = self._active
+        stuck: List[object] = [b for b in self._bridges if not b.join(_JOIN_TIMEOUT_S)]
+        if active is not threading.current_thread() and not self._left_behind(active):
+            stuck.append(active)
         if stuck:
             # Freeing now could crash a thread still inside the runtime: leak it instead.
             log.error("network close: %d thread(s) did not end in %.0f s; runtime not freed",
@@ -225,29 +256,85 @@ class Network:
             return
         self._runtime.free()
 
+    def _left_behind(self, active: threading.Thread) -> bool:
+        """Wait for the active dispatcher to end (the network is closed); True
+        when it did, or when it is stalled in an event's handling (a callback
+        blocked for stall_report_s): from there it goes back to see the
+        network closed and ends without entering the runtime again, so it is
+        left behind."""
+        deadline = time.monotonic() + _JOIN_TIMEOUT_S
+        while active.is_alive() and time.monotonic() < deadline:
+            with self._dispatch_lock:
+                handling = self._handling if self._active is active else None
+            if handling is not None and \
+                    time.monotonic() - handling[0] >= self._stall_report_s:
+                return True
+            active.join(0.05)
+        return not active.is_alive()
+
     def _on_dispatcher(self) -> bool:
-        return threading.current_thread() is self._dispatcher
+        return threading.current_thread() in self._threads
 
     # ---------------------------------------------------------------- dispatch
-    def _dispatch(self) -> None:
-        try:
-            while not self._closed:
-                events = self._runtime.read_events(_WAIT_MS)
-                if events is None:
-                    break  # the runtime stopped
-                for event in events:
+    def _new_dispatcher(self) -> threading.Thread:
+        return threading.Thread(target=self._dispatch, name="canopenfd-dispatch", daemon=True)
+
+    def _next_event(self, me: threading.Thread) -> Optional[Event]:
+        """The next event for dispatcher `me`, None when it is no longer the
+        active one (or the network closed). Reads a batch when none is pending."""
+        pending = self._pending
+        while not self._closed:
+            with self._dispatch_lock:
+                if self._active is not me:
+                    return None
+                if pending:
+                    event = pending.popleft()
                     self._handling = (time.monotonic(), event)
-                    try:
-                        self._deliver(event)
-                    except Exception:  # noqa: BLE001 - one bad event must not stop the rest
-                        log.exception("canopenfd: event %d of line %d could not be delivered",
-                                      event.kind, event.line)
-                    self._handling = None
+                    return event
+            events = self._runtime.read_events(_WAIT_MS)
+            if events is None:
+                return None  # the runtime stopped
+            pending.extend(events)   # only the active dispatcher reads
+        return None
+
+    def _dispatch(self) -> None:
+        me = threading.current_thread()
+        try:
+            while True:
+                event = self._next_event(me)
+                if event is None:
+                    break
+                try:
+                    self._deliver(event)
+                except Exception:  # noqa: BLE001 - one bad event must not stop the rest
+                    log.exception("canopenfd: event %d of line %d could not be delivered",
+                                  event.kind, event.line)
+                with self._dispatch_lock:
+                    if self._active is me:
+                        self._handling = None
         finally:
-            self._handling = None
-            self._stop_watch.set()
+            with self._dispatch_lock:
+                self._threads.discard(me)
+                if self._active is me:
+                    self._handling = None
+                    self._stop_watch.set()
             if self._free_on_exit:
                 self._finish()
+
+    def _relieve(self, handling: Tuple[float, Event]) -> bool:
+        """The active dispatcher is blocked in `handling`: hand the events to
+        come to a new dispatcher thread. False when it moved on meanwhile, the
+        network closed, or _MAX_BLOCKED threads already wait in callbacks."""
+        with self._dispatch_lock:
+            if self._closed or self._handling is not handling \
+                    or len(self._threads) > _MAX_BLOCKED:
+                return False
+            fresh = self._new_dispatcher()
+            self._active = fresh
+            self._threads.add(fresh)
+            self._handling = None
+        fresh.start()
+        return True
 
     def _loss_burst(self, lost: int) -> None:
         """Events the runtime dropped (its queue was full): one warning when a
@@ -290,11 +377,15 @@ class Network:
                 event = handling[1]
                 with self._lock:
                     line = self._lines.get(event.line)
+                relieved = self._relieve(handling)
                 log.warning("canopenfd: the handling of a %s event of %s has held the dispatcher "
-                            "for %.1f s (a blocking callback?): every other event of the network "
-                            "waits", _event_name(event.kind),
+                            "for %.1f s (a blocking callback?): %s", _event_name(event.kind),
                             f"line {line.channel!r}" if line is not None
-                            else f"line {event.line}", held)
+                            else f"line {event.line}", held,
+                            "a new dispatcher thread delivers the other events meanwhile"
+                            if relieved else "every other event of the network waits "
+                            f"({len(self._threads)} dispatcher threads are blocked already)"
+                            if not self._closed else "the network is closing")
 
     def _deliver(self, ev: Event) -> None:
         kind = ev.kind

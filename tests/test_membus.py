@@ -413,7 +413,7 @@ def test_close_is_idempotent_and_quick(bus_name):
         net.close()
         net.close()
     assert time.monotonic() - start < wait(5)
-    assert not net._dispatcher.is_alive()
+    assert not net._active.is_alive()
 
 
 def test_close_wakes_waiters_with_closed_error(bus_name):
@@ -501,8 +501,8 @@ def test_close_with_transfers_waits_and_callbacks_in_flight(bus_name):
     assert len(results) == len(threads)
     assert all(r in ("closed", "ended") for r in results), results
     assert results.count("closed") >= 1
-    net._dispatcher.join(wait(5))
-    assert not net._dispatcher.is_alive()
+    net._active.join(wait(5))
+    assert not net._active.is_alive()
 
 
 async def _awaited(transfer):
@@ -523,8 +523,8 @@ def test_close_from_a_callback(bus_name):
     net.open_line(bus_name).create_local_node(5)
     assert closed.wait(wait(5))
     assert net.closed
-    net._dispatcher.join(wait(5))
-    assert not net._dispatcher.is_alive()
+    net._active.join(wait(5))
+    assert not net._active.is_alive()
 
 
 def test_wait_from_a_callback_is_refused(pair):
@@ -683,7 +683,7 @@ def test_driver_stats_of_an_in_process_line(net, bus_name):
     assert [k for k in after if k != "loop_wakeups" and after[k] != 0] == []
 
 
-def test_a_blocking_callback_is_reported_and_the_events_behind_it_still_come(bus_name, caplog):
+def test_a_blocking_callback_is_reported_and_the_other_events_go_on(bus_name, caplog):
     net = canopenfd.Network(stall_report_s=0.3)
     try:
         line = net.open_line(bus_name)
@@ -691,25 +691,76 @@ def test_a_blocking_callback_is_reported_and_the_events_behind_it_still_come(bus
         others = Recorder()
         line.add_node(6).on_bootup(lambda: others("6"))
         line.add_node(7).on_bootup(lambda: others("7"))
-        release = threading.Event()
-        slow.on_bootup(lambda: release.wait(wait(5)))   # blocks the dispatcher
+        release, calls, running, overlap = threading.Event(), Recorder(), [0], []
+
+        def blocking():
+            running[0] += 1
+            overlap.append(running[0])
+            calls(threading.current_thread().name)
+            release.wait(wait(10))                # blocks its dispatcher thread
+            running[0] -= 1
+        slow.on_bootup(blocking)
         with caplog.at_level("WARNING", logger="canopenfd"):
-            for node_id in (5, 6, 7):
+            node5 = net.open_line(bus_name).create_local_node(5)
+            calls.wait_count(1)
+            for node_id in (6, 7):
                 net.open_line(bus_name).create_local_node(node_id)
-            deadline = time.monotonic() + wait(5)
-            while net.dispatcher_stalls == 0 and time.monotonic() < deadline:
-                time.sleep(0.02)
-            assert net.dispatcher_stalls == 1
-            assert others.snapshot() == []              # they wait behind it ...
+            # a new dispatcher thread delivers them while node 5's callback blocks
+            assert sorted(others.wait_count(2, wait(5))) == ["6", "7"]
+            assert (net.dispatcher_stalls, net.blocked_dispatchers) == (1, 1)
+            node5.apply("reset-node")             # node 5 boots again: its callback is busy,
+            time.sleep(0.3)                       # so that call waits for the first one
+            assert len(calls) == 1
             release.set()
-            assert sorted(others.wait_count(2)) == ["6", "7"]   # ... and none is lost
+            calls.wait_count(2)
+            assert overlap == [1, 1]              # one call at a time
+        deadline = time.monotonic() + wait(5)
+        while net.blocked_dispatchers and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert net.blocked_dispatchers == 0       # the blocked thread ended once released
         text = " ".join(r.getMessage() for r in caplog.records)
         assert "HEARTBEAT event of line" in text and "held the dispatcher" in text
+        assert "a new dispatcher thread delivers the other events meanwhile" in text
         assert net.dispatcher_stalls == 1                # reported once per stall
     finally:
         net.close()
     with pytest.raises(ConfigurationError, match="stall_report_s"):
         canopenfd.Network(stall_report_s=0)
+
+
+def test_callbacks_that_never_return_leave_close_quick_and_relief_bounded(bus_name, caplog):
+    net = canopenfd.Network(stall_report_s=0.2)
+    release = threading.Event()
+    blocked = Recorder()
+    try:
+        line = net.open_line(bus_name)
+        for node_id in range(1, 7):
+            line.add_node(node_id).on_bootup(
+                lambda n=node_id: (blocked(n), release.wait(wait(30))))
+        with caplog.at_level("WARNING", logger="canopenfd"):
+            for node_id in range(1, 7):
+                net.open_line(bus_name).create_local_node(node_id)
+            # 4 blocked threads are relieved; the 5th blocked dispatcher is the last
+            assert sorted(blocked.wait_count(5, wait(10))) == [1, 2, 3, 4, 5]
+            deadline = time.monotonic() + wait(5)
+            while net.dispatcher_stalls < 5 and time.monotonic() < deadline:
+                time.sleep(0.02)
+            time.sleep(0.5)
+            assert len(blocked) == 5 and net.blocked_dispatchers == 4
+        text = " ".join(r.getMessage() for r in caplog.records)
+        assert "every other event of the network waits (5 dispatcher threads" in text
+        start = time.monotonic()
+        with caplog.at_level("ERROR", logger="canopenfd"):
+            net.close()
+        assert time.monotonic() - start < wait(2)
+        assert "runtime not freed" not in caplog.text     # no thread is inside it
+    finally:
+        release.set()
+        net.close()
+    deadline = time.monotonic() + wait(5)
+    while any(t.name == "canopenfd-dispatch" and t.is_alive() for t in threading.enumerate()) \
+            and time.monotonic() < deadline:
+        time.sleep(0.02)
 
 
 def test_events_lost_in_a_sustained_overload_are_reported_once_per_burst(bus_name, caplog):
