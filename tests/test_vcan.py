@@ -380,3 +380,71 @@ def test_interface_down_and_up(ifaces, networks):
     assert CommEvent.IFACE_UP in device_line.comm_events
     started.wait_count(2, timeout=10)              # heartbeats flow again
     remote.wait_for_heartbeat(timeout=scaled(10))
+
+
+def test_interface_down_up_storm_during_transfers(ifaces, networks):
+    """20 down/up cycles of the interface while a USDO client loops transfers
+    and the device sends heartbeats: nothing hangs or crashes, every transfer
+    ends (done or failed with an error), and afterwards the line works again
+    with no descriptor left behind."""
+    import os
+    import threading
+    import time
+
+    from canopenfd.errors import CanopenFDError
+    from canopenfd.od import demo_od
+    iface = ifaces["fd2"]
+    fds_before = len(os.listdir("/proc/self/fd"))
+    storm_nets = [networks() for _ in range(2)]
+    device = storm_nets[0].open_line(iface, mode="fd").create_local_node(
+        5, od=demo_od("fd"), boot=False, heartbeat_ms=50)
+    device.serve_domain(0x2100, 1 << 20)
+    device.boot()
+    data = os.urandom(64 << 10)
+    device[0x2100].data = data
+    line = storm_nets[1].open_line(iface, mode="fd")
+    events = Recorder()
+    line.on_comm_event(events)
+    remote = line.add_node(5, heartbeat_timeout_ms=500)
+    outcomes = {"done": 0, "failed": 0}
+    stop = threading.Event()
+
+    def transfers():
+        while not stop.is_set():
+            try:
+                assert line.usdo.upload(5, 0x2100, timeout=scaled(0.5)) == data
+                outcomes["done"] += 1
+            except (CanopenFDError, TimeoutError):   # timed out or aborted by the storm
+                outcomes["failed"] += 1
+
+    def ip(state):
+        subprocess.run(["ip", "link", "set", iface, state], check=True, timeout=scaled(30))
+
+    worker = threading.Thread(target=transfers)
+    worker.start()
+    try:
+        for _ in range(20):
+            ip("down")
+            time.sleep(0.02)
+            ip("up")
+            time.sleep(0.05)
+    finally:
+        ip("up")
+        stop.set()
+        worker.join(scaled(30))
+    assert not worker.is_alive(), "a transfer never ended"
+    assert CommEvent.IFACE_DOWN in events.snapshot()
+    events.wait_value(CommEvent.IFACE_UP, timeout=scaled(10))
+    assert line.driver_stats["iface_down"] >= 1
+    try:
+        remote.wait_for_heartbeat(timeout=scaled(10))       # heartbeats flow again
+    except TimeoutError as exc:
+        raise AssertionError(
+            f"{exc}; device line: {device.line.driver_stats} {device.line.stats} "
+            f"{device.line.comm_events[-6:]}; watcher: {line.driver_stats} {line.stats} "
+            f"{line.comm_events[-6:]}") from None
+    assert line.usdo.upload(5, 0x2100, timeout=scaled(2)) == data
+    for net in storm_nets:
+        net.close()
+    assert len(os.listdir("/proc/self/fd")) == fds_before    # no socket or eventfd left open
+    assert outcomes["done"] + outcomes["failed"] >= 1
