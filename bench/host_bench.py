@@ -15,6 +15,8 @@ the GIL, like an application's own work):
                          (cut after 30 s: the share moved by then is shown)
   USDO bulk 1 MiB        same, bulk (unconfirmed segments)
   SDO block 256 KiB      MB/s of one block download (classic lines), checked
+  python-can alone       (virtual only) 64-byte FD frames one way between two
+                         virtual buses, no stack: the ceiling of the host path
   PDO stream             a generator thread sends PDOs (COB-ID 0x181, numbered)
                          with send_frame() paced at --rate for --pdo-seconds;
                          node 2's RPDO 1 counts them in C. "delivered" = RPDOs
@@ -176,6 +178,42 @@ def download(kind: str, line_mode: str, mode: str, size: int) -> tuple:
         pair.close()
 
 
+_NO_LOSS = {"rx_overflow": 0, "tx_overflow": 0, "events_lost": 0, "rx_waits": None}
+
+
+def python_can_alone(kind: str, frames: int = 20_000) -> tuple:
+    """The ceiling of any stack on python-can's virtual interface: frames of
+    64 bytes one way, built as `can.Message`s, sent by one thread and taken
+    by another with recv(): payload MB/s, with no protocol and no C at all."""
+    if kind != "virtual":
+        return "-", _NO_LOSS
+    import can
+    channel = f"host-bench-alone-{os.getpid()}-{next(_channels)}"
+    sender, receiver = (can.Bus(interface="virtual", channel=channel,
+                                receive_own_messages=False) for _ in range(2))
+    got = [0]
+
+    def take():
+        while got[0] < frames and receiver.recv(2.0) is not None:
+            got[0] += 1
+    try:
+        payload = bytes(range(64))
+        thread = threading.Thread(target=take)
+        start = time.perf_counter()
+        thread.start()
+        for i in range(frames):
+            sender.send(can.Message(arbitration_id=0x123, data=payload, is_fd=True,
+                                    is_extended_id=False, bitrate_switch=True))
+        thread.join()
+        used = time.perf_counter() - start
+        if got[0] != frames:
+            return f"got {got[0]} of {frames}", _NO_LOSS
+        return frames * 64 / used / 1e6, _NO_LOSS
+    finally:
+        sender.shutdown()
+        receiver.shutdown()
+
+
 def pdo_stream(kind: str, rate: int, seconds: float) -> tuple:
     from canopenfd.errors import CommandError
     from pdo_bench import COB_ID, receiver_node as _unused  # noqa: F401 - same OD as pdo_bench
@@ -238,6 +276,7 @@ def main() -> int:
         ("USDO segmented 1 MiB", "MB/s", lambda k: download(k, "fd", "segmented", MIB)),
         ("USDO bulk 1 MiB", "MB/s", lambda k: download(k, "fd", "bulk", MIB)),
         ("SDO block 256 KiB", "MB/s", lambda k: download(k, "classic", "block", 256 << 10)),
+        ("python-can alone 64 B one way", "MB/s", python_can_alone),
         (f"PDO stream {args.rate}/s delivered", "%",
          lambda k: pdo_stream(k, args.rate, args.pdo_seconds)),
     ]

@@ -16,7 +16,7 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))  # tests/helpers.py
 
-from helpers import TIME_SCALE, scaled  # noqa: E402
+from helpers import TIME_SCALE, scaled, shutdown_virtual_buses  # noqa: E402
 
 _names = itertools.count(1)
 
@@ -66,3 +66,10 @@ def time_scale() -> float:
 
 
 __all__ = ["scaled"]
+
+
+@pytest.fixture(autouse=True)
+def _shut_down_virtual_buses():
+    """Buses from helpers.virtual_bus, after every fixture that used them."""
+    yield
+    shutdown_virtual_buses()

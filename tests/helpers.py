@@ -100,3 +100,20 @@ def run_cli(*args: str, timeout: float = 60):
     return subprocess.run(cli_command(*args), capture_output=True, text=True,
                           timeout=scaled(timeout), env=package_env(), cwd=NEUTRAL_CWD,
                           check=False)
+
+
+_virtual_buses: List[Any] = []
+
+
+def virtual_bus(channel: str) -> Any:
+    """A python-can virtual bus for a line (a Network never shuts down the
+    user's bus): shut down by conftest after the test and its fixtures."""
+    import can
+    bus = can.Bus(interface="virtual", channel=channel)
+    _virtual_buses.append(bus)
+    return bus
+
+
+def shutdown_virtual_buses() -> None:
+    while _virtual_buses:
+        _virtual_buses.pop().shutdown()

@@ -11,6 +11,7 @@ import pytest
 
 from canopenfd.od import (DataType, ODArray, ODRecord, OdFileError, demo_od, export_dcf,
                           export_eds, import_eds, import_od, import_xdd)
+from canopenfd.od.eds import eds_from_text
 from canopenfd.od.textvalues import parse_int, parse_value
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "od")
@@ -352,6 +353,20 @@ def test_mutated_files_fail_cleanly_or_round_trip():
 # Found by tests/fuzz/py (atheris) or the review around it; each once escaped
 # as an undocumented exception (TypeError...) or was accepted silently.
 LISTS_2000 = "[OptionalObjects]\nSupportedObjects=1\n1=0x2000\n"
+
+
+def test_a_negative_node_id_offset_exports_and_reads_back(tmp_path):
+    """Found by fuzz_eds: `$NODEID+0xFFFF` of an INTEGER16 is the offset -1;
+    its export was `$NODEID+0x-1`, which no reader takes."""
+    path = tmp_path / "offset.eds"
+    path.write_bytes((HEAD + LISTS_2000 + "[2000]\nParameterName=v\nObjectType=0x7\n"
+                      "DataType=0x0003\nAccessType=rw\nDefaultValue=$NODEID+0xFFFF\n"
+                      ).encode("utf-8"))
+    od = import_eds(str(path), node_id=5)
+    text = export_eds(od)
+    assert "DefaultValue=$NODEID+0xFFFF" in text
+    again = eds_from_text(text, "again.eds", node_id=5)
+    assert again.diff(od) == [] and again[0x2000].default == 4
 
 
 @pytest.mark.parametrize("body, line, words", [

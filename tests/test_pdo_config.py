@@ -16,7 +16,7 @@ import canopenfd
 from canopenfd import AbortError, ConfigurationError, SdoAbortError, UsdoAbortError
 from canopenfd.od import DataType, ODArray, ODRecord, ODVariable, demo_od
 from canopenfd.services.pdo import PdoMap, PdoMaps, PdoVariable
-from helpers import Recorder, scaled
+from helpers import Recorder, scaled, virtual_bus
 
 can = pytest.importorskip("can")
 canopen = pytest.importorskip("canopen")
@@ -613,7 +613,7 @@ def their_node():
     peer.connect(interface="virtual", channel=channel)
     theirs = peer.create_node(7, _their_od())
     with canopenfd.Network() as net:
-        line = net.open_line(bus=can.Bus(interface="virtual", channel=channel), mode="classic")
+        line = net.open_line(bus=virtual_bus(channel), mode="classic")
         try:
             yield theirs, line.add_node(7, od=_our_view_of_their_od()), line
         finally:

@@ -17,7 +17,7 @@ import canopenfd
 from canopenfd import ConfigurationError, SdoAbortError
 from canopenfd.cli import main
 from canopenfd.od import demo_od
-from helpers import Recorder
+from helpers import Recorder, virtual_bus
 
 can = pytest.importorskip("can")
 canopen = pytest.importorskip("canopen")
@@ -148,7 +148,7 @@ def their_server():
     local.add_write_callback(lambda index, subindex, od, data: store.__setitem__(index, data))
     local.add_read_callback(lambda index, subindex, od: store.get(index))
     with canopenfd.Network() as net:
-        line = net.open_line(bus=can.Bus(interface="virtual", channel=channel), mode="classic")
+        line = net.open_line(bus=virtual_bus(channel), mode="classic")
         try:
             yield line, store
         finally:

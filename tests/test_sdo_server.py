@@ -14,6 +14,7 @@ import pytest
 
 import canopenfd
 from canopenfd.od import demo_od
+from helpers import virtual_bus
 
 can = pytest.importorskip("can")
 canopen = pytest.importorskip("canopen")
@@ -29,7 +30,7 @@ def rig():
     client of it, and a raw python-can socket that sees every frame."""
     channel = f"sdo-{os.getpid()}-{next(_channels)}"
     with canopenfd.Network() as net:
-        line = net.open_line(bus=can.Bus(interface="virtual", channel=channel), mode="classic")
+        line = net.open_line(bus=virtual_bus(channel), mode="classic")
         node = line.create_local_node(NODE, od=demo_od("classic"), boot=False)
         node.serve_domain(DOMAIN, 16 << 20)
         node.boot()

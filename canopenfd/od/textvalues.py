@@ -132,7 +132,12 @@ def format_value(dtype: DataType, value: Optional[Value], relative: bool = False
     if value is None:
         return ""
     if relative:
-        return f"$NODEID+0x{int(value):X}"
+        # a negative offset of a signed type as its two's complement (0xFFFF
+        # for -1 in an INTEGER16), which parse_value reads back as negative
+        offset = int(value)
+        if offset < 0 and dtype.is_integer:
+            offset += 1 << (8 * dtype.size)
+        return f"$NODEID+0x{offset:X}"
     if dtype == DataType.BOOLEAN:
         return "1" if value else "0"
     if dtype.is_integer:
