@@ -179,6 +179,12 @@ int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_m
         q->head = (q->head + 1) % q->capacity;
         q->count--;
     }
+    if (q->count == 0) {
+        /* Start again at the first slot: a consumer that keeps up then only
+         * ever touches the ring's first pages, so the 8 MiB become resident
+         * only as far as a backlog really reached (not by wrapping around). */
+        q->head = 0;
+    }
     push_lost_marker(q);
     int result = (n == 0 && q->closed) ? CO_RT_ERR_CLOSED : n;
     q->waiters--;
