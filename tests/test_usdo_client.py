@@ -293,21 +293,27 @@ def test_read_and_write_pick_the_type_from_the_od(rig):
         raw.write(0x1017, 5)
 
 
-def test_blocking_forms_wait_in_c_without_a_done_event(rig, monkeypatch):
-    """upload()/download() block in the runtime (co_rt_transfer_wait) and ask
-    for no TRANSFER_DONE event, so the dispatcher thread does not wake and
-    compete for the GIL; an awaited transfer still gets its event."""
+@pytest.fixture
+def done_events(monkeypatch):
+    """The handles of the TRANSFER_DONE events the dispatcher delivers."""
     from canopenfd._binding.constants import EventKind
     from canopenfd.network import Network
-    done_events = []
+    seen = []
     deliver = Network._deliver
 
     def counting(self, event):
         if event.kind == EventKind.TRANSFER_DONE:
-            done_events.append(event.a)
+            seen.append(event.a)
         deliver(self, event)
 
     monkeypatch.setattr(Network, "_deliver", counting)
+    return seen
+
+
+def test_blocking_forms_wait_in_c_without_a_done_event(rig, done_events):
+    """upload()/download() block in the runtime (co_rt_transfer_wait) and ask
+    for no TRANSFER_DONE event, so the dispatcher thread does not wake and
+    compete for the GIL; an awaited transfer still gets its event."""
     server, line, _ = rig
     remote = line.add_node(SERVER)
     for _ in range(5):
@@ -325,20 +331,9 @@ def test_blocking_forms_wait_in_c_without_a_done_event(rig, monkeypatch):
     assert len(done_events) == 1     # the awaiting task heard it through the event
 
 
-def test_an_await_and_a_blocking_wait_on_one_transfer_both_end(rig, monkeypatch):
+def test_an_await_and_a_blocking_wait_on_one_transfer_both_end(rig, done_events):
     """A transfer that ends while a thread waits for it in C posts no
     TRANSFER_DONE event; that thread tells the awaiting task."""
-    from canopenfd._binding.constants import EventKind
-    from canopenfd.network import Network
-    done_events = []
-    deliver = Network._deliver
-
-    def counting(self, event):
-        if event.kind == EventKind.TRANSFER_DONE:
-            done_events.append(event.a)
-        deliver(self, event)
-
-    monkeypatch.setattr(Network, "_deliver", counting)
     server, line, _ = rig
     payload = os.urandom(2 * MiB)
     server[DOMAIN].data = payload
