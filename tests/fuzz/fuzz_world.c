@@ -1,7 +1,10 @@
 /* The shared world of the harnesses (see fuzz_world.h). One world at a time
- * (libFuzzer runs inputs one after another), rebuilt from zero per input. */
+ * (libFuzzer runs inputs one after another). Building it (two OD-backed
+ * stacks) costs far more than most inputs, so it is built once per line mode
+ * and copied back before every input: see fw_run. */
 #include "fuzz_world.h"
 
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -932,13 +935,94 @@ static void teardown(void)
     }
 }
 
+/* The world as built and booted (after the first step at t = 0), one per
+ * line mode. Every pointer the world holds points into W itself, to static
+ * data or to code, never to the stack (checked below), and W never moves: a
+ * byte copy of the snapshot back into W is the world build() makes. The core
+ * keeps no state outside the structures it is given. */
+typedef struct snapshot {
+    bool made;
+    fw_config_t cfg;
+    world_t world;
+} snapshot_t;
+
+static snapshot_t snaps[2];
+
+static bool same_config(const fw_config_t *a, const fw_config_t *b)
+{
+    return a->mode == b->mode && a->inject_tool == b->inject_tool && a->ids == b->ids &&
+           a->id_count == b->id_count && a->actions == b->actions &&
+           a->action_count == b->action_count && a->device_client == b->device_client;
+}
+
+/* Bytes past a frame's length are no part of it (co_frame_set leaves them
+ * as they were: stack bytes of the sender, copied into the queue slot). */
+static void clear_past_len(co_frame_t *slots)
+{
+    for (uint32_t i = 0; i < QUEUE; i++) {
+        co_frame_t *f = &slots[i];
+        uint32_t len = f->len < CO_FRAME_MAX_DATA ? f->len : CO_FRAME_MAX_DATA;
+        memset(f->data + len, 0, CO_FRAME_MAX_DATA - len);
+    }
+}
+
+/* No word of the world may hold an address near `here` (a local of fw_run):
+ * such a pointer would name a stack frame of build() that is gone, and the
+ * copy would carry it into every later input. The queue slots' bytes past
+ * each frame's length are cleared first (they are garbage, not pointers). */
+static void check_no_stack_pointers(uintptr_t here)
+{
+    clear_past_len(W.dev_line.rx);
+    clear_past_len(W.dev_line.tx);
+    clear_past_len(W.tool_line.rx);
+    clear_past_len(W.tool_line.tx);
+    const unsigned char *p = (const unsigned char *)&W;
+    const uintptr_t span = (uintptr_t)1 << 20;
+    for (size_t off = 0; off + sizeof(uintptr_t) <= sizeof W; off += sizeof(uintptr_t)) {
+        uintptr_t v;
+        memcpy(&v, p + off, sizeof v);
+        if (v >= here - span && v <= here + span) {
+            fprintf(stderr, "world offset %zu (of %zu) holds %#llx, near the stack (%#llx)\n",
+                    off, sizeof W, (unsigned long long)v, (unsigned long long)here);
+            fw_fail("the built world points into the stack");
+        }
+    }
+}
+
+/* W as build(config) followed by step(0) leaves it. FUZZ_FRESH set: rebuild
+ * for every input (to compare against the copy, e.g. with FUZZ_TRACE).
+ * `keep` false: build without keeping the copy. libFuzzer's first call, with
+ * an empty input, counts no coverage, so the copy is made from the first
+ * non-empty input: the build's code then counts as covered. */
+static void fresh_world(const fw_config_t *config, bool keep)
+{
+    snapshot_t *s = &snaps[config->mode == CO_MODE_FD ? 1 : 0];
+    if (s->made && same_config(&s->cfg, config) && getenv("FUZZ_FRESH") == NULL) {
+        memcpy(&W, &s->world, sizeof W);
+        W.cfg = config;   /* may live in the caller's frame: the same values */
+        return;
+    }
+    build(config);
+    W.budget = STEP_BUDGET;
+    step(0);
+    if (!keep) {
+        return;
+    }
+    int here = 0;
+    W.cfg = NULL;   /* the one pointer allowed to name the caller's frame */
+    check_no_stack_pointers((uintptr_t)&here);
+    s->cfg = *config;
+    memcpy(&s->world, &W, sizeof W);
+    s->made = true;
+    W.cfg = config;
+}
+
 void fw_run(const fw_config_t *config, const uint8_t *data, size_t size)
 {
     fz_reader_t r;
     fz_record_t rec;
-    build(config);
-    W.budget = STEP_BUDGET;
-    step(0);
+    trace = false;   /* the boot is not traced (the copy does not replay it) */
+    fresh_world(config, size > 0);
     fz_reader_init(&r, data, size);
     trace = getenv("FUZZ_TRACE") != NULL;
     while (fz_next(&r, &rec, config->ids, config->id_count, config->mode)) {
