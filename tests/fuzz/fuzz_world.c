@@ -14,7 +14,7 @@ enum {
     OD_ENTRIES = 192,
     OD_POOL = 12 * 1024,
     OD_SUBS = CO_STACK_OD_SUBSCRIPTIONS + 4,
-    ARENA = 192 * 1024,
+    ARENA = 48 * 1024,             /* the stacks take ~16 KB; the world is copied per input */
     SLOTS = 4,                     /* client requests at once */
     SLOT_BUF = 6000,               /* bytes a request sends or receives */
     DOMAIN_MAX = 8192,
@@ -966,7 +966,7 @@ static void clear_past_len(co_frame_t *slots)
     }
 }
 
-/* No word of the world may hold an address near `here` (a local of fw_run):
+/* No word of the world may hold an address near `here` (a local of the caller):
  * such a pointer would name a stack frame of build() that is gone, and the
  * copy would carry it into every later input. The queue slots' bytes past
  * each frame's length are cleared first (they are garbage, not pointers). */
@@ -977,11 +977,12 @@ static void check_no_stack_pointers(uintptr_t here)
     clear_past_len(W.tool_line.rx);
     clear_past_len(W.tool_line.tx);
     const unsigned char *p = (const unsigned char *)&W;
-    const uintptr_t span = (uintptr_t)1 << 20;
+    /* build()'s frames lie below `here`, the callers' just above */
+    const uintptr_t low = here - ((uintptr_t)256 << 10), high = here + ((uintptr_t)4 << 10);
     for (size_t off = 0; off + sizeof(uintptr_t) <= sizeof W; off += sizeof(uintptr_t)) {
         uintptr_t v;
         memcpy(&v, p + off, sizeof v);
-        if (v >= here - span && v <= here + span) {
+        if (v >= low && v <= high) {
             fprintf(stderr, "world offset %zu (of %zu) holds %#llx, near the stack (%#llx)\n",
                     off, sizeof W, (unsigned long long)v, (unsigned long long)here);
             fw_fail("the built world points into the stack");
