@@ -800,6 +800,18 @@ PLUMBING static void check_queues(const co_line_t *l)
           co_line_rx_count(l) + co_line_rx_free(l) == QUEUE, "queue counts inconsistent");
 }
 
+/* co_line_process when it has something to do: a frame queued or a timer
+ * due. Otherwise it would only move the line's clock (most calls: a step
+ * usually concerns one line, and its last round finds both idle). */
+PLUMBING static void process_line(co_line_t *l, uint64_t now)
+{
+    if (co_line_rx_count(l) == 0 && co_timer_list_next(co_line_timers(l)) > now) {
+        co_line_set_time(l, now);
+    } else {
+        (void)co_line_process(l, now);
+    }
+}
+
 /* Process both lines at `now` and carry frames until the bus is quiet. */
 PLUMBING static void step(uint64_t now)
 {
@@ -808,8 +820,8 @@ PLUMBING static void step(uint64_t now)
     W.steps++;
     for (uint32_t round = 0;; round++) {
         CHECK(round < ROUND_LIMIT, "the bus never becomes quiet at one instant");
-        (void)co_line_process(&W.dev_line.line, now);
-        (void)co_line_process(&W.tool_line.line, now);
+        process_line(&W.dev_line.line, now);
+        process_line(&W.tool_line.line, now);
         check_queues(&W.dev_line.line);
         check_queues(&W.tool_line.line);
         if (W.held || co_membus_transfer(&W.bus, carried, NULL) == 0) {
