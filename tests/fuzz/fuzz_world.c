@@ -19,8 +19,8 @@ enum {
     SLOT_BUF = 6000,               /* bytes a request sends or receives */
     DOMAIN_MAX = 8192,
     PENDING = 8,                   /* split accesses waiting */
-    STEP_BUDGET = 60000,           /* process steps per input (timers firing) */
-    SETTLE_BUDGET = 40000,
+    STEP_BUDGET = 60000,           /* process steps per input (timers firing), SETTLE records included */
+    SETTLE_BUDGET = 40000,         /* steps of one settle (the final one's come on top) */
     ROUND_LIMIT = 100000,          /* bus rounds at one instant before "livelock" */
     SETTLE_MS = 15000
 };
@@ -875,13 +875,17 @@ static uint8_t server_active(void)
     return co_sdo_server_active(co_stack_sdo_server(&W.dev));
 }
 
-/* Everything answered, no new input for a while: every transfer must end. */
-static void settle(void)
+/* Everything answered, no new input for a while: every transfer must end.
+ * At most SETTLE_BUDGET steps, and never past `cap`. */
+static void settle(uint32_t cap)
 {
     W.held = false;
     W.fate_left = 0;
     W.split_mode = false;
     W.budget = W.steps + SETTLE_BUDGET;
+    if (W.budget > cap) {
+        W.budget = cap;
+    }
     for (int n = 0; n < 64 && W.pending_count > 0; n++) {
         (void)resume_one(0, 0);
     }
@@ -1086,15 +1090,16 @@ void fw_run(const fw_config_t *config, const uint8_t *data, size_t size)
             co_line_comm_event(W.target, (co_comm_event_t)(rec.p % 11u + 1u));
             break;
         case FZ_OP_SETTLE: {
+            /* from the input's budget: N settle records cannot cost N x 40000 steps */
             uint32_t keep = W.budget;
-            settle();
-            W.budget = keep > W.steps ? keep : W.steps;
+            settle(keep);
+            W.budget = keep;
             break;
         }
         default:
             break;
         }
     }
-    settle();
+    settle(UINT32_MAX);
     teardown();
 }
