@@ -19,7 +19,7 @@ enum {
     SLOT_BUF = 6000,               /* bytes a request sends or receives */
     DOMAIN_MAX = 8192,
     PENDING = 8,                   /* split accesses waiting */
-    STEP_BUDGET = 60000,           /* process steps per input (timers firing), SETTLE records included */
+    STEP_BUDGET = 60000,           /* process steps per input (timers firing), settles included */
     SETTLE_BUDGET = 40000,         /* steps of one settle (the final one's come on top) */
     ROUND_LIMIT = 100000,          /* bus rounds at one instant before "livelock" */
     SETTLE_MS = 15000
