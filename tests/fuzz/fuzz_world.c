@@ -1,7 +1,10 @@
 /* The shared world of the harnesses (see fuzz_world.h). One world at a time
- * (libFuzzer runs inputs one after another), rebuilt from zero per input. */
+ * (libFuzzer runs inputs one after another). Building it (two OD-backed
+ * stacks) costs far more than most inputs, so it is built once per line mode
+ * and copied back before every input: see fw_run. */
 #include "fuzz_world.h"
 
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,13 +14,13 @@ enum {
     OD_ENTRIES = 192,
     OD_POOL = 12 * 1024,
     OD_SUBS = CO_STACK_OD_SUBSCRIPTIONS + 4,
-    ARENA = 192 * 1024,
+    ARENA = 48 * 1024,             /* the stacks take ~16 KB; the world is copied per input */
     SLOTS = 4,                     /* client requests at once */
     SLOT_BUF = 6000,               /* bytes a request sends or receives */
     DOMAIN_MAX = 8192,
     PENDING = 8,                   /* split accesses waiting */
-    STEP_BUDGET = 60000,           /* process steps per input (timers firing) */
-    SETTLE_BUDGET = 40000,
+    STEP_BUDGET = 60000,           /* process steps per input (timers firing), settles included */
+    SETTLE_BUDGET = 40000,         /* steps of one settle (the final one's come on top) */
     ROUND_LIMIT = 100000,          /* bus rounds at one instant before "livelock" */
     SETTLE_MS = 15000
 };
@@ -748,7 +751,13 @@ static void action(uint8_t p, fz_reader_t *r)
 
 /* ------------------------------------------------------------ running */
 
-static uint8_t fate(const co_frame_t *frame, void *user)
+/* The run loop's own functions run at every step (thousands per input):
+ * their comparisons would feed libFuzzer nothing about the core but cost
+ * a coverage callback each, so they are not instrumented for coverage
+ * (ASan and UBSan still check them). */
+#define PLUMBING __attribute__((no_sanitize("coverage")))
+
+PLUMBING static uint8_t fate(const co_frame_t *frame, void *user)
 {
     (void)frame; (void)user;
     if (W.fate_left == 0) {
@@ -761,7 +770,7 @@ static uint8_t fate(const co_frame_t *frame, void *user)
 
 static bool trace;   /* FUZZ_TRACE set: every record and frame on stderr */
 
-static void trace_frame(const char *what, const co_frame_t *f)
+PLUMBING static void trace_frame(const char *what, const co_frame_t *f)
 {
     if (!trace) {
         return;
@@ -775,7 +784,7 @@ static void trace_frame(const char *what, const co_frame_t *f)
     fprintf(stderr, "\n");
 }
 
-static void carried(co_line_t *from, const co_frame_t *frame, void *user)
+PLUMBING static void carried(co_line_t *from, const co_frame_t *frame, void *user)
 {
     (void)user;
     trace_frame(from == &W.dev_line.line ? "dev ->" : "tool->", frame);
@@ -785,22 +794,34 @@ static void carried(co_line_t *from, const co_frame_t *frame, void *user)
     }
 }
 
-static void check_queues(const co_line_t *l)
+PLUMBING static void check_queues(const co_line_t *l)
 {
     CHECK(co_line_rx_count(l) <= QUEUE && co_line_tx_count(l) <= QUEUE &&
           co_line_rx_count(l) + co_line_rx_free(l) == QUEUE, "queue counts inconsistent");
 }
 
+/* co_line_process when it has something to do: a frame queued or a timer
+ * due. Otherwise it would only move the line's clock (most calls: a step
+ * usually concerns one line, and its last round finds both idle). */
+PLUMBING static void process_line(co_line_t *l, uint64_t now)
+{
+    if (co_line_rx_count(l) == 0 && co_timer_list_next(co_line_timers(l)) > now) {
+        co_line_set_time(l, now);
+    } else {
+        (void)co_line_process(l, now);
+    }
+}
+
 /* Process both lines at `now` and carry frames until the bus is quiet. */
-static void step(uint64_t now)
+PLUMBING static void step(uint64_t now)
 {
     CHECK(now >= W.now, "clock went backwards");
     W.now = now;
     W.steps++;
     for (uint32_t round = 0;; round++) {
         CHECK(round < ROUND_LIMIT, "the bus never becomes quiet at one instant");
-        (void)co_line_process(&W.dev_line.line, now);
-        (void)co_line_process(&W.tool_line.line, now);
+        process_line(&W.dev_line.line, now);
+        process_line(&W.tool_line.line, now);
         check_queues(&W.dev_line.line);
         check_queues(&W.tool_line.line);
         if (W.held || co_membus_transfer(&W.bus, carried, NULL) == 0) {
@@ -809,7 +830,7 @@ static void step(uint64_t now)
     }
 }
 
-static uint64_t next_deadline(void)
+PLUMBING static uint64_t next_deadline(void)
 {
     uint64_t a = co_timer_list_next(co_line_timers(&W.dev_line.line));
     uint64_t b = co_timer_list_next(co_line_timers(&W.tool_line.line));
@@ -818,7 +839,7 @@ static uint64_t next_deadline(void)
 
 /* Let time pass to `until`, stopping at every deadline. False when the step
  * budget ran out. */
-static bool run_until(uint64_t until)
+PLUMBING static bool run_until(uint64_t until)
 {
     uint32_t same = 0;
     for (;;) {
@@ -854,13 +875,17 @@ static uint8_t server_active(void)
     return co_sdo_server_active(co_stack_sdo_server(&W.dev));
 }
 
-/* Everything answered, no new input for a while: every transfer must end. */
-static void settle(void)
+/* Everything answered, no new input for a while: every transfer must end.
+ * At most SETTLE_BUDGET steps, and never past `cap`. */
+static void settle(uint32_t cap)
 {
     W.held = false;
     W.fate_left = 0;
     W.split_mode = false;
     W.budget = W.steps + SETTLE_BUDGET;
+    if (W.budget > cap) {
+        W.budget = cap;
+    }
     for (int n = 0; n < 64 && W.pending_count > 0; n++) {
         (void)resume_one(0, 0);
     }
@@ -932,13 +957,95 @@ static void teardown(void)
     }
 }
 
+/* The world as built and booted (after the first step at t = 0), one per
+ * line mode. Every pointer the world holds points into W itself, to static
+ * data or to code, never to the stack (checked below), and W never moves: a
+ * byte copy of the snapshot back into W is the world build() makes. The core
+ * keeps no state outside the structures it is given. */
+typedef struct snapshot {
+    bool made;
+    fw_config_t cfg;
+    world_t world;
+} snapshot_t;
+
+static snapshot_t snaps[2];
+
+static bool same_config(const fw_config_t *a, const fw_config_t *b)
+{
+    return a->mode == b->mode && a->inject_tool == b->inject_tool && a->ids == b->ids &&
+           a->id_count == b->id_count && a->actions == b->actions &&
+           a->action_count == b->action_count && a->device_client == b->device_client;
+}
+
+/* Bytes past a frame's length are no part of it (co_frame_set leaves them
+ * as they were: stack bytes of the sender, copied into the queue slot). */
+static void clear_past_len(co_frame_t *slots)
+{
+    for (uint32_t i = 0; i < QUEUE; i++) {
+        co_frame_t *f = &slots[i];
+        uint32_t len = f->len < CO_FRAME_MAX_DATA ? f->len : CO_FRAME_MAX_DATA;
+        memset(f->data + len, 0, CO_FRAME_MAX_DATA - len);
+    }
+}
+
+/* No word of the world may hold an address near `here` (a local of the caller):
+ * such a pointer would name a stack frame of build() that is gone, and the
+ * copy would carry it into every later input. The queue slots' bytes past
+ * each frame's length are cleared first (they are garbage, not pointers). */
+static void check_no_stack_pointers(uintptr_t here)
+{
+    clear_past_len(W.dev_line.rx);
+    clear_past_len(W.dev_line.tx);
+    clear_past_len(W.tool_line.rx);
+    clear_past_len(W.tool_line.tx);
+    const unsigned char *p = (const unsigned char *)&W;
+    /* build()'s frames lie below `here`, the callers' just above */
+    const uintptr_t low = here - ((uintptr_t)256 << 10), high = here + ((uintptr_t)4 << 10);
+    for (size_t off = 0; off + sizeof(uintptr_t) <= sizeof W; off += sizeof(uintptr_t)) {
+        uintptr_t v;
+        memcpy(&v, p + off, sizeof v);
+        if (v >= low && v <= high) {
+            fprintf(stderr, "world offset %zu (of %zu) holds %#llx, near the stack (%#llx)\n",
+                    off, sizeof W, (unsigned long long)v, (unsigned long long)here);
+            fw_fail("the built world points into the stack");
+        }
+    }
+}
+
+/* W as build(config) followed by step(0) leaves it. FUZZ_FRESH set: rebuild
+ * for every input (to compare against the copy, e.g. with FUZZ_TRACE).
+ * `keep` false: build without keeping the copy. libFuzzer's first call, with
+ * an empty input, counts no coverage, so the copy is made from the first
+ * non-empty input: the build's code then counts as covered. */
+static void fresh_world(const fw_config_t *config, bool keep)
+{
+    snapshot_t *s = &snaps[config->mode == CO_MODE_FD ? 1 : 0];
+    if (s->made && same_config(&s->cfg, config) && getenv("FUZZ_FRESH") == NULL) {
+        memcpy(&W, &s->world, sizeof W);
+        W.cfg = config;   /* may live in the caller's frame: the same values */
+        return;
+    }
+    build(config);
+    W.budget = STEP_BUDGET;
+    step(0);
+    if (!keep) {
+        return;
+    }
+    int here = 0;
+    W.cfg = NULL;   /* the one pointer allowed to name the caller's frame */
+    check_no_stack_pointers((uintptr_t)&here);
+    s->cfg = *config;
+    memcpy(&s->world, &W, sizeof W);
+    s->made = true;
+    W.cfg = config;
+}
+
 void fw_run(const fw_config_t *config, const uint8_t *data, size_t size)
 {
     fz_reader_t r;
     fz_record_t rec;
-    build(config);
-    W.budget = STEP_BUDGET;
-    step(0);
+    trace = false;   /* the boot is not traced (the copy does not replay it) */
+    fresh_world(config, size > 0);
     fz_reader_init(&r, data, size);
     trace = getenv("FUZZ_TRACE") != NULL;
     while (fz_next(&r, &rec, config->ids, config->id_count, config->mode)) {
@@ -983,15 +1090,16 @@ void fw_run(const fw_config_t *config, const uint8_t *data, size_t size)
             co_line_comm_event(W.target, (co_comm_event_t)(rec.p % 11u + 1u));
             break;
         case FZ_OP_SETTLE: {
+            /* from the input's budget: N settle records cannot cost N x 40000 steps */
             uint32_t keep = W.budget;
-            settle();
-            W.budget = keep > W.steps ? keep : W.steps;
+            settle(keep);
+            W.budget = keep;
             break;
         }
         default:
             break;
         }
     }
-    settle();
+    settle(UINT32_MAX);
     teardown();
 }
