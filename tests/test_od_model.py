@@ -344,3 +344,23 @@ def test_registered_key_mismatch_is_reported():
     od.add_object(var)
     var.index = 0x2001
     assert any("registered at 0x2000 but its index is 0x2001" in m for m in messages(od, "error"))
+
+
+def test_demo_od_with_pdos_has_the_predefined_connection_set():
+    from canopenfd.od import OdValueError, demo_od
+    from canopenfd.od.demo import PROCESS_DATA
+    from canopenfd.od.eds import eds_from_text, export_eds
+
+    od = demo_od("fd", node_id=5, pdos=4)
+    for n in range(4):
+        assert od[0x1400 + n][1].default == 0x80000000 + 0x200 + 0x100 * n + 5
+        assert od[0x1800 + n][1].default == 0x80000000 + 0x180 + 0x100 * n + 5
+        assert od[0x1600 + n][0].default == 0 and len(od[0x1A00 + n].subindices) == 17
+    assert 0x1404 not in od and 0x1005 in od and 0x1019 in od
+    assert od[PROCESS_DATA][16].pdo_mapping
+    assert od.validate() == []
+    assert eds_from_text(export_eds(od), "again.eds", node_id=5).diff(od) == []
+    assert 0x1400 not in demo_od("fd") and PROCESS_DATA not in demo_od("classic")
+    for bad in (5, -1, True, "2"):
+        with pytest.raises(OdValueError, match="pdos must be an int 0..4"):
+            demo_od("fd", pdos=bad)

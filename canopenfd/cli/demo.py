@@ -13,6 +13,7 @@ from ..decode import decode
 from ..errors import AbortError, CanopenFDError
 from ..frame import Frame
 from ..line import Line
+from ..od.demo import PROCESS_DATA
 from ..network import Network
 from .common import EXIT_FAILED, EXIT_OK, Printer, UsageError
 
@@ -113,7 +114,7 @@ def _rate(count: int, seconds: float) -> str:
 
 
 _DEMO_BULK_CLASSIC = 64 << 10  # classic lines: SDO block transfer, 7 bytes a frame
-_PROCESS_DATA = 0x2300        # the demo's PDO-mappable UNSIGNED32 array (built here)
+_PROCESS_DATA = PROCESS_DATA  # the demo's PDO-mappable UNSIGNED32 array
 _SYNC_PERIOD = 0.05           # s
 _SYNC_OVERFLOW = 8            # the SYNC counter runs 1..8
 _SYNC_SHOWN = 4               # SYNC exchanges printed before SYNC stops
@@ -121,43 +122,12 @@ _EMCY_CODE = 0x2310           # "current, device output side"
 
 
 def _demo_node_od(mode: str) -> Any:
-    """The built-in demo dictionary plus what the process-data part needs:
-    SYNC (0x1005, 0x1006, 0x1019 = 8, so SYNCs carry a counter), RPDO 1 and
-    TPDO 1 (16 mapping entries each) and "Process data" 0x2300, 16 mappable
-    UNSIGNED32 entries (64 bytes: one full CAN FD PDO)."""
-    from ..od import DataType, ODArray, ODRecord, ODVariable, demo_od
+    """The built-in demo dictionary with RPDO 1 / TPDO 1, the SYNC objects and
+    "Process data" 0x2300 (demo_od(pdos=1)); 0x1019 = 8, so SYNCs carry a counter."""
+    from ..od import demo_od
 
-    u8, u16, u32 = DataType.UNSIGNED8, DataType.UNSIGNED16, DataType.UNSIGNED32
-    od = demo_od(mode)
-    od.add_object(ODVariable("COB-ID SYNC message", 0x1005, 0, u32, "rw", 0x80))
-    od.add_object(ODVariable("Communication cycle period", 0x1006, 0, u32, "rw", 0))
-    od.add_object(ODVariable("Synchronous counter overflow value", 0x1019, 0, u8, "rw",
-                             _SYNC_OVERFLOW))
-    fields = {1: ("COB-ID used by PDO", u32), 2: ("Transmission type", u8),
-              3: ("Inhibit time", u16), 5: ("Event timer", u16), 6: ("SYNC start value", u8)}
-    for kind, comm, mapping, base, subs in (("RPDO", 0x1400, 0x1600, 0x200, (1, 2, 5)),
-                                            ("TPDO", 0x1800, 0x1A00, 0x180, (1, 2, 3, 5, 6))):
-        record = ODRecord(f"{kind} communication parameter 1", comm)
-        record.add_member(ODVariable("Highest sub-index supported", comm, 0, u8, "ro",
-                                     max(subs)))
-        for sub in subs:
-            name, dtype = fields[sub]
-            var = ODVariable(name, comm, sub, dtype, "rw", 255 if sub == 2 else 0)
-            if sub == 1:   # CiA 301 predefined COB-ID, invalid until configured
-                var.set_default(0x80000000 + base, relative_to_node_id=True)
-            record.add_member(var)
-        od.add_object(record)
-        array = ODArray(f"{kind} mapping parameter 1", mapping)
-        array.add_member(ODVariable("Number of mapped objects", mapping, 0, u8, "rw", 0))
-        for sub in range(1, 17):
-            array.add_member(ODVariable(f"Mapped object {sub}", mapping, sub, u32, "rw", 0))
-        od.add_object(array)
-    data = ODArray("Process data", _PROCESS_DATA)
-    data.add_member(ODVariable("Highest sub-index supported", _PROCESS_DATA, 0, u8, "ro", 16))
-    for sub in range(1, 17):
-        data.add_member(ODVariable(f"Process data {sub}", _PROCESS_DATA, sub, u32, "rw", 0,
-                                   pdo_mapping=True))
-    od.add_object(data)
+    od = demo_od(mode, pdos=1)
+    od[0x1019].default = _SYNC_OVERFLOW
     return od
 
 

@@ -13,14 +13,22 @@ from __future__ import annotations
 from typing import Optional
 
 from .datatypes import DataType, TimeDifference, TimeOfDay
+from .errors import OdValueError
 from .model import ODArray, ODRecord, ODVariable, ObjectDictionary
 
-__all__ = ["demo_od", "DOMAIN_MAX_LENGTH"]
+__all__ = ["demo_od", "DOMAIN_MAX_LENGTH", "PROCESS_DATA"]
 
 U8, U16, U32 = DataType.UNSIGNED8, DataType.UNSIGNED16, DataType.UNSIGNED32
 
 #: Size limit of the demo's large DOMAIN 0x2100 (application data behind callbacks).
 DOMAIN_MAX_LENGTH = 16 * 1024 * 1024
+
+#: The mappable UNSIGNED32 array of demo_od(pdos=N): 16 entries, one full CAN FD PDO.
+PROCESS_DATA = 0x2300
+_MAX_DEMO_PDOS = 4      # CiA 301's predefined connection set has 4 RPDOs and 4 TPDOs
+_PDO_ENTRIES = 16
+_PDO_FIELDS = {1: ("COB-ID used by PDO", U32), 2: ("Transmission type", U8),
+               3: ("Inhibit time", U16), 5: ("Event timer", U16), 6: ("SYNC start value", U8)}
 
 # CiA 301 0x1010/0x1011 read value: bit 0 = saves/restores on command.
 _ON_COMMAND = 0x00000001
@@ -135,11 +143,61 @@ def _manufacturer(od: ObjectDictionary) -> None:
     od.add_object(record)
 
 
-def demo_od(mode: str = "fd", node_id: Optional[int] = None) -> ObjectDictionary:
-    """The demo object dictionary for an 'fd' or a 'classic' line."""
+def _pdo(od: ObjectDictionary, kind: str, number: int) -> None:
+    """RPDO or TPDO `number` (1..4): its communication record (the predefined
+    COB-ID + node-id, invalid until configured; type 255) and a mapping array
+    of _PDO_ENTRIES entries, nothing mapped."""
+    comm, mapping, base, subs = ((0x1400, 0x1600, 0x200, (1, 2, 5)) if kind == "RPDO"
+                                 else (0x1800, 0x1A00, 0x180, (1, 2, 3, 5, 6)))
+    comm, mapping, base = comm + number - 1, mapping + number - 1, base + 0x100 * (number - 1)
+    record = ODRecord(f"{kind} communication parameter {number}", comm)
+    record.add_member(ODVariable("Highest sub-index supported", comm, 0, U8, "ro", max(subs)))
+    for sub in subs:
+        name, dtype = _PDO_FIELDS[sub]
+        var = ODVariable(name, comm, sub, dtype, "rw", 255 if sub == 2 else 0)
+        if sub == 1:
+            var.set_default(0x80000000 + base, relative_to_node_id=True)
+        record.add_member(var)
+    od.add_object(record)
+    array = ODArray(f"{kind} mapping parameter {number}", mapping)
+    array.add_member(ODVariable("Number of mapped objects", mapping, 0, U8, "rw", 0))
+    for sub in range(1, _PDO_ENTRIES + 1):
+        array.add_member(ODVariable(f"Mapped object {sub}", mapping, sub, U32, "rw", 0))
+    od.add_object(array)
+
+
+def _process_data(od: ObjectDictionary, pdos: int) -> None:
+    """SYNC objects, `pdos` RPDOs and TPDOs, and PROCESS_DATA to map."""
+    od.add_object(ODVariable("COB-ID SYNC message", 0x1005, 0, U32, "rw", 0x80))
+    od.add_object(ODVariable("Communication cycle period", 0x1006, 0, U32, "rw", 0))
+    od.add_object(ODVariable("Synchronous counter overflow value", 0x1019, 0, U8, "rw", 0))
+    for number in range(1, pdos + 1):
+        _pdo(od, "RPDO", number)
+        _pdo(od, "TPDO", number)
+    data = ODArray("Process data", PROCESS_DATA)
+    data.add_member(ODVariable("Highest sub-index supported", PROCESS_DATA, 0, U8, "ro",
+                               _PDO_ENTRIES))
+    for sub in range(1, _PDO_ENTRIES + 1):
+        data.add_member(ODVariable(f"Process data {sub}", PROCESS_DATA, sub, U32, "rw", 0,
+                                   pdo_mapping=True))
+    od.add_object(data)
+
+
+def demo_od(mode: str = "fd", node_id: Optional[int] = None, *,
+            pdos: int = 0) -> ObjectDictionary:
+    """The demo object dictionary for an 'fd' or a 'classic' line.
+
+    pdos: also that many RPDOs and TPDOs (0..4; CiA 301's predefined COB-IDs,
+    invalid until configured, 16 mapping entries each), the SYNC objects
+    0x1005/0x1006/0x1019 and "Process data" PROCESS_DATA (0x2300): 16
+    mappable UNSIGNED32 entries, one full CAN FD PDO."""
+    if isinstance(pdos, bool) or not isinstance(pdos, int) or not 0 <= pdos <= _MAX_DEMO_PDOS:
+        raise OdValueError(f"demo_od: pdos must be an int 0..{_MAX_DEMO_PDOS}, got {pdos!r}")
     od = ObjectDictionary(mode=mode, node_id=node_id)
     _communication(od, mode)
     _manufacturer(od)
+    if pdos:
+        _process_data(od, pdos)
     od.device_info.update({"VendorName": "canopenfd", "ProductName": "canopenfd demo node"})
     od.file_info["Description"] = f"canopenfd built-in demo object dictionary ({mode})"
     return od
