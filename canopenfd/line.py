@@ -10,7 +10,7 @@ subscribed its kind."""
 from __future__ import annotations
 
 import logging
-from typing import Callable, Dict, Iterable, List, Optional, Protocol, Tuple, Union
+from typing import Callable, Dict, Iterable, Iterator, List, Optional, Protocol, Tuple, Union
 
 from ._binding.constants import CommandKind, CommEvent, EventKind
 from ._binding.context import Deferred, RuntimeLineContext
@@ -143,14 +143,21 @@ class Line:
                     raise
         return node
 
-    def add_node(self, node_id: int, heartbeat_timeout_ms: int = 0, *,
+    def add_node(self, node_id: int, heartbeat_timeout_ms: Union[int, ODLike] = 0, *,
                  od: Optional[ODLike] = None) -> RemoteNode:
         """Watch a remote node (python-canopen's network.add_node): its boot-up,
         states and, with heartbeat_timeout_ms > 0, the loss of its heartbeat.
         od: its ObjectDictionary or EDS/DCF/XDD file, so `node.od[name].raw`
-        and `node.usdo` know names and types. Adding a node already watched
-        updates its timeout (and OD, when given) and returns it."""
+        and `node.usdo` know names and types; python-canopen's
+        `add_node(5, "drive.eds")` (the OD second) works too. Adding a node
+        already watched updates its timeout (and OD, when given) and returns it."""
         node_id = check_node_id(node_id, f"add_node on {self._where}")
+        if not isinstance(heartbeat_timeout_ms, (int, float)):  # python-canopen: (id, od)
+            if od is not None:
+                raise ConfigurationError(
+                    f"add_node({node_id}) on {self._where}: two object dictionaries given "
+                    f"({heartbeat_timeout_ms!r} and od={od!r})")
+            od, heartbeat_timeout_ms = heartbeat_timeout_ms, 0
         heartbeat_timeout_ms = check_ms(heartbeat_timeout_ms, "heartbeat_timeout_ms",
                                         f"add_node({node_id}) on {self._where}")
         context = self._context
@@ -190,7 +197,22 @@ class Line:
             del self.nodes[node_id]
 
     def __getitem__(self, node_id: int) -> RemoteNode:
-        return self.nodes[node_id]
+        try:
+            return self.nodes[node_id]
+        except KeyError:
+            raise KeyError(f"{self._where} watches no node {node_id!r} (add_node first; "
+                           f"watched: {sorted(self.nodes)})") from None
+
+    # python-canopen's Network is a mapping of node-id -> node: so is a line
+    # (its remote nodes; the local node is line.local_node).
+    def __iter__(self) -> Iterator[int]:
+        return iter(sorted(self.nodes))
+
+    def __len__(self) -> int:
+        return len(self.nodes)
+
+    def __contains__(self, node_id: object) -> bool:
+        return node_id in self.nodes
 
     def _check_consumer_owner(self, node_id: int, ms: int, what: str) -> None:
         """A consumer time for a node that the local OD's 0x1016 already

@@ -785,3 +785,30 @@ def test_events_lost_in_a_sustained_overload_are_reported_once_per_burst(bus_nam
         assert f"({net.events_lost} lost since the network opened)" in lost[1]
     finally:
         net.close()
+
+
+def test_python_canopen_habits_on_a_line(net, bus_name, tmp_path):
+    """add_node(id, od) positional, a line as a mapping of its remote nodes,
+    line.nmt.state = ... broadcasting, and a typo on line.nmt raising."""
+    from canopenfd.od import DataType, demo_od, export_eds
+    master = net.open_line(bus_name)
+    devices = [net.open_line(bus_name).create_local_node(i, heartbeat_ms=0) for i in (5, 6)]
+    eds = tmp_path / "device.eds"
+    eds.write_text(export_eds(demo_od("fd")))
+    remote = master.add_node(5, str(eds))                  # python-canopen's order
+    assert remote.object_dictionary["Demo UNSIGNED16"].data_type == DataType.UNSIGNED16
+    assert master.add_node(6, 300).heartbeat_timeout_ms == 300
+    assert (list(master), len(master), 5 in master, 7 in master) == ([5, 6], 2, True, False)
+    with pytest.raises(KeyError, match="watches no node 7"):
+        master[7]
+    with pytest.raises(ConfigurationError, match="two object dictionaries"):
+        master.add_node(6, str(eds), od=str(eds))
+    for device in devices:
+        device.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=wait(T))
+    master.nmt.state = "OPERATIONAL"                       # to all, as python-canopen does
+    for device in devices:
+        device.wait_for_state(NmtState.OPERATIONAL, timeout=wait(T))
+    with pytest.raises(ConfigurationError, match="read line\\[node_id\\].nmt.state"):
+        master.nmt.state
+    with pytest.raises(AttributeError):
+        master.nmt.stat = "OPERATIONAL"                    # a typo is not silently kept

@@ -94,8 +94,24 @@ class NmtMaster:
     by the runtime as well.
     """
 
+    # No other attributes: `line.nmt.stat = ...` (a typo) raises instead of doing nothing.
+    __slots__ = ("_context",)
+
     def __init__(self, context: LineContext) -> None:
         self._context = context
+
+    @property
+    def state(self) -> NmtState:
+        """Not readable: every node of the line has its own (`line[5].nmt.state`,
+        `line.states`). Setting it sends the command to all nodes, as
+        python-canopen's `network.nmt.state = 'OPERATIONAL'` does."""
+        raise ConfigurationError(
+            f"line.nmt.state on {self._context.where}: the line's nodes each have a state; "
+            "read line[node_id].nmt.state or line.states")
+
+    @state.setter
+    def state(self, value: Union[NmtState, NmtCommand, str, int]) -> None:
+        self.send(_command_for_state(value), 0)
 
     def send(self, command: Union[NmtCommand, int, str], node_id: NodeTarget = 0,
              include_self: bool = False) -> None:
