@@ -57,6 +57,33 @@ def test_expedited_request_bytes_and_typed_values(rig):
     assert sent[0].data == bytes([0x2B, 0x00, 0x22, 0x01, 0xFE, 0xFF, 0, 0])
 
 
+def test_python_canopen_calls_on_node_sdo(rig):
+    """node.sdo.upload(index, sub), download(index, sub, data, force_segment=),
+    node.sdo["Name"].raw and node.sdo[index][sub].raw, checked on the wire."""
+    node, line, frames = rig
+    remote = line.add_node(SERVER, od=demo_od("classic"))
+    node[0x1017].raw = 0x1234
+    assert remote.sdo.upload(0x1017, 0) == b"\x34\x12"
+    remote.sdo.download(0x1017, 0, b"\x64\x00")
+    assert node[0x1017].raw == 100
+    remote.sdo.download(0x1017, 0, b"\x65\x00", force_segment=True)
+    assert node[0x1017].raw == 101
+    def initiate_downloads(calls):          # of 0x1017, once both are on the monitor
+        got = [f.data[0] for f in calls if f.id == 0x600 + SERVER
+               and f.data[0] & 0xE0 == 0x20 and f.data[1:3] == b"\x17\x10"]
+        return got if len(got) >= 2 else None
+    initiates = frames.wait_for(initiate_downloads, 2, "the downloads")
+    assert initiates == [0x2B, 0x21]        # expedited (2 bytes), then segmented, size given
+    assert remote.sdo["Producer heartbeat time"].raw == 101
+    remote.sdo["Producer heartbeat time"].raw = 250
+    assert node[0x1017].raw == 250
+    assert remote.sdo[0x1018][1].raw == node[0x1018][1].raw
+    for call in (lambda: remote.sdo.upload("Producer heartbeat time", 1),
+                 lambda: remote.sdo.download(0x1017, "0", b"\x00\x00")):
+        with pytest.raises(ConfigurationError, match="node 5: (upload|download)"):
+            call()
+
+
 @pytest.mark.parametrize("size, mode", [(3, "expedited"), (100, "segmented"),
                                         (5000, "block"), (MiB, "block")])
 def test_both_ways_byte_for_byte(rig, size, mode):

@@ -17,6 +17,8 @@ from .client import DownloadSource, Key, Progress, Transfer, TransferClient
 
 __all__ = ["RemoteAccess", "RemoteObjects", "RemoteValue", "resolve"]
 
+_NO_DATA = object()   # download(key, data) vs python-canopen's download(index, sub, data)
+
 
 def resolve(key: Key, od: Optional[ObjectDictionary], where: str
             ) -> Tuple[int, int, Optional[ODVariable]]:
@@ -71,13 +73,40 @@ class RemoteAccess:
         index, sub = self._download_options(key, options)
         return self._client.start_download(self._node.node_id, index, sub, data, **options)
 
-    def upload(self, key: Key, **options: Any) -> bytes:
-        index, sub, _ = self._key(key)
+    def upload(self, key: Key, subindex: Optional[int] = None, **options: Any) -> bytes:
+        """The entry's bytes; `upload(0x1018, 1)` (python-canopen's order) works too."""
+        index, sub, _ = self._key(self._with_sub(key, subindex, "upload"))
         return self._client.upload(self._node.node_id, index, sub, **options)
 
-    def download(self, key: Key, data: DownloadSource, **options: Any) -> None:
+    def download(self, key: Key, data: Union[DownloadSource, int],
+                 python_canopen_data: Any = _NO_DATA, **options: Any) -> None:
+        """Write the entry; python-canopen's `download(index, subindex, data,
+        force_segment=False)` works too."""
+        if python_canopen_data is not _NO_DATA:
+            if not isinstance(data, int) or isinstance(data, bool):
+                raise ConfigurationError(
+                    f"node {self._node.node_id}: download(index, subindex, data) needs an int "
+                    f"sub-index second, got {data!r}")
+            key, data = self._with_sub(key, data, "download"), python_canopen_data
+        if options.pop("force_segment", False):
+            options.setdefault("mode", "segmented")
         index, sub = self._download_options(key, options)
         self._client.download(self._node.node_id, index, sub, data, **options)
+
+    def _with_sub(self, key: Key, subindex: Optional[int], what: str) -> Key:
+        if subindex is None:
+            return key
+        if not isinstance(key, int) or isinstance(key, bool) or \
+                not isinstance(subindex, int) or isinstance(subindex, bool):
+            raise ConfigurationError(
+                f"node {self._node.node_id}: {what}(index, subindex) takes two ints, "
+                f"got {key!r}, {subindex!r}")
+        return (key, subindex)
+
+    def __getitem__(self, key: Key) -> Union["RemoteValue", "_RemoteObject"]:
+        """python-canopen's `node.sdo["Name"].raw`, `node.sdo[0x1018][1].raw`:
+        the same as `node.od[key]` (needs the node's object dictionary)."""
+        return RemoteObjects(self._node, self)[key]
 
     def _download_options(self, key: Key, options: Dict[str, Any]) -> Tuple[int, int]:
         """index, sub of key; with the node's OD the entry's data type goes into options."""
