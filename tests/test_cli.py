@@ -309,8 +309,10 @@ def test_device_damaged_store_is_reported(tmp_path):
 
 @pytest.mark.parametrize("args, words", [
     (("--od", os.path.join(DATA, "hostile", "bad_datatype.eds")),
-     ("--od bad_datatype.eds:27 [1018sub2]", "DataType 0x0099")),
-    (("--od", os.path.join(DATA, "hostile", "truncated.xdd")), ("--od truncated.xdd",)),
+     (f"--od {os.path.join(DATA, 'hostile', 'bad_datatype.eds')}:27 [1018sub2]",
+      "DataType 0x0099")),
+    (("--od", os.path.join(DATA, "hostile", "truncated.xdd")),
+     (f"--od {os.path.join(DATA, 'hostile', 'truncated.xdd')}:4",)),
     (("--od", "no-such-file.eds"), ("--od no-such-file.eds: no such file",)),
     (("--od", "builtin:can"), ("builtin:fd and builtin:classic",)),
     (("--store", os.path.join(ROOT, "no-such-dir", "p.bin")), ("--store", "no-such-dir",

@@ -72,7 +72,8 @@ def test_check_clean_file_exits_0(tmp_path):
 def test_check_warnings_only_exits_0(tmp_path):
     result = run_od(tmp_path, "check", data("classic_vendor.eds"))
     assert result.returncode == 0
-    assert "warning: classic_vendor.eds:389 [2000]: duplicate key AccessType" in result.stdout
+    assert f"warning: {data('classic_vendor.eds')}:389 [2000]: duplicate key AccessType" \
+        in result.stdout
     assert "OK: 0 errors, 1 warning" in result.stdout
 
 

@@ -397,4 +397,4 @@ def test_fuzz_findings_name_file_line_and_problem(tmp_path, body, line, words):
     path.write_bytes((HEAD + body).encode("utf-8"))
     for reader in (import_eds, import_od):
         error = fails_fast(str(path), f"hostile.eds:{line} ", *words, reader=reader)
-        assert (error.file, error.line) == ("hostile.eds", line)
+        assert (error.file, error.line) == (str(path), line)

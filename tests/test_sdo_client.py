@@ -78,6 +78,10 @@ def test_python_canopen_calls_on_node_sdo(rig):
     remote.sdo["Producer heartbeat time"].raw = 250
     assert node[0x1017].raw == 250
     assert remote.sdo[0x1018][1].raw == node[0x1018][1].raw
+    with pytest.raises(ConfigurationError,
+                       match=r"node 5: 0x1018 \('Identity object'\) is an ARRAY/RECORD; "
+                             r"give a sub-index, e.g. \(0x1018, 1\)"):
+        remote.sdo.upload(0x1018)
     for call in (lambda: remote.sdo.upload("Producer heartbeat time", 1),
                  lambda: remote.sdo.download(0x1017, "0", b"\x00\x00")):
         with pytest.raises(ConfigurationError, match="node 5: (upload|download)"):

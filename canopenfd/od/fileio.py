@@ -22,11 +22,12 @@ XDD_SUFFIXES = (".xdd", ".xdc")
 
 
 def source_name(source: Source) -> str:
-    """The name used in messages: the file's base name, or '<stream>'."""
+    """The name used in messages: the file's path as given (a user with a
+    folder of vendor files needs to know which one), or '<stream>'."""
     if isinstance(source, (str, os.PathLike)):
-        return os.path.basename(os.fspath(source)) or os.fspath(source)
+        return os.fspath(source)
     name = getattr(source, "name", None)
-    return os.path.basename(name) if isinstance(name, str) else "<stream>"
+    return name if isinstance(name, str) else "<stream>"
 
 
 def read_source(source: Source, limit: int = MAX_FILE_SIZE) -> Tuple[Union[bytes, str], str]:

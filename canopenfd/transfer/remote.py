@@ -32,7 +32,9 @@ def resolve(key: Key, od: Optional[ObjectDictionary], where: str
         if isinstance(entry, ODVariable):
             return entry.index, entry.subindex, entry
         if entry is not None:
-            raise ConfigurationError(f"{where}: {key!r} is an ARRAY/RECORD; give a sub-index")
+            shown = f"0x{key:04X}" if isinstance(key, int) else repr(key)
+            raise ConfigurationError(f"{where}: {shown} ({entry.name!r}) is an ARRAY/RECORD; "
+                                     f"give a sub-index, e.g. (0x{entry.index:04X}, 1)")
     if isinstance(key, tuple) and len(key) == 2 and all(isinstance(k, int) for k in key):
         index, sub = key
     elif isinstance(key, int) and not isinstance(key, bool):
