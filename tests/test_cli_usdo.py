@@ -159,7 +159,7 @@ def test_write_without_a_type_is_refused(server, cli):
 
 
 # ------------------------------------------------------------------ download / upload
-SUMMARY = r"(\d+) bytes in (\d+\.\d{3}) s \((\d+\.\d\d) MB/s(?:, (\w+))?\)"
+SUMMARY = r"(\d+) bytes in (\d+\.\d{3}) s \((\d+(?:\.\d\d)?) (?:MB|kB|B)/s(?:, (\w+))?\)"
 
 
 def test_download_and_upload_a_file_byte_for_byte(server, cli, tmp_path):
@@ -194,7 +194,8 @@ def test_download_modes(server, cli, tmp_path, mode, size):
     status, out, err = cli("download", "5", "0x2100", str(tmp_path / "f"), "--mode", mode)
     assert status == 0, err
     expected = "expedited" if mode == "auto" else mode
-    assert f"downloaded {size} bytes in" in out and f"MB/s, {expected})" in out
+    assert re.fullmatch(f"downloaded {SUMMARY}: .*\n", out), out
+    assert f"B/s, {expected})" in out and " 0.00 " not in out    # a unit that shows the rate
     assert server[DOMAIN].data == payload
 
 
@@ -206,14 +207,14 @@ def test_progress_with_the_option(server, cli, tmp_path):
     assert status == 0 and out.startswith("downloaded 307200 bytes"), err
     lines = err.splitlines()
     assert lines and all(line.startswith("download [") for line in lines), err
-    assert re.fullmatch(r"download \[#{24}\] 100%  300\.0 KiB / 300\.0 KiB  \d+\.\d\d MB/s  "
+    assert re.fullmatch(r"download \[#{24}\] 100%  300\.0 KiB / 300\.0 KiB  \d+(\.\d\d)? [kM]?B/s  "
                         r"ETA 0:00", lines[-1]), lines[-1]
     status, out, err = cli("upload", "5", "0x2100", str(tmp_path / "copy.bin"), "--progress")
     assert status == 0 and out.startswith("uploaded 307200 bytes"), err
     lines = err.splitlines()
     assert lines and all(line.startswith("upload  ") for line in lines), err
     assert all("%" not in line and "ETA" not in line for line in lines)   # size unknown
-    assert re.fullmatch(r"upload  300\.0 KiB  \d+\.\d\d MB/s", lines[-1]), lines[-1]
+    assert re.fullmatch(r"upload  300\.0 KiB  \d+(\.\d\d)? [kM]?B/s", lines[-1]), lines[-1]
 
 
 def test_progress_bar_on_a_terminal_redraws_in_place():
@@ -418,3 +419,10 @@ def test_device_bad_domain_exits_2(net, bus_name, capsys, option, words):
     status = main(["device", "--channel", bus_name, "--node-id", "6", "--duration", "0.1",
                    "--domain", option], network=net)
     one_error(status, capsys.readouterr().err, "--domain", *words)
+
+
+def test_rate_text_picks_a_unit_that_shows_the_rate():
+    from canopenfd.cli.common import rate_text
+    assert [rate_text(n, 1.0) for n in (0, 812, 5000, 35_200, 2_410_000)] == \
+        ["0 B/s", "812 B/s", "5.00 kB/s", "35.20 kB/s", "2.41 MB/s"]
+    assert rate_text(5000, 0) == "- B/s"

@@ -183,3 +183,16 @@ def parse_key(text: str, od: Optional[ObjectDictionary], what: str = "INDEX") ->
                          "INDEX[:SUB] in hex (like 0x1018:1)")
     raise UsageError(f"{what} {text!r} is not INDEX[:SUB] in hex (like 0x1018:1 or 1017); "
                      "names need --od FILE")
+
+
+def rate_text(count: float, seconds: float) -> str:
+    """Bytes per second in the unit that shows it: '812 B/s', '35.20 kB/s',
+    '2.41 MB/s' (a 5 000-byte transfer is not '0.00 MB/s'); '-' without time."""
+    if seconds <= 0:
+        return "- B/s"
+    rate = count / seconds
+    if rate >= 1e6:
+        return f"{rate / 1e6:.2f} MB/s"
+    if rate >= 1e3:
+        return f"{rate / 1e3:.2f} kB/s"
+    return f"{rate:.0f} B/s"

@@ -15,7 +15,7 @@ from ..frame import Frame
 from ..line import Line
 from ..od.demo import PROCESS_DATA
 from ..network import Network
-from .common import EXIT_FAILED, EXIT_OK, Printer, UsageError
+from .common import EXIT_FAILED, EXIT_OK, Printer, UsageError, rate_text
 
 
 def add_parsers(subparsers: Any) -> None:
@@ -94,7 +94,7 @@ def _demo_usdo(say: Callable[..., None], line: Line, remote: Any, device: Any,
     transfer.result()
     down_ok = device[0x2100].data == payload
     say(f"node 1   download: {transfer.transferred} bytes, {transfer.mode}, "
-        f"{ended - started:.3f} s, {_rate(transfer.transferred, ended - started)}; node 2 "
+        f"{ended - started:.3f} s, {rate_text(transfer.transferred, ended - started)}; node 2 "
         f"holds {'identical' if down_ok else 'DIFFERENT'} bytes")
     started = time.monotonic()
     transfer = client.start_upload(2, 0x2100, 0, max_size=total,
@@ -104,13 +104,9 @@ def _demo_usdo(say: Callable[..., None], line: Line, remote: Any, device: Any,
     up_ok = data == payload
     mode = transfer.mode if transfer.mode not in (None, "auto") else "mode of the server's choice"
     say(f"node 1   upload: {transfer.transferred} bytes, {mode}, {ended - started:.3f} s, "
-        f"{_rate(transfer.transferred, ended - started)}; "
+        f"{rate_text(transfer.transferred, ended - started)}; "
         f"{'identical to' if up_ok else 'DIFFERENT from'} what was sent")
     return down_ok and up_ok and back == 123
-
-
-def _rate(count: int, seconds: float) -> str:
-    return f"{count / seconds / 1e6:.1f} MB/s" if seconds > 0 else "- MB/s"
 
 
 _DEMO_BULK_CLASSIC = 64 << 10  # classic lines: SDO block transfer, 7 bytes a frame

@@ -40,7 +40,7 @@ from ..od import decode as _decode
 from ..od import encode as _encode
 from ..transfer import Transfer
 from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, builtin_od_kind,
-                     command_line, parse_key, print_error)
+                     command_line, parse_key, print_error, rate_text)
 
 #: download modes: 'bulk' on fd lines (USDO), 'block' on classic lines (SDO)
 MODES = ("auto", "expedited", "segmented", "bulk", "block")
@@ -301,10 +301,6 @@ def _size_text(count: float) -> str:
     return f"{count:.2f} GiB"
 
 
-def _rate_text(count: int, seconds: float) -> str:
-    return f"{count / seconds / 1e6:.2f} MB/s" if seconds > 0 else "- MB/s"
-
-
 def _eta_text(seconds: float) -> str:
     if not math.isfinite(seconds) or seconds < 0:
         return "--:--"
@@ -368,7 +364,7 @@ class ProgressBar:
         moved = self._moved
         rate = moved / elapsed if elapsed > 0 else 0.0
         if self.total is None:
-            return f"{self.verb}  {_size_text(moved)}  {_rate_text(moved, elapsed)}"
+            return f"{self.verb}  {_size_text(moved)}  {rate_text(moved, elapsed)}"
         fraction = min(1.0, moved / self.total) if self.total else 1.0
         filled = int(fraction * self.WIDTH)
         bar = "#" * filled + "-" * (self.WIDTH - filled)
@@ -376,7 +372,7 @@ class ProgressBar:
         eta = 0.0 if moved >= self.total else \
             (self.total - moved) / rate if rate > 0 and elapsed >= 0.3 else math.inf
         return (f"{self.verb} [{bar}] {fraction * 100:3.0f}%  {_size_text(moved)} / "
-                f"{_size_text(self.total)}  {_rate_text(moved, elapsed)}  "
+                f"{_size_text(self.total)}  {rate_text(moved, elapsed)}  "
                 f"ETA {_eta_text(eta)}")
 
     def _draw(self, now: float) -> None:
@@ -574,7 +570,7 @@ def _show_progress(args: argparse.Namespace) -> bool:
 
 def _summary(verb: str, size: int, seconds: float, transfer: Transfer) -> str:
     mode = transfer.mode if transfer.mode not in (None, "auto") else None
-    return (f"{verb} {size} bytes in {seconds:.3f} s ({_rate_text(size, seconds)}"
+    return (f"{verb} {size} bytes in {seconds:.3f} s ({rate_text(size, seconds)}"
             f"{', ' + mode if mode else ''})")
 
 
