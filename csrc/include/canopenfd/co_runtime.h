@@ -136,7 +136,7 @@ typedef struct co_rt_event_stats {
 } co_rt_event_stats_t;
 
 /* Create a runtime with an event queue of event_capacity entries (0 = as many
- * as 8 MiB hold, about 80 000; the memory is touched only as it fills). */
+ * as 2 MiB hold, about 20 000; the memory is touched only as far as it fills). */
 co_rt_t *co_rt_new(uint32_t event_capacity);
 /* Stops the thread, closes every line, frees everything. */
 void co_rt_free(co_rt_t *rt);

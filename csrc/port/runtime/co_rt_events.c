@@ -20,7 +20,9 @@ bool rt_events_open(rt_events_t *q, uint32_t capacity)
     rt_cond_init(&q->ready);
     q->capacity = capacity;
     q->high_water = capacity - capacity / 4u;
-    q->ring = calloc(capacity, sizeof *q->ring);
+    /* not calloc: zeroing would make every page resident at once (a slot is
+     * always written before it is read) */
+    q->ring = malloc((size_t)capacity * sizeof *q->ring);
     q->slots = calloc(RT_COALESCE_SLOTS, sizeof *q->slots);
     return q->ring != NULL && q->slots != NULL;
 }
@@ -181,7 +183,7 @@ int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_m
     }
     if (q->count == 0) {
         /* Start again at the first slot: a consumer that keeps up then only
-         * ever touches the ring's first pages, so the 8 MiB become resident
+         * ever touches the ring's first pages, so its memory becomes resident
          * only as far as a backlog really reached (not by wrapping around). */
         q->head = 0;
     }

@@ -43,7 +43,7 @@ enum {
     RT_MAX_BUSES = 64,
     RT_DEFAULT_QUEUE = 1024,
     RT_MAX_QUEUE = 1 << 20,
-    RT_DEFAULT_EVENT_BYTES = 8 << 20, /* default event queue: what 8 MiB hold (~80 000) */
+    RT_DEFAULT_EVENT_BYTES = 2 << 20, /* default event queue: what 2 MiB hold (~20 000) */
     RT_MAX_EVENT_CAPACITY = 1 << 22,
     RT_COALESCE_SLOTS = 1024,     /* sources (PDOs) the event queue can coalesce at once */
     RT_COALESCE_PROBES = 8,
