@@ -214,7 +214,11 @@ static uint32_t dom_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
     return 0;
 }
 
-static const co_od_handler_t dom_handler = {NULL, NULL, NULL, dom_size, dom_read, dom_write};
+static const co_od_handler_t dom_handler = {
+    .domain_size = dom_size,
+    .domain_read = dom_read,
+    .domain_write = dom_write,
+};
 
 typedef struct rig {
     side_t srv, cli;

@@ -81,7 +81,7 @@ int main(void)
     static uint32_t ascending[ENTRIES], shuffled[ENTRIES];
     static uint16_t key_index[KEYS];
     static uint8_t key_sub[KEYS];
-    static const co_od_handler_t handler = {NULL, NULL, after_write, NULL, NULL, NULL};
+    static const co_od_handler_t handler = {.after_write = after_write};
     uint8_t scratch[64];
     co_od_xfer_t xfer;
     uint64_t rng = 0x9E3779B97F4A7C15ull;

@@ -229,3 +229,25 @@ def test_cli_on_a_classic_line(net, bus_name, tmp_path, capsys):
     assert status == 0 and (tmp_path / "out.bin").read_bytes() == source.read_bytes()
     status, _, err = cli("read", "5", "0x5FFF")
     assert status == 1 and "0x06020000" in err
+
+
+@pytest.mark.parametrize("mode", ["segmented", "block"])
+def test_a_download_announced_beyond_the_domain_is_refused_at_the_initiate(net, bus_name,
+                                                                           mode):
+    """SDO abort 0x06070012 answers the initiate itself: no segment is sent."""
+    node = net.open_line(bus_name, mode="classic").create_local_node(
+        SERVER, od=demo_od("classic"), boot=False)
+    node.serve_domain(DOMAIN, 1024)
+    node.boot()
+    line = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    with pytest.raises(SdoAbortError) as info:
+        line.sdo.download(SERVER, DOMAIN, 0, bytes(2000), mode=mode)
+    assert (info.value.code, info.value.from_server) == (0x06070012, True)
+    answer = frames.wait_for(lambda c: [f for f in c if f.id == 0x580 + SERVER] or None, 2,
+                             "the abort")[0]
+    assert answer.data == bytes([0x80, 0x00, 0x21, 0x00, 0x12, 0x00, 0x07, 0x06])
+    assert len([f for f in frames.snapshot() if f.id == 0x600 + SERVER]) == 1   # initiate
+    line.sdo.download(SERVER, DOMAIN, 0, b"y" * 1024, mode=mode)
+    assert node[DOMAIN].data == b"y" * 1024

@@ -367,3 +367,26 @@ def test_a_blocking_upload_from_a_callback_completes(net, bus_name):
     remote.on_bootup(read_identity)
     server = make_server(net, bus_name)
     assert got.wait_count(1, scaled(5))[0] == server[0x1018][1].data
+
+
+@pytest.mark.parametrize("mode", ["segmented", "bulk"])
+def test_a_download_announced_beyond_the_domain_is_refused_at_the_initiate(net, bus_name,
+                                                                           mode):
+    """CiA 301 0x06070012 (USDO 0x37) in answer to the initiate itself: no
+    segment goes on the bus, and what fits is still taken."""
+    server = make_server(net, bus_name, domain=1024)
+    line = net.open_line(bus_name, mode="fd")
+    frames = Recorder()
+    net.open_line(bus_name, mode="fd", monitor=True).on_frame(frames)
+    with pytest.raises(UsdoAbortError) as info:
+        line.usdo.download(SERVER, DOMAIN, 0, bytes(2000), mode=mode)
+    assert (info.value.usdo_code, info.value.code, info.value.from_server) == \
+        (0x37, 0x06070012, True)
+    aborts = frames.wait_for(lambda c: [f for f in c if f.data[1:2] == b"\x7f"] or None, 2,
+                             "the abort")
+    requests = usdo_frames(frames, 0x600 + CLIENT)
+    assert len(requests) == 1                                # the initiate alone
+    # [client, 0x7F abort, session, sub 0, index 0x2100 LE, 0x37 length too high]
+    assert aborts[0].data[:7] == bytes([CLIENT, 0x7F, requests[0].data[2], 0, 0x00, 0x21, 0x37])
+    line.usdo.download(SERVER, DOMAIN, 0, b"x" * 1024, mode=mode)
+    assert server[DOMAIN].data == b"x" * 1024

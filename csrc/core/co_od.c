@@ -920,8 +920,14 @@ uint32_t co_od_write_begin(co_od_t *od, co_od_xfer_t *xfer, uint16_t index, uint
         return finish(xfer, CO_ABORT_READ_ONLY, false);
     }
     if (e->type == CO_TYPE_DOMAIN) {
-        if (domain_sub(od, e, H_DOMAIN_WRITE) == NULL) {
+        const co_od_subscription_t *s = domain_sub(od, e, H_DOMAIN_WRITE);
+        if (s == NULL) {
             return finish(xfer, CO_ABORT_UNSUPPORTED_ACCESS, false);
+        }
+        uint32_t refused = s->handler->domain_begin != NULL
+                               ? s->handler->domain_begin(od, e, total, s->user) : 0;
+        if (refused != 0) {
+            return finish(xfer, refused, false);   /* the writer refused: nothing to tell it */
         }
     } else {
         if (xfer->scratch_size < e->size) {

@@ -484,10 +484,14 @@ static uint32_t on_check_restore(co_od_t *od, co_od_xfer_t *xfer, const co_od_en
     return co_store_restore_defaults(user, group_of_sub(co_od_entry_sub(e)));
 }
 
-static const co_od_handler_t save_handler = { on_before_read, on_check_save, NULL, NULL, NULL,
-                                              NULL };
-static const co_od_handler_t restore_handler = { on_before_read, on_check_restore, NULL, NULL,
-                                                 NULL, NULL };
+static const co_od_handler_t save_handler = {
+    .before_read = on_before_read,
+    .check_write = on_check_save,
+};
+static const co_od_handler_t restore_handler = {
+    .before_read = on_before_read,
+    .check_write = on_check_restore,
+};
 
 bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend, void *user,
                    uint8_t *buffer, uint32_t buffer_size)

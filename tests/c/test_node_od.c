@@ -535,7 +535,7 @@ static void test_1016_node_zero_frees_entry(void **state)
 
 static void test_attach_refused_when_handler_table_full(void **state)
 {
-    static const co_od_handler_t dummy = { NULL, NULL, NULL, NULL, NULL, NULL };
+    static const co_od_handler_t dummy = {.before_read = NULL};
     fx_t *fx = *state;
     /* The store took 2 of the 4 subscriptions; fill the rest. */
     assert_true(co_od_subscribe(&fx->od, 0x6000, 0, 0x6000, 0, &dummy, NULL));

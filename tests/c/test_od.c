@@ -362,8 +362,11 @@ static void h_after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t or
     h->fx->calls[h->fx->ncalls - 1].origin = (int)origin;
 }
 
-static const co_od_handler_t logging_handler = {h_before_read, h_check_write, h_after_write,
-                                                NULL, NULL, NULL};
+static const co_od_handler_t logging_handler = {
+    .before_read = h_before_read,
+    .check_write = h_check_write,
+    .after_write = h_after_write,
+};
 
 static void subscribe(fx_t *fx, uint16_t first_index, uint8_t first_sub, uint16_t last_index,
                       uint8_t last_sub, int tag)
@@ -436,8 +439,12 @@ static uint32_t d_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
     return 0;
 }
 
-static const co_od_handler_t domain_handler = {NULL, NULL, NULL, d_size, d_read, d_write};
-static const co_od_handler_t domain_read_only_handler = {NULL, NULL, NULL, NULL, d_read, NULL};
+static const co_od_handler_t domain_handler = {
+    .domain_size = d_size,
+    .domain_read = d_read,
+    .domain_write = d_write,
+};
+static const co_od_handler_t domain_read_only_handler = {.domain_read = d_read};
 
 static void fill_domain_source(fx_t *fx, uint32_t len)
 {
@@ -2092,7 +2099,7 @@ static uint32_t check_aborts_itself(co_od_t *od, co_od_xfer_t *xfer, const co_od
 static void test_check_write_that_aborts_the_transfer_stops_it(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD);
-    static const co_od_handler_t h = {NULL, check_aborts_itself, NULL, NULL, NULL, NULL};
+    static const co_od_handler_t h = {.check_write = check_aborts_itself};
     add_u32(fx, 0x2000, 0, CO_ACCESS_RW, 0x11);
     seal(fx);
     assert_true(co_od_subscribe(&fx->od, 0x2000, 0, 0x2000, 0, &h, NULL));
@@ -2286,6 +2293,38 @@ static void test_domain_writer_refusal_ends_the_transfer(void **state)
     assert_int_equal(fx->dom.ends, 0);      /* it refused itself: not told again */
 }
 
+static uint32_t d_begin_100(co_od_t *od, const co_od_entry_t *e, uint32_t total, void *user)
+{
+    fx_t *fx = user;
+    (void)od;
+    (void)e;
+    fx->dom.last_total = total;
+    return total != CO_OD_SIZE_UNKNOWN && total > 100 ? CO_ABORT_LENGTH_HIGH : 0;
+}
+
+static void test_domain_writer_refuses_an_announced_size_at_the_initiate(void **state)
+{
+    static const co_od_handler_t h = {
+        .domain_size = d_size,
+        .domain_read = d_read,
+        .domain_write = d_write,
+        .domain_begin = d_begin_100,
+    };
+    fx_t *fx = fx_new(state, CO_MODE_FD);
+    domain_od(fx, &h);
+    fill_domain_source(fx, 100);
+    assert_int_equal(co_od_write_begin(&fx->od, &fx->xfer, 0x2000, 0, 101),
+                     CO_ABORT_LENGTH_HIGH);
+    assert_int_equal(fx->xfer.state, CO_XFER_DONE);
+    assert_int_equal(fx->dom.last_total, 101);
+    assert_int_equal(fx->dom.write_calls, 0);     /* refused before any chunk */
+    assert_int_equal(co_od_write_begin(&fx->od, &fx->xfer, 0x2000, 0, 100), 0);
+    assert_int_equal(co_od_write_chunk(&fx->xfer, fx->dom_src, 100), 0);
+    assert_int_equal(co_od_write_end(&fx->xfer), 0);
+    assert_int_equal(fx->dom.dst_len, 100);
+    assert_int_equal(co_od_write_begin(&fx->od, &fx->xfer, 0x2000, 0, CO_OD_SIZE_UNKNOWN), 0);
+}
+
 static void test_domain_without_handlers(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD);
@@ -2317,7 +2356,7 @@ static void test_domain_reader_ending_before_announced_size_aborts(void **state)
     fx_t *fx = fx_new(state, CO_MODE_FD);
     uint32_t n;
     bool last;
-    static const co_od_handler_t h = {NULL, NULL, NULL, d_size, d_read, NULL};
+    static const co_od_handler_t h = {.domain_size = d_size, .domain_read = d_read};
     domain_od(fx, &h);
     fill_domain_source(fx, 10);
     fx->dom.announce = true;
@@ -2444,7 +2483,7 @@ static void restore_reads_other(co_od_t *od, const co_od_entry_t *e, co_od_origi
 static void test_load_defaults_tells_after_all_are_loaded(void **state)
 {
     fx_t *fx = fx_new(state, CO_MODE_FD);
-    static const co_od_handler_t h = {NULL, NULL, restore_reads_other, NULL, NULL, NULL};
+    static const co_od_handler_t h = {.after_write = restore_reads_other};
     groups_od(fx);
     assert_true(co_od_subscribe(&fx->od, 0x2000, 0, 0x6000, 0, &h, fx));
     co_od_load_defaults(&fx->od, CO_GROUP_MANUFACTURER | CO_GROUP_APPLICATION);
@@ -2674,6 +2713,7 @@ int main(void)
         T(test_domain_download_beyond_announced_size_tells_the_writer),
         T(test_domain_download_shorter_than_announced_tells_the_writer),
         T(test_domain_writer_refusal_ends_the_transfer),
+        T(test_domain_writer_refuses_an_announced_size_at_the_initiate),
         T(test_domain_without_handlers),
         T(test_domain_reader_without_size_handler_has_unknown_size),
         T(test_domain_reader_ending_before_announced_size_aborts),

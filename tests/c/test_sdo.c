@@ -170,8 +170,12 @@ static uint32_t dom_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
     return 0;
 }
 
-static const co_od_handler_t dom_handler = { NULL, NULL, NULL, dom_size, dom_read, dom_write };
-static const co_od_handler_t dom_nosize_handler = { NULL, NULL, NULL, NULL, dom_read, NULL };
+static const co_od_handler_t dom_handler = {
+    .domain_size = dom_size,
+    .domain_read = dom_read,
+    .domain_write = dom_write,
+};
+static const co_od_handler_t dom_nosize_handler = {.domain_read = dom_read};
 
 static uint32_t split_before_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
                                   void *user)
@@ -199,8 +203,10 @@ static uint32_t split_check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_e
     return CO_OD_SPLIT;
 }
 
-static const co_od_handler_t split_handler = { split_before_read, split_check_write, NULL,
-                                               NULL, NULL, NULL };
+static const co_od_handler_t split_handler = {
+    .before_read = split_before_read,
+    .check_write = split_check_write,
+};
 
 static const tu_od_row_t od_rows[] = {
     { 0x1200, 0, REC, U8, AC_CONST, 0, 1, 2, NULL, 0, 0 },

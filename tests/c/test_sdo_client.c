@@ -205,8 +205,12 @@ static uint32_t dom_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
     return 0;
 }
 
-static const co_od_handler_t dom_handler = { NULL, NULL, NULL, dom_size, dom_read, dom_write };
-static const co_od_handler_t dom_nosize_handler = { NULL, NULL, NULL, NULL, dom_read, NULL };
+static const co_od_handler_t dom_handler = {
+    .domain_size = dom_size,
+    .domain_read = dom_read,
+    .domain_write = dom_write,
+};
+static const co_od_handler_t dom_nosize_handler = {.domain_read = dom_read};
 
 static void server_start(srv_t *s, uint32_t timeout_ms, uint8_t block_size, bool no_crc)
 {

@@ -85,7 +85,7 @@ static void on_observe(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origi
         fx->other_origin++;
 }
 
-static const co_od_handler_t observer = { NULL, NULL, on_observe, NULL, NULL, NULL };
+static const co_od_handler_t observer = {.after_write = on_observe};
 
 static fixture_t *fixture_new(const tu_od_row_t *defs, size_t n)
 {

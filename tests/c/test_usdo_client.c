@@ -200,8 +200,12 @@ static uint32_t dom_write(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
     return 0;
 }
 
-static const co_od_handler_t dom_handler = { NULL, NULL, NULL, dom_size, dom_read, dom_write };
-static const co_od_handler_t dom_nosize_handler = { NULL, NULL, NULL, NULL, dom_read, NULL };
+static const co_od_handler_t dom_handler = {
+    .domain_size = dom_size,
+    .domain_read = dom_read,
+    .domain_write = dom_write,
+};
+static const co_od_handler_t dom_nosize_handler = {.domain_read = dom_read};
 
 static uint32_t refuse_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e, void *user)
 {
@@ -224,8 +228,10 @@ static uint32_t refuse_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_
     return s->refuse ? CO_ABORT_DATA_STATE : 0;
 }
 
-static const co_od_handler_t refuse_handler = { refuse_read, refuse_write, NULL, NULL, NULL,
-                                                NULL };
+static const co_od_handler_t refuse_handler = {
+    .before_read = refuse_read,
+    .check_write = refuse_write,
+};
 
 static void server_start(srv_t *s, uint32_t timeout_ms)
 {

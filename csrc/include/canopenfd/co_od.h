@@ -187,6 +187,11 @@ typedef struct co_od_handler {
     uint32_t (*domain_write)(co_od_t *od, const co_od_entry_t *e, uint32_t offset,
                              const uint8_t *data, uint32_t n, uint32_t total, bool last,
                              uint32_t abort, void *user);
+    /* Domains, optional, of the handler with domain_write: a download is
+     * starting (total = announced size or CO_OD_SIZE_UNKNOWN). An abort code
+     * refuses it at the initiate, e.g. CO_ABORT_LENGTH_HIGH when total cannot
+     * fit, instead of at its first segment; no domain_write call follows. */
+    uint32_t (*domain_begin)(co_od_t *od, const co_od_entry_t *e, uint32_t total, void *user);
 } co_od_handler_t;
 
 typedef struct co_od_subscription {

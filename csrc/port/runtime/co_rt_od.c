@@ -182,7 +182,17 @@ static uint32_t on_domain_write(co_od_t *od, const co_od_entry_t *e, uint32_t of
     return 0;
 }
 
+/* An announced size beyond the capacity is refused at the initiate. */
+static uint32_t on_domain_begin(co_od_t *od, const co_od_entry_t *e, uint32_t total, void *user)
+{
+    const rt_domain_t *d = user;
+    (void)od;
+    (void)e;
+    return total != CO_OD_SIZE_UNKNOWN && total > d->capacity ? CO_ABORT_LENGTH_HIGH : 0;
+}
+
 static const co_od_handler_t domain_handler = {.domain_size = on_domain_size,
+                                               .domain_begin = on_domain_begin,
                                                .domain_read = on_domain_read,
                                                .domain_write = on_domain_write};
 
