@@ -56,8 +56,10 @@ class CEnum:
         return c_type in (self.typedef, f"enum {self.tag}")
 
 
-def parse_enums(text: str, header: str) -> List[CEnum]:
-    """Every enum of a C text: members with their values (implicit ones counted on)."""
+def parse_enums(text: str, header: str, known: Optional[Dict[str, int]] = None) -> List[CEnum]:
+    """Every enum of a C text: members with their values (implicit ones counted on);
+    `known` holds members of other headers an expression may name (and grows)."""
+    known = {} if known is None else known
     found = []
     for match in _ENUM.finditer(_COMMENT.sub(" ", text)):
         tag, body, typedef = match.groups()
@@ -70,16 +72,27 @@ def parse_enums(text: str, header: str) -> List[CEnum]:
             name, _, expression = (part.strip() for part in item.partition("="))
             if expression:
                 # integer literals, earlier members, + - | << of them
-                value = eval(_SUFFIX.sub("", expression), {"__builtins__": {}}, dict(members))
+                value = eval(_SUFFIX.sub("", expression), {"__builtins__": {}},
+                             {**known, **members})
             members[name] = value
+            known[name] = value
             value += 1
         found.append(CEnum(tag, typedef, members, header))
     return found
 
 
-HEADER_ENUMS = [enum_ for header in BUILD_EXT.CDEF_HEADERS
-                for enum_ in parse_enums((pathlib.Path(BUILD_EXT.ROOT) / header)
-                                         .read_text(encoding="utf-8"), header)]
+def _header_enums() -> List[CEnum]:
+    """The enums of the cdef headers and of the headers they include (for the
+    members an expression names, e.g. CO_SDO_BLKSIZE_MAX of co_sdo.h)."""
+    root = pathlib.Path(BUILD_EXT.ROOT)
+    known: Dict[str, int] = {}
+    for included in ("csrc/include/canopenfd/co_sdo.h",):
+        parse_enums((root / included).read_text(encoding="utf-8"), included, known)
+    return [enum_ for header in BUILD_EXT.CDEF_HEADERS
+            for enum_ in parse_enums((root / header).read_text(encoding="utf-8"), header, known)]
+
+
+HEADER_ENUMS = _header_enums()
 CDEF_ENUMS = parse_enums(BUILD_EXT.cdef_text(), "cdef")
 
 

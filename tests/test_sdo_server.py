@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import itertools
 import os
+import time
 
 import pytest
 
 import canopenfd
 from canopenfd.od import demo_od
-from helpers import virtual_bus
+from helpers import scaled, virtual_bus
 
 can = pytest.importorskip("can")
 canopen = pytest.importorskip("canopen")
@@ -112,3 +113,31 @@ def test_python_canopen_types_values_with_our_exported_eds(rig, tmp_path):
     node["Demo record.Label"].raw = "spindle"
     label = their_od["Demo record"]["Label"]
     assert label.decode_raw(remote.sdo.upload(0x2200, 4)) == "spindle"
+
+
+def _wait(predicate, what: str, timeout: float = 5.0):
+    deadline = time.monotonic() + scaled(timeout)
+    while not predicate():
+        assert time.monotonic() < deadline, f"timed out: {what}"
+        time.sleep(0.01)
+
+
+def test_stopped_node_answers_no_sdo(rig):
+    """CiA 301: SDO only in pre-operational and operational. python-canopen
+    stops our node over NMT: its upload gets no answer (nothing on 0x580 + id,
+    the request counted), and after NMT enter pre-operational it is served."""
+    node, remote, sniffer = rig
+    line = node.line
+    remote.nmt.state = "STOPPED"
+    _wait(lambda: node.state == "STOPPED", "node 5 stopped")
+    frames(sniffer, 0x580 + NODE)                       # drop what came before
+    remote.sdo.RESPONSE_TIMEOUT = scaled(0.5)
+    with pytest.raises(canopen.SdoCommunicationError):
+        remote.sdo.upload(0x1018, 1)
+    assert frames(sniffer, 0x580 + NODE) == []
+    assert line.service_stats["sdo_server"]["rx_not_serving"] >= 1
+    remote.nmt.state = "PRE-OPERATIONAL"
+    _wait(lambda: node.state == "PRE-OPERATIONAL", "node 5 pre-operational")
+    remote.sdo.RESPONSE_TIMEOUT = 3.0
+    node[0x1017].raw = 0x0102
+    assert remote.sdo.upload(0x1017, 0) == b"\x02\x01"

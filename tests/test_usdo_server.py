@@ -3,11 +3,12 @@ byte for byte on the bus. The requests are raw frames (our USDO client comes
 with its own issue); the layouts are those of docs/protocol-notes.md."""
 
 import os
+import time
 
 import pytest
 
 from canopenfd.od import demo_od
-from helpers import Recorder
+from helpers import Recorder, scaled
 
 SERVER, CLIENT = 5, 2
 REQUEST, RESPONSE = 0x600 + CLIENT, 0x580 + SERVER
@@ -133,3 +134,30 @@ def test_cob_id_of_an_active_object_cannot_change(net, bus_name):
     for session, value in ((6, 0x80000185), (7, 0x80000186)):
         assert write(session, 1, 0x1800, value).data[:2] == bytes([CLIENT, 0x21])
     assert node[0x1800][1].raw == 0x80000186
+
+
+def test_stopped_node_answers_no_usdo(rig):
+    """USDO, like SDO in CiA 301, only in pre-operational and operational: in
+    stopped a request gets no answer (counted), after NMT enter
+    pre-operational the same request is answered."""
+    node, client, answers, _ = rig
+    client.send_frame(0x000, bytes([0x02, SERVER]))                 # NMT stop node 5
+    deadline = time.monotonic() + scaled(5)
+    while node.state != "STOPPED":
+        assert time.monotonic() < deadline, "node 5 did not stop"
+        time.sleep(0.01)
+    before = len(answers)
+    client.send_frame(REQUEST, bytes([SERVER, 0x11, 7, 0x01, 0x18, 0x10]))
+    deadline = time.monotonic() + scaled(5)
+    while node.line.service_stats["usdo_server"]["rx_not_serving"] < 1:
+        assert time.monotonic() < deadline, "request not counted"
+        time.sleep(0.01)
+    time.sleep(0.2)
+    assert len(answers) == before
+    client.send_frame(0x000, bytes([0x80, SERVER]))                 # enter pre-operational
+    deadline = time.monotonic() + scaled(5)
+    while node.state != "PRE-OPERATIONAL":
+        assert time.monotonic() < deadline, "node 5 not pre-operational"
+        time.sleep(0.01)
+    frame = ask(client, answers, bytes([SERVER, 0x11, 8, 0x01, 0x18, 0x10]))
+    assert frame.data[:3] == bytes([CLIENT, 0x31, 8])

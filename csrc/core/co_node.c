@@ -5,7 +5,8 @@
 
 #include <string.h>
 
-/* Every service hears the NMT state (PDOs flow only in operational). */
+/* Every service hears the NMT state (PDOs flow only in operational, SDO/USDO
+ * are served only in pre-operational and operational). */
 static void services_set_state(co_node_t *node, co_nmt_state_t state)
 {
     const co_node_services_t *s = &node->services;
@@ -20,6 +21,9 @@ static void services_set_state(co_node_t *node, co_nmt_state_t state)
     }
     if (s->time) {
         co_time_set_nmt_state(s->time, state);
+    }
+    if (s->server && s->server_state) {
+        s->server_state(s->server, state);
     }
 }
 

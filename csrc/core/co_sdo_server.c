@@ -882,6 +882,10 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
     co_sdo_server_t *s = ch->server;
     (void)line;
     s->stats.rx_frames++;
+    if (s->not_serving) {
+        s->stats.rx_not_serving++;
+        return;
+    }
     if (f->flags & CO_FRAME_FD) {
         s->stats.rx_fd++;
         return;
@@ -1053,6 +1057,25 @@ bool co_sdo_server_resume(co_sdo_server_t *server, co_od_xfer_t *xfer, uint32_t 
         return true;
     }
     return false;
+}
+
+void co_sdo_server_set_nmt_state(co_sdo_server_t *server, co_nmt_state_t state)
+{
+    bool serving = state == CO_NMT_PRE_OPERATIONAL || state == CO_NMT_OPERATIONAL;
+    uint8_t i;
+    server->not_serving = !serving;
+    if (serving) {
+        return;
+    }
+    for (i = 0; i < server->channel_count; i++) {
+        co_sdo_channel_t *ch = &server->channels[i];
+        if (is_open(ch)) {
+            server->stats.closed_by_state++;
+            close_channel(ch, CO_ABORT_DATA_STATE, false);
+        }
+        ch->done_valid = false;   /* no late repeat of an answer once serving again */
+    }
+    apply_pending(server);
 }
 
 uint8_t co_sdo_server_active(const co_sdo_server_t *server)

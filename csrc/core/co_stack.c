@@ -546,6 +546,17 @@ static co_stack_status_t start_od_parts(co_stack_t *s, const co_stack_node_confi
     return serve_od(s, n);
 }
 
+/* The node tells its server the NMT state through these. */
+static void sdo_server_state(void *server, co_nmt_state_t state)
+{
+    co_sdo_server_set_nmt_state(server, state);
+}
+
+static void usdo_server_state(void *server, co_nmt_state_t state)
+{
+    co_usdo_server_set_nmt_state(server, state);
+}
+
 static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_config_t *c,
                                           const node_sizes_t *n)
 {
@@ -569,6 +580,14 @@ static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_con
             }
             services.guard = &s->guard_slave;
         }
+    }
+    if (CO_CONFIG_CLASSIC && s->has_sdo_server) {
+        services.server = &s->sdo_server;
+        services.server_state = sdo_server_state;
+    }
+    if (CO_CONFIG_FD && s->has_usdo_server) {
+        services.server = &s->usdo_server;
+        services.server_state = usdo_server_state;
     }
     if (status == CO_STACK_OK) {
         co_node_attach_services(&s->node, &services);

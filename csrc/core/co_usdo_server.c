@@ -503,6 +503,10 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
     uint8_t me = co_line_node_id(line);
     uint8_t client = (uint8_t)(f->id - CO_USDO_REQUEST_BASE);
     s->stats.rx_frames++;
+    if (s->not_serving) {
+        s->stats.rx_not_serving++;
+        return;
+    }
     if (!(f->flags & CO_FRAME_FD)) {
         s->stats.rx_not_fd++;
         return;
@@ -663,6 +667,20 @@ bool co_usdo_server_resume(co_usdo_server_t *server, co_od_xfer_t *xfer, uint32_
         return true;
     }
     return false;
+}
+
+void co_usdo_server_set_nmt_state(co_usdo_server_t *server, co_nmt_state_t state)
+{
+    bool serving = state == CO_NMT_PRE_OPERATIONAL || state == CO_NMT_OPERATIONAL;
+    uint8_t i;
+    server->not_serving = !serving;
+    for (i = 0; !serving && i < server->session_count; i++) {
+        co_usdo_session_t *ses = &server->sessions[i];
+        if (is_open(ses)) {
+            server->stats.closed_by_state++;
+            close_session(ses, co_usdo_abort_from_co(CO_ABORT_DATA_STATE), false);
+        }
+    }
 }
 
 uint8_t co_usdo_server_active(const co_usdo_server_t *server)

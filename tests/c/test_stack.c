@@ -389,6 +389,103 @@ static void test_classic_device_serves_sdo_and_guarding(void **state)
     fx_free(fx);
 }
 
+/* The tool sends one frame to the device and the bus runs 2 ms. */
+static void tool_send(fx_t *fx, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    co_line_set_time(&fx->tool_line.line, fx->tb.now);
+    assert_true(co_line_send(&fx->tool_line.line, id, data, len));
+    tu_run_until(&fx->tb, fx->tb.now + 2 * TU_MS);
+}
+
+static void tool_nmt(fx_t *fx, uint8_t command)
+{
+    tool_send(fx, 0x000, (const uint8_t[]){command, NODE}, 2);
+}
+
+/* CiA 301: no SDO in stopped. A stopped classic device ignores SDO requests
+ * (no frame on 0x580 + id, counted), a segmented download open when it
+ * stopped ends without an abort frame, and back in pre-operational it serves
+ * again: the segment of the ended transfer gets 0x05040001, a new request its
+ * answer. */
+static void test_stopped_classic_device_serves_no_sdo(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    fx_device(fx);
+    tu_run_until(&fx->tb, 2 * TU_MS);
+    co_sdo_server_t *server = co_stack_sdo_server(&fx->stack);
+    /* segmented download of 2 bytes to 0x2000 opened: answered 0x60 */
+    tu_log_clear(&fx->tb);
+    tool_send(fx, 0x600 + NODE, (const uint8_t[]){0x21, 0x00, 0x20, 0x00, 2, 0, 0, 0}, 8);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NODE, 0), 0x580 + NODE,
+                     (const uint8_t[]){0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0}, 8);
+    tool_nmt(fx, 0x02);   /* stop */
+    assert_int_equal(co_node_state(co_stack_node(&fx->stack)), CO_NMT_STOPPED);
+    assert_int_equal(server->stats.closed_by_state, 1);
+    assert_int_equal(co_sdo_server_active(server), 0);
+    tu_log_clear(&fx->tb);
+    tool_send(fx, 0x600 + NODE, (const uint8_t[]){0x40, 0x18, 0x10, 0x02, 0, 0, 0, 0}, 8);
+    tool_send(fx, 0x600 + NODE, (const uint8_t[]){0x0B, 0x34, 0x12, 0, 0, 0, 0, 0}, 8);
+    tu_run_until(&fx->tb, fx->tb.now + 2000 * TU_MS);   /* past any idle timeout */
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x580 + NODE), 0);
+    assert_int_equal(server->stats.rx_not_serving, 2);
+    assert_int_equal(server->stats.timeouts, 0);
+    tool_nmt(fx, 0x80);   /* enter pre-operational */
+    tu_log_clear(&fx->tb);
+    tool_send(fx, 0x600 + NODE, (const uint8_t[]){0x0B, 0x34, 0x12, 0, 0, 0, 0, 0}, 8);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NODE, 0), 0x580 + NODE,
+                     (const uint8_t[]){0x80, 0, 0, 0, 0x01, 0x00, 0x04, 0x05}, 8);
+    tool_send(fx, 0x600 + NODE, (const uint8_t[]){0x40, 0x18, 0x10, 0x02, 0, 0, 0, 0}, 8);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NODE, 1), 0x580 + NODE,
+                     (const uint8_t[]){0x43, 0x18, 0x10, 0x02, 0xCD, 0xAB, 0, 0}, 8);
+    fx_free(fx);
+}
+
+/* The same for USDO on an fd device: a segmented download (0x02) open when it
+ * stopped ends silently, requests while stopped are not answered, and in
+ * pre-operational the stale segment gets abort 0x21 (no session) and a new
+ * upload its answer. */
+static void test_stopped_fd_device_serves_no_usdo(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_FD);
+    fx_device(fx);
+    tu_run_until(&fx->tb, 2 * TU_MS);
+    co_usdo_server_t *server = co_stack_usdo_server(&fx->stack);
+    tu_log_clear(&fx->tb);
+    /* [dest, 0x02 initiate, session 4, sub 0, index 0x2000, UNSIGNED16, 0, size 2] */
+    tool_send(fx, 0x600 + CLIENT, (const uint8_t[]){NODE, 0x02, 4, 0x00, 0x00, 0x20, 0x06, 0,
+                                                    2, 0, 0, 0}, 12);
+    long answer = tu_log_find_id(&fx->tb, 0x580 + NODE, 0);
+    assert_true(answer >= 0);
+    assert_int_equal(fx->tb.log[answer].frame.data[1], 0x22);
+    tool_nmt(fx, 0x02);
+    assert_int_equal(co_node_state(co_stack_node(&fx->stack)), CO_NMT_STOPPED);
+    assert_int_equal(server->stats.closed_by_state, 1);
+    assert_int_equal(co_usdo_server_active(server), 0);
+    tu_log_clear(&fx->tb);
+    tool_send(fx, 0x600 + CLIENT, (const uint8_t[]){NODE, 0x11, 5, 0x01, 0x18, 0x10}, 6);
+    /* [dest, 0x04 last segment, session 4, 2 bytes, data] */
+    tool_send(fx, 0x600 + CLIENT, (const uint8_t[]){NODE, 0x04, 4, 2, 0x34, 0x12}, 6);
+    tu_run_until(&fx->tb, fx->tb.now + 2000 * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x580 + NODE), 0);
+    assert_int_equal(server->stats.rx_not_serving, 2);
+    assert_int_equal(server->stats.timeouts, 0);
+    tool_nmt(fx, 0x80);
+    tu_log_clear(&fx->tb);
+    tool_send(fx, 0x600 + CLIENT, (const uint8_t[]){NODE, 0x04, 4, 2, 0x34, 0x12}, 6);
+    answer = tu_log_find_id(&fx->tb, 0x580 + NODE, 0);
+    assert_true(answer >= 0);
+    assert_int_equal(fx->tb.log[answer].frame.data[1], 0x7F);
+    assert_int_equal(fx->tb.log[answer].frame.data[6], 0x21);
+    tool_send(fx, 0x600 + CLIENT, (const uint8_t[]){NODE, 0x11, 5, 0x01, 0x18, 0x10}, 6);
+    answer = tu_log_find_id(&fx->tb, 0x580 + NODE, 1);
+    assert_true(answer >= 0);
+    assert_int_equal(fx->tb.log[answer].frame.data[1], 0x31);
+    assert_int_equal(tu_le_get(fx->tb.log[answer].frame.data + 8, 4), 0x12345678);
+    fx_free(fx);
+}
+
 /* A run-time allocator (malloc-backed) gets every block back. */
 typedef struct counting {
     long live;
@@ -439,6 +536,8 @@ int main(void)
         cmocka_unit_test(test_wrong_use_is_refused),
         cmocka_unit_test(test_services_are_wired),
         cmocka_unit_test(test_classic_device_serves_sdo_and_guarding),
+        cmocka_unit_test(test_stopped_classic_device_serves_no_sdo),
+        cmocka_unit_test(test_stopped_fd_device_serves_no_usdo),
         cmocka_unit_test(test_allocator_hook_gets_everything_back),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -31,7 +31,8 @@ typedef struct co_node_indications {
 /* The services a node runs besides NMT and heartbeat, each set up by the
  * caller over its own storage (and bound to the OD) before
  * co_node_attach_services; any may be NULL. The node wires them together:
- * NMT state to each (PDOs flow only in operational), SYNC to the PDOs, the
+ * NMT state to each (PDOs flow only in operational, the SDO/USDO server
+ * serves only in pre-operational and operational), SYNC to the PDOs, the
  * errors they detect to EMCY, communication errors to 0x1029, resets to a
  * reload. A PDO service must be set up with co_node_pdo_indications and the
  * node as user, a guarding slave with co_node_guard_life and the node. */
@@ -41,6 +42,11 @@ typedef struct co_node_services {
     co_time_t *time;
     co_pdo_t *pdo;
     co_guard_slave_t *guard;
+    /* The SDO or USDO server, told each NMT state through server_state
+     * (co_sdo_server_set_nmt_state / co_usdo_server_set_nmt_state behind a
+     * void * adapter: the node links no server it does not run). */
+    void *server;
+    void (*server_state)(void *server, co_nmt_state_t state);
 } co_node_services_t;
 
 enum {

@@ -15,8 +15,10 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_pdo.h"
+#include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
+#include "canopenfd/co_usdo_server.h"
 
 /* cffi:begin */
 typedef struct co_rt co_rt_t;
@@ -380,8 +382,8 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
 int co_rt_sync_listen(co_rt_t *rt, int line, int listen);
 /* Send a TIME stamp (microseconds since 1970, UTC). */
 int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
-/* The counters of the line's process-data and error services (zeros for
- * services the line does not run). */
+/* The counters of the line's process-data, error and SDO/USDO server
+ * services (zeros for services the line does not run). */
 typedef struct co_rt_service_stats {
     co_pdo_stats_t pdo;
     co_emcy_stats_t emcy;             /* the local node's producer */
@@ -391,6 +393,8 @@ typedef struct co_rt_service_stats {
     co_guard_slave_stats_t guard_slave;
     co_guard_master_stats_t guard_master;
     uint32_t pdo_watched;             /* frames seen on the PDO CAN-IDs watched now */
+    co_sdo_server_stats_t sdo_server;   /* the local node's server (classic lines) */
+    co_usdo_server_stats_t usdo_server; /* the local node's server (fd lines) */
 } co_rt_service_stats_t;
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */

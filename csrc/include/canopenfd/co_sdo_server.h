@@ -33,6 +33,7 @@
 #define CO_SDO_SERVER_H
 
 #include "canopenfd/co_line.h"
+#include "canopenfd/co_nmt.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_sdo.h"
 
@@ -98,6 +99,7 @@ typedef struct co_sdo_channel {
     bool done_valid;
 } co_sdo_channel_t;
 
+/* cffi:begin */
 /* Everything refused or ignored is counted here (never silent). */
 typedef struct co_sdo_server_stats {
     uint32_t rx_frames;           /* frames on a serving channel's CAN-ID */
@@ -126,7 +128,10 @@ typedef struct co_sdo_server_stats {
     uint32_t tx_deferred;         /* block upload paused for room in the tx queue */
     uint32_t channel_resets;      /* an open transfer ended by a COB-ID change */
     uint32_t config_refused;      /* valid COB-IDs that cannot be served (29-bit, in use) */
+    uint32_t rx_not_serving;      /* the node is stopped (CiA 301: no SDO then): ignored */
+    uint32_t closed_by_state;     /* open transfers ended silently on leaving pre-op/op */
 } co_sdo_server_stats_t;
+/* cffi:end */
 
 struct co_sdo_server {
     co_line_t *line;
@@ -137,6 +142,7 @@ struct co_sdo_server {
     bool crc;                     /* CRC support announced */
     bool od_hooked;
     bool reconfig_waiting;        /* some channel's reconfig is set */
+    bool not_serving;             /* NMT state outside pre-operational / operational */
     uint64_t timeout_us;
     co_sdo_server_stats_t stats;
 };
@@ -181,5 +187,12 @@ bool co_sdo_server_resume(co_sdo_server_t *server, co_od_xfer_t *xfer, uint32_t 
 
 /* Channels not IDLE. */
 uint8_t co_sdo_server_active(const co_sdo_server_t *server);
+
+/* The node's NMT state (the node calls it; a server without a node serves
+ * always). CiA 301 has SDO only in pre-operational and operational: in any
+ * other state requests are ignored (counted rx_not_serving) and leaving those
+ * states ends open transfers without an abort frame (the object dictionary
+ * learns of it with 0x08000022). */
+void co_sdo_server_set_nmt_state(co_sdo_server_t *server, co_nmt_state_t state);
 
 #endif

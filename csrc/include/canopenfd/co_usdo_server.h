@@ -28,6 +28,7 @@
 #define CO_USDO_SERVER_H
 
 #include "canopenfd/co_line.h"
+#include "canopenfd/co_nmt.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_usdo.h"
 
@@ -60,6 +61,7 @@ typedef struct co_usdo_session {
     uint32_t received;          /* download: data bytes received */
 } co_usdo_session_t;
 
+/* cffi:begin */
 /* Everything refused or ignored is counted here (never silent). */
 typedef struct co_usdo_server_stats {
     uint32_t rx_frames;          /* frames on 0x601..0x67F given to the server */
@@ -85,7 +87,10 @@ typedef struct co_usdo_server_stats {
     uint32_t uploads;            /* completed */
     uint32_t aborts_sent;
     uint32_t tx_failed;          /* co_line_send refused (queue full) */
+    uint32_t rx_not_serving;     /* the node is stopped (no USDO then): ignored */
+    uint32_t closed_by_state;    /* open transfers ended silently on leaving pre-op/op */
 } co_usdo_server_stats_t;
+/* cffi:end */
 
 struct co_usdo_server {
     co_line_t *line;
@@ -94,6 +99,7 @@ struct co_usdo_server {
     uint8_t session_count;
     uint64_t timeout_us;
     uint16_t bulk_pacing;        /* sent in 0x26: 100 us units, 0 = none */
+    bool not_serving;            /* NMT state outside pre-operational / operational */
     co_usdo_server_stats_t stats;
 };
 
@@ -129,5 +135,12 @@ bool co_usdo_server_resume(co_usdo_server_t *server, co_od_xfer_t *xfer, uint32_
 
 /* Sessions not FREE. */
 uint8_t co_usdo_server_active(const co_usdo_server_t *server);
+
+/* The node's NMT state (the node calls it; a server without a node serves
+ * always). Like SDO in CiA 301, USDO is served only in pre-operational and
+ * operational: in any other state requests are ignored (counted
+ * rx_not_serving) and leaving those states ends open transfers without an
+ * abort frame (the object dictionary learns of it with 0x08000022). */
+void co_usdo_server_set_nmt_state(co_usdo_server_t *server, co_nmt_state_t state);
 
 #endif

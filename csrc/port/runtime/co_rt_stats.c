@@ -84,6 +84,12 @@ int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
     out->sync = co_stack_sync(s)->stats;
     out->time = co_stack_time(s)->stats;
     out->pdo_watched = rt_pdo_watched_frames(l);
+    if (co_stack_sdo_server(s)) {
+        out->sdo_server = co_stack_sdo_server(s)->stats;
+    }
+    if (co_stack_usdo_server(s)) {
+        out->usdo_server = co_stack_usdo_server(s)->stats;
+    }
     rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
