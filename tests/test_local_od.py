@@ -132,13 +132,33 @@ def test_every_entry_reads_its_default_with_the_right_python_type(net, bus_name,
 
 
 @MODES
-def test_domain_entries_have_no_value_in_the_od(net, bus_name, mode):
+def test_a_large_domain_without_memory_is_refused_with_a_hint(net, bus_name, mode, caplog):
+    """0x2100 (max 16 MiB) gets no memory by itself: refused, and both the
+    boot warning and the refusal say serve_domain is the fix."""
     node = serve(net, bus_name, mode)
-    for index in (0x200F, 0x2100):
-        with pytest.raises(AbortError) as caught:
-            _ = node[index].data
-        assert caught.value.code == UNSUPPORTED_ACCESS
-        assert (caught.value.node, caught.value.index, caught.value.subindex) == (NODE, index, 0)
+    with pytest.raises(AbortError) as caught:
+        _ = node[0x2100].data
+    assert caught.value.code == UNSUPPORTED_ACCESS
+    assert (caught.value.node, caught.value.index, caught.value.subindex) == (NODE, 0x2100, 0)
+    assert "node.serve_domain(0x2100, capacity)" in str(caught.value)
+    warned = [r.getMessage() for r in caplog.records if "DOMAIN" in r.getMessage()]
+    assert any("0x2100:00 'Demo large domain' has no memory" in text and "serve_domain" in text
+               for text in warned), warned
+    assert not any("0x200F" in text for text in warned)
+
+
+@MODES
+def test_a_small_domain_is_kept_in_the_stack_by_itself(net, bus_name, mode):
+    """0x200F (max 1024 bytes, at most AUTO_DOMAIN_LIMIT) has memory from boot:
+    empty at first, written and read back, longer than its maximum refused."""
+    node = serve(net, bus_name, mode)
+    assert node[0x200F].data == b""
+    node[0x200F].data = bytes(range(256)) * 4
+    assert node[0x200F].data == bytes(range(256)) * 4
+    with pytest.raises(AbortError) as caught:
+        node[0x200F].data = bytes(1025)
+    assert caught.value.code in (0x06070010, 0x06070012)
+    assert "serve_domain" not in str(caught.value)
 
 
 # ------------------------------------------------------------------ writing

@@ -38,7 +38,9 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("--domain", action="append", metavar="INDEX[:SUB]=BYTES",
                    help="keep DOMAIN entry INDEX[:SUB] (hex, or a name) in memory of BYTES "
                         "(like 16M, 512K, 0x100000), so USDO/SDO uploads and downloads reach "
-                        "it; repeatable (the built-in fd dictionary has 0x2100 = 16M already)")
+                        "it; repeatable (the built-in fd dictionary has 0x2100 = 16M already; "
+                        "a DOMAIN whose maximum length is at most 64K has its memory "
+                        "by itself)")
     p.add_argument("--duration", type=float, metavar="SECONDS",
                    help="stop after SECONDS (default: run until Ctrl-C)")
     p.set_defaults(func=cmd_device)

@@ -12,6 +12,7 @@ with respect to its thread. The OD is defined in C once, at boot.
 from __future__ import annotations
 
 import copy
+import logging
 from typing import Callable, Dict, Optional, Tuple, Union
 
 from .._binding.constants import EventKind, OdOrigin
@@ -24,11 +25,18 @@ from ..od.datatypes import DataType, Value
 from ..od.fileio import Source
 from .views import LocalNodeView
 
+log = logging.getLogger(__name__)
+
 __all__ = ["ServedDictionary", "LocalValue", "LocalObject", "Key", "ODEntry"]
 
 #: An entry by index, "index:sub", (index, sub), name or "Object.Sub".
 Key = Union[int, str, Tuple[int, int]]
 ODEntry = Union[ODVariable, ODRecord, ODArray]
+
+#: DOMAINs with a max_length up to this many bytes get memory at boot by
+#: themselves (a small domain is a value to keep, like a string); larger ones,
+#: and those without a max_length, wait for serve_domain or the application.
+AUTO_DOMAIN_LIMIT = 64 * 1024
 
 #: The writers on_object_changed names (the runtime reports no others).
 _ORIGIN_NAMES = {int(OdOrigin.NETWORK): "network", int(OdOrigin.PDO): "pdo"}
@@ -112,9 +120,35 @@ class ServedDictionary:
             self._give_domain(entry.index, entry.subindex, capacity)
 
     def give_domains(self) -> None:
-        """At boot, once the OD is defined: the memory of every domain served so far."""
+        """At boot, once the OD is defined: the memory of every domain served
+        so far, and of every DOMAIN of at most AUTO_DOMAIN_LIMIT bytes
+        (max_length) not served explicitly. The others are named in a warning:
+        the network's reads and writes of them are refused until served."""
+        unserved = []
+        for var in self._od().entries():
+            where = (var.index, var.subindex)
+            if var.data_type != DataType.DOMAIN or where in self._domains:
+                continue
+            if var.max_length and var.max_length <= AUTO_DOMAIN_LIMIT:
+                self._domains[where] = var.max_length
+            else:
+                unserved.append(var)
         for (index, sub), capacity in self._domains.items():
             self._give_domain(index, sub, capacity)
+        if unserved:
+            shown = ", ".join(f"{var.where} {var.qualname!r}" for var in unserved[:5])
+            more = f" and {len(unserved) - 5} more" if len(unserved) > 5 else ""
+            log.warning("%s: DOMAIN %s%s %s no memory: network reads and writes are refused "
+                        "until node.serve_domain(key, capacity) gives %s",
+                        self.where, shown, more, "has" if len(unserved) == 1 else "have",
+                        "it" if len(unserved) == 1 else "them")
+
+    def domain_hint(self, var: ODVariable) -> str:
+        """A hint for refusals of a DOMAIN that has no memory, else ''."""
+        if var.data_type != DataType.DOMAIN or (var.index, var.subindex) in self._domains:
+            return ""
+        return (f" (a DOMAIN without memory: call node.serve_domain(0x{var.index:04X}, "
+                "capacity) to keep its data in the stack)")
 
     def _give_domain(self, index: int, sub: int, capacity: int) -> None:
         context = self._context
@@ -197,12 +231,17 @@ class LocalValue:
     def _what(self, verb: str) -> str:
         return f"{verb} {self.variable.where} {self.variable.qualname!r}"
 
+    def _refused(self, code: int, verb: str) -> AbortError:
+        var = self.variable
+        return AbortError(code, self.node.node_id, var.index, var.subindex,
+                          self._what(verb) + self._served.domain_hint(var))
+
     @property
     def data(self) -> bytes:
         var = self.variable
         code, data = self._served.read(var.index, var.subindex, self._what("read"))
         if code:
-            raise AbortError(code, self.node.node_id, var.index, var.subindex, self._what("read"))
+            raise self._refused(code, "read")
         return data
 
     @data.setter
@@ -210,7 +249,7 @@ class LocalValue:
         var = self.variable
         code = self._served.write(var.index, var.subindex, bytes(data), self._what("write"))
         if code:
-            raise AbortError(code, self.node.node_id, var.index, var.subindex, self._what("write"))
+            raise self._refused(code, "write")
 
     @property
     def raw(self) -> Value:
