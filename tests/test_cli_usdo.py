@@ -426,3 +426,33 @@ def test_rate_text_picks_a_unit_that_shows_the_rate():
     assert [rate_text(n, 1.0) for n in (0, 812, 5000, 35_200, 2_410_000)] == \
         ["0 B/s", "812 B/s", "5.00 kB/s", "35.20 kB/s", "2.41 MB/s"]
     assert rate_text(5000, 0) == "- B/s"
+
+
+@pytest.mark.parametrize("mode, first, shown", [("block", 0xA4, "block"),
+                                                ("normal", 0x40, "segmented"),
+                                                ("auto", 0x40, "segmented")])
+def test_classic_upload_mode_asks_for_block_or_normal(net, bus_name, cli, tmp_path, mode,
+                                                      first, shown):
+    """`upload --classic --mode block` asks for a block upload (the request's
+    first byte 0xA4: ccs 5, CRC offered), normal / auto for a normal one (0x40)."""
+    node = net.open_line(bus_name, mode="classic").create_local_node(SERVER,
+                                                                    od=demo_od("classic"),
+                                                                    boot=False)
+    node.serve_domain(DOMAIN, 64 * KiB)
+    node.boot()
+    payload = os.urandom(3000)
+    node[DOMAIN].data = payload
+    requests = Recorder()
+    watcher = net.open_line(bus_name, mode="classic", monitor=True)
+    watcher.on_frame(lambda f: requests(f) if f.id == 0x600 + SERVER else None)
+    target = tmp_path / "up.bin"
+    status, out, err = cli("upload", "5", "0x2100", str(target), "--classic", "--mode", mode)
+    assert status == 0, err
+    assert re.fullmatch(f"uploaded {SUMMARY}: .*\n", out) and f", {shown})" in out, out
+    assert target.read_bytes() == payload
+    assert requests.wait_count(1)[0].data[0] == first
+
+
+def test_upload_mode_is_refused_on_fd_lines(server, cli, tmp_path):
+    status, _, err = cli("upload", "5", "0x2100", str(tmp_path / "x"), "--mode", "block")
+    one_error(status, err, "--mode block", "--classic")

@@ -44,6 +44,8 @@ from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, builtin
 
 #: download modes: 'bulk' on fd lines (USDO), 'block' on classic lines (SDO)
 MODES = ("auto", "expedited", "segmented", "bulk", "block")
+#: upload modes (SDO only): 'normal' is expedited or segmented, as the server picks
+UPLOAD_MODES = ("auto", "normal", "block")
 
 DEFAULT_CLIENT_ID = 127
 DEFAULT_TIMEOUT_S = 1.0
@@ -138,6 +140,10 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("node", metavar="NODE", help=unicast_help)
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to write (replaced once complete)")
+    p.add_argument("--mode", choices=list(UPLOAD_MODES), default="auto",
+                   help="SDO (--classic) only: block asks for a block upload (CRC, "
+                        "sub-blocks of 127 segments), normal for an expedited or segmented "
+                        "one as the server picks; default auto: normal (USDO picks by itself)")
     p.add_argument("--progress", action="store_true",
                    help="show the progress (bytes, rate) on stderr even when it is no "
                         "terminal")
@@ -684,6 +690,9 @@ class _Failed(Exception):
 def cmd_upload(args: argparse.Namespace) -> int:
     node = parse_node(args.node, broadcast=False)
     _check_common(args, node)
+    if args.mode != "auto" and not args.classic:
+        raise UsageError(f"--mode {args.mode} is for SDO uploads (--classic): a USDO server "
+                         "picks expedited or segmented by itself and USDO has no bulk upload")
     od = _load_od(args.od, node)
     index, sub, variable = parse_key(args.key, od)
     bar = ProgressBar("upload", None) if _show_progress(args) else None
@@ -693,8 +702,10 @@ def cmd_upload(args: argparse.Namespace) -> int:
             if bar is not None:
                 bar.start()
             try:
+                mode = {"normal": "segmented"}.get(args.mode, args.mode)
                 transfer = _client(line).start_upload(node, index, sub, file=target,
-                                                      timeout=args.timeout, progress=bar)
+                                                      timeout=args.timeout, progress=bar,
+                                                      mode=mode)
                 _wait(transfer)
             except AbortError as exc:
                 if bar is not None:

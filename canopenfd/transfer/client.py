@@ -321,6 +321,8 @@ class TransferClient:
     #: protocol name in messages, mode names (index = the runtime's mode code)
     PROTOCOL = ""
     MODES: Tuple[str, ...] = ()
+    #: the modes an upload takes (a subset of MODES)
+    UPLOAD_MODES: Tuple[str, ...] = ("auto",)
     #: the cancel code that means "general error"
     GENERAL_ERROR = 0
     #: downloads carry the entry's data type (USDO does, SDO has no field for it)
@@ -349,19 +351,28 @@ class TransferClient:
     def start_upload(self, node: int, index: int, sub: int = 0, *,
                      timeout: float = 1.0, max_size: Optional[int] = None,
                      file: Optional[BinaryIO] = None,
-                     progress: Optional[Progress] = None, size_hint: int = 0) -> Transfer:
+                     progress: Optional[Progress] = None, size_hint: int = 0,
+                     mode: str = "auto") -> Transfer:
         """Start reading index:sub of node; returns at once. `file`: an open
         binary file the data streams into (else memory, at most max_size).
-        size_hint (SDO): the bytes expected, so AUTO can pick a block upload."""
+        size_hint (SDO): the bytes expected, so AUTO can pick a block upload.
+        mode (SDO): 'auto', 'block' (a block upload whatever the size), or
+        'expedited' / 'segmented' (a normal upload: the server picks which)."""
         return self._begin_upload(node, index, sub, True, timeout=timeout, max_size=max_size,
-                                  file=file, progress=progress, size_hint=size_hint)
+                                  file=file, progress=progress, size_hint=size_hint,
+                                  mode=mode)
 
     def _begin_upload(self, node: int, index: int, sub: int, done_event: bool, *,
                       timeout: float = 1.0, max_size: Optional[int] = None,
                       file: Optional[BinaryIO] = None,
-                      progress: Optional[Progress] = None, size_hint: int = 0) -> Transfer:
+                      progress: Optional[Progress] = None, size_hint: int = 0,
+                      mode: str = "auto") -> Transfer:
         what = f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X} from node {node}"
+        if mode not in self.UPLOAD_MODES:
+            raise ConfigurationError(f"{what}: mode {mode!r} is not one of "
+                                     f"{', '.join(self.UPLOAD_MODES)}")
         request = self._request(node, index, sub, True, timeout, what)
+        request.mode = self.MODES.index(mode)
         request.done_event = done_event
         if not 0 <= size_hint < 0xFFFFFFFF:
             raise ConfigurationError(f"{what}: size_hint {size_hint} outside 0..2^32-2")

@@ -41,6 +41,7 @@ class SdoClient(TransferClient):
 
     PROTOCOL = "SDO"
     MODES = ("auto", "expedited", "segmented", "block")
+    UPLOAD_MODES = MODES
     GENERAL_ERROR = int(AbortCode.GENERAL)
 
     def __init__(self, context: LineContext) -> None:
