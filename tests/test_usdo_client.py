@@ -331,22 +331,33 @@ def test_blocking_forms_wait_in_c_without_a_done_event(rig, done_events):
     assert len(done_events) == 1     # the awaiting task heard it through the event
 
 
-def test_an_await_and_a_blocking_wait_on_one_transfer_both_end(rig, done_events):
+def test_an_await_and_a_blocking_wait_on_one_transfer_both_end(net, bus_name, done_events):
     """A transfer that ends while a thread waits for it in C posts no
-    TRANSFER_DONE event; that thread tells the awaiting task."""
-    server, line, _ = rig
-    payload = os.urandom(2 * MiB)
+    TRANSFER_DONE event; that thread tells the awaiting task. The server holds
+    the upload (a deferred before-read) until the blocking wait has begun, so
+    a loaded machine cannot end the transfer before anyone waits in C."""
+    server = make_server(net, bus_name)
+    line = net.open_line(bus_name, mode="fd")
+    payload = os.urandom(64 << 10)
     server[DOMAIN].data = payload
-    transfer = line.usdo.start_upload(SERVER, DOMAIN, 0)    # segmented: takes a while
-    awaited = Recorder()
+    held = Recorder()
+    server.on_read(DOMAIN, lambda request: (held(request), request.defer())[1])
+    transfer = line.usdo.start_upload(SERVER, DOMAIN, 0, timeout=scaled(10))
+    awaited, blocked = Recorder(), Recorder()
 
     async def main():
         awaited(await transfer)
 
     waiter = threading.Thread(target=lambda: asyncio.run(main()))
     waiter.start()
-    assert transfer.result() == payload
-    waiter.join(scaled(5))
+    blocking = threading.Thread(target=lambda: blocked(transfer.result()))
+    blocking.start()
+    request = held.wait_count(1)[0]
+    time.sleep(scaled(0.3))                 # the blocking thread waits in C by now
+    request.accept()
+    blocking.join(scaled(10))
+    waiter.join(scaled(10))
+    assert blocked.snapshot() == [payload]
     assert awaited.snapshot() == [payload]
     assert done_events == []
 
