@@ -510,8 +510,10 @@ class RemoteNode:
         """Node guarding (classic lines; CAN FD has no remote frames): a
         remote frame on 0x700 + node-id every guard_time_ms, answered with the
         node's state and a toggle bit; life_time_factor answers missed in a
-        row is "lost" (add_guard_callback). Guarding again changes the times."""
-        self._guard.guard(guard_time_ms, life_time_factor)
+        row is "lost" (add_guard_callback). Guarding again changes the times.
+        Guarding a node that sends heartbeats logs a warning (it would not
+        answer: false losses)."""
+        self._guard.guard(guard_time_ms, life_time_factor, self._heartbeat_timeout_ms > 0)
 
     def unguard(self) -> None:
         """Stop guarding the node."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import itertools
+import logging
 import threading
 import time
 
@@ -590,3 +591,26 @@ def test_a_line_without_local_node_hears_sync_with_and_without_counter(net, bus_
         producer.sync.stop()
     assert all(1 <= c <= 4 for c in counters[:3]), counters
     assert tool.service_stats["sync"]["bad_length"] == 0
+
+
+def test_guarding_a_node_that_sends_heartbeats_warns(net, bus_name, caplog):
+    """A device whose heartbeat producer runs does not answer guarding (CiA
+    301: one error control method): guard() says so instead of leaving the
+    user with false losses; a node not heard heartbeating gives no warning."""
+    line = net.open_line(bus_name, mode="classic")
+    beating = line.add_node(NODE)
+    net.open_line(bus_name, mode="classic").create_local_node(NODE, 20, od=demo_od("classic"))
+    beating.wait_for_heartbeat(scaled(5))
+    quiet = line.add_node(9)
+    with caplog.at_level(logging.WARNING):
+        quiet.guard(100, 3)
+        assert not [r for r in caplog.records if "heartbeat" in r.getMessage()]
+        beating.guard(100, 3)
+        warned = [r.getMessage() for r in caplog.records if "heartbeat" in r.getMessage()]
+    assert len(warned) == 1 and f"node {NODE} sends heartbeats" in warned[0], warned
+    assert "false losses" in warned[0]
+    watched = line.add_node(11, heartbeat_timeout_ms=500)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        watched.guard(100, 3)
+    assert any("node 11 is watched for heartbeats" in r.getMessage() for r in caplog.records)

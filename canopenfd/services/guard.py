@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import enum
+import logging
 from typing import Callable, List, Optional
 
 from .._binding.constants import EventKind, GuardEventCode, NmtState
@@ -18,6 +19,8 @@ from ..errors import ConfigurationError
 from .nmt import HeartbeatMonitor, remote_state_of
 
 __all__ = ["GuardEvent", "NodeGuard"]
+
+log = logging.getLogger(__name__)
 
 
 class GuardEvent(str, enum.Enum):
@@ -56,7 +59,8 @@ class NodeGuard:
         self._callbacks = CallbackList(f"node {node_id} guarding")
         context.subscribe(EventKind.GUARD, self._event, node=node_id)
 
-    def guard(self, guard_time_ms: int, life_time_factor: int) -> None:
+    def guard(self, guard_time_ms: int, life_time_factor: int,
+              heartbeat_watched: bool = False) -> None:
         where = f"guard({guard_time_ms!r}, {life_time_factor!r}) of {self._where}"
         if self._context.mode != "classic":
             raise ConfigurationError(f"{where}: node guarding needs a classic line (CAN FD "
@@ -70,6 +74,12 @@ class NodeGuard:
                 not 1 <= life_time_factor <= 255:
             raise ConfigurationError(f"{where}: life_time_factor must be an int 1..255, got "
                                      f"{life_time_factor!r}")
+        if not self.guarded and (heartbeat_watched or self._monitor.alive):
+            log.warning("%s: node %d %s heartbeats; CiA 301 has a node use one error control "
+                        "method, and a device whose heartbeat producer (0x1017) runs does not "
+                        "answer guarding: expect false losses (set heartbeat_timeout_ms and "
+                        "drop guarding, or switch its heartbeat off)", where, self.node_id,
+                        "sends" if self._monitor.alive else "is watched for")
         self._context.runtime.guard(self._context.index, self.node_id, guard_time_ms,
                                     life_time_factor, where)
         self.guarded = True
