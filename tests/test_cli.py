@@ -52,6 +52,10 @@ def test_demo():
     for line in out.strip().splitlines():
         float(line.split()[0])
     check_demo_process_data(out, fd=True)
+    # the last line tells node 2's real state and marks node 1's view as stale
+    last = out.strip().splitlines()[-1]
+    assert "done: node 2 is OPERATIONAL; last states heard by node 1 {" in last, last
+    assert "heartbeat is off" in last, last
 
 
 def _after(out: str, marker: str) -> str:

@@ -261,6 +261,17 @@ def _demo_process_data(say: Callable[..., None], manager_line: Line, manager: An
     return ok and synced and raised and cleared
 
 
+def _final_states(manager_line: Any, device: Any) -> str:
+    """The last line: node 2's own state, and what node 1 last heard from
+    heartbeats, marked stale when node 2's heartbeat is off (the demo switches
+    it off, so node 1's view stops at that moment)."""
+    heard = ", ".join(f"{n}: {s.label}" for n, s in manager_line.states.items())
+    stale = " (node 2's heartbeat is off since; node 1 hears no later state)" \
+        if device.heartbeat_ms == 0 else ""
+    return (f"done: node 2 is {device.state.label}; last states heard by node 1 "
+            f"{{{heard}}}{stale}")
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Two nodes and a monitor on the in-process bus 'mem:demo' (CAN FD, or
     classic with --classic): NMT and heartbeat, USDO (a read, a write, 1 MiB
@@ -341,7 +352,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
             usdo_ok = usdo_ok and process_ok
         except KeyboardInterrupt:
             usdo_ok = True
-        states = ", ".join(f"{n}: {s.label}" for n, s in manager_line.states.items())
-        say(f"done: states seen by node 1 {{{states}}}")
+        say(_final_states(manager_line, device))
     return EXIT_OK if usdo_ok else EXIT_FAILED
 
