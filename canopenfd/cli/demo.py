@@ -298,7 +298,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
         monitor.on_frame(on_frame)
 
         manager_line = net.open_line("mem:demo", mode=mode)
-        manager = manager_line.create_local_node(1, od=_demo_node_od(mode))
+        manager = manager_line.create_local_node(1, od=_demo_node_od(mode), boot=False)
+        manager.serve_domain(0x2100, 64 << 10)   # node 1 is no bulk target: a little memory
+        manager.boot()
         watched = manager_line.add_node(2, heartbeat_timeout_ms=250, od=demo_od(mode))
         lost = threading.Event()
         watched.on_bootup(lambda: say("node 1   sees node 2 boot-up"))
