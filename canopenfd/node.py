@@ -17,8 +17,8 @@ from .od.datatypes import Value
 from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
 from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
-from .services.nmt import (HeartbeatMonitor, LocalNmt, NmtCommand, NmtMaster, NmtSlave,
-                           NmtState, RemoteNmt, StateLike)
+from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtCommand,
+                           NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
 from .services.served_od import Key, LocalObject, LocalValue, ServedDictionary
 from .services.store import STORE_STATUS, StoreMedium, ParameterStore
@@ -490,11 +490,18 @@ class RemoteNode:
         """callback() at the first heartbeat, and when heartbeats resume."""
         return self._monitor.on_heartbeat_started(callback)
 
-    def add_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
-        """python-canopen's callback(state), called when a heartbeat brings news:
-        boot-up, the first heartbeat, a state change, resumption after loss
-        (not for every unchanged heartbeat: no Python code per frame)."""
-        self._monitor.add_heartbeat_callback(callback)
+    def add_heartbeat_callback(self, callback: Callable[[NmtState], None],
+                               min_interval_ms: int = DEFAULT_TICK_MS) -> None:
+        """python-canopen's callback(state) for every heartbeat of the node and
+        its boot-up (state INITIALISING): a liveness tick. The C runtime tells
+        at most one heartbeat per min_interval_ms (default 10), and only while
+        callbacks exist, so no Python runs per frame when nobody asked; at most
+        8 nodes of a line tick at once."""
+        self._monitor.add_heartbeat_callback(callback, min_interval_ms)
+
+    def remove_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
+        """Remove a heartbeat callback (the last one stops the ticks)."""
+        self._monitor.remove_heartbeat_callback(callback)
 
     # ---------------------------------------------------------------- EMCY
     @property

@@ -812,3 +812,35 @@ def test_python_canopen_habits_on_a_line(net, bus_name, tmp_path):
         master.nmt.state
     with pytest.raises(AttributeError):
         master.nmt.stat = "OPERATIONAL"                    # a typo is not silently kept
+
+
+def test_heartbeat_callback_for_every_heartbeat_bounded_and_removable(net, bus_name):
+    """python-canopen's add_heartbeat_callback: a call per heartbeat (state
+    given), from the C runtime only while callbacks exist, at most one per
+    min_interval_ms; removing the last one stops them."""
+    watcher = net.open_line(bus_name)
+    remote = watcher.add_node(5)
+    beats, slow = Recorder(), Recorder()
+    remote.nmt.add_heartbeat_callback(beats, min_interval_ms=0)
+    device = net.open_line(bus_name).create_local_node(5, heartbeat_ms=10)
+    beats.wait_count(12, timeout=wait(2.0))           # boot-up + every heartbeat
+    assert beats.snapshot()[0] == NmtState.INITIALISING
+    assert set(beats.snapshot()[1:]) == {NmtState.PRE_OPERATIONAL}
+    device.nmt.state = "OPERATIONAL"
+    beats.wait_for(lambda calls: NmtState.OPERATIONAL in calls, wait(2.0), "OPERATIONAL")
+    # a 100 ms bound: over a window, at most one call per 100 ms (+1 at its start)
+    remote.nmt.remove_heartbeat_callback(beats)
+    remote.add_heartbeat_callback(slow, min_interval_ms=100)
+    slow.wait_count(2, timeout=wait(2.0))
+    first = slow.times[0]
+    time.sleep(0.5)
+    window = slow.times[-1] - first
+    assert len(slow) <= window / 0.1 + 1.5, (len(slow), window)
+    remote.remove_heartbeat_callback(slow)
+    time.sleep(0.05)
+    stopped = len(slow)
+    time.sleep(0.2)
+    assert len(slow) == stopped                       # 20 heartbeats later: no call
+    assert len(beats) > 12 and beats.snapshot()[-1] == NmtState.OPERATIONAL
+    with pytest.raises(ConfigurationError, match="min_interval_ms"):
+        remote.add_heartbeat_callback(print, min_interval_ms=-1)

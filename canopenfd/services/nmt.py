@@ -21,12 +21,18 @@ from .._binding.constants import CommandKind, EventKind, HeartbeatEvent, NmtComm
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event, now_us
 from .._callbacks import CallbackList, chain
+from .._checks import check_ms
 from ..errors import ConfigurationError
 
 __all__ = ["NmtState", "NmtCommand", "NmtMaster", "LocalNmt", "RemoteNmt", "NmtSlave",
            "HeartbeatMonitor", "parse_node_target", "state_of", "remote_state_of"]
 
 StateLike = Union[NmtState, str, int]
+
+#: add_heartbeat_callback's default bound: at most one heartbeat per 10 ms and
+#: node reaches Python (heartbeat producers run at 1 ms and slower; a node
+#: flooding its CAN-ID is cut to 100 calls a second).
+DEFAULT_TICK_MS = 10
 
 # How many recent states a node remembers, so a wait that starts a little
 # late still sees a short-lived state (INITIALISING during a reset).
@@ -279,6 +285,7 @@ class HeartbeatMonitor:
         self._lost = CallbackList(f"node {node_id} heartbeat lost")
         self._started = CallbackList(f"node {node_id} heartbeat started")
         self._heartbeat = CallbackList(f"node {node_id} heartbeat")
+        self._tick_ms: Optional[int] = None   # interval the runtime ticks with, None = off
         context.subscribe(EventKind.HEARTBEAT, self._event, node=node_id)
 
     # ------------------------------------------------------------ the consumer
@@ -338,8 +345,30 @@ class HeartbeatMonitor:
     def on_heartbeat_started(self, callback: Callable[[], None]) -> Callable[[], None]:
         return self._started.add(callback)
 
-    def add_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
+    def add_heartbeat_callback(self, callback: Callable[[NmtState], None],
+                               min_interval_ms: int = DEFAULT_TICK_MS) -> None:
+        """callback(state) for every heartbeat (and boot-up, state 0); the C
+        runtime tells at most one heartbeat per min_interval_ms (per node), so
+        a node sending too fast cannot flood Python. The first callback asks
+        the runtime for the ticks; a later one with another interval changes it."""
+        what = f"add_heartbeat_callback of {self._where}"
+        check_ms(min_interval_ms, "min_interval_ms", what)
         self._heartbeat.add(callback)
+        if min_interval_ms != self._tick_ms:
+            context = self._context
+            context.runtime.command(CommandKind.HB_TICK, context.index, what=what,
+                                    node_id=self.node_id, interval_ms=min_interval_ms, on=1)
+            self._tick_ms = min_interval_ms
+
+    def remove_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
+        """Remove a callback; with the last one the runtime stops the ticks."""
+        self._heartbeat.remove(callback)
+        if not self._heartbeat and self._tick_ms is not None:
+            context = self._context
+            context.runtime.command(CommandKind.HB_TICK, context.index,
+                                    what=f"remove_heartbeat_callback of {self._where}",
+                                    node_id=self.node_id, interval_ms=0, on=0)
+            self._tick_ms = None
 
     # ------------------------------------------------------------ reports (under the condition)
     def guard_lost(self) -> Callable[[], None]:
@@ -373,12 +402,15 @@ class HeartbeatMonitor:
         elif kind == HeartbeatEvent.LOST:
             self.alive = False
             return self._lost.fire
+        elif kind == HeartbeatEvent.TICK:
+            # one heartbeat, told because callbacks asked (add_heartbeat_callback)
+            self._last_heartbeat_us = max(self._last_heartbeat_us, event.time_us)
+            calls.append(lambda: self._heartbeat.fire(state))
         else:
             self._last_heartbeat_us = max(self._last_heartbeat_us, event.time_us)
             if kind == HeartbeatEvent.STARTED:
                 self.alive = True
                 calls.append(self._started.fire)
-            calls.append(lambda: self._heartbeat.fire(state))
         changed = self.state_seen(state)
         if changed is not None:
             calls.append(changed)
@@ -455,8 +487,14 @@ class RemoteNmt:
     def wait_for_state(self, state: Union[NmtState, str, int], timeout: float = 10.0) -> None:
         self._monitor.wait_for_state(state, timeout)
 
-    def add_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
-        self._monitor.add_heartbeat_callback(callback)
+    def add_heartbeat_callback(self, callback: Callable[[NmtState], None],
+                               min_interval_ms: int = DEFAULT_TICK_MS) -> None:
+        """python-canopen's callback(state) for every heartbeat (see
+        HeartbeatMonitor.add_heartbeat_callback)."""
+        self._monitor.add_heartbeat_callback(callback, min_interval_ms)
+
+    def remove_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
+        self._monitor.remove_heartbeat_callback(callback)
 
     @property
     def heartbeat_alive(self) -> Optional[bool]:

@@ -103,6 +103,27 @@ static void monitor_heartbeat(co_hb_consumer_t *c, co_hb_entry_t *e, co_nmt_stat
     }
 }
 
+static co_hb_tick_t *tick_of(co_hb_consumer_t *c, uint8_t node_id)
+{
+    for (size_t i = 0; i < CO_HB_TICKS; i++) {
+        if (c->ticks[i].node_id == node_id) {
+            return &c->ticks[i];
+        }
+    }
+    return NULL;
+}
+
+/* A heartbeat of a ticking node: told unless its interval has not passed. */
+static void tick(co_hb_consumer_t *c, uint8_t node_id, co_nmt_state_t state)
+{
+    co_hb_tick_t *t = tick_of(c, node_id);
+    uint64_t now = co_line_now(c->line);
+    if (t && now >= t->next_us) {
+        t->next_us = now + (uint64_t)t->interval_ms * 1000u;
+        emit(c, node_id, CO_HB_TICK, state);
+    }
+}
+
 static void on_heartbeat_frame(co_line_t *line, const co_frame_t *frame, void *user)
 {
     co_hb_consumer_t *c = user;
@@ -143,6 +164,7 @@ static void on_heartbeat_frame(co_line_t *line, const co_frame_t *frame, void *u
     if (e) {
         monitor_heartbeat(c, e, state);
     }
+    tick(c, node_id, state);
 }
 
 bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *entries,
@@ -156,6 +178,7 @@ bool co_hb_consumer_init(co_hb_consumer_t *c, co_line_t *line, co_hb_entry_t *en
     c->filter = NULL;
     c->filter_user = NULL;
     memset(c->last_state, CO_NMT_UNKNOWN, sizeof c->last_state);
+    memset(c->ticks, 0, sizeof c->ticks);
     for (uint8_t i = 0; i < capacity; i++) {
         entries[i] = (co_hb_entry_t){.owner = c};
         co_timer_init(&entries[i].timer, on_consumer_timeout, &entries[i]);
@@ -239,6 +262,33 @@ co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
     }
     return co_hb_consumer_set_entry(c, (uint8_t)(e - c->entries),
                                     ((uint32_t)node_id << 16) | time_ms);
+}
+
+co_hb_config_result_t co_hb_consumer_tick(co_hb_consumer_t *c, uint8_t node_id,
+                                          uint16_t interval_ms)
+{
+    if (node_id < 1 || node_id > 127) {
+        return CO_HB_CONFIG_BAD_NODE;
+    }
+    co_hb_tick_t *t = tick_of(c, node_id);
+    if (!t) {
+        t = tick_of(c, 0);
+        if (!t) {
+            return CO_HB_CONFIG_NO_ROOM;
+        }
+        *t = (co_hb_tick_t){.node_id = node_id};
+    }
+    t->interval_ms = interval_ms;
+    t->next_us = 0;   /* the next heartbeat is told */
+    return CO_HB_CONFIG_OK;
+}
+
+void co_hb_consumer_untick(co_hb_consumer_t *c, uint8_t node_id)
+{
+    co_hb_tick_t *t = node_id ? tick_of(c, node_id) : NULL;
+    if (t) {
+        *t = (co_hb_tick_t){0};
+    }
 }
 
 void co_hb_consumer_unwatch(co_hb_consumer_t *c, uint8_t node_id)

@@ -1108,6 +1108,46 @@ static void test_consumer_entry_index_outside_table(void **state)
     assert_int_equal(co_hb_consumer_get_entry(&fx->cons, 8), 0);
 }
 
+/* Ticks: every heartbeat of a ticking node is told (watched or not), at most
+ * one per interval; boot-ups stay CO_HB_BOOTUP; untick stops them; the table
+ * holds CO_HB_TICKS nodes. */
+static void test_consumer_ticks_every_heartbeat_bounded_by_interval(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t n;
+    consumer_on_a(fx);
+    assert_int_equal(co_hb_consumer_tick(&fx->cons, ID_X, 0), CO_HB_CONFIG_OK);
+    for (n = 0; n < 3; n++) {
+        inject_hb(fx, ID_X, 0x7F);
+    }
+    assert_int_equal(count_ev(fx, EV_HB, ID_X, CO_HB_TICK, CO_NMT_PRE_OPERATIONAL), 3);
+    inject_hb(fx, ID_X, 0x00);                          /* boot-up: not a tick */
+    assert_int_equal(count_ev(fx, EV_HB, ID_X, CO_HB_TICK, -1), 3);
+    assert_int_equal(count_ev(fx, EV_HB, ID_X, CO_HB_BOOTUP, -1), 1);
+    /* 50 ms interval: of heartbeats every 10 ms for 200 ms, one per 50 ms */
+    assert_int_equal(co_hb_consumer_tick(&fx->cons, ID_X, 50), CO_HB_CONFIG_OK);
+    fx->nev = 0;
+    uint64_t start = fx->tb.now;
+    for (n = 0; n < 20; n++) {
+        run_until(fx, start + (uint64_t)n * 10 * TU_MS);
+        inject_hb(fx, ID_X, 0x05);
+    }
+    assert_int_equal(count_ev(fx, EV_HB, ID_X, CO_HB_TICK, CO_NMT_OPERATIONAL), 4);
+    co_hb_consumer_untick(&fx->cons, ID_X);
+    fx->nev = 0;
+    run_until(fx, fx->tb.now + 100 * TU_MS);
+    inject_hb(fx, ID_X, 0x05);
+    assert_int_equal(count_ev(fx, EV_HB, ID_X, CO_HB_TICK, -1), 0);
+    for (n = 1; n <= CO_HB_TICKS; n++) {
+        assert_int_equal(co_hb_consumer_tick(&fx->cons, n, 10), CO_HB_CONFIG_OK);
+    }
+    assert_int_equal(co_hb_consumer_tick(&fx->cons, CO_HB_TICKS + 1, 10), CO_HB_CONFIG_NO_ROOM);
+    assert_int_equal(co_hb_consumer_tick(&fx->cons, 0, 10), CO_HB_CONFIG_BAD_NODE);
+    assert_int_equal(co_hb_consumer_tick(&fx->cons, 128, 10), CO_HB_CONFIG_BAD_NODE);
+    co_hb_consumer_untick(&fx->cons, 1);
+    assert_int_equal(co_hb_consumer_tick(&fx->cons, CO_HB_TICKS + 1, 10), CO_HB_CONFIG_OK);
+}
+
 static void test_consumer_watch_table_full(void **state)
 {
     fx_t *fx = *state;
@@ -1329,6 +1369,7 @@ int main(void)
         BOTH(test_consumer_watch_bad_node_refused),
         BOTH(test_consumer_entry_node_above_127_means_unused),
         BOTH(test_consumer_entry_index_outside_table),
+        BOTH(test_consumer_ticks_every_heartbeat_bounded_by_interval),
         BOTH(test_consumer_watch_table_full),
         BOTH(test_consumer_entry_node_zero_disables),
         BOTH(test_consumer_set_entry_same_node_keeps_monitoring_new_time_from_now),

@@ -10,7 +10,9 @@ typedef enum co_hb_event {
     CO_HB_BOOTUP = 1,         /* a node sent its boot-up message */
     CO_HB_STATE_CHANGED = 2,  /* a node reported another NMT state */
     CO_HB_STARTED = 3,        /* monitoring started (or resumed after lost) */
-    CO_HB_LOST = 4            /* no heartbeat within the consumer time */
+    CO_HB_LOST = 4,           /* no heartbeat within the consumer time */
+    CO_HB_TICK = 5            /* a heartbeat of a ticking node (co_hb_consumer_tick),
+                                 at most one per its interval */
 } co_hb_event_t;
 /* cffi:end */
 
@@ -45,6 +47,18 @@ typedef struct co_hb_entry {
     co_timer_t timer;
 } co_hb_entry_t;
 
+/* Nodes whose every heartbeat is told (CO_HB_TICK), for applications that
+ * want a liveness tick; bounded per node by an interval, so a node sending
+ * heartbeats as fast as the bus allows cannot flood the application. */
+#ifndef CO_HB_TICKS
+#define CO_HB_TICKS 8
+#endif
+typedef struct co_hb_tick {
+    uint8_t node_id;              /* 0 = unused */
+    uint16_t interval_ms;         /* at most one CO_HB_TICK per interval */
+    uint64_t next_us;             /* no tick before this time */
+} co_hb_tick_t;
+
 typedef void (*co_hb_event_fn)(struct co_hb_consumer *c, uint8_t node_id,
                                co_hb_event_t event, co_nmt_state_t state, void *user);
 
@@ -60,6 +74,7 @@ typedef struct co_hb_consumer {
     void *filter_user;
     /* Last state seen of every node, CO_NMT_UNKNOWN when none. Indexed by node-id. */
     uint8_t last_state[128];
+    co_hb_tick_t ticks[CO_HB_TICKS];
 } co_hb_consumer_t;
 
 /* Subscribes CAN-IDs 0x700..0x77F (0x700 counted as hb_bad_node). Every node's boot-up and state changes are
@@ -93,6 +108,13 @@ co_hb_config_result_t co_hb_consumer_set_entry(co_hb_consumer_t *c, uint8_t inde
  * existing entry as it is, and gives way when 0x1016 later names the node. */
 co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
                                            uint16_t time_ms);
+/* Tell every heartbeat of node_id (boot-ups excepted: CO_HB_BOOTUP) as
+ * CO_HB_TICK, at most one per interval_ms (0 = every heartbeat; a later call
+ * changes the interval); works whether or not the node is watched. Stop with
+ * co_hb_consumer_untick. CO_HB_CONFIG_NO_ROOM when CO_HB_TICKS nodes tick. */
+co_hb_config_result_t co_hb_consumer_tick(co_hb_consumer_t *c, uint8_t node_id,
+                                          uint16_t interval_ms);
+void co_hb_consumer_untick(co_hb_consumer_t *c, uint8_t node_id);
 /* Stop watching a node (its entry becomes unused); harmless if not watched. */
 void co_hb_consumer_unwatch(co_hb_consumer_t *c, uint8_t node_id);
 /* 0x1016 value of an entry. */

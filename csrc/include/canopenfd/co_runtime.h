@@ -60,9 +60,10 @@ typedef enum co_rt_command_kind {
     CO_CMD_HB_WATCH = 5,         /* watch a node's heartbeat */
     CO_CMD_HB_UNWATCH = 6,
     CO_CMD_ALLOW_OPERATIONAL = 7,/* veto or allow "to operational" */
-    CO_CMD_SEND_FRAME = 8        /* a frame sent as is (tools, tests); refused with
+    CO_CMD_SEND_FRAME = 8,       /* a frame sent as is (tools, tests); refused with
                                     CO_RT_ERR_FULL while a host line's python-can bus
                                     lags (its queues full): send it again later */
+    CO_CMD_HB_TICK = 9           /* post a node's heartbeats (CO_HB_TICK), bounded */
 } co_rt_command_kind_t;
 
 /* What a command carries: the member of `args` named after its kind. */
@@ -79,6 +80,8 @@ typedef struct co_rt_command {
         struct { uint32_t node_id; } hb_unwatch;
         struct { uint32_t allow; } allow_operational;
         co_frame_t send_frame;
+        /* on 0 stops; interval_ms: at most one CO_HB_TICK per interval */
+        struct { uint32_t node_id; uint32_t interval_ms; uint32_t on; } hb_tick;
     } args;
 } co_rt_command_t;
 

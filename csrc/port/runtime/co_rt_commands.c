@@ -11,7 +11,7 @@ static const char *command_name(int kind)
 {
     static const char *const names[] = {
         "?", "NODE_CREATE", "NMT_SEND", "NMT_LOCAL", "HEARTBEAT_TIME",
-        "HB_WATCH", "HB_UNWATCH", "ALLOW_OPERATIONAL", "SEND_FRAME"};
+        "HB_WATCH", "HB_UNWATCH", "ALLOW_OPERATIONAL", "SEND_FRAME", "HB_TICK"};
     return kind > 0 && kind < (int)(sizeof names / sizeof names[0]) ? names[kind] : names[0];
 }
 
@@ -82,6 +82,10 @@ static int check_command_args(co_rt_t *rt, const rt_line_t *l, const co_rt_comma
                                        (unsigned)cmd->args.allow_operational.allow);
     case CO_CMD_SEND_FRAME:
         return check_frame(rt, l, &cmd->args.send_frame);
+    case CO_CMD_HB_TICK:
+        return first_error(check_node_id(rt, cmd->args.hb_tick.node_id, false),
+                           check_ms(rt, "heartbeat tick interval",
+                                    cmd->args.hb_tick.interval_ms));
     default:
         return rt_argument_error(rt, "command kind %d unknown", cmd->kind);
     }
@@ -164,6 +168,23 @@ static int cmd_hb_watch(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     return r == CO_HB_CONFIG_NO_ROOM ? CO_RT_ERR_FULL : CO_RT_ERR_ARGUMENT;
 }
 
+static int cmd_hb_tick(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
+{
+    co_hb_consumer_t *consumer = co_stack_hb_consumer(&l->stack);
+    uint8_t node_id = (uint8_t)cmd->args.hb_tick.node_id;
+    if (!cmd->args.hb_tick.on) {
+        co_hb_consumer_untick(consumer, node_id);
+        return CO_RT_OK;
+    }
+    if (co_hb_consumer_tick(consumer, node_id, (uint16_t)cmd->args.hb_tick.interval_ms) ==
+        CO_HB_CONFIG_OK) {
+        return CO_RT_OK;
+    }
+    rt_set_error(rt, "line %d: cannot tell node %u's heartbeats: %d nodes do already",
+                 l->index, (unsigned)node_id, CO_HB_TICKS);
+    return CO_RT_ERR_FULL;
+}
+
 /* Consumer entries that mirror 0x1016 sub 1.. of the local node's OD. */
 static uint8_t od_consumer_entries(const rt_line_t *l)
 {
@@ -212,6 +233,8 @@ static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     case CO_CMD_HB_UNWATCH:
         hb_unwatch(l, (uint8_t)cmd->args.hb_unwatch.node_id);
         return CO_RT_OK;
+    case CO_CMD_HB_TICK:
+        return cmd_hb_tick(rt, l, cmd);
     case CO_CMD_ALLOW_OPERATIONAL:
         l->allow_operational = cmd->args.allow_operational.allow != 0;
         return CO_RT_OK;
