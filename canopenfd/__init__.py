@@ -15,6 +15,7 @@ facade over it::
 __version__ = "0.1.0"
 
 from ._binding.constants import CommEvent
+from .connect import connect
 from .decode import decode
 from .errors import (AbortError, CanopenFDError, ClosedError, CommandError, ConfigurationError,
                      InterfaceError)
@@ -33,6 +34,6 @@ __all__ = [
     "AbortError", "CanopenFDError", "ClosedError", "CommandError", "ConfigurationError",
     "InterfaceError", "OdFileError", "OdValueError", "ObjectDictionary", "import_od", "LocalValue",
     "Frame", "Emcy", "NmtCommand", "NmtState", "decode",
-    "Network", "Line", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
+    "Network", "Line", "connect", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
     "UsdoAbortError", "UsdoTransfer", "SdoAbortError", "Transfer",
 ]

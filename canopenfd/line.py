@@ -66,6 +66,9 @@ class Line:
         self.brs = brs
         self.monitor = monitor
         self._context = context
+        #: True for a line canopenfd.connect() made: disconnect() (or leaving a
+        #: `with line:` block) closes its network, which holds only this line.
+        self.own_network = False
         self.nmt = NmtMaster(context)
         self.nodes: Dict[int, RemoteNode] = {}
         self.local_node: Optional[LocalNode] = None
@@ -87,6 +90,26 @@ class Line:
     def __repr__(self) -> str:
         kind = "monitor " if self.monitor else ""
         return f"<Line {self.channel!r} {self.mode} {kind}#{self.index}>"
+
+    # ---------------------------------------------------------------- connect()'s line
+    def disconnect(self) -> None:
+        """Close the network canopenfd.connect() opened for this line
+        (python-canopen's network.disconnect()); idempotent. A line of a
+        Network you opened closes with that Network."""
+        if not self.own_network:
+            raise ConfigurationError(f"{self._where} belongs to a Network opened with "
+                                     "Network(): close that network (disconnect() is for "
+                                     "lines from canopenfd.connect())")
+        self.network.close()
+
+    def __enter__(self) -> "Line":
+        if not self.own_network:
+            raise ConfigurationError(f"`with line:` is for lines from canopenfd.connect(); "
+                                     f"{self._where} closes with its Network")
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.disconnect()
 
     @property
     def _where(self) -> str:

@@ -84,6 +84,7 @@ class Network:
         self._lines: Dict[int, Line] = {}
         self._contexts: Dict[int, RuntimeLineContext] = {}
         self._bridges: List[HostBridge] = []
+        self._owned_buses: List[PythonCanBus] = []   # shut down once the bridges ended
         self._closed = False
         self._events_lost = 0
         self._free_on_exit = False  # close() ran in a callback: the dispatcher frees
@@ -247,6 +248,8 @@ class Network:
             self._finished = True
             active = self._active
         stuck: List[object] = [b for b in self._bridges if not b.join(_JOIN_TIMEOUT_S)]
+        if not stuck:
+            self._shut_owned_buses()
         if active is not threading.current_thread() and not self._left_behind(active):
             stuck.append(active)
         if stuck:
@@ -255,6 +258,23 @@ class Network:
                       len(stuck), _JOIN_TIMEOUT_S)
             return
         self._runtime.free()
+
+    def shutdown_with(self, bus: PythonCanBus) -> None:
+        """Shut the python-can bus down when the network closes (after its
+        line's bridge threads ended): for buses the network's user made only
+        for it, like canopenfd.connect's."""
+        with self._lock:
+            if self._closed:
+                raise ClosedError("shutdown_with: the network is closed")
+            self._owned_buses.append(bus)
+
+    def _shut_owned_buses(self) -> None:
+        for bus in self._owned_buses:
+            try:
+                bus.shutdown()
+            except Exception:  # a driver's own failure must not stop the close
+                log.exception("network close: shutting down python-can bus %r failed", bus)
+        self._owned_buses.clear()
 
     def _left_behind(self, active: threading.Thread) -> bool:
         """Wait for the active dispatcher to end (the network is closed); True

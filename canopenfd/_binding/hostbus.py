@@ -40,6 +40,9 @@ class PythonCanBus(Protocol):
     def send(self, msg: can.Message, timeout: Optional[float] = None) -> None:
         ...
 
+    def shutdown(self) -> None:
+        ...
+
 
 _RECV_TIMEOUT_S = 0.1
 _TRANSMIT_TIMEOUT_MS = 100
