@@ -7,7 +7,7 @@ methods hand over to them.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Optional, Protocol, Union
+from typing import Any, Callable, List, Optional, Protocol, Union
 
 from ._binding.context import RuntimeLineContext
 from ._checks import check_ms, check_node_id
@@ -117,6 +117,13 @@ class LocalNode:
         frame) and `node[key].data` reads or replaces it. A download that
         fails leaves it empty, never half old and half new."""
         self._served.serve_domain(key, capacity)
+
+    @property
+    def unserved_domains(self) -> List[ODVariable]:
+        """DOMAIN entries without memory (larger than 64 KiB or unbounded, and
+        not given memory by serve_domain): the network's reads and writes of
+        them are refused."""
+        return self._served.unserved_domains()
 
     def export_eds(self, dest: Optional[Source] = None) -> Optional[str]:
         """The served OD as an EDS (CiA 306): written to dest (a path or a

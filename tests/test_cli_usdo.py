@@ -456,3 +456,18 @@ def test_classic_upload_mode_asks_for_block_or_normal(net, bus_name, cli, tmp_pa
 def test_upload_mode_is_refused_on_fd_lines(server, cli, tmp_path):
     status, _, err = cli("upload", "5", "0x2100", str(tmp_path / "x"), "--mode", "block")
     one_error(status, err, "--mode block", "--classic")
+
+
+def test_device_names_a_domain_without_memory_and_the_option_that_fixes_it(
+        net, bus_name, tmp_path, capsys):
+    """A vendor file's DOMAIN above 64 KiB (here the demo's 0x2100 read from an
+    EDS, no --domain) is refused to the network: the device says so at start."""
+    eds = tmp_path / "device.eds"
+    export_eds(demo_od("fd"), str(eds))
+    thread, status = run_device(net, bus_name, "--od", str(eds), duration=0.5)
+    thread.join(scaled(10))
+    assert status == [0]
+    err = capsys.readouterr().err
+    assert ("0x2100:00 Demo large domain is a DOMAIN without memory" in err and
+            "--domain 0x2100:00=SIZE" in err), err
+    assert "0x200F" not in err                       # 1 KiB: memory of its own

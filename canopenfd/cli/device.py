@@ -171,6 +171,10 @@ def cmd_device(args: argparse.Namespace) -> int:
             name = od.get_variable(index, sub).qualname
             print(f"node {node_id}: 0x{index:04X}:{sub:02X} {name} in {_bytes_text(capacity)} "
                   "of memory", file=sys.stderr)
+        for var in node.unserved_domains:
+            print(f"node {node_id}: {var.where} {var.qualname} is a DOMAIN without memory: "
+                  f"the network's reads and writes are refused (give it some with --domain "
+                  f"0x{var.index:04X}:{var.subindex:02X}=SIZE)", file=sys.stderr)
         print(f"node {node_id} running on {args.channel} ({line.mode}), heartbeat "
               f"{node.heartbeat_ms} ms, object dictionary {source}{store}; Ctrl-C to stop",
               file=sys.stderr)

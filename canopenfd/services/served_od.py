@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import copy
 import logging
-from typing import Callable, Dict, Optional, Tuple, Union
+from typing import Callable, Dict, List, Optional, Tuple, Union
 
 from .._binding.constants import EventKind, OdOrigin
 from .._binding.context import Deferred, LineContext
@@ -122,26 +122,30 @@ class ServedDictionary:
     def give_domains(self) -> None:
         """At boot, once the OD is defined: the memory of every domain served
         so far, and of every DOMAIN of at most AUTO_DOMAIN_LIMIT bytes
-        (max_length) not served explicitly. The others are named in a warning:
-        the network's reads and writes of them are refused until served."""
-        unserved = []
+        (max_length) not served explicitly. The others (unserved_domains) are
+        logged: the network's reads and writes of them are refused until served."""
         for var in self._od().entries():
             where = (var.index, var.subindex)
-            if var.data_type != DataType.DOMAIN or where in self._domains:
-                continue
-            if var.max_length and var.max_length <= AUTO_DOMAIN_LIMIT:
+            if var.data_type == DataType.DOMAIN and where not in self._domains and \
+                    var.max_length and var.max_length <= AUTO_DOMAIN_LIMIT:
                 self._domains[where] = var.max_length
-            else:
-                unserved.append(var)
         for (index, sub), capacity in self._domains.items():
             self._give_domain(index, sub, capacity)
+        unserved = self.unserved_domains()
         if unserved:
             shown = ", ".join(f"{var.where} {var.qualname!r}" for var in unserved[:5])
             more = f" and {len(unserved) - 5} more" if len(unserved) > 5 else ""
-            log.warning("%s: DOMAIN %s%s %s no memory: network reads and writes are refused "
-                        "until node.serve_domain(key, capacity) gives %s",
-                        self.where, shown, more, "has" if len(unserved) == 1 else "have",
-                        "it" if len(unserved) == 1 else "them")
+            log.info("%s: DOMAIN %s%s without memory: network reads and writes are refused "
+                     "until node.serve_domain(key, capacity) gives it memory", self.where,
+                     shown, more)
+
+    def unserved_domains(self) -> List[ODVariable]:
+        """The DOMAIN entries with no memory in the stack (refused to the network)."""
+        od = self.node.od
+        if od is None:
+            return []
+        return [var for var in od.entries() if var.data_type == DataType.DOMAIN and
+                (var.index, var.subindex) not in self._domains]
 
     def domain_hint(self, var: ODVariable) -> str:
         """A hint for refusals of a DOMAIN that has no memory, else ''."""
