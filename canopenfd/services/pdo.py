@@ -53,6 +53,17 @@ node's TPDOs (what it sends) and RPDOs (what others send it):
 
 Without read() (or a `cob_id` set here) the OD's COB-ID is used, with its
 mapping when none was made here.
+
+A master drives a remote node's RPDO (the runtime produces the frame the
+device consumes, on the COB-ID and with the mapping read() from the node or
+read(from_od=True) from its EDS; no Python per frame):
+
+    drive.rpdo.read()
+    drive.rpdo[1]["Controlword"].raw = 15     # checked, written into the runtime's frame
+    drive.rpdo[1].transmit()                  # once
+    drive.rpdo[1].start(0.01)                 # every 10 ms until stop()
+    drive.rpdo[1].start_sync()                # or after SYNCs (types 0..240)
+    drive.rpdo[1].stop()
 """
 
 from __future__ import annotations
