@@ -353,6 +353,17 @@ def test_values_set_before_the_first_send_are_kept_and_readable(rig):
     assert rig.wait_pdo(1)[0].data == bytes.fromhex("03000000 3412")
 
 
+def test_phys_uses_the_od_factor(net, bus_name):
+    master_od = demo_od("classic", pdos=1)
+    master_od.get_variable(0x2300, 1).factor = 0.5       # EDS "Factor": raw 1 = 0.5 units
+    rig = Rig(net, bus_name, "classic", master_od=master_od)
+    rig.configure([(P1,)])
+    rig.rpdo[P1].phys = 10.0
+    assert (rig.rpdo[P1].raw, rig.rpdo[P1].phys) == (20, 10.0)
+    rig.rpdo.transmit()
+    assert rig.wait_pdo(1)[0].data == bytes([20, 0, 0, 0])
+
+
 def test_local_node_tpdo_variable_set_writes_its_od(net, bus_name, mode):
     me = net.open_line(bus_name, mode=mode).create_local_node(DEVICE, od=demo_od(mode, pdos=1))
     tpdo = me.tpdo[1]
@@ -381,6 +392,40 @@ def test_removing_the_node_frees_its_producers(rig):
     mark = len(rig.pdo_frames())
     time.sleep(scaled(0.1))
     assert len(rig.pdo_frames()) == mark
+
+
+def test_one_runtime_write_per_set_and_32_producers_per_line(net, bus_name):
+    """Each `raw =` is one write into the runtime's frame (none per frame);
+    a line produces at most 32 RPDOs of other nodes, the 33rd is refused by
+    name. No device needed: the frames go out on the bus regardless."""
+    line = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    maps = []
+    for node_id in range(1, 10):
+        drive = line.add_node(node_id, od=demo_od("classic", pdos=4))
+        for number in range(1, 5):
+            rpdo = drive.rpdo[number]
+            rpdo.cob_id = 0x200 + 0x100 * (number - 1) + node_id
+            rpdo.enabled = True
+            rpdo.add_variable(P1)
+            maps.append(rpdo)
+    for rpdo in maps[:32]:
+        rpdo.transmit()
+    with pytest.raises(CanopenFDError, match=r"node 9 RPDO1: transmit\(\): line \d+: already "
+                                             r"32 RPDO producers"):
+        maps[32].transmit()
+    first = maps[0]
+    first.start(0.002)
+    for value in range(10):
+        first[P1].raw = value
+    time.sleep(0.05)
+    first.stop()
+    stats = first.producer_stats
+    assert stats["writes"] == 1 + 10 and stats["sent"] >= 5, stats   # opening + 10 sets
+    line.remove_node(1)                  # frees its 4 slots
+    maps[32].transmit()
+    frames.wait_for(lambda calls: [f for f in calls if f.id == 0x209], 2, "node 9's RPDO 1")
 
 
 # ------------------------------------------------------------------ python-canopen as the device

@@ -439,7 +439,7 @@ class PdoVariable:
         if dtype.is_integer and self.length < whole:
             low, high = (-(1 << (self.length - 1)), (1 << (self.length - 1)) - 1) \
                 if dtype.signed else (0, (1 << self.length) - 1)
-            if not low <= int(value) <= high:  # type: ignore[arg-type]
+            if not low <= int.from_bytes(data, "little", signed=dtype.signed) <= high:
                 raise ConfigurationError(f"{where}: {value} does not fit the {self.length} "
                                          f"mapped bits of the {dtype.name} ({low}..{high})")
         if len(data) < (self.length + 7) // 8:      # a string shorter than its mapping
@@ -518,11 +518,11 @@ class PdoMap:
         self.skipped_total = 0
         # A remote RPDO the master produces (co_rt_rpdo_*): the runtime's slot,
         # the (CAN-ID key, bytes) it was opened for, and what keeps it sending
-        # (None, ("period", µs) or ("sync", every, acyclic)) to restore when the
-        # COB-ID or the mapping changes.
+        # (None, ("period", µs, False) or ("sync", every, acyclic)) to restore
+        # when the COB-ID or the mapping changes.
         self._slot: Optional[int] = None
         self._slot_key: Optional[Tuple[int, int]] = None
-        self._sending: Optional[Tuple[object, ...]] = None
+        self._sending: Optional[Tuple[str, int, bool]] = None
         wiring.receivers[number] = self._event_received
         wiring.stops.append(self._stop_watch)
         wiring.stops.append(self._close_producer)
@@ -923,7 +923,9 @@ class PdoMap:
         with self._context.cond:
             if self._slot is None:
                 self._open_producer(where)
-            return self._slot  # type: ignore[return-value]
+            slot = self._slot
+            assert slot is not None                 # _open_producer sets it or raises
+            return slot
 
     def _open_producer(self, where: str) -> None:
         context = self._context
@@ -953,7 +955,8 @@ class PdoMap:
             size = (self.length + 7) // 8
             if len(self.data) != size:
                 self.data = bytearray(size)
-            context.runtime.rpdo_write(context.index, self._slot, 0, 8 * size,  # type: ignore
+            assert self._slot is not None           # a key is kept with its slot
+            context.runtime.rpdo_write(context.index, self._slot, 0, 8 * size,
                                        bytes(self.data), f"{self.where}: {what}")
             return
         sending = self._sending
@@ -974,16 +977,16 @@ class PdoMap:
             if not context.closed:
                 context.runtime.rpdo_close(context.index, slot, what)
 
-    def _run(self, sending: Tuple[object, ...], what: str) -> None:
+    def _run(self, sending: Tuple[str, int, bool], what: str) -> None:
         context = self._context
         slot = self._producer(what)
         where = f"{self.where}: {what}"
         context.runtime.rpdo_stop(context.index, slot, where)
-        if sending[0] == "period":
-            context.runtime.rpdo_start(context.index, slot, sending[1], where)  # type: ignore
+        kind, amount, acyclic = sending
+        if kind == "period":
+            context.runtime.rpdo_start(context.index, slot, amount, where)
         else:
-            context.runtime.rpdo_sync(context.index, slot, sending[1], sending[2],  # type: ignore
-                                      where)
+            context.runtime.rpdo_sync(context.index, slot, amount, acyclic, where)
         self._sending = sending
 
     def _remote_rpdo(self, what: str) -> None:
@@ -1008,7 +1011,7 @@ class PdoMap:
         if not 100 <= period_us <= 0xFFFFFFFF:
             raise ConfigurationError(f"{self.where}: {what}: the period must be 0.0001 .. "
                                      f"4294 s, got {period!r}")
-        self._run(("period", period_us), what)
+        self._run(("period", period_us, False), what)
 
     def start_sync(self, every: Optional[int] = None) -> None:
         """Send this remote RPDO right after SYNCs the line receives or
