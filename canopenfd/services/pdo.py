@@ -442,6 +442,9 @@ class PdoVariable:
             if not low <= int.from_bytes(data, "little", signed=dtype.signed) <= high:
                 raise ConfigurationError(f"{where}: {value} does not fit the {self.length} "
                                          f"mapped bits of the {dtype.name} ({low}..{high})")
+        elif not dtype.is_integer and int.from_bytes(data, "little") >> self.length:
+            raise ConfigurationError(f"{where}: {value!r} ({len(data)} bytes) does not fit the "
+                                     f"{self.length} mapped bits")
         if len(data) < (self.length + 7) // 8:      # a string shorter than its mapping
             data = data.ljust((self.length + 7) // 8, b"\0")
         return data

@@ -267,7 +267,7 @@ int co_rt_rpdo_sync(co_rt_t *rt, int line, int slot, int every, int acyclic)
 int co_rt_rpdo_start(co_rt_t *rt, int line, int slot, uint32_t period_us)
 {
     if (period_us < RPDO_MIN_PERIOD_US) {
-        return rt_argument_error(rt, "line %d: RPDO producer %d: period %u µs: at least %u",
+        return rt_argument_error(rt, "line %d: RPDO producer %d: period %u us: at least %u",
                                  line, slot, (unsigned)period_us, RPDO_MIN_PERIOD_US);
     }
     rt_line_t *l;
