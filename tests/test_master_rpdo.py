@@ -161,14 +161,16 @@ def test_a_value_set_while_running_is_in_the_next_frames_never_torn(rig):
         for i in range(300):
             rig.rpdo[P1].raw = 0xFFFFFFFF if i % 2 else 0
         rig.rpdo[P1].raw = 0x01020304
-        mark = len(rig.frames)
-        rig.wait_pdo(3, mark)
+        final = b"\x04\x03\x02\x01"
+        rig.frames.wait_for(lambda _: sum(f.data == final for f in rig.pdo_frames(start)) >= 3,
+                            2, "3 frames with the last value")
     finally:
         rig.rpdo.stop()
     frames = rig.pdo_frames(start)
-    assert all(f.data in (b"\0\0\0\0", b"\xff\xff\xff\xff", b"\x04\x03\x02\x01")
+    assert all(f.data in (b"\0\0\0\0", b"\xff\xff\xff\xff", final)
                for f in frames), [f.data.hex() for f in frames if len(set(f.data)) > 1][:5]
-    assert rig.pdo_frames(mark)[-1].data == b"\x04\x03\x02\x01"
+    first = [f.data for f in frames].index(final)
+    assert all(f.data == final for f in frames[first:])    # from then on, only the new value
     rig.received.wait_value([0x01020304])
 
 
@@ -426,6 +428,18 @@ def test_one_runtime_write_per_set_and_32_producers_per_line(net, bus_name):
     line.remove_node(1)                  # frees its 4 slots
     maps[32].transmit()
     frames.wait_for(lambda calls: [f for f in calls if f.id == 0x209], 2, "node 9's RPDO 1")
+
+
+def test_a_new_object_dictionary_stops_the_old_maps_producers(rig):
+    rig.configure([(P1,)])
+    rig.rpdo.start(0.005)
+    rig.wait_pdo(2)
+    again = rig.line.add_node(DEVICE, od=demo_od(rig.mode, pdos=1))
+    assert again is rig.drive and again.rpdo[1] is not rig.rpdo
+    time.sleep(scaled(0.03))
+    mark = len(rig.pdo_frames())
+    time.sleep(scaled(0.1))
+    assert len(rig.pdo_frames()) == mark
 
 
 # ------------------------------------------------------------------ python-canopen as the device

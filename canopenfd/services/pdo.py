@@ -291,6 +291,12 @@ class PdoMaps(Mapping):
         for stop in self._wiring.stops:
             stop(what)
 
+    def stop_producing(self, what: str) -> None:
+        """Stop and free the runtime producers of these remote RPDOs (the node
+        gets another object dictionary, hence other PdoMaps)."""
+        for pdo_map in self.maps.values():
+            pdo_map.release_producer(what)
+
     def _event_received(self, event: Event) -> Deferred:
         """CO_EV_PDO (the local node's RPDOs): a = the PDO number, data = its values."""
         receive = self._wiring.receivers.get(event.a)
@@ -528,7 +534,7 @@ class PdoMap:
         self._sending: Optional[Tuple[str, int, bool]] = None
         wiring.receivers[number] = self._event_received
         wiring.stops.append(self._stop_watch)
-        wiring.stops.append(self._close_producer)
+        wiring.stops.append(self.release_producer)
 
     # ------------------------------------------------------------ identity
     @property
@@ -963,7 +969,7 @@ class PdoMap:
                                        bytes(self.data), f"{self.where}: {what}")
             return
         sending = self._sending
-        self._close_producer(f"{self.where}: {what}")
+        self.release_producer(f"{self.where}: {what}")
         if key is None:
             if sending is not None:
                 log.warning("%s: %s: stopped sending (disabled, no COB-ID or nothing mapped)",
@@ -973,7 +979,9 @@ class PdoMap:
         if sending is not None:
             self._run(sending, what)
 
-    def _close_producer(self, what: str) -> None:
+    def release_producer(self, what: str) -> None:
+        """Stop sending this remote RPDO and free its runtime slot (the next
+        transmit/start opens a new one)."""
         if self._slot is not None:
             context = self._context
             slot, self._slot, self._slot_key, self._sending = self._slot, None, None, None
