@@ -40,7 +40,8 @@ class Rig:
 
     def __init__(self, net, bus_name, mode, device_od=None, master_od=None):
         self.mode = mode
-        self.device = net.open_line(bus_name, mode=mode).create_local_node(
+        self.device_line = net.open_line(bus_name, mode=mode)
+        self.device = self.device_line.create_local_node(
             DEVICE, od=device_od or demo_od(mode, pdos=1))
         self.line = net.open_line(bus_name, mode=mode)
         self.frames = Recorder()
@@ -208,6 +209,25 @@ def test_start_sync_every_second_sync_follows_the_sync(rig):
             assert pairs[i - 1] == 0x80 and pairs[i - 2] == 0x80, ids
     syncs, pdos = pairs.count(0x80), pairs.count(RPDO_ID)
     assert syncs // 2 - 1 <= pdos <= syncs // 2 + 1, ids
+
+
+def test_start_sync_follows_a_sync_another_node_produces(rig):
+    """The SYNC comes from the device's line (its OD's 0x1005/0x1006): the
+    master's line consumes it and sends the RPDO right after each one."""
+    rig.configure([(P1,)])
+    start = len(rig.frames)
+    rig.rpdo.start_sync(every=1)
+    rig.device_line.sync.start(0.01)
+    try:
+        rig.wait_pdo(4, start)
+    finally:
+        rig.device_line.sync.stop()
+        rig.rpdo.stop()
+    ids = [f.id for f in rig.frames.snapshot()[start:] if f.id in (0x80, RPDO_ID)]
+    for i, can_id in enumerate(ids):
+        if can_id == RPDO_ID:
+            assert ids[i - 1] == 0x80, ids
+    assert ids.count(RPDO_ID) >= 4
 
 
 def test_acyclic_type_0_sends_after_the_first_sync_after_a_change(rig):
