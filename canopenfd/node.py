@@ -333,7 +333,10 @@ class RemoteNode:
 
     @object_dictionary.setter
     def object_dictionary(self, od: Optional[ObjectDictionary]) -> None:
-        # The PDO objects are those of the OD: another OD, other PDO maps.
+        # The PDO objects are those of the OD: another OD, other PDO maps (the
+        # RPDOs the master was sending with the old ones stop).
+        if self._rpdo is not None:
+            self._rpdo.stop_producing(f"node {self.node_id}: a new object dictionary")
         self._object_dictionary = od
         if od is None:
             self._tpdo = self._rpdo = None

@@ -475,6 +475,44 @@ class Runtime:
         id), e.g. another node's TPDO; watch=False stops."""
         self._call(what, lib.co_rt_pdo_watch, line, can_id, int(watch))
 
+    # A master producing other nodes' RPDOs (co_rt_rpdo_*): a slot per RPDO.
+    def rpdo_open(self, line: int, can_id: int, length: int, what: str) -> int:
+        """A producer of can_id (bit 29: 29-bit) carrying length bytes, all 0:
+        its slot."""
+        return self._call(what, lib.co_rt_rpdo_open, line, can_id, length)
+
+    def rpdo_close(self, line: int, slot: int, what: str) -> None:
+        self._call(what, lib.co_rt_rpdo_close, line, slot)
+
+    def rpdo_write(self, line: int, slot: int, bit_offset: int, bit_length: int,
+                   value: bytes, what: str) -> None:
+        """Put the low bit_length bits of value (little endian) at bit_offset."""
+        self._call(what, lib.co_rt_rpdo_write, line, slot, bit_offset, bit_length,
+                   value, len(value))
+
+    def rpdo_read(self, line: int, slot: int, length: int, what: str) -> bytes:
+        out = ffi.new("uint8_t[]", max(length, 1))
+        n = self._call(what, lib.co_rt_rpdo_read, line, slot, out, length)
+        return bytes(ffi.buffer(out, n))
+
+    def rpdo_send(self, line: int, slot: int, what: str) -> None:
+        self._call(what, lib.co_rt_rpdo_send, line, slot)
+
+    def rpdo_sync(self, line: int, slot: int, every: int, acyclic: bool, what: str) -> None:
+        self._call(what, lib.co_rt_rpdo_sync, line, slot, every, int(acyclic))
+
+    def rpdo_start(self, line: int, slot: int, period_us: int, what: str) -> None:
+        self._call(what, lib.co_rt_rpdo_start, line, slot, period_us)
+
+    def rpdo_stop(self, line: int, slot: int, what: str) -> None:
+        self._call(what, lib.co_rt_rpdo_stop, line, slot)
+
+    def rpdo_stats(self, line: int, slot: int, what: str) -> Dict[str, int]:
+        out = ffi.new("co_rt_rpdo_stats_t *")
+        self._call(what, lib.co_rt_rpdo_stats, line, slot, out)
+        return {name: getattr(out, name)
+                for name, _ in ffi.typeof("co_rt_rpdo_stats_t").fields}
+
     def sync_producer(self, line: int, period_us: int, window_us: int, overflow: int,
                       what: str) -> None:
         self._call(what, lib.co_rt_sync_producer, line, period_us, window_us, overflow)

@@ -53,6 +53,17 @@ node's TPDOs (what it sends) and RPDOs (what others send it):
 
 Without read() (or a `cob_id` set here) the OD's COB-ID is used, with its
 mapping when none was made here.
+
+A master drives a remote node's RPDO (the runtime produces the frame the
+device consumes, on the COB-ID and with the mapping read() from the node or
+read(from_od=True) from its EDS; no Python per frame):
+
+    drive.rpdo.read()
+    drive.rpdo[1]["Controlword"].raw = 15     # checked, written into the runtime's frame
+    drive.rpdo[1].transmit()                  # once
+    drive.rpdo[1].start(0.01)                 # every 10 ms until stop()
+    drive.rpdo[1].start_sync()                # or after SYNCs (types 0..240)
+    drive.rpdo[1].stop()
 """
 
 from __future__ import annotations
@@ -69,6 +80,7 @@ from .._callbacks import CallbackList
 from ..errors import AbortError, ConfigurationError
 from ..frame import Frame
 from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
+from ..od.errors import OdValueError
 from ..od.datatypes import DataType, Value, decode
 from .served_od import LocalValue, ServedDictionary
 from .views import LocalNodeView, NodeView
@@ -279,6 +291,12 @@ class PdoMaps(Mapping):
         for stop in self._wiring.stops:
             stop(what)
 
+    def stop_producing(self, what: str) -> None:
+        """Stop and free the runtime producers of these remote RPDOs (the node
+        gets another object dictionary, hence other PdoMaps)."""
+        for pdo_map in self.maps.values():
+            pdo_map.release_producer(what)
+
     def _event_received(self, event: Event) -> Deferred:
         """CO_EV_PDO (the local node's RPDOs): a = the PDO number, data = its values."""
         receive = self._wiring.receivers.get(event.a)
@@ -341,11 +359,108 @@ class PdoVariable:
 
     @property
     def raw(self) -> Value:
-        """The typed value in the PDO's `data` (bytes when the type is unknown)."""
+        """The typed value in the PDO's `data` (bytes when the type is unknown).
+        Settable on a remote node's RPDO (the master fills the frame it sends
+        to the device) and on the local node's PDOs (writes its OD entry)."""
         data = self.get_data()
         if self.od is None:
             return int.from_bytes(data, "little") if self.is_dummy else data
         return decode(self.od.data_type, data)
+
+    @raw.setter
+    def raw(self, value: Value) -> None:
+        self._parent("raw =").set_variable(self, self._encode(value))
+
+    @property
+    def phys(self) -> Value:
+        """`raw` scaled by the OD's factor (python-canopen's `phys`); equal to
+        `raw` when there is no factor or the value is not a number."""
+        raw = self.raw
+        factor = getattr(self.od, "factor", 1) or 1
+        if factor == 1 or isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            return raw
+        return raw * factor
+
+    @phys.setter
+    def phys(self, value: Value) -> None:
+        factor = getattr(self.od, "factor", 1) or 1
+        if factor != 1 and isinstance(value, (int, float)) and not isinstance(value, bool):
+            scaled = value / factor
+            is_int = self.od is not None and self.od.data_type.is_integer
+            value = round(scaled) if is_int else scaled
+        self.raw = value
+
+    @property
+    def data(self) -> bytes:
+        """The entry's bytes (`get_data()`); settable like `raw`, with the
+        object's size in bytes."""
+        return self.get_data()
+
+    @data.setter
+    def data(self, value: bytes) -> None:
+        if not isinstance(value, (bytes, bytearray, memoryview)):
+            raise ConfigurationError(f"{self._where()}: data must be bytes, got "
+                                     f"{type(value).__name__}")
+        value = bytes(value)
+        size = self.od.size if self.od is not None and self.od.size else \
+            (self.length + 7) // 8
+        if len(value) != size:
+            raise ConfigurationError(f"{self._where()}: data must be {size} bytes, got "
+                                     f"{len(value)}")
+        if self.od is not None:
+            self.raw = decode(self.od.data_type, value)
+        else:
+            self._parent("data =").set_variable(self, self._fit(value))
+
+    def _where(self) -> str:
+        parent = self.pdo_parent
+        return f"{parent.where if parent is not None else 'PDO'} {self.name!r}"
+
+    def _parent(self, what: str) -> "PdoMap":
+        if self.pdo_parent is None:
+            raise ConfigurationError(f"{self.name!r}: {what} needs a PDO this entry is "
+                                     "mapped in")
+        return self.pdo_parent
+
+    def _encode(self, value: Value) -> bytes:
+        """value as the entry's bytes, checked against the OD's type and limits
+        and against the mapped bits (a partly mapped number must fit them)."""
+        where = self._where()
+        if self.od is None:
+            if isinstance(value, int) and not isinstance(value, bool):
+                if not 0 <= value < 1 << self.length:
+                    raise ConfigurationError(f"{where}: {value} does not fit the {self.length} "
+                                             f"mapped bits (0..{(1 << self.length) - 1})")
+                return value.to_bytes((self.length + 7) // 8, "little")
+            if isinstance(value, (bytes, bytearray)):
+                return self._fit(bytes(value))
+            raise ConfigurationError(f"{where}: an entry the OD does not describe takes an int "
+                                     f"or bytes, got {type(value).__name__}")
+        dtype = self.od.data_type
+        try:
+            data = self.od.encode_raw(value)
+        except OdValueError as exc:          # type, range, limits
+            raise ConfigurationError(f"{where} ({dtype.name}): {exc}") from None
+        whole = 8 * len(data)
+        if dtype.is_integer and self.length < whole:
+            low, high = (-(1 << (self.length - 1)), (1 << (self.length - 1)) - 1) \
+                if dtype.signed else (0, (1 << self.length) - 1)
+            if not low <= int.from_bytes(data, "little", signed=dtype.signed) <= high:
+                raise ConfigurationError(f"{where}: {value} does not fit the {self.length} "
+                                         f"mapped bits of the {dtype.name} ({low}..{high})")
+        elif not dtype.is_integer and int.from_bytes(data, "little") >> self.length:
+            raise ConfigurationError(f"{where}: {value!r} ({len(data)} bytes) does not fit the "
+                                     f"{self.length} mapped bits")
+        if len(data) < (self.length + 7) // 8:      # a string shorter than its mapping
+            data = data.ljust((self.length + 7) // 8, b"\0")
+        return data
+
+    def _fit(self, value: bytes) -> bytes:
+        need = (self.length + 7) // 8
+        if len(value) != need:
+            raise ConfigurationError(f"{self._where()}: {len(value)} bytes, the {self.length} "
+                                     f"mapped bits take {need}")
+        return value
 
 
 class PdoMap:
@@ -410,8 +525,16 @@ class PdoMap:
         #: the newest (0 while they keep up). `skipped_total` adds them all up.
         self.skipped = 0
         self.skipped_total = 0
+        # A remote RPDO the master produces (co_rt_rpdo_*): the runtime's slot,
+        # the (CAN-ID key, bytes) it was opened for, and what keeps it sending
+        # (None, ("period", µs, False) or ("sync", every, acyclic)) to restore
+        # when the COB-ID or the mapping changes.
+        self._slot: Optional[int] = None
+        self._slot_key: Optional[Tuple[int, int]] = None
+        self._sending: Optional[Tuple[str, int, bool]] = None
         wiring.receivers[number] = self._event_received
         wiring.stops.append(self._stop_watch)
+        wiring.stops.append(self.release_producer)
 
     # ------------------------------------------------------------ identity
     @property
@@ -480,6 +603,9 @@ class PdoMap:
                 if key in (var.name, getattr(var.od, "name", None),
                            f"0x{var.index:04X}:{var.subindex:02X}"):
                     return var
+        if not self.map and not self._read_values:
+            raise KeyError(f"{self.where}: {key!r}: the mapping is not known yet; read() it "
+                           "from the node (or read(from_od=True) from its EDS) first")
         raise KeyError(f"{self.where}: {key!r} is not mapped (mapped: "
                        f"{', '.join(v.name for v in self.map) or 'nothing'})")
 
@@ -615,7 +741,10 @@ class PdoMap:
             return self._callbacks
 
     def _retarget(self, what: str) -> None:
-        """The COB-ID changed (read, save, cob_id =): hear the new CAN-ID."""
+        """The COB-ID changed (read, save, cob_id =): hear the new CAN-ID and
+        produce on it (a remote RPDO the master drives)."""
+        if self._slot is not None:
+            self._reopen_producer(what)
         if self._watched is None or self._cob_id is None:
             return
         key = self._frame_key()
@@ -710,18 +839,233 @@ class PdoMap:
         return (lambda: callbacks.fire(self)) if callbacks else None
 
     def transmit(self) -> None:
-        """Send this TPDO of the local node now (an application event: types
-        0, 254 and 255 take it, in OPERATIONAL); the values come from the
-        OD (`node[...].raw = ...` first). The error names why when it cannot."""
+        """Send this PDO now, once. A remote node's RPDO: the master sends the
+        frame the device receives, with the values set through
+        `pdo["name"].raw = ...` (see start()). A TPDO of the local node: an
+        application event (types 0, 254 and 255 take it, in OPERATIONAL);
+        the values come from the OD (`node[...].raw = ...` or
+        `me.tpdo[1]["name"].raw = ...` first). The error names why when it
+        cannot."""
         if self._remote:
-            raise ConfigurationError(f"{self.where}: transmit() sends the local node's TPDOs; "
-                                     "a remote node sends its own")
+            if not self.is_rpdo:
+                raise ConfigurationError(f"{self.where}: transmit() sends a remote node's "
+                                         "RPDOs (the master produces them) or the local "
+                                         "node's TPDOs; a remote node sends its own TPDOs")
+            slot = self._producer("transmit()")
+            context = self._context
+            context.runtime.rpdo_send(context.index, slot, f"{self.where}: transmit()")
+            return
         if self.is_rpdo:
             raise ConfigurationError(f"{self.where}: transmit() is for TPDOs")
         if not self._access.booted:
             raise ConfigurationError(f"{self.where}: the node is not booted yet")
         context = self._context
         context.runtime.pdo_trigger(context.index, self.number, f"{self.where}: transmit()")
+
+    # ------------------------------------------------------------ master side
+    # A remote node's RPDO, produced by the master in the C runtime: the
+    # mapped bytes live in a runtime slot; each `raw =` writes its bits there
+    # (one call, atomic with respect to sending); frames go out once
+    # (transmit), periodically (start) or after SYNCs (start_sync), with no
+    # Python per frame.
+    def set_variable(self, var: PdoVariable, data: bytes) -> None:
+        """Put a mapped entry's bytes (its low `var.length` bits) into `data`;
+        a remote RPDO being produced gets them at once, the local node's
+        entry is written to its OD."""
+        if var.pdo_parent is not self:
+            raise ConfigurationError(f"{self.where}: {var.name!r} is not mapped here")
+        if not self._remote:
+            self._write_local(var, data)
+            return
+        if not self.is_rpdo:
+            raise ConfigurationError(f"{self.where}: {var.name!r}: a remote node's TPDO is "
+                                     "what it sends; values can be set on its RPDOs (what "
+                                     "the master sends it) or on the local node's PDOs")
+        with self._context.cond:
+            self._put_bits(var, data)
+            if self._slot is not None:
+                context = self._context
+                context.runtime.rpdo_write(context.index, self._slot, var.offset, var.length,
+                                           data, f"{self.where}: {var.name} = ...")
+
+    def _put_bits(self, var: PdoVariable, data: bytes) -> None:
+        size = (self.length + 7) // 8
+        if len(self.data) != size:
+            self.data = bytearray(size)
+        whole = int.from_bytes(bytes(self.data), "little")
+        mask = ((1 << var.length) - 1) << var.offset
+        value = (int.from_bytes(data, "little") << var.offset) & mask
+        self.data = bytearray(((whole & ~mask) | value).to_bytes(size, "little"))
+
+    def _write_local(self, var: PdoVariable, data: bytes) -> None:
+        """The local node: the PDO carries its OD's values, so write the entry."""
+        od = var.od
+        if od is None or var.is_dummy:
+            raise ConfigurationError(f"{self.where}: {var.name!r} is not an entry of the "
+                                     "local node's OD; nothing to write")
+        if 8 * len(data) != var.length:
+            raise ConfigurationError(f"{self.where}: {var.name!r} maps {var.length} bits of "
+                                     "the object; set the whole object in the node's OD")
+        self._access.write(var.index, var.subindex, data)
+        self._put_bits(var, data)
+
+    def _producer(self, what: str) -> int:
+        """The runtime slot producing this remote RPDO (opened on first use)."""
+        where = f"{self.where}: {what}"
+        if not self.is_rpdo:
+            raise ConfigurationError(f"{where}: only a remote node's RPDOs are sent by the "
+                                     "master")
+        if not self.map:
+            raise ConfigurationError(f"{where}: nothing mapped; read() the mapping from the "
+                                     "node (or read(from_od=True) from its EDS) first")
+        if self._cob_id is None:
+            raise ConfigurationError(f"{where}: the COB-ID is not known; read() the PDO or "
+                                     "set cob_id")
+        if not self.enabled:
+            raise ConfigurationError(
+                f"{where}: the PDO is disabled (COB-ID 0x{self._cob_id:X} with bit 31, "
+                "'not valid'): the device would not take the frame; set enabled = True and "
+                "save() it on the node first")
+        if not self.extended and self._cob_id > 0x7FF:
+            raise ConfigurationError(f"{where}: COB-ID 0x{self._cob_id:X} is not an 11-bit "
+                                     "CAN-ID (extended=False)")
+        with self._context.cond:
+            if self._slot is None:
+                self._open_producer(where)
+            slot = self._slot
+            assert slot is not None                 # _open_producer sets it or raises
+            return slot
+
+    def _open_producer(self, where: str) -> None:
+        context = self._context
+        size = (self.length + 7) // 8
+        if len(self.data) != size:
+            self.data = bytearray(size)
+        key = (self._frame_key(), size)
+        slot = context.runtime.rpdo_open(context.index, key[0], size, where)
+        try:
+            context.runtime.rpdo_write(context.index, slot, 0, 8 * size, bytes(self.data), where)
+        except Exception:
+            context.runtime.rpdo_close(context.index, slot, where)
+            raise
+        self._slot, self._slot_key = slot, key
+
+    def _reopen_producer(self, what: str) -> None:
+        """The COB-ID, the flags or the mapping changed: produce the new frame,
+        keeping what made the old one go out (or stop, when it cannot)."""
+        key = None
+        if self._cob_id is not None and self.enabled and self.map and \
+                (self.extended or self._cob_id <= 0x7FF):
+            key = (self._frame_key(), (self.length + 7) // 8)
+        if key == self._slot_key:
+            # same frame layout: the values as they now stand here (read()
+            # starts from zeros, as a new mapping does)
+            context = self._context
+            size = (self.length + 7) // 8
+            if len(self.data) != size:
+                self.data = bytearray(size)
+            assert self._slot is not None           # a key is kept with its slot
+            context.runtime.rpdo_write(context.index, self._slot, 0, 8 * size,
+                                       bytes(self.data), f"{self.where}: {what}")
+            return
+        sending = self._sending
+        self.release_producer(f"{self.where}: {what}")
+        if key is None:
+            if sending is not None:
+                log.warning("%s: %s: stopped sending (disabled, no COB-ID or nothing mapped)",
+                            self.where, what)
+            return
+        self._producer(what)
+        if sending is not None:
+            self._run(sending, what)
+
+    def release_producer(self, what: str) -> None:
+        """Stop sending this remote RPDO and free its runtime slot (the next
+        transmit/start opens a new one)."""
+        if self._slot is not None:
+            context = self._context
+            slot, self._slot, self._slot_key, self._sending = self._slot, None, None, None
+            if not context.closed:
+                context.runtime.rpdo_close(context.index, slot, what)
+
+    def _run(self, sending: Tuple[str, int, bool], what: str) -> None:
+        context = self._context
+        slot = self._producer(what)
+        where = f"{self.where}: {what}"
+        context.runtime.rpdo_stop(context.index, slot, where)
+        kind, amount, acyclic = sending
+        if kind == "period":
+            context.runtime.rpdo_start(context.index, slot, amount, where)
+        else:
+            context.runtime.rpdo_sync(context.index, slot, amount, acyclic, where)
+        self._sending = sending
+
+    def _remote_rpdo(self, what: str) -> None:
+        if not (self._remote and self.is_rpdo):
+            raise ConfigurationError(
+                f"{self.where}: {what} is for a remote node's RPDOs (the master sends them); "
+                + ("a remote node sends its own TPDOs" if self._remote else
+                   "the local node's PDOs follow their transmission type"))
+
+    def start(self, period: float) -> None:
+        """Send this remote RPDO every `period` seconds (python-canopen's
+        start; at least 0.0001 s), the first frame now, from the C runtime's
+        timer until stop(). The values set with `raw =` go into the next
+        frame. Replaces a start_sync()."""
+        what = f"start({period!r})"
+        self._remote_rpdo(what)
+        if isinstance(period, bool) or not isinstance(period, (int, float)) or \
+                not period > 0:
+            raise ConfigurationError(f"{self.where}: {what}: the period must be a number of "
+                                     f"seconds > 0, got {period!r}")
+        period_us = round(period * 1e6)
+        if not 100 <= period_us <= 0xFFFFFFFF:
+            raise ConfigurationError(f"{self.where}: {what}: the period must be 0.0001 .. "
+                                     f"4294 s, got {period!r}")
+        self._run(("period", period_us, False), what)
+
+    def start_sync(self, every: Optional[int] = None) -> None:
+        """Send this remote RPDO right after SYNCs the line receives or
+        produces, until stop(): after every `every`-th SYNC (1..240). By
+        default from the RPDO's transmission type: 1..240 give `every`; 0
+        (synchronous acyclic) sends after the first SYNC following a change
+        (a `raw =`) only. A synchronous device applies the data at the SYNC
+        after the reception, so each frame has a whole cycle to arrive.
+        Replaces a start(period)."""
+        what = f"start_sync({every!r})"
+        self._remote_rpdo(what)
+        acyclic = False
+        if every is None:
+            kind = self._trans_type
+            if kind is None or kind > 240:
+                raise ConfigurationError(
+                    f"{self.where}: {what}: the transmission type is "
+                    f"{'not known (read() it)' if kind is None else kind}, not synchronous "
+                    "(0..240); give every=N, or use start(period) for an event RPDO")
+            acyclic, every = kind == 0, max(kind, 1)
+        elif isinstance(every, bool) or not isinstance(every, int) or not 1 <= every <= 240:
+            raise ConfigurationError(f"{self.where}: {what}: every must be 1..240 SYNCs, got "
+                                     f"{every!r}")
+        self._run(("sync", every, acyclic), what)
+
+    def stop(self) -> None:
+        """Stop sending this remote RPDO periodically or on SYNC (no frame
+        after stop() returns, except one already queued)."""
+        self._remote_rpdo("stop()")
+        if self._slot is not None:
+            context = self._context
+            context.runtime.rpdo_stop(context.index, self._slot, f"{self.where}: stop()")
+        self._sending = None
+
+    @property
+    def producer_stats(self) -> Dict[str, int]:
+        """The master's counters of this remote RPDO: frames `sent`,
+        `tx_failed`, `not_operational` (held back: the local node is not
+        OPERATIONAL), `writes`; all 0 before the first use."""
+        if self._slot is None:
+            return {"sent": 0, "tx_failed": 0, "not_operational": 0, "writes": 0}
+        context = self._context
+        return context.runtime.rpdo_stats(context.index, self._slot, f"{self.where}: stats")
 
     # ------------------------------------------------------------ mapping
     def clear(self) -> None:

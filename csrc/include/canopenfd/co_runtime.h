@@ -376,6 +376,43 @@ int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen);
  * id), e.g. another node's TPDO; a local RPDO on the same id still gets it.
  * watch = 0 stops. At most 64 ids per line. */
 int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch);
+/* RPDOs of other nodes produced by this line (a master driving a device's
+ * RPDO), at most 32 per line, slots taken at co_rt_rpdo_open. The frame
+ * carries the mapped bytes as the application wrote them (bit-wise on
+ * classic lines). Sent once (co_rt_rpdo_send), after SYNCs the line
+ * receives or produces (co_rt_rpdo_sync) and/or every period_us on the
+ * runtime's timer (co_rt_rpdo_start), until co_rt_rpdo_stop. While the
+ * line has a local node, only while that node is OPERATIONAL (CiA 301:
+ * PDOs need it); without one, always (a pure master or tool). */
+typedef struct co_rt_rpdo_stats {
+    uint32_t sent;             /* frames queued */
+    uint32_t tx_failed;        /* the tx queue refused one */
+    uint32_t not_operational;  /* one not sent: the local node is not OPERATIONAL */
+    uint32_t writes;           /* co_rt_rpdo_write calls applied */
+} co_rt_rpdo_stats_t;
+
+/* A producer of can_id (bit 29 set: 29-bit) with length bytes, all 0:
+ * returns its slot (>= 0). */
+int co_rt_rpdo_open(co_rt_t *rt, int line, uint32_t can_id, int length);
+/* Stop it and free the slot. */
+int co_rt_rpdo_close(co_rt_t *rt, int line, int slot);
+/* Put the low bit_length bits of value (little endian, value_len bytes) at
+ * bit bit_offset of the frame (bit 0 = low bit of byte 0); atomic with
+ * respect to sending. */
+int co_rt_rpdo_write(co_rt_t *rt, int line, int slot, int bit_offset, int bit_length,
+                     const uint8_t *value, int value_len);
+/* Read the frame's bytes as they stand (length bytes into out). */
+int co_rt_rpdo_read(co_rt_t *rt, int line, int slot, uint8_t *out, int out_len);
+/* Send the frame now (once). */
+int co_rt_rpdo_send(co_rt_t *rt, int line, int slot);
+/* Send after every every-th SYNC (1..240); acyclic != 0: after the first
+ * SYNC following a write or send request only (every must be 1). */
+int co_rt_rpdo_sync(co_rt_t *rt, int line, int slot, int every, int acyclic);
+/* Send every period_us (>= 100), the first one now. */
+int co_rt_rpdo_start(co_rt_t *rt, int line, int slot, uint32_t period_us);
+/* No more periodic or SYNC-driven frames. */
+int co_rt_rpdo_stop(co_rt_t *rt, int line, int slot);
+int co_rt_rpdo_stats(co_rt_t *rt, int line, int slot, co_rt_rpdo_stats_t *out);
 /* SYNC producer of the line: every period_us (0 = stop), window, counter
  * overflow (0 or 2..240). With a local node's OD its 0x1005/0x1006/0x1007/
  * 0x1019 are written (as the network would), else the line's SYNC. */

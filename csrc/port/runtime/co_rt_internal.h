@@ -59,6 +59,7 @@ enum {
     RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2,
     RT_GUARD_NODES = 32,          /* remote nodes guarded by a classic line */
     RT_PDO_WATCHES = 64,          /* CAN-IDs of other nodes' PDOs Python hears */
+    RT_RPDO_PRODUCERS = 32,       /* other nodes' RPDOs the line produces (a master) */
     RT_REQUESTS = 32              /* network accesses waiting on Python at once */
 };
 
@@ -166,6 +167,25 @@ typedef struct rt_pdo {
     bool listen[CO_PDO_MAX_NUMBER];          /* by RPDO number - 1 */
 } rt_pdo_t;
 
+/* One RPDO of another node that this line produces (co_rt_rpdo_out.c): the
+ * mapped bytes, written by the application under rt->lock (so a frame never
+ * carries half an update), and what makes it go out: once, every n-th SYNC
+ * (or, acyclic, the first SYNC after a change), every period_us. */
+typedef struct rt_rpdo_out {
+    struct rt_line *line;
+    bool used;
+    uint32_t can_id;         /* bit 29 set: a 29-bit CAN-ID */
+    uint8_t length;          /* bytes (1..8 classic, 1..64 fd) */
+    uint8_t data[64];
+    uint8_t sync_every;      /* 0: not on SYNC; n: after every n-th SYNC */
+    bool sync_acyclic;       /* only the first SYNC after a change (type 0) */
+    bool changed;            /* written since it was last sent */
+    uint8_t sync_seen;       /* SYNCs since the last SYNC-driven send */
+    uint32_t period_us;      /* 0: not periodic */
+    co_timer_t timer;
+    co_rt_rpdo_stats_t stats;
+} rt_rpdo_out_t;
+
 /* SYNC glue (co_rt_sync.c). */
 typedef struct rt_sync {
     bool events;                             /* Python hears every SYNC */
@@ -204,6 +224,7 @@ typedef struct rt_line {
     struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
     /* Runtime state of the services' glue (EMCY, TIME and guarding keep none). */
     rt_pdo_t pdo;
+    rt_rpdo_out_t rpdo_out[RT_RPDO_PRODUCERS];
     rt_sync_t sync;
     rt_socket_t sc;
     rt_host_t host;
@@ -507,6 +528,8 @@ void rt_pdo_received(rt_line_t *l, uint16_t number);
 void rt_pdo_node_detach(rt_line_t *l);
 /* Frames seen on the watched CAN-IDs (service stats). */
 uint32_t rt_pdo_watched_frames(const rt_line_t *l);
+/* co_rt_rpdo_out.c: after the stack, the RPDO producers hear SYNC. */
+bool rt_rpdo_out_line_init(rt_line_t *l);
 /* co_rt_sync.c: after the stack, Python hears SYNC through a listener. */
 bool rt_sync_line_init(rt_line_t *l);
 

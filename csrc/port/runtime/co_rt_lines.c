@@ -92,7 +92,7 @@ static bool line_init_core(rt_line_t *l, const co_rt_line_config_t *c, uint32_t 
         .user = l};
     /* Every line watches boot-ups and heartbeats, local node or not. */
     return co_stack_init(&l->stack, &l->line, &config, rt_heap) == CO_STACK_OK &&
-           rt_sync_line_init(l);
+           rt_sync_line_init(l) && rt_rpdo_out_line_init(l);
 }
 
 void rt_line_free(rt_line_t *l)
