@@ -25,7 +25,8 @@ _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 #: README python blocks (1-based, in order) -> the world they run in; blocks of
 #: one world share a namespace and run in this order.
-WORLDS = {1: "none", 2: "fd", 3: "fd", 4: "fd", 5: "fd", 6: "fd", 7: "fd", 8: "classic"}
+WORLDS = {1: "none", 2: "fd", 3: "fd", 4: "fd", 5: "fd", 6: "fd", 7: "fd", 8: "classic",
+          9: "fd"}
 
 
 def readme_blocks() -> List[Tuple[int, int, str]]:
