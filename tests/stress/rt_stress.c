@@ -5,8 +5,9 @@
  * Each round builds a runtime with two fd lines on one in-process bus (a
  * device, node 5, serving an OD; a tool with a USDO client) and, from
  * several threads at once, runs transfers (started, waited for, cancelled,
- * collected, released), commands (NMT, OD reads and writes, statistics) and
- * the event reader; then stops the runtime while all of that is in flight.
+ * collected, released), commands (NMT, OD reads and writes, statistics),
+ * master-side RPDO producers (opened, written, sent, periodic, on SYNC,
+ * stopped, closed) and the event reader; then stops the runtime while all of that is in flight.
  * Every thread must see the stop (CO_RT_ERR_CLOSED) and end within a bound
  * (a thread still running after it is a hang), every transfer must have
  * ended correctly or with an error code, and after co_rt_free no file
@@ -222,6 +223,38 @@ static void *commander(void *arg)
     return NULL;
 }
 
+/* Master-side RPDO producers opened, written, sent, run periodically and on
+ * SYNC, stopped and closed while the runtime thread sends them. */
+static void *rpdo_driver(void *arg)
+{
+    round_t *r = arg;
+    for (uint32_t n = 0; !atomic_load(&r->stop_asked); n++) {
+        int slot = co_rt_rpdo_open(r->rt, r->tool, 0x200u + NODE + 0x100u * (n % 4u), 8);
+        if (slot == CO_RT_ERR_CLOSED) {
+            break;
+        }
+        if (slot < 0) {
+            continue;                  /* all slots taken by earlier rounds of this loop */
+        }
+        uint8_t v[4] = {(uint8_t)n, (uint8_t)(n >> 8), 0, 0};
+        if (co_rt_rpdo_write(r->rt, r->tool, slot, 0, 16, v, 2) == CO_RT_ERR_CLOSED ||
+            co_rt_rpdo_send(r->rt, r->tool, slot) == CO_RT_ERR_CLOSED ||
+            co_rt_rpdo_start(r->rt, r->tool, slot, 200) == CO_RT_ERR_CLOSED ||
+            co_rt_rpdo_sync(r->rt, r->tool, slot, 1 + (int)(n % 3u), 0) == CO_RT_ERR_CLOSED) {
+            break;
+        }
+        usleep(300);
+        co_rt_rpdo_stats_t st;
+        if (co_rt_rpdo_stats(r->rt, r->tool, slot, &st) == CO_RT_ERR_CLOSED ||
+            co_rt_rpdo_stop(r->rt, r->tool, slot) == CO_RT_ERR_CLOSED ||
+            co_rt_rpdo_close(r->rt, r->tool, slot) == CO_RT_ERR_CLOSED) {
+            break;
+        }
+    }
+    atomic_fetch_sub(&r->running, 1);
+    return NULL;
+}
+
 static void *reader(void *arg)
 {
     round_t *r = arg;
@@ -281,8 +314,8 @@ static bool run_round(int number, int run_ms, int limit)
         return false;
     }
     usleep(20000);                     /* the node boots */
-    pthread_t threads[WORKERS + 2];
-    atomic_store(&r.running, WORKERS + 2);
+    pthread_t threads[WORKERS + 3];
+    atomic_store(&r.running, WORKERS + 3);
     worker_t workers[WORKERS];
     for (int i = 0; i < WORKERS; i++) {
         workers[i] = (worker_t){.round = &r, .id = i};
@@ -290,8 +323,9 @@ static bool run_round(int number, int run_ms, int limit)
     }
     pthread_create(&threads[WORKERS], NULL, commander, &r);
     pthread_create(&threads[WORKERS + 1], NULL, reader, &r);
+    pthread_create(&threads[WORKERS + 2], NULL, rpdo_driver, &r);
     if (limit) {
-        while (atomic_load(&r.running) > 2) {
+        while (atomic_load(&r.running) > 3) {
             usleep(1000);              /* the workers run their transfers to the end */
         }
     } else {
@@ -310,7 +344,7 @@ static bool run_round(int number, int run_ms, int limit)
         fflush(stdout);
         _exit(1);                      /* cannot free under them */
     }
-    for (int i = 0; i < WORKERS + 2; i++) {
+    for (int i = 0; i < WORKERS + 3; i++) {
         pthread_join(threads[i], NULL);
     }
     co_rt_free(r.rt);
