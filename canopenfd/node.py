@@ -400,7 +400,7 @@ class RemoteNode:
             raise ConfigurationError(
                 f"node {self.node_id}: write({key!r}): without an OD entry the value must be "
                 f"bytes, got {type(value).__name__} (add the node with od=...)")
-        return value  # type: ignore[return-value]
+        return bytes(value)
 
     @property
     def od(self) -> RemoteObjects:

@@ -90,6 +90,11 @@ class RemoteAccess:
                     f"node {self._node.node_id}: download(index, subindex, data) needs an int "
                     f"sub-index second, got {data!r}")
             key, data = self._with_sub(key, data, "download"), python_canopen_data
+        if isinstance(data, int):
+            raise ConfigurationError(
+                f"node {self._node.node_id}: download data must be bytes-like or an open "
+                f"binary file, got {data!r} (python-canopen's order: download(index, "
+                f"subindex, data))")
         if options.pop("force_segment", False):
             options.setdefault("mode", "segmented")
         index, sub = self._download_options(key, options)
@@ -137,7 +142,7 @@ class RemoteAccess:
                 spool.close()
                 raise
             spool.seek(0)
-            return spool  # type: ignore[return-value]
+            return spool
         if mode == "wb":
             return _DownloadStream(self, key, progress, timeout)  # type: ignore[return-value]
         raise ConfigurationError(f"node {self._node.node_id}: open() mode {mode!r} is not "
