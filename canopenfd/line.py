@@ -379,13 +379,15 @@ class Line:
         entries (see canopenfd.transfer.usdo). Our client node-id is the local
         node's, else 127 (set `line.usdo.client_id` before the first transfer)."""
         require_protocol(self._context, "USDO")
-        return self._client  # type: ignore[return-value]
+        assert isinstance(self._client, UsdoClient)   # what fd lines make
+        return self._client
 
     @property
     def sdo(self) -> SdoClient:
         """The SDO client of this classic line (see canopenfd.transfer.sdo)."""
         require_protocol(self._context, "SDO")
-        return self._client  # type: ignore[return-value]
+        assert isinstance(self._client, SdoClient)    # what classic lines make
+        return self._client
 
     # ---------------------------------------------------------------- events
     def _event_comm(self, event: Event) -> Deferred:

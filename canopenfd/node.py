@@ -215,7 +215,9 @@ class LocalNode:
         period from now. A reset (node or communication) restores the value
         given to create_local_node() (with an OD: its default or saved value)."""
         if self.booted and self._served.has_1017:
-            return self._served.variable_value(0x1017, 0).raw  # type: ignore[return-value]
+            value = self._served.variable_value(0x1017, 0).raw
+            if isinstance(value, int):   # else an OD with a non-integer 0x1017: not a time
+                return value
         return self._slave.heartbeat_ms
 
     @heartbeat_ms.setter

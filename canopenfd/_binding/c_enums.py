@@ -47,10 +47,10 @@ def c_enum(name: str, prefix: str, c_type: Optional[str] = None, *,
     """The IntEnum `name` (made in `module`, so it pickles) with the members of a
     C enum (see c_members), registered in C_ENUMS."""
     members = c_members(prefix, c_type, exclude)
-    # The functional API: EnumMeta.__call__ makes a class; typeshed types the
-    # call as making a member.
-    cls: Type[enum.IntEnum] = base(  # type: ignore[call-arg, assignment]
-        name, members, module=module, qualname=name)  # type: ignore[arg-type]
+    # The functional API, spelled through the metaclass: `base(name, members)`
+    # would read to mypy as making a member.
+    cls = enum.EnumMeta.__call__(base, name, members, module=module, qualname=name)
+    assert issubclass(cls, base)
     cls.__doc__ = doc
     C_ENUMS[cls] = (c_type, prefix, exclude)
     return cls
