@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
+from ._binding.hostbus import PythonCanBus
 from .errors import ConfigurationError, InterfaceError
 from .line import Line
 from .network import Network
@@ -57,7 +58,7 @@ def connect(channel: Optional[str] = None, interface: Optional[str] = None, *,
 
 
 def _python_can_bus(interface: str, channel: Optional[str], mode: str,
-                    options: "dict[str, Any]", where: str) -> Any:
+                    options: "dict[str, Any]", where: str) -> PythonCanBus:
     if mode not in ("fd", "classic"):
         raise ConfigurationError(f"{where}: line mode {mode!r} unknown: expected 'fd' or "
                                  "'classic'")

@@ -13,14 +13,14 @@ import logging
 from typing import Callable, Dict, Iterable, Iterator, List, Optional, Protocol, Tuple, Union
 
 from ._binding.constants import CommandKind, CommEvent, EventKind
-from ._binding.context import Deferred, RuntimeLineContext
+from ._binding.context import Deferred, FrameHandler, RuntimeLineContext
 from ._binding.runtime import Event, status_text
 from ._callbacks import CallbackList
 from ._checks import check_ms, check_node_id
 from .errors import ConfigurationError
 from .frame import Frame, fd_len_round
 from .node import LocalNode, RemoteNode
-from .od import ObjectDictionary, import_od
+from .od import ObjectDictionary, ODVariable, import_od
 from .od.fileio import Source
 from .services.emcy import Emcy, LineEmcy
 from .services.nmt import NmtMaster, NmtState, remote_state_of
@@ -116,7 +116,7 @@ class Line:
         return self._context.where
 
     @property
-    def _pdo_watches(self) -> Dict[int, List[Callable[[Frame], Deferred]]]:
+    def _pdo_watches(self) -> Dict[int, List[FrameHandler]]:
         """{CAN-ID: handlers} of the remote PDOs heard now (tests look at it)."""
         return self._context.pdo_watches.watchers
 
@@ -379,13 +379,15 @@ class Line:
         entries (see canopenfd.transfer.usdo). Our client node-id is the local
         node's, else 127 (set `line.usdo.client_id` before the first transfer)."""
         require_protocol(self._context, "USDO")
-        return self._client  # type: ignore[return-value]
+        assert isinstance(self._client, UsdoClient)   # what fd lines make
+        return self._client
 
     @property
     def sdo(self) -> SdoClient:
         """The SDO client of this classic line (see canopenfd.transfer.sdo)."""
         require_protocol(self._context, "SDO")
-        return self._client  # type: ignore[return-value]
+        assert isinstance(self._client, SdoClient)    # what classic lines make
+        return self._client
 
     # ---------------------------------------------------------------- events
     def _event_comm(self, event: Event) -> Deferred:
@@ -418,12 +420,15 @@ def _consumer_entry(local: LocalNode, node_id: int) -> Optional[Tuple[int, int]]
     od = local.od
     if od is None or 0x1016 not in od:
         return None
-    for variable in od[0x1016].values():
+    entry = od[0x1016]
+    if isinstance(entry, ODVariable):   # a VAR, not the array CiA 301 defines: no consumers
+        return None
+    for variable in entry.values():
         if variable.subindex == 0:
             continue
         value = local[(0x1016, variable.subindex)].raw
-        if (value >> 16) & 0x7F == node_id and value & 0xFFFF:  # type: ignore[operator]
-            return variable.subindex, value & 0xFFFF  # type: ignore[operator]
+        if isinstance(value, int) and (value >> 16) & 0x7F == node_id and value & 0xFFFF:
+            return variable.subindex, value & 0xFFFF
     return None
 
 

@@ -215,7 +215,9 @@ class LocalNode:
         period from now. A reset (node or communication) restores the value
         given to create_local_node() (with an OD: its default or saved value)."""
         if self.booted and self._served.has_1017:
-            return self._served.variable_value(0x1017, 0).raw  # type: ignore[return-value]
+            value = self._served.variable_value(0x1017, 0).raw
+            if isinstance(value, int):   # else an OD with a non-integer 0x1017: not a time
+                return value
         return self._slave.heartbeat_ms
 
     @heartbeat_ms.setter
@@ -403,7 +405,7 @@ class RemoteNode:
             raise ConfigurationError(
                 f"node {self.node_id}: write({key!r}): without an OD entry the value must be "
                 f"bytes, got {type(value).__name__} (add the node with od=...)")
-        return value  # type: ignore[return-value]
+        return bytes(value)
 
     @property
     def od(self) -> RemoteObjects:

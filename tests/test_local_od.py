@@ -407,6 +407,20 @@ def test_consumer_time_of_a_node_that_0x1016_monitors_is_refused_at_once(net, bu
     _watch_and_lose(net, bus_name, remote)          # 0x1016's 150 ms still rules
 
 
+def test_consumer_time_next_to_a_var_0x1016(net, bus_name):
+    """An OD whose 0x1016 is a VAR (not CiA 301's array) monitors nothing: the
+    check for a conflicting 0x1016 entry passes (it crashed with AttributeError
+    before mypy pointed at it)."""
+    od = demo_od("fd")
+    del od[0x1016]
+    od.add_object(ODVariable("Consumer heartbeat time", 0x1016, 0, DataType.UNSIGNED32,
+                             "rw", (7 << 16) | 150))
+    line = net.open_line(bus_name, mode="fd")
+    line.create_local_node(NODE, od=od)
+    remote = line.add_node(7, heartbeat_timeout_ms=500)
+    assert remote.heartbeat_timeout_ms == 500
+
+
 # ------------------------------------------------------------------ store
 def _stored_node(net: canopenfd.Network, bus: str, mode: str, store: str,
                  problems: Recorder = None) -> canopenfd.LocalNode:
@@ -608,6 +622,22 @@ def test_node_id_relative_default_gets_the_node_id(net, bus_name):
     first[0x1014].raw = 0x1234
     wait_reset(first, "reset-communication")
     assert first[0x1014].raw == 0xA1
+
+
+def test_node_id_relative_real_and_string_defaults(net, bus_name):
+    """Only integers are relative in C; a REAL gets the node-id added once when
+    served, a relative string is refused naming the entry (it crashed with a
+    TypeError before mypy pointed at it)."""
+    real = ODVariable("Offset", 0x2001, 0, DataType.REAL32, "rw")
+    real.set_default(0.5, relative_to_node_id=True)
+    node = serve(net, bus_name, "fd", _single(real), node_id=0x21)
+    assert node[0x2001].raw == 0x21 + 0.5
+    text = ODVariable("Label", 0x2002, 0, DataType.VISIBLE_STRING, "rw")
+    text.set_default("abc", relative_to_node_id=True)
+    line = net.open_line(bus_name)
+    with pytest.raises(ConfigurationError, match="0x2002:00 Label: .*needs a numeric type"):
+        line.create_local_node(NODE, od=_single(text))
+    assert line.local_node is None
 
 
 # ------------------------------------------------------------------ refused ODs

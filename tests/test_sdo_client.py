@@ -86,6 +86,11 @@ def test_python_canopen_calls_on_node_sdo(rig):
                  lambda: remote.sdo.download(0x1017, "0", b"\x00\x00")):
         with pytest.raises(ConfigurationError, match="node 5: (upload|download)"):
             call()
+    # download(index, sub) without data: the sub-index is not taken for the data
+    with pytest.raises(ConfigurationError,
+                       match=r"node 5: download data must be bytes-like .* got 0 "
+                             r"\(python-canopen's order: download\(index, subindex, data\)\)"):
+        remote.sdo.download(0x1017, 0)
 
 
 @pytest.mark.parametrize("size, mode", [(3, "expedited"), (100, "segmented"),

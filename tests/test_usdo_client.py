@@ -196,6 +196,9 @@ def test_broadcast_collects_every_server(net, bus_name):
     acks = line.usdo.broadcast_download(0x1017, 0, (250).to_bytes(2, "little"),
                                         window=scaled(0.3))
     assert acks == {3: None, 4: None, 6: None}
+    # upload() gives one entry's bytes: node 0 (the broadcast) is broadcast_upload()'s
+    with pytest.raises(ConfigurationError, match="node 0 is the USDO broadcast"):
+        line.usdo.upload(0, 0x1017)
 
 
 def test_32_transfers_at_once_from_several_threads(rig):
@@ -250,6 +253,9 @@ def test_file_streams_with_progress(rig, tmp_path):
     with open(tmp_path / "copy.bin", "wb") as f:
         line.usdo.start_upload(SERVER, DOMAIN, 0, file=f).result()
     assert (tmp_path / "copy.bin").read_bytes() == payload[::-1]
+    with open(tmp_path / "again.bin", "wb") as f:   # the blocking form: the data is in f
+        assert line.usdo.upload(SERVER, DOMAIN, 0, file=f) == b""
+    assert (tmp_path / "again.bin").read_bytes() == payload[::-1]
 
 
 def test_upload_larger_than_max_size_is_refused(rig):

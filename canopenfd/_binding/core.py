@@ -1,5 +1,7 @@
 """Loads the compiled C stack; the one import of `canopenfd._core` in the package."""
 
+from typing import TYPE_CHECKING, Any
+
 try:
     from .._core import ffi, lib
 except ImportError as exc:  # pragma: no cover - only without a build
@@ -9,5 +11,16 @@ except ImportError as exc:  # pragma: no cover - only without a build
 
 __all__ = ["ffi", "lib", "CData"]
 
-#: A cffi object (cdata: a C struct, array or pointer); opaque above the binding.
-CData = object
+if TYPE_CHECKING:
+    class CData:
+        """A cffi object (cdata: a C struct, array or pointer); opaque above the
+        binding. Its fields and items are C's, which cffi knows only at run time
+        (from the cdef), so mypy takes them as Any."""
+
+        def __getattr__(self, name: str) -> Any: ...
+        def __setattr__(self, name: str, value: Any) -> None: ...
+        def __getitem__(self, index: int) -> Any: ...
+        def __setitem__(self, index: int, value: Any) -> None: ...
+        def __add__(self, offset: int) -> "CData": ...   # pointer arithmetic
+else:
+    CData = object   # annotations only: cdata objects are cffi's own type

@@ -22,7 +22,7 @@ import threading
 import time
 from typing import TYPE_CHECKING, Optional, Protocol
 
-from .core import ffi, lib
+from .core import CData, ffi, lib
 from .runtime import HOST_BATCH, Runtime
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -150,7 +150,7 @@ class HostBridge:
                               self._label, failed)
                 return
 
-    def _hand_in(self, frames, count: int) -> bool:
+    def _hand_in(self, frames: CData, count: int) -> bool:
         """Give frames[0:count] to the line, waiting while its rx queue is
         full; False when the runtime closed (or we were stopped meanwhile)."""
         done = 0

@@ -7,9 +7,9 @@ as wire bytes, so the C side never interprets Python objects.
 
 from __future__ import annotations
 
-from typing import Dict, List, Optional, Tuple
+from typing import List, Mapping, Optional, Tuple
 
-from ..od import DataType, ObjectDictionary, ODVariable
+from ..od import DataType, ObjectDictionary, ODVariable, OdValueError
 from ..od.datatypes import Value, encode
 from .core import CData, ffi, lib
 
@@ -35,15 +35,20 @@ def _start_value(var: ODVariable, node_id: int) -> Tuple[bytes, bool]:
     """(bytes, node-id relative): a DCF/XDC configured value wins over the
     default; a relative value is passed as its offset for the C side to add
     the node-id at every reset."""
-    if var.value_base is not None:
-        base, relative = var.value_base, var.value_relative_to_node_id
-    else:
+    base: Optional[Value] = var.value_base
+    relative = var.value_relative_to_node_id
+    if base is None:
         base, relative = var.default_base, var.relative_to_node_id
     if base is None:
         return var.default_bytes(node_id), False
-    if relative and var.data_type.is_integer:
+    if not relative:
+        return encode(var.data_type, base), False
+    if var.data_type.is_integer:
         return encode(var.data_type, base), True
-    return encode(var.data_type, base + node_id if relative else base), False
+    if var.data_type.is_real and isinstance(base, (int, float)):   # added once, here
+        return encode(var.data_type, base + node_id), False
+    raise OdValueError(f"a value relative to the node-id needs a numeric type, "
+                       f"not {var.data_type.name} (got {base!r})", f"{var.where} {var.qualname}")
 
 
 def _size(var: ODVariable, start: bytes) -> int:
@@ -55,7 +60,7 @@ def _size(var: ODVariable, start: bytes) -> int:
 
 
 def definitions(od: ObjectDictionary, node_id: int,
-                overrides: Optional[Dict[Tuple[int, int], Value]] = None
+                overrides: Optional[Mapping[Tuple[int, int], Value]] = None
                 ) -> Tuple[CData, int, List[CData]]:
     """(co_od_def_t array, count, keep-alive list) for `od` on node `node_id`.
     `overrides` maps (index, sub) to a start value replacing the default."""

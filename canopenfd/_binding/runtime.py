@@ -181,7 +181,7 @@ class Runtime:
 
     # ------------------------------------------------------------ object dictionary
     def od_define(self, line: int, od: ObjectDictionary, node_id: int,
-                  overrides: Dict[Tuple[int, int], Value], store_path: Optional[str],
+                  overrides: Mapping[Tuple[int, int], Value], store_path: Optional[str],
                   what: str) -> None:
         """Define the local node's OD (co_od_def_t table from od, `overrides`
         replacing start values) before the node is created."""
@@ -587,16 +587,26 @@ def _event(ev: CData) -> Event:
     return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data, ev.coalesced)
 
 
-def decode_emcy(data: bytes, fd: bool) -> Optional[Dict[str, Union[int, bytes]]]:
-    """Every field of an EMCY (co_emcy_msg_t) as a dict, None when malformed."""
+class EmcyFields(NamedTuple):
+    """Every field of an EMCY (co_emcy_msg_t); the FD-only ones are 0 on classic."""
+    code: int
+    error_register: int
+    msef: bytes
+    logical_device: int
+    spec_number: int
+    status: int
+    time_stamp: int
+
+
+def decode_emcy(data: bytes, fd: bool) -> Optional[EmcyFields]:
+    """The fields of an EMCY, decoded by the C codec; None when malformed."""
     out = ffi.new("co_emcy_msg_t *")
     decode = lib.co_emcy_decode_fd if fd else lib.co_emcy_decode_classic
     if not decode(data, len(data), out):
         return None
-    return {"code": out.code, "error_register": out.error_register,
-            "msef": bytes(ffi.buffer(out.msef, 5)), "logical_device": out.logical_device,
-            "spec_number": out.spec_number, "status": out.status,
-            "time_stamp": out.time_stamp}
+    return EmcyFields(int(out.code), int(out.error_register), bytes(ffi.buffer(out.msef, 5)),
+                      int(out.logical_device), int(out.spec_number), int(out.status),
+                      int(out.time_stamp))
 
 
 def now_us() -> int:

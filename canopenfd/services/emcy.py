@@ -84,10 +84,10 @@ class Emcy:
         fields = decode_emcy(bytes(data), fd)
         if fields is None:
             return None
-        return cls(node, fields["code"], fields["error_register"], fields["msef"],
-                   logical_device=fields["logical_device"],
-                   spec_number=fields["spec_number"], status=fields["status"],
-                   time_stamp=fields["time_stamp"], fd=fd,
+        return cls(node, fields.code, fields.error_register, fields.msef,
+                   logical_device=fields.logical_device,
+                   spec_number=fields.spec_number, status=fields.status,
+                   time_stamp=fields.time_stamp, fd=fd,
                    timestamp=time.time() if timestamp is None else timestamp)
 
     # python-canopen's EmcyError names
@@ -268,8 +268,15 @@ class EmcyProducer:
         a network write of 0 to 0x1003:00 clears it."""
         if self.node.od is None or 0x1003 not in self.node.od:
             return []
-        count = self._served.variable_value(0x1003, 0).raw
-        return [self._served.variable_value(0x1003, sub).raw for sub in range(1, count + 1)]
+        count = self._integer(0x1003, 0)
+        return [self._integer(0x1003, sub) for sub in range(1, count + 1)]
+
+    def _integer(self, index: int, sub: int) -> int:
+        value = self._served.variable_value(index, sub).raw
+        if not isinstance(value, int):   # the OD gives the entry a non-integer type
+            raise ConfigurationError(f"{self._served.where}: 0x{index:04X}:{sub:02X} must be "
+                                     f"an integer entry, got {type(value).__name__} {value!r}")
+        return value
 
     @property
     def dropped(self) -> int:

@@ -183,7 +183,10 @@ class Indications:
     def add(self, key: Key, kind: int, callback: Optional[Callback]
             ) -> Union[Callback, Callable[[Callback], Callback]]:
         if callback is None:   # used as a decorator
-            return lambda function: self.add(key, kind, function)  # type: ignore[return-value]
+            return lambda function: self._add(key, kind, function)
+        return self._add(key, kind, callback)
+
+    def _add(self, key: Key, kind: int, callback: Callback) -> Callback:
         if not callable(callback):
             raise ConfigurationError(f"{self._where}: {_KIND_NAMES[kind]} callback must be "
                                      f"callable, got {callback!r}")

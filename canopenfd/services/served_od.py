@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import copy
 import logging
-from typing import Callable, Dict, List, Optional, Tuple, Union
+from typing import Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 from .._binding.constants import EventKind, OdOrigin
 from .._binding.context import Deferred, LineContext
@@ -95,7 +95,7 @@ class ServedDictionary:
         return od is not None and isinstance(od.get_variable(0x1017, 0), ODVariable)
 
     # ------------------------------------------------------------ boot
-    def define(self, overrides: Dict[Tuple[int, int], Value], store_path: Optional[str]) -> None:
+    def define(self, overrides: Mapping[Tuple[int, int], Value], store_path: Optional[str]) -> None:
         """Define the OD in the runtime (before the node is created): `overrides`
         replace start values, `store_path` is the parameter file (or None)."""
         od = self._od()

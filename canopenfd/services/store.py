@@ -82,14 +82,15 @@ class MemoryStore:
 
 
 def is_path(store: object) -> bool:
-    return isinstance(store, (str, bytes)) or hasattr(store, "__fspath__")
+    # os.PathLike's isinstance() is true for any object with __fspath__
+    return isinstance(store, (str, bytes, os.PathLike))
 
 
 def check_store(store: Optional[StoreLike], where: str) -> Union[None, str, StoreMedium]:
     """A path (as str) or an object with load()/save(); ConfigurationError otherwise."""
     if store is None:
         return None
-    if is_path(store):
+    if isinstance(store, (str, bytes, os.PathLike)):   # is_path(), spelled for mypy
         path = os.fsdecode(os.fspath(store))
         if not path:
             raise ConfigurationError(f"{where}: store path is empty")

@@ -175,7 +175,7 @@ class _Pending(NamedTuple):
 
     transfer: Transfer
     completion: Completion
-    keep: Union[None, CBuffer, BinaryIO]   # the download's buffer / the file stays alive
+    keep: object   # kept alive only: the download's buffer / the file; None: into memory
     progress: Optional[Progress]
 
 
@@ -196,7 +196,7 @@ class TransferEngine:
         context.subscribe(EventKind.TRANSFER_PROGRESS, self._event_progress)
         context.on_close(self._network_closed)
 
-    def start(self, request: TransferRequest, keep: Union[None, CBuffer, BinaryIO],
+    def start(self, request: TransferRequest, keep: object,
               progress: Optional[Progress], what: str) -> Transfer:
         context = self._context
         completion = Completion()
@@ -410,11 +410,11 @@ class TransferClient:
         request.done_event = done_event
         request.mode = self.MODES.index(mode)
         request.data_type = _DOMAIN if data_type is None else _type_code(data_type, what)
-        keep: Union[CBuffer, BinaryIO]
+        keep: object   # what must stay alive while C reads it
         if hasattr(data, "fileno") and hasattr(data, "seek"):
             request.fd, request.fd_offset = _file_target(data, what)
             size = os.fstat(request.fd).st_size - request.fd_offset
-            keep = data  # type: ignore[assignment]
+            keep = data
         else:
             try:
                 keep, size = memory_source(data)
@@ -440,7 +440,7 @@ class TransferClient:
             raise ConfigurationError(f"{what}: timeout {timeout!r} s outside (0, 3600]")
         return TransferRequest(node, index, sub, upload, max(1, int(timeout * 1000)))
 
-    def _start(self, request: TransferRequest, keep: Union[None, CBuffer, BinaryIO],
+    def _start(self, request: TransferRequest, keep: object,
                progress: Optional[Progress], what: str) -> Transfer:
         self._ensure_client()
         return self._engine.start(request, keep, progress, what)
@@ -450,9 +450,11 @@ class TransferClient:
     # TRANSFER_DONE event, so the dispatcher thread does not compete with the
     # waking caller for the GIL (that race cost ~8 % of an expedited round trip).
     def upload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
-        """Read index:sub of node and wait for the data (options: start_upload)."""
+        """Read index:sub of node and wait for the data (options: start_upload;
+        with file=, the data goes there and b"" comes back)."""
+        _not_broadcast(node, f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X}")
         transfer = self._begin_upload(node, index, sub, False, **options)
-        return transfer.result()  # type: ignore[return-value]
+        return uploaded_bytes(transfer.result())
 
     def download(self, node: int, index: int, sub: int, data: DownloadSource,
                  **options: Any) -> None:
@@ -460,11 +462,28 @@ class TransferClient:
         self._begin_download(node, index, sub, data, False, **options).result()
 
     async def aupload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
-        return await self.start_upload(node, index, sub, **options)  # type: ignore[return-value]
+        _not_broadcast(node, f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X}")
+        return uploaded_bytes(await self.start_upload(node, index, sub, **options))
 
     async def adownload(self, node: int, index: int, sub: int, data: DownloadSource,
                         **options: Any) -> None:
         await self.start_download(node, index, sub, data, **options)
+
+
+def uploaded_bytes(result: Result) -> bytes:
+    """What the blocking/async upload forms return: the data, b"" when it went
+    into a file (start_upload(file=...)). A broadcast's {node: answer} is
+    broadcast_upload()'s; upload() refuses node 0 before it starts."""
+    if result is None:
+        return b""
+    assert isinstance(result, bytes), f"an upload ended with {type(result).__name__}"
+    return result
+
+
+def _not_broadcast(node: object, what: str) -> None:
+    if node == 0:
+        raise ConfigurationError(f"{what}: node 0 is the USDO broadcast; broadcast_upload() "
+                                 "gives each server's answer")
 
 
 def require_protocol(context: LineContext, protocol: str) -> None:
@@ -480,6 +499,7 @@ def require_protocol(context: LineContext, protocol: str) -> None:
 
 def _file_target(file: object, what: str) -> Tuple[int, int]:
     try:
+        # duck-typed on purpose: any object may come in, AttributeError is the check
         return file.fileno(), file.tell()  # type: ignore[attr-defined]
     except (AttributeError, OSError, ValueError) as exc:
         raise ConfigurationError(f"{what}: file must be an open binary file with a "

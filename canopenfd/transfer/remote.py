@@ -7,15 +7,15 @@ from __future__ import annotations
 
 import tempfile
 from types import TracebackType
-from typing import Any, BinaryIO, Dict, Optional, Tuple, Type, Union
+from typing import Any, BinaryIO, Dict, Literal, Optional, Tuple, Type, Union, overload
 
 from ..errors import ConfigurationError
 from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
 from ..od.datatypes import Value
 from ..services.views import RemoteNodeView
-from .client import DownloadSource, Key, Progress, Transfer, TransferClient
+from .client import DownloadSource, Key, Progress, Transfer, TransferClient, uploaded_bytes
 
-__all__ = ["RemoteAccess", "RemoteObjects", "RemoteValue", "resolve"]
+__all__ = ["RemoteAccess", "RemoteObjects", "RemoteValue", "DownloadStream", "resolve"]
 
 _NO_DATA = object()   # download(key, data) vs python-canopen's download(index, sub, data)
 
@@ -90,6 +90,11 @@ class RemoteAccess:
                     f"node {self._node.node_id}: download(index, subindex, data) needs an int "
                     f"sub-index second, got {data!r}")
             key, data = self._with_sub(key, data, "download"), python_canopen_data
+        if isinstance(data, int):
+            raise ConfigurationError(
+                f"node {self._node.node_id}: download data must be bytes-like or an open "
+                f"binary file, got {data!r} (python-canopen's order: download(index, "
+                f"subindex, data))")
         if options.pop("force_segment", False):
             options.setdefault("mode", "segmented")
         index, sub = self._download_options(key, options)
@@ -118,13 +123,25 @@ class RemoteAccess:
         return index, sub
 
     async def aupload(self, key: Key, **options: Any) -> bytes:
-        return await self.start_upload(key, **options)  # type: ignore[return-value]
+        return uploaded_bytes(await self.start_upload(key, **options))
 
     async def adownload(self, key: Key, data: DownloadSource, **options: Any) -> None:
         await self.start_download(key, data, **options)
 
+    @overload
+    def open(self, key: Key, mode: Literal["rb"] = "rb", *,
+             progress: Optional[Progress] = None, timeout: float = 1.0) -> BinaryIO: ...
+
+    @overload
+    def open(self, key: Key, mode: Literal["wb"], *, progress: Optional[Progress] = None,
+             timeout: float = 1.0) -> DownloadStream: ...
+
+    @overload
+    def open(self, key: Key, mode: str, *, progress: Optional[Progress] = None,
+             timeout: float = 1.0) -> Union[BinaryIO, DownloadStream]: ...
+
     def open(self, key: Key, mode: str = "rb", *, progress: Optional[Progress] = None,
-             timeout: float = 1.0) -> BinaryIO:
+             timeout: float = 1.0) -> Union[BinaryIO, DownloadStream]:
         """A file-like stream of a (large) entry. 'rb': the entry is uploaded
         into a temporary file first (never whole in memory), which is
         returned at offset 0. 'wb': writes go to a temporary file that is
@@ -137,14 +154,14 @@ class RemoteAccess:
                 spool.close()
                 raise
             spool.seek(0)
-            return spool  # type: ignore[return-value]
+            return spool
         if mode == "wb":
-            return _DownloadStream(self, key, progress, timeout)  # type: ignore[return-value]
+            return DownloadStream(self, key, progress, timeout)
         raise ConfigurationError(f"node {self._node.node_id}: open() mode {mode!r} is not "
                                  "'rb' or 'wb'")
 
 
-class _DownloadStream:
+class DownloadStream:
     """Writer of RemoteAccess.open(key, 'wb'): spooled to disk, sent at close()."""
 
     def __init__(self, access: RemoteAccess, key: Key, progress: Optional[Progress],
@@ -173,7 +190,7 @@ class _DownloadStream:
         finally:
             self._spool.close()
 
-    def __enter__(self) -> "_DownloadStream":
+    def __enter__(self) -> "DownloadStream":
         return self
 
     def __exit__(self, kind: Optional[Type[BaseException]], value: Optional[BaseException],

@@ -13,7 +13,7 @@ the remote views in transfer.remote.
 
 from __future__ import annotations
 
-from typing import Dict, Optional, Union
+from typing import Dict, Optional, Union, cast
 
 from .._binding.context import LineContext
 from .._binding.transfers import usdo_abort_to_cia
@@ -82,12 +82,16 @@ class UsdoClient(TransferClient):
         """Read index:sub from every server (expedited answers, up to 56
         bytes): {node: bytes or UsdoAbortError} of those that answered
         within `window` seconds."""
-        return self.start_upload(0, index, sub, timeout=window).result()  # type: ignore
+        answers = self.start_upload(0, index, sub, timeout=window).result()
+        # node 0: the engine's {node: answer}, an upload's answers are bytes or an abort
+        return cast(Dict[int, Union[bytes, AbortError]], answers)
 
     def broadcast_download(self, index: int, sub: int, data: bytes, *,
                            window: float = 0.5,
                            data_type: Union[None, int, str] = None
                            ) -> Dict[int, Optional[AbortError]]:
         """Write up to 56 bytes to every server: {node: None or UsdoAbortError}."""
-        return self.start_download(0, index, sub, data, mode="expedited", timeout=window,
-                                   data_type=data_type).result()  # type: ignore
+        answers = self.start_download(0, index, sub, data, mode="expedited", timeout=window,
+                                      data_type=data_type).result()
+        # node 0: the engine's {node: answer}, a download's answers are None or an abort
+        return cast(Dict[int, Optional[AbortError]], answers)
