@@ -166,23 +166,33 @@ class Line:
                     raise
         return node
 
-    def add_node(self, node_id: int, heartbeat_timeout_ms: Union[int, ODLike] = 0, *,
+    def add_node(self, node_id: int, od_or_timeout: Union[int, ODLike, None] = None, *,
+                 heartbeat_timeout_ms: Optional[int] = None,
                  od: Optional[ODLike] = None) -> RemoteNode:
         """Watch a remote node (python-canopen's network.add_node): its boot-up,
         states and, with heartbeat_timeout_ms > 0, the loss of its heartbeat.
         od: its ObjectDictionary or EDS/DCF/XDD file, so `node.od[name].raw`
-        and `node.usdo` know names and types; python-canopen's
-        `add_node(5, "drive.eds")` (the OD second) works too. Adding a node
-        already watched updates its timeout (and OD, when given) and returns it."""
+        and `node.usdo` know names and types. The second argument is either:
+        python-canopen's `add_node(5, "drive.eds")` (the OD) or
+        `add_node(5, 300)` (the timeout), so `add_node(5, "drive.eds",
+        heartbeat_timeout_ms=300)` works too. Adding a node already watched
+        updates the timeout and OD given (and keeps those not given) and
+        returns it."""
         node_id = check_node_id(node_id, f"add_node on {self._where}")
-        if not isinstance(heartbeat_timeout_ms, (int, float)):  # python-canopen: (id, od)
-            if od is not None:
+        where = f"add_node({node_id}) on {self._where}"
+        if isinstance(od_or_timeout, (int, float)):
+            if heartbeat_timeout_ms is not None:
                 raise ConfigurationError(
-                    f"add_node({node_id}) on {self._where}: two object dictionaries given "
-                    f"({heartbeat_timeout_ms!r} and od={od!r})")
-            od, heartbeat_timeout_ms = heartbeat_timeout_ms, 0
-        heartbeat_timeout_ms = check_ms(heartbeat_timeout_ms, "heartbeat_timeout_ms",
-                                        f"add_node({node_id}) on {self._where}")
+                    f"{where}: two heartbeat timeouts given ({od_or_timeout!r} and "
+                    f"heartbeat_timeout_ms={heartbeat_timeout_ms!r})")
+            heartbeat_timeout_ms = check_ms(od_or_timeout, "heartbeat_timeout_ms", where)
+        elif od_or_timeout is not None:
+            if od is not None:
+                raise ConfigurationError(f"{where}: two object dictionaries given "
+                                         f"({od_or_timeout!r} and od={od!r})")
+            od = od_or_timeout
+        if heartbeat_timeout_ms is not None:
+            heartbeat_timeout_ms = check_ms(heartbeat_timeout_ms, "heartbeat_timeout_ms", where)
         context = self._context
         with context.cond:
             if self.local_node is not None and self.local_node.node_id == node_id:
@@ -190,13 +200,15 @@ class Line:
                     f"{self._where}: node-id {node_id} is this line's local node; "
                     "a remote node needs another id")
             existing = self.nodes.get(node_id)
-        remote_od = None if od is None else \
-            _remote_od(od, node_id, f"add_node({node_id}) on {self._where}")
+        remote_od = None if od is None else _remote_od(od, node_id, where)
         if existing is not None:
-            existing.heartbeat_timeout_ms = heartbeat_timeout_ms
+            if heartbeat_timeout_ms is not None:
+                existing.heartbeat_timeout_ms = heartbeat_timeout_ms
             if remote_od is not None:
                 existing.object_dictionary = remote_od
             return existing
+        if heartbeat_timeout_ms is None:
+            heartbeat_timeout_ms = 0
         self._check_consumer_owner(node_id, heartbeat_timeout_ms, f"add_node({node_id})")
         with context.cond:
             scope = context.scoped()

@@ -31,7 +31,7 @@ def device(channel: str, seconds: float) -> None:
 
 def master(channel: str) -> None:
     with canopenfd.connect(channel) as line:
-        drive = line.add_node(NODE, heartbeat_timeout_ms=500, od=demo_od("fd"))
+        drive = line.add_node(NODE, demo_od("fd"), heartbeat_timeout_ms=500)
         state = drive.wait_for_heartbeat(timeout=10)
         print(f"master: node {NODE} is {state.label}")
         print(f"master: setpoint {drive.od['Demo record.Setpoint'].raw}")

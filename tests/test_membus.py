@@ -844,3 +844,21 @@ def test_heartbeat_callback_for_every_heartbeat_bounded_and_removable(net, bus_n
     assert len(beats) > 12 and beats.snapshot()[-1] == NmtState.OPERATIONAL
     with pytest.raises(ConfigurationError, match="min_interval_ms"):
         remote.add_heartbeat_callback(print, min_interval_ms=-1)
+
+
+def test_add_node_takes_the_od_second_and_the_timeout_by_keyword(net, bus_name):
+    """python-canopen's add_node(5, od) and ours (timeout second, or keyword)
+    together; a node added again keeps what is not given again."""
+    from canopenfd.od import demo_od
+    line = net.open_line(bus_name)
+    drive = line.add_node(5, demo_od("fd"), heartbeat_timeout_ms=300)
+    assert drive.heartbeat_timeout_ms == 300 and drive.object_dictionary is not None
+    assert line.add_node(5, demo_od("fd")) is drive
+    assert drive.heartbeat_timeout_ms == 300                  # kept
+    assert line.add_node(5, 150) is drive and drive.heartbeat_timeout_ms == 150
+    with pytest.raises(ConfigurationError, match="two heartbeat timeouts"):
+        line.add_node(6, 100, heartbeat_timeout_ms=200)
+    with pytest.raises(ConfigurationError, match="two object dictionaries"):
+        line.add_node(6, demo_od("fd"), od=demo_od("fd"))
+    with pytest.raises(ConfigurationError, match="heartbeat_timeout_ms must be an int"):
+        line.add_node(6, True)

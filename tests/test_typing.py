@@ -60,7 +60,7 @@ def _module_of(path: str) -> str:
 
 def _load_generator() -> types.ModuleType:
     spec = importlib.util.spec_from_file_location("gen_constants_stub",
-                                                  ROOT / "tools" / "gen_constants_stub.py")
+                                                  ROOT / "tests" / "gen_constants_stub.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -112,7 +112,7 @@ def test_the_constants_stub_is_what_the_binding_builds() -> None:
     stub = SOURCE / "_binding" / "constants.pyi"
     expected = _load_generator().render(constants)
     assert stub.read_text(encoding="utf-8") == expected, \
-        "canopenfd/_binding/constants.pyi is stale: run python tools/gen_constants_stub.py"
+        "canopenfd/_binding/constants.pyi is stale: run python tests/gen_constants_stub.py"
 
 
 def test_the_stub_generator_writes_every_member_with_its_base() -> None:

@@ -2,7 +2,7 @@
 
 `constants` builds each enum at import time from cffi's view of the headers
 (`c_enum`); mypy cannot see members made at run time, so it reads
-`constants.pyi` instead, which tools/gen_constants_stub.py writes from the very
+`constants.pyi` instead, which tests/gen_constants_stub.py writes from the very
 enums `constants` built (tests/test_typing.py fails when it is stale). The code
 that is written by hand lives here, where mypy checks it.
 """

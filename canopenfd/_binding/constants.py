@@ -12,7 +12,7 @@ The one enum the cdef lacks (co_guard_event_t) is listed in `_NOT_IN_CDEF`,
 checked against its header by the same test.
 
 mypy does not read this file: it reads `constants.pyi`, the same enums written
-out as classes by tools/gen_constants_stub.py from what this module built
+out as classes by tests/gen_constants_stub.py from what this module built
 (tests/test_typing.py regenerates it and fails when the checked-in one differs).
 Hand-written code (the NMT enums' parse/label/target) lives in `c_enums`, where
 mypy checks it; keep this file to the calls that build enums.
