@@ -6,11 +6,16 @@ their FD, bit-rate switch and ESI flags and their length.
 
 Time stamps: the runtime stamps frames with CLOCK_MONOTONIC; the log gets
 wall-clock time (what candump and the other tools write), the offset taken
-once when the log opens. A replayed frame keeps the file's time stamp."""
+once when the log opens. A replayed frame keeps the file's time stamp.
+
+python-can's .csv and .trc writers have no CAN FD frames (CSV has no column
+for the flags, TRC skips FD frames): those formats are refused for an fd
+line, and a replay that would write an FD frame to one stops with an error."""
 
 from __future__ import annotations
 
 import os
+import pathlib
 import time
 from typing import Any, Iterator, List
 
@@ -34,13 +39,31 @@ def log_formats(kind: str) -> List[str]:
     return sorted(table)
 
 
+#: log formats whose python-can writer loses CAN FD frames, and how
+_NO_FD = {".csv": "has no CAN FD flags (FD frames would read back as classic ones)",
+          ".trc": "skips CAN FD frames"}
+
+
+def _format(path: str) -> str:
+    """The extension that picks the format (.log of frames.log.gz)."""
+    suffixes = [s.lower() for s in pathlib.Path(path).suffixes]
+    if suffixes and suffixes[-1] == ".gz":
+        suffixes.pop()
+    return suffixes[-1] if suffixes else ""
+
+
 class FrameLog:
     """Frames written to FILE with can.Logger, in the order given; close()
-    flushes (BLF and MF4 write their headers then)."""
+    flushes (BLF and MF4 write their headers then). fd_line: the frames come
+    from a CAN FD line (formats without FD frames are refused)."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, fd_line: bool = False) -> None:
         can = _python_can()
         self.path = path
+        self._no_fd = _NO_FD.get(_format(path))
+        if fd_line and self._no_fd:
+            raise UsageError(f"--log {path}: python-can's {_format(path)} format "
+                             f"{self._no_fd}: use .log, .asc or .blf for an fd line")
         self._to_wall = time.time() - time.monotonic()
         self.written = 0
         try:
@@ -52,6 +75,10 @@ class FrameLog:
             raise UsageError(f"--log {path}: {exc.strerror or exc}") from None
 
     def write(self, frame: Frame) -> None:
+        if frame.fd and self._no_fd:
+            raise UsageError(f"--log {self.path}: frame {self.written + 1} is a CAN FD frame "
+                             f"and python-can's {_format(self.path)} format {self._no_fd}: "
+                             "use .log, .asc or .blf")
         message = frame.to_message()
         message.timestamp = frame.timestamp + self._to_wall
         message.is_rx = not frame.tx

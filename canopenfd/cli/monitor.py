@@ -46,8 +46,10 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("--count", type=int, metavar="N", help="stop after N frames shown")
     p.add_argument("--log", metavar="FILE",
                    help="also write the frames shown to FILE with python-can's can.Logger; "
-                        "the extension picks the format: .log (candump -L), .asc, .blf, "
-                        ".csv, .trc, .mf4, .db (as the installed python-can writes them)")
+                        "the extension picks the format: .log (candump -L), .asc, .blf "
+                        "(these keep CAN FD frames), .csv, .trc (classic frames only), "
+                        ".mf4, .db, as the installed python-can writes them; FILE.log.gz "
+                        "compresses")
     p.add_argument("--replay", metavar="FILE",
                    help="decode the frames of a log file (any format can.LogReader reads: "
                         ".log, .asc, .blf, .csv, .trc, .mf4, .db) instead of a bus: same "
@@ -155,7 +157,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     from .frame_log import FrameLog, read_log
 
     frames = read_log(args.replay) if args.replay is not None else None
-    log = FrameLog(args.log) if args.log else None
+    log = FrameLog(args.log, fd_line=args.replay is None and not args.classic) \
+        if args.log else None
     try:
         if frames is not None:
             return _replay(args, frames, decoder, frame_filter, log)
