@@ -98,11 +98,12 @@ def live_monitor(capsys, net, bus, traffic, *options):
     thread = threading.Thread(target=monitor)
     thread.start()
     time.sleep(scaled(0.3))                       # the monitor line is open
+    start = len(seen)             # (a boot-up still on its way belongs to neither)
     traffic()
     thread.join()
     status, out, err = result["run"]
     assert status == 0, err
-    return out, err, seen.snapshot()
+    return out, err, seen.snapshot()[start:]
 
 
 # ------------------------------------------------------------------ candump .log bytes
@@ -357,3 +358,58 @@ def test_frames_lost_are_counted_by_the_runtime_and_reported(capsys):
     assert f"{shown} frames shown, {lost} lost (the monitor fell behind" in err
     reported = [int(m) for m in re.findall(r"--  \d+ frames lost: .*; (\d+) lost so far", out)]
     assert reported and reported[-1] == lost
+
+
+# ------------------------------------------------------------------ the README's commands
+def readme_monitor_commands():
+    text = open(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                             "README.md"), encoding="utf-8").read()
+    section = text[text.index("### Monitor, filters and log files"):]
+    block = re.search(r"^```sh\n(.*?)^```", section, re.S | re.M).group(1)
+    return [line.split()[1:] for line in block.splitlines() if line.startswith("canopenfd ")]
+
+
+def drive_eds(path):
+    """node 5's EDS with TPDO1 as start_tpdo() maps it."""
+    from canopenfd.od import export_eds
+
+    od = demo_od("fd", pdos=1)
+    od[0x1800][1].set_default(0x180, relative_to_node_id=True)
+    entries = [od["Demo UNSIGNED16"], od["Demo record.Setpoint"]]
+    for sub, entry in enumerate(entries, 1):
+        od[0x1A00][sub].set_default(entry.index << 16 | entry.subindex << 8
+                                    | entry.data_type.size * 8)
+    od[0x1A00][0].set_default(len(entries))
+    export_eds(od, str(path))
+
+
+def test_the_readme_monitor_commands_run(net, bus_name, capsys, tmp_path, monkeypatch):
+    """The README's three lines: the live one on a mem: bus instead of can0
+    (in-process, it must share the traffic's Network), the offline ones as
+    the `canopenfd` command in a subprocess."""
+    import subprocess
+
+    from helpers import cli_command, package_env
+
+    def run_command(*argv, cwd):
+        return subprocess.run(cli_command(*argv), capture_output=True, text=True, cwd=cwd,
+                              env=package_env(), timeout=scaled(60), check=False)
+
+    live, replay_pdos, convert = readme_monitor_commands()
+    assert live[:3] == ["monitor", "--channel", "can0"] and replay_pdos[:2] == ["monitor",
+                                                                                "--replay"]
+    monkeypatch.chdir(tmp_path)
+    node = make_server(net, bus_name, "fd")
+    out, err, seen = live_monitor(capsys, net, bus_name, lambda: fd_traffic(net, bus_name, node),
+                                  *live[3:])
+    assert len(shown_lines(out)) == len(seen) and (tmp_path / "node5.log").exists()
+    drive_eds(tmp_path / "drive.eds")
+    result = run_command(*replay_pdos, cwd=str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    lines = shown_lines(result.stdout)
+    assert ids_of(lines) == [f.id for f in seen if f.id in (0x185, 0x85)]
+    assert "TPDO1 node 5 Demo UNSIGNED16=4660" in lines[0].replace("  ", " "), lines
+    result = run_command(*convert, cwd=str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert ids_of(shown_lines(result.stdout)) == [f.id for f in seen if 0x580 <= f.id <= 0x5FF]
+    assert (tmp_path / "node5.asc").stat().st_size > 0
