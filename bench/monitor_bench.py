@@ -11,8 +11,10 @@ The monitor runs as the CLI runs it (`canopenfd.cli.main(["monitor", ...],
 network=net)`, in the main thread, stdout redirected to the file); the
 transfer runs in a second thread, and once the monitor's output stops
 growing the bench ends the monitor with a Ctrl-C (KeyboardInterrupt).
-"Frames on the bus" is the client line's C counters (rx + tx frames).
-"decoded/s" is printed lines / (last line's time - transfer start).
+"Frames on the bus" is the client line's C counters (rx + tx frames) over
+the transfer; "printed" the monitor's USDO lines (a boot-up the monitor may
+see before is not counted). "decoded/s" is printed lines / (time of the
+monitor's last write to its stdout - transfer start).
 Nothing is asserted about timing; the exit status is 1 when frames were
 lost or the transfer failed.
 """
@@ -26,6 +28,7 @@ import sys
 import tempfile
 import threading
 import time
+from typing import Any
 
 SERVER = 5
 DOMAIN = 0x2100
@@ -54,11 +57,27 @@ def main() -> int:
     server.boot()
     client = net.open_line(bus, mode="fd")
 
-    def size_so_far() -> int:
-        return os.path.getsize(out_path)
+    class TimedFile:
+        """The output file, noting when the monitor last wrote to it (so the
+        rate does not depend on when the monitor flushes)."""
+
+        def __init__(self, file: Any) -> None:
+            self.file = file
+            self.last_write = time.monotonic()
+
+        def write(self, text: str) -> int:
+            self.last_write = time.monotonic()
+            return self.file.write(text)
+
+        def flush(self) -> None:
+            self.file.flush()
+
+        def isatty(self) -> bool:
+            return False
 
     def transfer() -> None:
         time.sleep(0.5)                       # the monitor is up
+        before = client.stats
         result["start"] = time.monotonic()
         try:
             client.usdo.download(SERVER, DOMAIN, 0, data, mode="bulk")
@@ -66,22 +85,21 @@ def main() -> int:
         except Exception as exc:  # noqa: BLE001 - reported below
             result["error"] = exc
         result["end"] = time.monotonic()
+        after = client.stats
+        result["on_bus"] = sum(after[k] - before[k] for k in ("rx_frames", "tx_frames"))
 
     def watch() -> None:
-        """The time the monitor's output file last grew; ends the monitor once
-        it stayed the same for a second after the transfer."""
-        last, last_change = -1, time.monotonic()
-        while "end" not in result or time.monotonic() - last_change < 1.0:
-            time.sleep(0.005)
-            now_lines = size_so_far()
-            if now_lines != last:
-                last, last_change = now_lines, time.monotonic()
-        result["drained"] = last_change
+        """Ends the monitor once it wrote nothing for a second after the
+        transfer; the time of its last write."""
+        while "end" not in result or time.monotonic() - timed.last_write < 1.0:
+            time.sleep(0.05)
+        result["drained"] = timed.last_write
         _thread.interrupt_main()
 
     stdout = sys.stdout
     with open(out_path, "w") as out:
-        sys.stdout = out
+        timed = TimedFile(out)
+        sys.stdout = timed  # type: ignore[assignment]
         worker = threading.Thread(target=transfer)
         watcher = threading.Thread(target=watch)
         worker.start()
@@ -94,10 +112,10 @@ def main() -> int:
             sys.stdout = stdout
         worker.join()
         watcher.join()
-    client_stats = client.stats
-    on_bus = client_stats["rx_frames"] + client_stats["tx_frames"]
+    on_bus = result["on_bus"]
     monitor_stats = next(line.stats for line in net.lines if line.monitor)
-    printed = sum(1 for text in open(out_path) if text[10:12] in ("RX", "TX"))
+    printed = sum(1 for text in open(out_path) if text[10:12] in ("RX", "TX")
+                  and text.rstrip().endswith("[FD BRS]") and " USDO " in text)
     lost = monitor_stats["events_lost"] + monitor_stats["rx_overflow"]
     events_lost = net.events_lost
     net.close()
