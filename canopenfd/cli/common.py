@@ -46,17 +46,14 @@ def print_error(text: str) -> None:
 class Printer:
     """Time-stamped lines on stdout, safe from any thread; a closed pipe
     (`canopenfd monitor | head`) ends the program quietly instead of a traceback.
-    flush: after every line (default: when stdout is a terminal); else the
-    caller flushes (`flush()`) from time to time: a write call per line to a
-    file or pipe is what slowed the monitor."""
+    flush: after every line (default; what a program reading the output as
+    it comes needs), else the caller flushes (`flush()`) from time to time:
+    the monitor, which would otherwise make a system call per frame."""
 
-    def __init__(self, t0: Optional[float] = None, flush: Optional[bool] = None) -> None:
+    def __init__(self, t0: Optional[float] = None, flush: bool = True) -> None:
         self.t0 = time.monotonic() if t0 is None else t0
         self._lock = threading.Lock()
         self.broken = threading.Event()
-        if flush is None:
-            isatty = getattr(sys.stdout, "isatty", None)
-            flush = bool(isatty and isatty())
         self._flush_each = flush
 
     def line(self, text: str, when: Optional[float] = None) -> None:

@@ -192,7 +192,9 @@ def _replay(args: argparse.Namespace, frames: Iterable[Frame], decoder: Decoder,
 def _live(args: argparse.Namespace, decoder: Decoder, frame_filter: FrameFilter,
           log: Any) -> int:
     with command_line(args, monitor=True, event_capacity=MONITOR_EVENT_CAPACITY) as line:
-        printer = Printer()
+        # a terminal shows each line at once; a file or pipe gets them every _TICK_S
+        isatty = getattr(sys.stdout, "isatty", None)
+        printer = Printer(flush=bool(isatty and isatty()))
         shown = _Shown(args, decoder, printer, frame_filter, log)
         line.on_frame(shown)
         line.on_comm_event(lambda ev: printer.line(f"--  {ev.name.lower().replace('_', ' ')}"))
