@@ -26,8 +26,9 @@ from ..frame import Frame
 from .common import (EXIT_OK, Printer, UsageError, add_line_options, command_line, node_id_arg)
 from .frame_filter import FrameFilter, add_filter_options
 
-#: Events the monitor's own runtime queues for it (about 110 bytes each): a
-#: 4 MiB USDO bulk transfer on an in-process bus (70 000 frames) fits.
+#: Events the monitor's own runtime queues for it (112 bytes each, at most
+#: 28 MiB, touched only as far as a backlog reaches): a 4 MiB USDO bulk
+#: transfer on an in-process bus (69 909 frames) fits.
 MONITOR_EVENT_CAPACITY = 1 << 18
 
 #: How often a live monitor flushes its output and looks at the loss counters.
