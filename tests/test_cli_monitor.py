@@ -83,6 +83,15 @@ def classic_traffic(net, bus, node):
     assert client.sdo.upload(SERVER, DOMAIN) and len(client.sdo.upload(SERVER, 0x1018, 1)) == 4
 
 
+def wait_for_monitor_line(net, count):
+    """Until the network has count monitor lines (the CLI's is open)."""
+    deadline = time.monotonic() + scaled(5)
+    while sum(line.monitor for line in net.lines) < count:
+        assert time.monotonic() < deadline, "the monitor did not open its line"
+        time.sleep(0.01)
+    time.sleep(0.05)               # its on_frame callback is registered right after
+
+
 def live_monitor(capsys, net, bus, traffic, *options):
     """Run `monitor --channel bus OPTIONS` for MONITOR_S seconds around
     traffic(); (its output, the frames an independent monitor line saw)."""
@@ -97,7 +106,7 @@ def live_monitor(capsys, net, bus, traffic, *options):
 
     thread = threading.Thread(target=monitor)
     thread.start()
-    time.sleep(scaled(0.3))                       # the monitor line is open
+    wait_for_monitor_line(net, 2)
     start = len(seen)             # (a boot-up still on its way belongs to neither)
     traffic()
     thread.join()
@@ -325,7 +334,7 @@ def test_a_1_mib_bulk_transfer_in_the_same_process_is_shown_whole(capsys, tmp_pa
 
         thread = threading.Thread(target=monitor)
         thread.start()
-        time.sleep(scaled(0.3))
+        wait_for_monitor_line(net, 1)
         before = frames_of(client)          # (the node's boot-up may be among them)
         client.usdo.download(SERVER, DOMAIN, 0, data, mode="bulk")
         assert frames_of(client) - before == expected_frames()
@@ -352,7 +361,7 @@ def test_frames_lost_are_counted_by_the_runtime_and_reported(capsys):
         thread = threading.Thread(target=lambda: result.update(run=run_cli(
             capsys, net, "monitor", "--channel", bus, "--duration", str(scaled(MONITOR_S)))))
         thread.start()
-        time.sleep(scaled(0.3))
+        wait_for_monitor_line(net, 1)
         before = frames_of(client)
         client.usdo.download(SERVER, DOMAIN, 0, os.urandom(1 << 18), mode="bulk")
         on_bus = frames_of(client) - before
