@@ -15,7 +15,7 @@ import re
 import sys
 import threading
 import time
-from typing import Any, Iterator, List, Optional, Tuple
+from typing import Any, Dict, Iterator, List, Optional, Tuple
 
 from ..errors import CanopenFDError
 from ..line import Line
@@ -45,12 +45,16 @@ def print_error(text: str) -> None:
 # ------------------------------------------------------------------ output
 class Printer:
     """Time-stamped lines on stdout, safe from any thread; a closed pipe
-    (`canopenfd monitor | head`) ends the program quietly instead of a traceback."""
+    (`canopenfd monitor | head`) ends the program quietly instead of a traceback.
+    flush: after every line (default; what a program reading the output as
+    it comes needs), else the caller flushes (`flush()`) from time to time:
+    the monitor, which would otherwise make a system call per frame."""
 
-    def __init__(self, t0: Optional[float] = None) -> None:
+    def __init__(self, t0: Optional[float] = None, flush: bool = True) -> None:
         self.t0 = time.monotonic() if t0 is None else t0
         self._lock = threading.Lock()
         self.broken = threading.Event()
+        self._flush_each = flush
 
     def line(self, text: str, when: Optional[float] = None) -> None:
         t = (time.monotonic() if when is None else when) - self.t0
@@ -58,7 +62,16 @@ class Printer:
             if self.broken.is_set():
                 return
             try:
-                print(f"{t:8.3f}  {text}", flush=True)
+                print(f"{t:8.3f}  {text}", flush=self._flush_each)
+            except BrokenPipeError:
+                self.broken.set()
+
+    def flush(self) -> None:
+        with self._lock:
+            if self.broken.is_set():
+                return
+            try:
+                sys.stdout.flush()
             except BrokenPipeError:
                 self.broken.set()
 
@@ -74,47 +87,118 @@ def wait_until_done(done: threading.Event, printer: Printer, duration: Optional[
 
 
 # ------------------------------------------------------------------ lines
-def add_line_options(parser: argparse.ArgumentParser) -> None:
-    """--channel, --interface, --classic and --no-brs: what `command_line` opens."""
-    parser.add_argument("--channel", required=True,
-                        help="SocketCAN interface (vcan0, can0), 'mem:NAME', or the "
-                             "python-can channel with --interface")
+def add_line_options(parser: argparse.ArgumentParser, channel_required: bool = True) -> None:
+    """--channel, --interface, the python-can bus options, --classic and
+    --no-brs: what `command_line` opens."""
+    parser.add_argument("--channel", required=channel_required,
+                        help="SocketCAN interface (vcan0, can0); 'mem:NAME', an in-process "
+                             "bus shared only by the lines of one process (no other program "
+                             "sees it); or the python-can channel with --interface")
     parser.add_argument("--interface", metavar="NAME",
                         help="use python-can interface NAME (virtual, pcan, kvaser, ...)")
+    parser.add_argument("--bitrate", type=int, metavar="BIT/S",
+                        help="--interface only: nominal bit rate, passed to can.Bus(bitrate=...) "
+                             "(SocketCAN interfaces take theirs from 'ip link')")
+    parser.add_argument("--data-bitrate", type=int, metavar="BIT/S",
+                        help="--interface only: CAN FD data-phase bit rate, passed to "
+                             "can.Bus(data_bitrate=...) (interfaces that want timing values "
+                             "instead take them with --bus-option)")
+    parser.add_argument("--bus-option", action="append", metavar="KEY=VALUE",
+                        help="--interface only: one more keyword argument of can.Bus "
+                             "(repeatable), e.g. --bus-option f_clock_mhz=80; VALUE is taken "
+                             "as an int (decimal or 0x hex), float or true/false when it reads "
+                             "as one, else as text")
     parser.add_argument("--classic", action="store_true", help="classic CAN line (default fd)")
     parser.add_argument("--no-brs", action="store_true",
                         help="fd lines: send without bit-rate switch")
 
 
+#: can.Bus arguments the line options set themselves
+_RESERVED_BUS_KEYS = ("interface", "channel", "fd", "bitrate", "data_bitrate")
+
+
+def bus_option_value(text: str) -> Any:
+    """A --bus-option VALUE as int, float, bool, else the text itself."""
+    stripped = text.strip()
+    lowered = stripped.lower()
+    if lowered in ("true", "false"):
+        return lowered == "true"
+    for base in (10, 0):           # 0: 0x.. hex (and 0o, 0b)
+        try:
+            return int(stripped, base)
+        except ValueError:
+            pass
+    try:
+        return float(stripped)
+    except ValueError:
+        return text
+
+
+def bus_kwargs(args: argparse.Namespace) -> Dict[str, Any]:
+    """The keyword arguments of can.Bus for the line options (with --interface)."""
+    mode = "classic" if args.classic else "fd"
+    kwargs: Dict[str, Any] = {"interface": args.interface, "channel": args.channel,
+                              "fd": mode == "fd"}
+    if args.bitrate is not None:
+        kwargs["bitrate"] = args.bitrate
+    if args.data_bitrate is not None:
+        if mode == "classic":
+            raise UsageError("--data-bitrate is the CAN FD data phase: leave it out with "
+                             "--classic")
+        kwargs["data_bitrate"] = args.data_bitrate
+    for option in args.bus_option or ():
+        key, equals, value = option.partition("=")
+        key = key.strip()
+        if not equals or not key.isidentifier():
+            raise UsageError(f"--bus-option {option!r}: expected KEY=VALUE with KEY a "
+                             "keyword of can.Bus (like receive_own_messages=true)")
+        if key in _RESERVED_BUS_KEYS:
+            raise UsageError(f"--bus-option {option!r}: {key} is set by "
+                             f"{'--classic' if key == 'fd' else '--' + key.replace('_', '-')}")
+        if key in kwargs:
+            raise UsageError(f"--bus-option {key} given twice")
+        kwargs[key] = bus_option_value(value)
+    return kwargs
+
+
 def _open_line(net: Network, args: argparse.Namespace, owned: List[Any],
                monitor: bool) -> Line:
-    """The line named by --channel (and --interface, --classic, --no-brs)."""
+    """The line named by --channel (and --interface, the bus options, --classic, --no-brs)."""
     mode = "classic" if args.classic else "fd"
     brs = not args.no_brs
     if args.interface:
+        kwargs = bus_kwargs(args)
         try:
             import can
         except ImportError:
             raise UsageError("--interface needs python-can: pip install python-can") from None
         try:
-            bus = can.Bus(interface=args.interface, channel=args.channel, fd=(mode == "fd"))
+            bus = can.Bus(**kwargs)
         except Exception as exc:  # python-can raises many kinds for a bad adapter
             raise UsageError(
                 f"python-can interface {args.interface!r} channel {args.channel!r}: {exc}"
             ) from None
         owned.append(bus)
         return net.open_line(bus=bus, mode=mode, brs=brs, monitor=monitor)
+    given = [name for name, value in (("--bitrate", args.bitrate),
+                                      ("--data-bitrate", args.data_bitrate),
+                                      ("--bus-option", args.bus_option)) if value is not None]
+    if given:
+        raise UsageError(f"{', '.join(given)} need --interface (python-can); SocketCAN "
+                         "interfaces take their bit rates from 'ip link', mem: buses have none")
     return net.open_line(args.channel, mode=mode, brs=brs, monitor=monitor)
 
 
 @contextlib.contextmanager
-def command_line(args: argparse.Namespace, monitor: bool = False) -> Iterator[Line]:
+def command_line(args: argparse.Namespace, monitor: bool = False,
+                 event_capacity: int = 0) -> Iterator[Line]:
     """The line of the line options, on the Network main() was handed
     (`args.network`, left open: an in-process bus belongs to one Network, so
     tests and embedding programs reach their own nodes this way) or on a new
-    one closed at the end, with the python-can bus it opened."""
+    one closed at the end, with the python-can bus it opened (event_capacity:
+    its runtime event queue, 0 = default)."""
     given = getattr(args, "network", None)
-    net = given if given is not None else Network()
+    net = given if given is not None else Network(event_capacity)
     owned: List[Any] = []
     try:
         yield _open_line(net, args, owned, monitor)

@@ -20,9 +20,11 @@ Modules, bottom up (each imports only the ones above it):
 - `pdo` (default CAN-IDs and `PdoMap`), `service_ids` (SYNC/TIME/EMCY ids
   from dictionaries)
 - `dispatch`: which protocol a frame belongs to; `meaning`, `decode`, `describe`
+- `classify`: the service and node-ids of a frame (the monitor's filters)
 - `decoder`: the stateful `Decoder`
 """
 
+from .classify import SERVICE_GROUPS, SERVICES, frame_service, service_names
 from .decoder import Decoder
 from .dispatch import DESCRIBE_RAW_BYTES, decode, describe, meaning
 from .emcy import (EMCY_BASE, EMCY_CLASSIC_LEN, EMCY_CODES, EMCY_FD_LEN, ERROR_REGISTER_BITS,
@@ -49,4 +51,5 @@ __all__ = [
     "DEFAULT_PDO_BASES", "DUMMY_TYPES", "default_pdo", "default_pdo_text", "MappedObject",
     "PdoDefinition", "PdoMap", "pdo_text", "format_pdo_value",
     "ServiceIds", "service_text",
+    "SERVICES", "SERVICE_GROUPS", "frame_service", "service_names",
 ]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Optional, Tuple
 
+from .classify import Classified, frame_service
 from .dispatch import DecoderState, decoded_line, described_line, frame_meaning
 
 
@@ -51,6 +52,11 @@ class Decoder:
 
     def describe(self, frame: Any, width: int = 30) -> str:
         return described_line(frame, self.meaning(frame), width)
+
+    def service(self, frame: Any) -> Classified:
+        """(service, node-ids) of the frame, by this decoder's dictionaries
+        too (see `classify.frame_service`); does not take the frame as seen."""
+        return frame_service(frame, self._state)
 
     def transfer(self, node_id: int) -> Optional[str]:
         """'block download' / 'block upload' while that server is in a sub-block
