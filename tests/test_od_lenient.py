@@ -220,6 +220,49 @@ def test_sub_object_without_name(tmp_path):
     one_deviation(od, path, 6, "ParameterName is missing", "named 'sub0'")
 
 
+def test_sub_object_with_the_records_object_type(tmp_path):
+    # a generator that writes the record's ObjectType=0x09 into every sub-object
+    path = write(tmp_path, HEAD + "[2000]\nParameterName=R\nObjectType=0x09\n"
+                 "[2000sub0]\nParameterName=n\nObjectType=0x09\nDataType=0x05\nAccessType=ro\n"
+                 "DefaultValue=0\n")
+    od = import_eds(path)
+    assert od[0x2000][0].data_type == DataType.UNSIGNED8
+    one_deviation(od, path, 8, "[2000sub0]", "ObjectType 0x9 where a VAR", "taken as VAR")
+    strict_refuses(path, 8, "ObjectType 0x9")
+
+
+def test_value_in_sub0_of_a_record(tmp_path):
+    # python-canopen's sample.eds [3010Sub0] (REAL32) and node-canopen's
+    # test/sample.eds (VISIBLE_STRING): alone it becomes the object's VAR...
+    path = write(tmp_path, HEAD + "[3010]\nParameterName=Raw\nObjectType=0x9\nSubNumber=1\n"
+                 "[3010Sub0]\nParameterName=Temperature\nDataType=0x0008\nAccessType=ro\n"
+                 "DefaultValue=1.5\n")
+    od = import_eds(path)
+    assert od[0x3010].name == "Temperature" and od[0x3010].default == 1.5
+    one_deviation(od, path, 7, "[3010Sub0]", "sub-index 0 of 0x3010 is REAL32",
+                  "served as a VAR 0x3010")
+    strict_refuses(path, 7, "sub-index 0 of 0x3010 is REAL32")
+    # ...next to other entries a real count replaces it
+    path = write(tmp_path, HEAD + "[3011]\nParameterName=R\nObjectType=0x9\n"
+                 "[3011sub0]\nParameterName=v\nDataType=0x0007\nAccessType=rw\n"
+                 "[3011sub2]\nParameterName=w\nDataType=0x0006\nAccessType=rw\n"
+                 "DefaultValue=9\n", "other.eds")
+    od = import_eds(path)
+    count = od[0x3011][0]
+    assert (count.data_type, count.access_type, count.default) == (DataType.UNSIGNED8, "ro", 2)
+    assert od[0x3011][2].default == 9
+    one_deviation(od, path, 6, "sub-index 0 of 0x3011 is UNSIGNED32",
+                  "replaced by 'Highest sub-index supported' (ro, 2)")
+
+
+def test_empty_parameter_value_configures_nothing(tmp_path):
+    path = write(tmp_path, HEAD + "[1008]\nParameterName=Name\nDataType=0x0009\n"
+                 "AccessType=ro\nDefaultValue=Power Node\nParameterValue=\n", "node.dcf")
+    od = import_od(path)
+    assert od[0x1008].value_base is None and od[0x1008].default == "Power Node"
+    assert recovered(od) == []
+
+
 def test_missing_optional_keys_are_plain_warnings(tmp_path):
     path = write(tmp_path, "[2000]\nParameterName=A\nDataType=0x0007\n")
     od = import_eds(path)

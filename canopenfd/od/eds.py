@@ -21,6 +21,8 @@ Choices where CiA 306 leaves room:
   may not form cycles.
 - $NODEID in LowLimit/HighLimit is dropped with a warning (a limit that moves
   with the node-id cannot be checked without one).
+- An empty ``ParameterValue=`` (DCF tools write one into every entry) is no
+  configured value, for strings too.
 - Keys starting with ``canopenfd_`` carry what CiA 306 cannot express
   (LineMode, MaxLength, Store, PDODirection); other tools ignore them.
 
@@ -235,8 +237,11 @@ class _Reader:
         object_type = ObjectType.VAR if template else \
             self.int_key(section, "ObjectType", ObjectType.VAR, 0, 0xFF)
         if object_type not in (ObjectType.VAR, ObjectType.DOMAIN):
-            raise self.fail(section, f"ObjectType 0x{object_type:X} where a VAR (0x7) or "
-                                     f"DOMAIN (0x2) entry is expected", section.get("ObjectType"))
+            # generators that copy the record's ObjectType=0x9 onto its sub-objects
+            self.deviate(section, f"ObjectType 0x{object_type:X} where a VAR (0x7) or "
+                                  f"DOMAIN (0x2) entry is expected", "taken as VAR",
+                         section.get("ObjectType"))
+            object_type = ObjectType.VAR
         self.unknown_type = False
         dtype = self.data_type(section, DataType.DOMAIN
                                if object_type == ObjectType.DOMAIN else None)
@@ -272,8 +277,10 @@ class _Reader:
                                lambda limit, _r, _t: setattr(var, attr, limit), False)
         self.lenient_value(section, "DefaultValue", dtype, "no default (the type's zero)",
                            var.set_default)
-        self.lenient_value(section, "ParameterValue", dtype, "no configured value",
-                           var.set_value)
+        value_key = section.get("ParameterValue")
+        if value_key is not None and value_key.value.strip():  # empty: nothing configured
+            self.lenient_value(section, "ParameterValue", dtype, "no configured value",
+                               var.set_value)
         var.denotation = section.value("Denotation", "") or ""
         var.description = section.value("Description", "") or ""
         var.unit = section.value("Unit", "") or ""
@@ -562,6 +569,9 @@ def _read_object(reader: _Reader, index: int, section: Section,
         member = reader.variable(sub_section, index, sub)
         if member is not None:
             container.add_member(member)
+    count = container.subindices.get(0)
+    if count is not None and count.data_type != DataType.UNSIGNED8 and not compact:
+        return _repair_sub0(reader, section, container, subs)
     if not container.subindices:
         reader.deviate(section, f"{format_index(index)} is an "
                                 f"{'ARRAY' if object_type == ObjectType.ARRAY else 'RECORD'} "
@@ -572,6 +582,34 @@ def _read_object(reader: _Reader, index: int, section: Section,
         if extra is not None:
             _apply_compact_extra(reader, extra, kind, container)
     return container
+
+
+def _repair_sub0(reader: _Reader, section: Section, container: Union[ODRecord, ODArray],
+                 subs: List[Tuple[int, Section]]) -> ODObject:
+    """Sub-index 0 of an ARRAY/RECORD holds the highest sub-index (UNSIGNED8);
+    some files put a value there. Alone, it is served as the object's VAR (the
+    same index:00 on the wire); next to other entries a proper count replaces
+    it. Either way a recorded deviation."""
+    value = container.subindices[0]
+    sub0_section = next(sub_section for sub, sub_section in subs if sub == 0)
+    problem = (f"sub-index 0 of {format_index(container.index)} is {value.data_type.name}, "
+               f"not the UNSIGNED8 count of an ARRAY/RECORD")
+    if len(container.subindices) == 1:
+        reader.deviate(sub0_section, problem, f"served as a VAR {format_index(container.index)}"
+                                              f" named {value.name!r}")
+        var = value.copy()
+        return var
+    highest = max(container.subindices)
+    reader.deviate(sub0_section, problem, f"replaced by 'Highest sub-index supported' "
+                                          f"(ro, {highest})")
+    members = [container.subindices[sub] for sub in sorted(container.subindices) if sub]
+    fixed = type(container)(container.name, container.index)
+    fixed.description = container.description
+    fixed.add_member(ODVariable("Highest sub-index supported", container.index, 0,
+                                DataType.UNSIGNED8, "ro", highest))
+    for member in members:
+        fixed.add_member(member)
+    return fixed
 
 
 def _build_compact(reader: _Reader, section: Section, container: Union[ODRecord, ODArray],
