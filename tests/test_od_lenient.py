@@ -465,3 +465,57 @@ def test_lenient_import_logs_each_recovered_deviation(tmp_path, caplog):
         f"{path}:7 [2000]: DefaultValue 'abc': 'abc' is not an integer (decimal, 0x hex or "
         f"0 octal); no default (the type's zero)"]
     assert os.path.isabs(path)
+
+
+# ------------------------------------------------------------------ README
+def test_readme_lenient_import_block_runs(tmp_path):
+    """README.md's lenient-import block, run as written from the repository
+    root (tests/test_docs.py runs only pages whose blocks are whole scripts;
+    README's other blocks are fragments, so this one is run here)."""
+    import pathlib
+    import re
+    import subprocess
+    import sys
+
+    from helpers import package_env
+
+    root = pathlib.Path(__file__).resolve().parent.parent
+    text = (root / "README.md").read_text(encoding="utf-8")
+    blocks = [b for b in re.findall(r"^```python\n(.*?)^```", text, re.S | re.M)
+              if "strict=True" in b and "load_warnings" in b]
+    assert len(blocks) == 1
+    script = tmp_path / "block.py"  # run from a file: the installed package, not ./canopenfd
+    script.write_text(blocks[0], encoding="utf-8")
+    done = subprocess.run([sys.executable, str(script)], cwd=root, env=package_env(),
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert "error: tests/data/vendor/pycanopen_sample.eds:845 [2020]: DataType 0x0040" in out
+    assert ("strict: tests/data/vendor/pycanopen_sample.eds:790 [ManufacturerObjects]: "
+            "SupportedObjects=0 but key 1 is present") in out
+
+
+def test_xdd_value_in_sub0_is_repaired_and_exports_cleanly(tmp_path):
+    # atheris (fuzz_xdd) finding: an XDD record with a VISIBLE_STRING sub 0 was
+    # imported as is, so its EDS export was refused by the strict EDS reader
+    from canopenfd.od import eds_from_text, export_eds
+
+    record = ('<CANopenObject index="2000" name="R" objectType="9">\n'
+              '<CANopenSubObject subIndex="00" name="Label" dataType="0009" accessType="rw" '
+              'defaultValue="x"/>\n'
+              '<CANopenSubObject subIndex="01" name="Out" dataType="0005" accessType="rw" '
+              'defaultValue="3"/>\n'
+              "</CANopenObject>")
+    path = write(tmp_path, xdd(record), "vendor.xdd")
+    od = import_xdd(path)
+    assert od[0x2000][0].data_type == DataType.UNSIGNED8 and od[0x2000][0].default == 1
+    assert od[0x2000][1].default == 3
+    one_deviation(od, path, 5, "sub-index 0 of 0x2000 is VISIBLE_STRING",
+                  "replaced by 'Highest sub-index supported' (ro, 1)")
+    again = eds_from_text(export_eds(od), "again.eds", strict=True)
+    assert again.diff(od) == []
+    alone = write(tmp_path, xdd(record.replace(
+        '<CANopenSubObject subIndex="01" name="Out" dataType="0005" accessType="rw" '
+        'defaultValue="3"/>\n', "")), "alone.xdd")
+    od = import_xdd(alone)
+    assert od[0x2000].name == "Label" and od[0x2000].default == "x"

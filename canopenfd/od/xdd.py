@@ -480,6 +480,21 @@ def _read_object(reader: _Reader, node: Node) -> Optional[ODObject]:
         elements = {var.data_type for sub, var in entries.items() if sub >= 1}
         object_type = ObjectType.ARRAY if own_type is not None and elements == {own_type} \
             else ObjectType.RECORD
+    count = entries.get(0)
+    if count is not None and count.data_type != DataType.UNSIGNED8:
+        # a value in sub-index 0, where the UNSIGNED8 count belongs (as the EDS reader)
+        sub0_node = next(sub_node for sub_node in subs
+                         if reader.hex_attr(sub_node, "subIndex", 0xFF, index) == 0)
+        problem = (f"sub-index 0 of {format_index(index)} is {count.data_type.name}, not the "
+                   f"UNSIGNED8 count of an ARRAY/RECORD")
+        if len(entries) == 1:
+            reader.deviate(sub0_node, problem, f"served as a VAR {format_index(index)} named "
+                                               f"{count.name!r}", index)
+            return count
+        reader.deviate(sub0_node, problem, f"replaced by 'Highest sub-index supported' "
+                                           f"(ro, {max(entries)})", index)
+        entries[0] = ODVariable("Highest sub-index supported", index, 0, DataType.UNSIGNED8,
+                                "ro", max(entries))
     container = ODArray(name.strip(), index) if object_type == ObjectType.ARRAY \
         else ODRecord(name.strip(), index)
     for sub in sorted(entries):
