@@ -345,9 +345,24 @@ def test_vendor_sections_are_read_around_with_a_warning(tmp_path):
     assert not any("[Tools]" in t for t in texts)
 
 
+def test_stray_lines_are_skipped(tmp_path):
+    # a description that went on to a second line, a key before the first section
+    path = write(tmp_path, "Generator=tool 1.2\n" + HEAD + VAR_2000
+                 + "Description=first line\nsecond line of it\n")
+    od = import_eds(path)
+    assert od[0x2000].description == "first line" and od.device_info["VendorName"] == "x"
+    found = recovered(od)
+    assert len(found) == 2
+    assert found[0].startswith(f"error: {path}:1: key 'Generator' before the first [section]")
+    assert found[1].startswith(f"error: {path}:9 [2000]: expected key=value, a [section] or "
+                               f"a ; comment, got 'second line of it'; line ignored")
+    strict_refuses(path, 1, "before the first [section]")
+
+
 def test_unrecoverable_files_are_still_refused_with_path_and_line(tmp_path):
     for text, line, words in (
             ("just some words\n", 1, "expected key=value"),
+            ("; only a comment\nVendorName=x\n", 2, "before the first [section]"),
             (HEAD + VAR_2000 + "[2000sub1]\nParameterName=x\n", 7, "is a VAR"),
             (HEAD + "[1018]\nParameterName=I\nObjectType=0x9\n[1018sub100]\n", 6, "above 0xFF")):
         path = write(tmp_path, text)

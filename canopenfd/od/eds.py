@@ -42,7 +42,12 @@ done instead. ``strict=True`` raises `OdFileError` at the first of them (what
   type: dropped (the entry starts at the type's zero, resp. has no limit).
 - PDOMapping, ObjFlags or Factor that does not parse: 0 / 0 / 1.
 - AccessType that is no CiA 306 access type: ro.
-- ParameterName missing on a sub-object: named ``sub<n>``.
+- ParameterName missing on a sub-object: named ``sub<n>``; a sub-object with
+  the record's ObjectType (0x9): taken as VAR.
+- A value where sub-index 0 of an ARRAY/RECORD needs its UNSIGNED8 count:
+  alone it becomes the object's VAR, else an UNSIGNED8 count replaces it.
+- A line that is not key=value (or a key before the first section): skipped
+  (`ini`); a text without any section is refused.
 
 Unrecoverable input still fails fast with `OdFileError` (file, line, section, problem):
 SubNumber/CompactSubObj/NrOfEntries are capped at 256 sub-indices, object
@@ -351,10 +356,13 @@ def import_eds(source: Source, node_id: Optional[int] = None,
 def eds_from_text(data: Union[bytes, str], name: str, node_id: Optional[int] = None,
                   mode: Optional[str] = None, strict: bool = False) -> ObjectDictionary:
     """`import_eds` of content already read (`name` is used in messages)."""
-    ini = parse_ini(data, name)
+    ini = parse_ini(data, name, strict)
     reader = _Reader(ini, strict)
     for line, section_name, text in ini.warnings:
         reader.warnings.append(Problem(WARNING, f"{name}:{line} [{section_name}]", text))
+    for line, section_name, text in ini.deviations:
+        where = f"{name}:{line} [{section_name}]" if section_name else f"{name}:{line}"
+        reader.warnings.append(Problem(ERROR, where, f"{text}; line ignored"))
     od = ObjectDictionary()
     od.source = name
     _read_metadata(reader, od, node_id)
