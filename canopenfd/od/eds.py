@@ -150,21 +150,6 @@ class _Reader:
                             key)
         return index
 
-    def typed(self, section: Section, key_name: str, dtype: DataType,
-              allow_node_id: bool = True) -> Tuple[Optional[Value], bool, Optional[str]]:
-        """(value, relative, text) of a value key; (None, False, None) when absent."""
-        key = section.get(key_name)
-        if key is None:
-            return None, False, None
-        text = key.value
-        if dtype not in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
-            text = _INLINE_COMMENT.sub("", text)
-        try:
-            value, relative = parse_value(dtype, text, allow_node_id)
-        except OdValueError as exc:
-            raise self.fail(section, f"{key.name} {_shown(text)}: {exc.problem}", key) from None
-        return value, relative, text
-
     def guard(self, section: Section, key: Optional[Key], action: Callable[[], T]) -> T:
         """Run a model setter; its OdValueError becomes an OdFileError here."""
         try:
@@ -224,7 +209,7 @@ class _Reader:
             return True
         if lowered in ("0", "0x0", "false", "no"):
             return False
-        if self.strict or not key_name.lower() == "pdomapping":
+        if self.strict or key_name.lower() != "pdomapping":  # only PDOMapping has a safe 0
             raise self.fail(section, f"{key.name} must be 0 or 1, got {text!r}", key)
         self.deviate(section, f"{key.name} must be 0 or 1, got {text!r}", "taken as 0", key)
         return False
@@ -269,9 +254,9 @@ class _Reader:
             if key is None or not _INLINE_COMMENT.sub("", key.value):
                 continue
             if not dtype.is_numeric:
-                self.warn(section, f"{key.name} ignored: "
-                          f"{'the data type is unknown' if unknown_type else dtype.name + ' has no order'}",
-                          key)
+                reason = "the data type is unknown" if unknown_type \
+                    else f"{dtype.name} has no order"
+                self.warn(section, f"{key.name} ignored: {reason}", key)
                 continue
             if "$" in key.value:
                 self.warn(section, f"{key.name} {key.value!r} depends on the node-id; "
@@ -425,9 +410,12 @@ def _read_object_lists(reader: _Reader) -> Optional[Dict[int, Tuple[Section, Key
             continue
         present = True
         count = reader.int_key(section, "SupportedObjects", 0, 0, _MAX_LIST) or 0
+        # the numbered keys as written: their count may disagree with SupportedObjects
         numbered = sorted((int(key.name, 10), key) for key in section.keys.values()
-                          if _DECIMAL_RE.fullmatch(key.name) and 1 <= int(key.name, 10) <= _MAX_LIST)
-        missing = [n for n in range(1, count + 1) if section.get(str(n)) is None]
+                          if _DECIMAL_RE.fullmatch(key.name)
+                          and 1 <= int(key.name, 10) <= _MAX_LIST)
+        present_numbers = {number for number, _ in numbered}
+        missing = [n for n in range(1, count + 1) if n not in present_numbers]
         if missing:
             reader.deviate(section, f"SupportedObjects={count} but key {missing[0]} is missing"
                            + (f" ({len(missing)} keys missing)" if len(missing) > 1 else ""),
