@@ -547,8 +547,9 @@ def test_monitor_od_usage_errors(eds):
                  "FILE@NODE (the file names none)")
     _clean_error(monitor("--od", f"{eds}@200"), "node-id 200 outside 1..127")
     _clean_error(monitor("--od", "no-such-file.eds@5"), "--od no-such-file.eds: no such file")
-    bad = os.path.join(ROOT, "tests", "data", "od", "hostile", "bad_datatype.eds")
-    _clean_error(monitor("--od", f"{bad}@5"), f"--od {bad}:27")      # the whole path
+    # a file the lenient import still refuses (bad_datatype.eds loads since issue 14)
+    bad = os.path.join(ROOT, "tests", "data", "od", "hostile", "huge_subnumber.eds")
+    _clean_error(monitor("--od", f"{bad}@5"), f"--od {bad}:11")      # the whole path
 
 
 def test_monitor_help_names_the_od_option():

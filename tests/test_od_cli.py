@@ -86,8 +86,20 @@ def test_check_semantic_errors_exit_1(tmp_path):
     assert "FAILED: 3 errors" in out
 
 
+def test_check_recovered_deviation_is_an_error_exit_1(tmp_path):
+    # issue 14: import is lenient (the entry is served as bytes), `od check`
+    # still reports the deviation as an error and exits 1
+    path = os.path.join(HOSTILE, "bad_datatype.eds")
+    result = run_od(tmp_path, "check", path)
+    assert result.returncode == 1
+    assert (f"error: {path}:27 [1018sub2]: DataType 0x0099 is not a CiA 301 data type"
+            in result.stdout)
+    assert "served as OCTET_STRING" in result.stdout
+    assert "bad_datatype.eds: FAILED: 3 errors" in result.stdout  # + 0x1018:02 type
+    assert "cannot be read" not in result.stdout and "Traceback" not in result.stderr
+
+
 @pytest.mark.parametrize("name, words", [
-    ("bad_datatype.eds", "bad_datatype.eds:27 [1018sub2]: DataType 0x0099 is not a CiA 301"),
     ("billion_laughs.xdd", "billion_laughs.xdd:2: <!DOCTYPE declarations are not allowed"),
     ("garbage.eds", "binary data"),
 ])

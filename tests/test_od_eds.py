@@ -21,10 +21,12 @@ DCF = os.path.join(DATA, "commissioned.dcf")
 
 
 def fails_fast(source, *words, reader=import_eds, bound=5.0):
-    """The import raises OdFileError within `bound` seconds; its message holds `words`."""
+    """The strict import raises OdFileError within `bound` seconds; its message
+    holds `words` (tests/test_od_lenient.py: what the default, lenient import
+    does with the same files)."""
     start = time.monotonic()
     with pytest.raises(OdFileError) as info:
-        reader(source)
+        reader(source, strict=True)
     assert time.monotonic() - start < bound
     message = str(info.value)
     for word in words:
@@ -222,7 +224,7 @@ HEAD = "[DeviceInfo]\nVendorName=x\n"
 VAR_2000 = "[2000]\nParameterName=A\nDataType=0x0005\nAccessType=rw\n"
 
 
-@pytest.mark.parametrize("text, words", [
+BROKEN_FILES = [
     ("", ["the file is empty"]),
     ("\n\n   \n", ["the file is empty"]),
     ("VendorName=x\n", [":1", "before the first [section]"]),
@@ -260,7 +262,10 @@ VAR_2000 = "[2000]\nParameterName=A\nDataType=0x0005\nAccessType=rw\n"
      ["only allowed on ARRAY"]),
     (HEAD + "[2000]\nParameterName=A\nDataType=0x0007\nAccessType=rw\nDefaultValue="
             + "9" * 5000 + "\n", ["too long for a number"]),
-])
+]
+
+
+@pytest.mark.parametrize("text, words", BROKEN_FILES)
 def test_broken_files_name_file_line_and_problem(text, words):
     error = fails_fast(io.BytesIO(text.encode()), "<stream>", *words)
     assert error.file == "<stream>"

@@ -5,9 +5,11 @@ or ``builtin:fd`` / ``builtin:classic`` for the built-in demo dictionary.
 
 - `od show` prints one line per entry: index:sub, name, type, access,
   default, limits, PDO direction and flags.
-- `od check` reads the file and validates the dictionary: it prints every
-  problem and exits 1 when there is an error (a file that cannot be read
-  counts as one), 0 otherwise (warnings are printed, they do not fail).
+- `od check` reads the file (leniently, like every import) and validates the
+  dictionary: it prints every problem, including each deviation the lenient
+  import recovered (what ``strict=True`` refuses), and exits 1 when there is
+  an error (a file that cannot be read counts as one), 0 otherwise (warnings
+  are printed, they do not fail).
 
 A FILE that does not exist is a usage error (exit 2, one line on stderr),
 like the other commands' bad arguments.
@@ -16,6 +18,7 @@ like the other commands' bad arguments.
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 from typing import Any, List, Optional, Sequence
@@ -197,15 +200,27 @@ def _quiet_stdout() -> None:
 
 
 # ------------------------------------------------------------------ check
+class _NoImportLog(logging.Filter):
+    """`od check` prints every recovered deviation itself; import_od's log
+    line for each would repeat them on stderr."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.name.startswith("canopenfd.od")
+
+
 def cmd_od_check(args: argparse.Namespace) -> int:
     _require_file(args.file)
     name = os.path.basename(args.file)
+    quiet = _NoImportLog()
+    logging.getLogger("canopenfd.od").addFilter(quiet)
     try:
         od = _load(args)
     except OdFileError as exc:
         print(f"error: {exc}")
         print(f"{name}: cannot be read (1 error)")
         return EXIT_FAILED
+    finally:
+        logging.getLogger("canopenfd.od").removeFilter(quiet)
     problems = list(od.load_warnings) + od.validate()
     errors = sum(1 for p in problems if p.is_error)
     warnings = len(problems) - errors

@@ -15,6 +15,7 @@ Pure Python, standard library only; the C object dictionary is fed from
 
 from __future__ import annotations
 
+import logging
 from typing import Optional
 
 from .datatypes import DataType, TimeDifference, TimeOfDay, decode, encode
@@ -26,6 +27,8 @@ from .model import ODArray, ODRecord, ODVariable, ObjectDictionary, ObjectType, 
 from .validate import Problem
 from .xdd import import_xdd, xdd_from_text
 
+_log = logging.getLogger(__name__)
+
 __all__ = [
     "DataType", "TimeOfDay", "TimeDifference", "encode", "decode",
     "ObjectDictionary", "ODVariable", "ODRecord", "ODArray", "ObjectType", "format_index",
@@ -36,10 +39,21 @@ __all__ = [
 
 
 def import_od(source: Source, node_id: Optional[int] = None,
-              mode: Optional[str] = None) -> ObjectDictionary:
+              mode: Optional[str] = None, strict: bool = False) -> ObjectDictionary:
     """An ObjectDictionary from an EDS, DCF, XDD or XDC file (path or open
-    file): the reader is chosen by extension, else by content (XML or INI)."""
+    file): the reader is chosen by extension, else by content (XML or INI).
+
+    Lenient by default: slips whose intent is clear (a wrong object count, a
+    manufacturer data type, a default that does not parse, ...) are recovered
+    and each is listed in ``od.load_warnings`` (file:line, problem, what was
+    done instead; severity "error"), and logged as a warning.
+    ``strict=True`` raises `OdFileError` at the first such deviation."""
     data, name = read_source(source)
     if detect_format(name, data) == "eds":
-        return eds_from_text(data, name, node_id, mode)
-    return xdd_from_text(data, name, node_id, mode)
+        od = eds_from_text(data, name, node_id, mode, strict)
+    else:
+        od = xdd_from_text(data, name, node_id, mode, strict)
+    recovered = [problem for problem in od.load_warnings if problem.is_error]
+    for problem in recovered:
+        _log.warning("%s: %s", problem.where, problem.message)
+    return od

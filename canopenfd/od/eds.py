@@ -21,10 +21,35 @@ Choices where CiA 306 leaves room:
   may not form cycles.
 - $NODEID in LowLimit/HighLimit is dropped with a warning (a limit that moves
   with the node-id cannot be checked without one).
+- An empty ``ParameterValue=`` (DCF tools write one into every entry) is no
+  configured value, for strings too.
 - Keys starting with ``canopenfd_`` carry what CiA 306 cannot express
   (LineMode, MaxLength, Store, PDODirection); other tools ignore them.
 
-Hostile input fails fast with `OdFileError` (file, line, section, problem):
+Lenient by default: a slip whose intent is clear (an object list count that
+disagrees with its keys, a manufacturer or unknown DataType, a DefaultValue or
+limit that does not parse, a listed object without a section, a broken
+ObjectLinks list, ...) is recovered and recorded in ``od.load_warnings`` as an
+error-severity `Problem` naming file, line and section, and saying what was
+done instead. ``strict=True`` raises `OdFileError` at the first of them (what
+``canopenfd od check`` counts as an error). Recovery choices:
+
+- DataType that is a number but no CiA 301 basic type (0x0040.. manufacturer
+  or device-profile complex types, reserved codes): served as OCTET_STRING
+  (bytes of the default's length; the default only if it is hex bytes).
+- DataType missing or not a number: the entry (or object) is skipped.
+- DefaultValue / ParameterValue / LowLimit / HighLimit that does not fit the
+  type: dropped (the entry starts at the type's zero, resp. has no limit).
+- PDOMapping, ObjFlags or Factor that does not parse: 0 / 0 / 1.
+- AccessType that is no CiA 306 access type: ro.
+- ParameterName missing on a sub-object: named ``sub<n>``; a sub-object with
+  the record's ObjectType (0x9): taken as VAR.
+- A value where sub-index 0 of an ARRAY/RECORD needs its UNSIGNED8 count:
+  alone it becomes the object's VAR, else an UNSIGNED8 count replaces it.
+- A line that is not key=value (or a key before the first section): skipped
+  (`ini`); a text without any section is refused.
+
+Unrecoverable input still fails fast with `OdFileError` (file, line, section, problem):
 SubNumber/CompactSubObj/NrOfEntries are capped at 256 sub-indices, object
 lists and links at 65535 entries, files at 16 MiB.
 """
@@ -44,7 +69,7 @@ from .model import (ACCESS_TYPES, ODArray, ODRecord, ODVariable, ObjectDictionar
                     ObjectType, format_index)
 from .objects import ODObject
 from .textvalues import format_value, parse_int, parse_value
-from .validate import WARNING, Problem, find_link_cycle
+from .validate import ERROR, WARNING, Problem, find_link_cycle
 
 T = TypeVar("T")
 
@@ -65,9 +90,11 @@ _EXT = "canopenfd_"  # lower case: INI key names are matched in lower case
 class _Reader:
     """One import: the parsed INI text plus where to point errors."""
 
-    def __init__(self, ini: IniFile) -> None:
+    def __init__(self, ini: IniFile, strict: bool = False) -> None:
         self.ini = ini
         self.name = ini.name
+        self.strict = strict
+        self.unknown_type = False  # set by data_type(): the type was replaced
         self.warnings: List[Problem] = []
 
     # -------------------------------------------------------- errors
@@ -81,6 +108,16 @@ class _Reader:
         if section is not None:
             where += f" [{section.name}]"
         self.warnings.append(Problem(WARNING, where, problem))
+
+    def deviate(self, section: Section, problem: str, instead: str,
+                key: Optional[Key] = None) -> None:
+        """A deviation strict mode refuses: raise when strict, else record it
+        as an error-severity problem saying what was done `instead`."""
+        if self.strict:
+            raise self.fail(section, problem, key)
+        line = key.line if key is not None else section.line
+        self.warnings.append(Problem(ERROR, f"{self.name}:{line} [{section.name}]",
+                                     f"{problem}; {instead}"))
 
     # -------------------------------------------------------- typed keys
     def raw(self, section: Section, key_name: str) -> Tuple[Optional[str], Optional[Key]]:
@@ -113,21 +150,6 @@ class _Reader:
                             key)
         return index
 
-    def typed(self, section: Section, key_name: str, dtype: DataType,
-              allow_node_id: bool = True) -> Tuple[Optional[Value], bool, Optional[str]]:
-        """(value, relative, text) of a value key; (None, False, None) when absent."""
-        key = section.get(key_name)
-        if key is None:
-            return None, False, None
-        text = key.value
-        if dtype not in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
-            text = _INLINE_COMMENT.sub("", text)
-        try:
-            value, relative = parse_value(dtype, text, allow_node_id)
-        except OdValueError as exc:
-            raise self.fail(section, f"{key.name} {_shown(text)}: {exc.problem}", key) from None
-        return value, relative, text
-
     def guard(self, section: Section, key: Optional[Key], action: Callable[[], T]) -> T:
         """Run a model setter; its OdValueError becomes an OdFileError here."""
         try:
@@ -137,22 +159,34 @@ class _Reader:
             raise self.fail(section, prefix + exc.problem, key) from None
 
     # -------------------------------------------------------- entries
-    def data_type(self, section: Section, default: Optional[DataType] = None) -> DataType:
+    def data_type(self, section: Section, default: Optional[DataType] = None
+                  ) -> Optional[DataType]:
+        """The entry's type; None (after a recorded deviation) when the entry
+        must be skipped because its type cannot be known."""
         text, key = self.raw(section, "DataType")
         if key is None or text == "":
             if default is not None:
                 return default
-            raise self.fail(section, "DataType is missing")
+            self.deviate(section, "DataType is missing", "entry skipped")
+            return None
         try:
             number = parse_int(text)
         except OdValueError as exc:
-            raise self.fail(section, f"DataType: {exc.problem}", key) from None
+            self.deviate(section, f"DataType: {exc.problem}", "entry skipped", key)
+            return None
         try:
             return DataType(number)
         except ValueError:
-            raise self.fail(section, f"DataType 0x{number:04X} is not a CiA 301 data type"
-                            if 0 <= number <= 0xFFFF else
-                            f"DataType {text} is not a CiA 301 data type", key) from None
+            pass
+        if not 0 <= number <= 0xFFFF:
+            self.deviate(section, f"DataType {text} is not a CiA 301 data type",
+                         "entry skipped", key)
+            return None
+        self.deviate(section, f"DataType 0x{number:04X} is not a CiA 301 data type"
+                     + (" (manufacturer/profile complex type)" if number >= 0x40 else ""),
+                     "served as OCTET_STRING (raw bytes)", key)
+        self.unknown_type = True
+        return DataType.OCTET_STRING
 
     def access_type(self, section: Section) -> str:
         text, key = self.raw(section, "AccessType")
@@ -161,8 +195,9 @@ class _Reader:
             return "ro"
         lowered = text.lower()
         if lowered not in ACCESS_TYPES:
-            raise self.fail(section, f"AccessType {text!r} is not one of "
-                                     f"{', '.join(ACCESS_TYPES)}", key)
+            self.deviate(section, f"AccessType {text!r} is not one of "
+                                  f"{', '.join(ACCESS_TYPES)}", "taken as ro", key)
+            return "ro"
         return lowered
 
     def flag(self, section: Section, key_name: str) -> bool:
@@ -174,30 +209,44 @@ class _Reader:
             return True
         if lowered in ("0", "0x0", "false", "no"):
             return False
-        raise self.fail(section, f"{key.name} must be 0 or 1, got {text!r}", key)
+        if self.strict or key_name.lower() != "pdomapping":  # only PDOMapping has a safe 0
+            raise self.fail(section, f"{key.name} must be 0 or 1, got {text!r}", key)
+        self.deviate(section, f"{key.name} must be 0 or 1, got {text!r}", "taken as 0", key)
+        return False
 
     def variable(self, section: Section, index: int, subindex: int,
-                 name: Optional[str] = None, template: bool = False) -> ODVariable:
+                 name: Optional[str] = None, template: bool = False) -> Optional[ODVariable]:
         """An entry from the keys of `section` (`template`: the element of a
-        compact array, described by the ARRAY's own section)."""
+        compact array, described by the ARRAY's own section); None when it is
+        skipped (a recorded deviation)."""
         if name is None:
             name = section.value("ParameterName")
             if not name:
-                raise self.fail(section, "ParameterName is missing")
+                name = f"sub{subindex}"
+                self.deviate(section, "ParameterName is missing", f"named {name!r}")
         object_type = ObjectType.VAR if template else \
             self.int_key(section, "ObjectType", ObjectType.VAR, 0, 0xFF)
         if object_type not in (ObjectType.VAR, ObjectType.DOMAIN):
-            raise self.fail(section, f"ObjectType 0x{object_type:X} where a VAR (0x7) or "
-                                     f"DOMAIN (0x2) entry is expected", section.get("ObjectType"))
+            # generators that copy the record's ObjectType=0x9 onto its sub-objects
+            self.deviate(section, f"ObjectType 0x{object_type:X} where a VAR (0x7) or "
+                                  f"DOMAIN (0x2) entry is expected", "taken as VAR",
+                         section.get("ObjectType"))
+            object_type = ObjectType.VAR
+        self.unknown_type = False
         dtype = self.data_type(section, DataType.DOMAIN
                                if object_type == ObjectType.DOMAIN else None)
+        if dtype is None:
+            return None
+        unknown_type = self.unknown_type
         var = self.guard(section, None, lambda: ODVariable(
             name, index, subindex, dtype, self.access_type(section)))
-        self.fill(section, var)
+        self.fill(section, var, unknown_type)
         return var
 
-    def fill(self, section: Section, var: ODVariable) -> None:
-        """Everything but name, type and access, from the keys of `section`."""
+    def fill(self, section: Section, var: ODVariable, unknown_type: bool = False) -> None:
+        """Everything but name, type and access, from the keys of `section`
+        (`unknown_type`: the file's DataType was replaced by OCTET_STRING, so
+        its limits mean nothing here)."""
         dtype = var.data_type
         var.pdo_mapping = self.flag(section, "PDOMapping")
         for key_name in ("LowLimit", "HighLimit"):
@@ -205,23 +254,23 @@ class _Reader:
             if key is None or not _INLINE_COMMENT.sub("", key.value):
                 continue
             if not dtype.is_numeric:
-                self.warn(section, f"{key.name} ignored: {dtype.name} has no order", key)
+                reason = "the data type is unknown" if unknown_type \
+                    else f"{dtype.name} has no order"
+                self.warn(section, f"{key.name} ignored: {reason}", key)
                 continue
             if "$" in key.value:
                 self.warn(section, f"{key.name} {key.value!r} depends on the node-id; "
                                    f"ignored", key)
                 continue
-            limit, _, _ = self.typed(section, key_name, dtype, allow_node_id=False)
             attr = "low_limit" if key_name == "LowLimit" else "high_limit"
-            self.guard(section, key, lambda: setattr(var, attr, limit))
-        value, relative, text = self.typed(section, "DefaultValue", dtype)
-        if text is not None:
-            self.guard(section, section.get("DefaultValue"),
-                       lambda: var.set_default(value, relative, text.strip()))
-        value, relative, text = self.typed(section, "ParameterValue", dtype)
-        if text is not None:
-            self.guard(section, section.get("ParameterValue"),
-                       lambda: var.set_value(value, relative, text.strip()))
+            self.lenient_value(section, key_name, dtype, "limit dropped",
+                               lambda limit, _r, _t: setattr(var, attr, limit), False)
+        self.lenient_value(section, "DefaultValue", dtype, "no default (the type's zero)",
+                           var.set_default)
+        value_key = section.get("ParameterValue")
+        if value_key is not None and value_key.value.strip():  # empty: nothing configured
+            self.lenient_value(section, "ParameterValue", dtype, "no configured value",
+                               var.set_value)
         var.denotation = section.value("Denotation", "") or ""
         var.description = section.value("Description", "") or ""
         var.unit = section.value("Unit", "") or ""
@@ -230,9 +279,30 @@ class _Reader:
             try:
                 var.factor = float(factor)
             except ValueError:
-                raise self.fail(section, f"Factor {factor!r} is not a number", key) from None
-        var.obj_flags = self.int_key(section, "ObjFlags", 0, 0, 0xFFFFFFFF) or 0
+                self.deviate(section, f"Factor {factor!r} is not a number", "taken as 1", key)
+        try:
+            var.obj_flags = self.int_key(section, "ObjFlags", 0, 0, 0xFFFFFFFF) or 0
+        except OdFileError as exc:
+            self.deviate(section, exc.problem, "taken as 0", section.get("ObjFlags"))
         self.extensions(section, var)
+
+    def lenient_value(self, section: Section, key_name: str, dtype: DataType, instead: str,
+                      setter: Callable[[Optional[Value], bool, str], object],
+                      allow_node_id: bool = True) -> None:
+        """Parse the value key `key_name` and hand it to `setter(value,
+        relative, text)`; a value that does not parse or fit is a deviation:
+        dropped (`instead` says so) unless strict."""
+        key = section.get(key_name)
+        if key is None:
+            return
+        text = key.value
+        if dtype not in (DataType.VISIBLE_STRING, DataType.UNICODE_STRING):
+            text = _INLINE_COMMENT.sub("", text)
+        try:
+            value, relative = parse_value(dtype, text, allow_node_id)
+            setter(value, relative, text.strip())
+        except OdValueError as exc:
+            self.deviate(section, f"{key.name} {_shown(text)}: {exc.problem}", instead, key)
 
     def extensions(self, section: Section, var: ODVariable) -> None:
         if not any(name.startswith(_EXT) for name in section.keys):
@@ -257,28 +327,33 @@ def _shown(text: str) -> str:
 
 # ------------------------------------------------------------------ import
 def import_eds(source: Source, node_id: Optional[int] = None,
-               mode: Optional[str] = None) -> ObjectDictionary:
+               mode: Optional[str] = None, strict: bool = False) -> ObjectDictionary:
     """An ObjectDictionary from an EDS or DCF file (path or open file).
 
     `node_id` resolves $NODEID expressions (default: the DCF's NodeID);
     `mode` ('fd'/'classic') overrides the guess from the file (FD when 0x1000
-    is an ARRAY or 0x1030 exists)."""
+    is an ARRAY or 0x1030 exists). Lenient unless `strict` (see the module
+    docstring): recovered deviations are in ``od.load_warnings``."""
     data, name = read_source(source)
-    return eds_from_text(data, name, node_id, mode)
+    return eds_from_text(data, name, node_id, mode, strict)
 
 
 def eds_from_text(data: Union[bytes, str], name: str, node_id: Optional[int] = None,
-                  mode: Optional[str] = None) -> ObjectDictionary:
+                  mode: Optional[str] = None, strict: bool = False) -> ObjectDictionary:
     """`import_eds` of content already read (`name` is used in messages)."""
-    ini = parse_ini(data, name)
-    reader = _Reader(ini)
+    ini = parse_ini(data, name, strict)
+    reader = _Reader(ini, strict)
     for line, section_name, text in ini.warnings:
         reader.warnings.append(Problem(WARNING, f"{name}:{line} [{section_name}]", text))
+    for line, section_name, text in ini.deviations:
+        where = f"{name}:{line} [{section_name}]" if section_name else f"{name}:{line}"
+        reader.warnings.append(Problem(ERROR, where, f"{text}; line ignored"))
     od = ObjectDictionary()
     od.source = name
     _read_metadata(reader, od, node_id)
     listed = _read_object_lists(reader)
     _read_objects(reader, od, listed)
+    _note_unknown_sections(reader)
     od.mode = mode if mode is not None else (
         "fd" if isinstance(od.indices.get(0x1000), ODArray) or 0x1030 in od.indices
         else "classic")
@@ -335,12 +410,30 @@ def _read_object_lists(reader: _Reader) -> Optional[Dict[int, Tuple[Section, Key
             continue
         present = True
         count = reader.int_key(section, "SupportedObjects", 0, 0, _MAX_LIST) or 0
-        for number in range(1, count + 1):
-            key = section.get(str(number))
-            if key is None:
-                raise reader.fail(section, f"SupportedObjects={count} but key {number} "
-                                           f"is missing", section.get("SupportedObjects"))
-            index = reader.index_key(section, key, 1)
+        # the numbered keys as written: their count may disagree with SupportedObjects
+        numbered = sorted((int(key.name, 10), key) for key in section.keys.values()
+                          if _DECIMAL_RE.fullmatch(key.name)
+                          and 1 <= int(key.name, 10) <= _MAX_LIST)
+        present_numbers = {number for number, _ in numbered}
+        missing = [n for n in range(1, count + 1) if n not in present_numbers]
+        if missing:
+            reader.deviate(section, f"SupportedObjects={count} but key {missing[0]} is missing"
+                           + (f" ({len(missing)} keys missing)" if len(missing) > 1 else ""),
+                           f"the {len(numbered)} numbered keys present are used",
+                           section.get("SupportedObjects"))
+        extra = [key for number, key in numbered if number > count]
+        if extra:
+            reader.deviate(section, f"SupportedObjects={count} but key {extra[0].name} "
+                           f"is present", f"the {len(numbered)} numbered keys present are used",
+                           extra[0])
+        for number, key in numbered:
+            try:
+                index = reader.index_key(section, key, 1)
+            except OdFileError as exc:
+                if reader.strict:
+                    raise
+                reader.deviate(section, exc.problem, "entry ignored", key)
+                continue
             if index in found:
                 reader.warn(section, f"{format_index(index)} is listed twice", key)
             found[index] = (section, key)
@@ -365,10 +458,12 @@ def _read_objects(reader: _Reader, od: ObjectDictionary,
             if sub > 0xFF:
                 raise reader.fail(section, f"sub-index 0x{match.group(2)[:10]} is above 0xFF")
             siblings = subs.setdefault(int(match.group(1), 16), [])
-            for other_sub, other in siblings:
-                if other_sub == sub:  # e.g. [1018sub1] and [1018sub01]
-                    raise reader.fail(section, f"sub-index 0x{sub:02X} is defined twice "
-                                               f"(also [{other.name}] at line {other.line})")
+            twins = [other for other_sub, other in siblings if other_sub == sub]
+            if twins:  # e.g. [1018sub1] and [1018sub01]
+                reader.deviate(section, f"sub-index 0x{sub:02X} is defined twice (also "
+                               f"[{twins[0].name}] at line {twins[0].line})",
+                               "the first one is used")
+                continue
             siblings.append((sub, section))
             continue
         match = _EXTRA_RE.match(title)
@@ -376,16 +471,19 @@ def _read_objects(reader: _Reader, od: ObjectDictionary,
             extras[(int(match.group(1), 16), match.group(2).lower())] = section
     for (index, kind), section in sorted(extras.items()):
         if index not in objects:
-            raise reader.fail(section, f"belongs to {format_index(index)}, which has no "
-                                       f"[{index:04X}] section")
+            reader.deviate(section, f"belongs to {format_index(index)}, which has no "
+                                    f"[{index:04X}] section", "section ignored")
+            del extras[(index, kind)]
     for index in sorted(objects):
         obj = _read_object(reader, index, objects[index], subs.pop(index, []), extras)
         if obj is not None:
             od.add_object(obj)
     for index, orphans in sorted(subs.items()):
         sub, section = orphans[0]
-        raise reader.fail(section, f"sub-object of {format_index(index)}, which has no "
-                                   f"[{index:04X}] section")
+        reader.deviate(section, f"sub-object of {format_index(index)}, which has no "
+                                f"[{index:04X}] section",
+                       f"{len(orphans)} sub-object section{'s' if len(orphans) > 1 else ''} "
+                       f"ignored")
     _read_links(reader, od, extras)
     if listed is None:
         reader.warn(None, "no [MandatoryObjects]/[OptionalObjects]/[ManufacturerObjects] "
@@ -393,11 +491,27 @@ def _read_objects(reader: _Reader, od: ObjectDictionary,
         return
     for index, (section, key) in sorted(listed.items()):
         if index not in objects:
-            raise reader.fail(section, f"{format_index(index)} is listed but has no "
-                                       f"[{index:04X}] section", key)
+            reader.deviate(section, f"{format_index(index)} is listed but has no "
+                                    f"[{index:04X}] section", "list entry ignored", key)
     for index in sorted(set(objects) - set(listed)):
         if index in od.indices:
             reader.warn(objects[index], f"{format_index(index)} is in no object list")
+
+
+_KNOWN_SECTIONS = re.compile(
+    r"^(FileInfo|DeviceInfo|DummyUsage|Comments|MandatoryObjects|OptionalObjects|"
+    r"ManufacturerObjects|DeviceCom+issioning|DynamicChannels|Tools|Tool\d+|"
+    r"SupportedModules|ConnectedModules|M\d+\w*)$", re.IGNORECASE)
+
+
+def _note_unknown_sections(reader: _Reader) -> None:
+    """Vendor sections CiA 306 does not define are ignored, with a warning, so
+    `od check` shows that something in the file was not read."""
+    for section in reader.ini.sections.values():
+        title = section.name
+        if not (_KNOWN_SECTIONS.match(title) or _OBJECT_RE.match(title)
+                or _SUB_RE.match(title) or _EXTRA_RE.match(title)):
+            reader.warn(section, f"section [{title}] is not a CiA 306 section; ignored")
 
 
 def _read_object(reader: _Reader, index: int, section: Section,
@@ -417,8 +531,10 @@ def _read_object(reader: _Reader, index: int, section: Section,
                                           f"sub-indices")
         return reader.variable(section, index, 0, name)
     if object_type not in (ObjectType.ARRAY, ObjectType.RECORD):
-        raise reader.fail(section, f"ObjectType 0x{object_type:X} is not a CiA 301 object "
-                                   f"code (0x2, 0x7, 0x8, 0x9)", section.get("ObjectType"))
+        reader.deviate(section, f"ObjectType 0x{object_type:X} is not a CiA 301 object "
+                                f"code (0x2, 0x7, 0x8, 0x9)", "object skipped",
+                       section.get("ObjectType"))
+        return None
     container = ODArray(name, index) if object_type == ObjectType.ARRAY else ODRecord(name, index)
     container.description = section.value("Description", "") or ""
     compact = reader.int_key(section, "CompactSubObj", 0, 0, 0xFFFFFFFF) or 0
@@ -429,7 +545,8 @@ def _read_object(reader: _Reader, index: int, section: Section,
         if object_type != ObjectType.ARRAY:
             raise reader.fail(section, "CompactSubObj is only allowed on ARRAY objects "
                                        "(ObjectType 0x8)", section.get("CompactSubObj"))
-        _build_compact(reader, section, container, compact)
+        if not _build_compact(reader, section, container, compact):
+            return None
         if subs:
             reader.warn(subs[0][1], "sub-object sections next to CompactSubObj; "
                                     "they replace the generated entries")
@@ -445,7 +562,17 @@ def _read_object(reader: _Reader, index: int, section: Section,
                                  f"section{'s' if len(subs) != 1 else ''} exist",
                         section.get("SubNumber"))
     for sub, sub_section in sorted(subs, key=lambda item: item[0]):
-        container.add_member(reader.variable(sub_section, index, sub))
+        member = reader.variable(sub_section, index, sub)
+        if member is not None:
+            container.add_member(member)
+    count = container.subindices.get(0)
+    if count is not None and count.data_type != DataType.UNSIGNED8 and not compact:
+        return _repair_sub0(reader, section, container, subs)
+    if not container.subindices:
+        reader.deviate(section, f"{format_index(index)} is an "
+                                f"{'ARRAY' if object_type == ObjectType.ARRAY else 'RECORD'} "
+                                f"without usable sub-objects", "object skipped")
+        return None
     for kind in ("name", "value", "denotation"):
         extra = extras.get((index, kind))
         if extra is not None:
@@ -453,17 +580,50 @@ def _read_object(reader: _Reader, index: int, section: Section,
     return container
 
 
+def _repair_sub0(reader: _Reader, section: Section, container: Union[ODRecord, ODArray],
+                 subs: List[Tuple[int, Section]]) -> ODObject:
+    """Sub-index 0 of an ARRAY/RECORD holds the highest sub-index (UNSIGNED8);
+    some files put a value there. Alone, it is served as the object's VAR (the
+    same index:00 on the wire); next to other entries a proper count replaces
+    it. Either way a recorded deviation."""
+    value = container.subindices[0]
+    sub0_section = next(sub_section for sub, sub_section in subs if sub == 0)
+    problem = (f"sub-index 0 of {format_index(container.index)} is {value.data_type.name}, "
+               f"not the UNSIGNED8 count of an ARRAY/RECORD")
+    if len(container.subindices) == 1:
+        reader.deviate(sub0_section, problem, f"served as a VAR {format_index(container.index)}"
+                                              f" named {value.name!r}")
+        var = value.copy()
+        return var
+    highest = max(container.subindices)
+    reader.deviate(sub0_section, problem, f"replaced by 'Highest sub-index supported' "
+                                          f"(ro, {highest})")
+    members = [container.subindices[sub] for sub in sorted(container.subindices) if sub]
+    fixed = type(container)(container.name, container.index)
+    fixed.description = container.description
+    fixed.add_member(ODVariable("Highest sub-index supported", container.index, 0,
+                                DataType.UNSIGNED8, "ro", highest))
+    for member in members:
+        fixed.add_member(member)
+    return fixed
+
+
 def _build_compact(reader: _Reader, section: Section, container: Union[ODRecord, ODArray],
-                   count: int) -> None:
+                   count: int) -> bool:
+    """The n entries of a compact array; False when its element type is
+    unusable (the object is skipped, a recorded deviation)."""
     count_entry = ODVariable("NrOfObjects", container.index, 0, DataType.UNSIGNED8, "ro", count)
     container.add_member(count_entry)
     template = reader.variable(section, container.index, 1, container.name, template=True)
+    if template is None:
+        return False
     template.object_links = []
     for sub in range(1, count + 1):
         var = template.copy()
         var.subindex = sub
         var.name = f"{container.name}{sub}"
         container.add_member(var)
+    return True
 
 
 def _apply_compact_extra(reader: _Reader, section: Section, kind: str,
@@ -498,8 +658,8 @@ def _apply_compact_extra(reader: _Reader, section: Section, kind: str,
         elif kind == "denotation":
             var.denotation = key.value
         else:
-            value, relative, text = reader.typed(section, key.name, var.data_type)
-            reader.guard(section, key, lambda: var.set_default(value, relative, text.strip()))
+            reader.lenient_value(section, key.name, var.data_type,
+                                 "no default (the type's zero)", var.set_default)
 
 
 def _read_links(reader: _Reader, od: ObjectDictionary,
@@ -511,26 +671,34 @@ def _read_links(reader: _Reader, od: ObjectDictionary,
         sections[index] = section
         obj = od.indices.get(index)
         if obj is None:
-            raise reader.fail(section, f"links of {format_index(index)}, which does not exist")
+            reader.deviate(section, f"links of {format_index(index)}, which does not exist",
+                           "links ignored")
+            continue
         count = reader.int_key(section, "ObjectLinks", 0, 0, _MAX_LIST) or 0
         links: List[int] = []
         for number in range(1, count + 1):
             key = section.get(str(number))
             if key is None:
-                raise reader.fail(section, f"ObjectLinks={count} but key {number} is missing",
-                                  section.get("ObjectLinks"))
+                reader.deviate(section, f"ObjectLinks={count} but key {number} is missing",
+                               "link ignored", section.get("ObjectLinks"))
+                continue
             target = reader.index_key(section, key, 0)
             if target == index:
-                raise reader.fail(section, f"{format_index(index)} links to itself", key)
-            if target not in od.indices:
-                raise reader.fail(section, f"link to {format_index(target)}, which does "
-                                           f"not exist", key)
-            links.append(target)
+                reader.deviate(section, f"{format_index(index)} links to itself",
+                               "link ignored", key)
+            elif target not in od.indices:
+                reader.deviate(section, f"link to {format_index(target)}, which does "
+                                        f"not exist", "link ignored", key)
+            else:
+                links.append(target)
         obj.object_links = links
     cycle = find_link_cycle({i: o.object_links for i, o in od.indices.items()})
     if cycle:
-        raise reader.fail(sections[cycle[0]], "ObjectLinks form a cycle: "
-                          + " -> ".join(format_index(i) for i in cycle))
+        reader.deviate(sections[cycle[0]], "ObjectLinks form a cycle: "
+                       + " -> ".join(format_index(i) for i in cycle),
+                       "the links of the objects in it are ignored")
+        for index in cycle:
+            od.indices[index].object_links = []
 
 
 # ------------------------------------------------------------------ export

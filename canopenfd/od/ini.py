@@ -4,7 +4,10 @@ configparser loses line numbers, refuses duplicate keys and chokes on some
 vendor files; this reader is tolerant where the files are messy (comments
 with ';' or '#', blank lines, case of keys and section names, duplicate keys:
 the last wins, with a warning) and strict where a guess would be wrong (a
-line that is neither a section, a comment nor key=value is an error).
+broken section header is an error). A line that is neither a section, a
+comment nor key=value (or a key before the first section) is skipped and
+recorded as a deviation, unless `strict`; a text with no section at all is
+not an EDS/DCF and is refused.
 
 Text decoding: a UTF-8 or UTF-16 BOM is honoured; otherwise UTF-8 is tried,
 then Windows-1252 (the usual vendor encoding), then Latin-1, which decodes
@@ -50,6 +53,7 @@ class IniFile:
     name: str
     sections: Dict[str, Section] = field(default_factory=dict)  # by lower-case name
     warnings: List[Tuple[int, str, str]] = field(default_factory=list)  # line, section, text
+    deviations: List[Tuple[int, str, str]] = field(default_factory=list)  # skipped lines
     encoding: str = "utf-8"
 
     def section(self, name: str) -> Optional[Section]:
@@ -72,7 +76,7 @@ def decode_text(data: Union[bytes, str]) -> Tuple[str, str]:
     return data.decode("latin-1"), "latin-1"
 
 
-def parse_ini(data: Union[bytes, str], name: str) -> IniFile:
+def parse_ini(data: Union[bytes, str], name: str, strict: bool = False) -> IniFile:
     """Sections and keys of an INI text; OdFileError names file and line."""
     text, encoding = decode_text(data)
     result = IniFile(name, encoding=encoding)
@@ -107,15 +111,27 @@ def parse_ini(data: Union[bytes, str], name: str) -> IniFile:
         key, sep, value = line.partition("=")
         key = key.strip()
         if not sep or not key:
-            raise OdFileError(f"expected key=value, a [section] or a ; comment, "
-                              f"got {_shorten(line)!r}", name, number)
-        if current is None:
-            raise OdFileError(f"key {_shorten(key)!r} before the first [section]", name, number)
+            problem = (f"expected key=value, a [section] or a ; comment, "
+                       f"got {_shorten(line)!r}")
+        elif current is None:
+            problem = f"key {_shorten(key)!r} before the first [section]"
+        else:
+            problem = ""
+        if problem:
+            if strict:
+                raise OdFileError(problem, name, number)
+            result.deviations.append((number, current.name if current else "", problem))
+            continue
         old = current.keys.get(key.lower())
         if old is not None:
             result.warnings.append((number, current.name, (
                 f"duplicate key {key} (also at line {old.line}); the last one is used")))
         current.keys[key.lower()] = Key(key, value.strip(), number)
+    if not result.sections:  # not an EDS/DCF at all: no guessing
+        if result.deviations:
+            number, _, problem = result.deviations[0]
+            raise OdFileError(problem, name, number)
+        raise OdFileError("no [section]: not an EDS/DCF file", name)
     return result
 
 

@@ -23,6 +23,15 @@ $NODEID+offset). Also read: DeviceIdentity (into device_info with EDS key
 names), ProfileBody file attributes (file_info), deviceCommissioning (node-id,
 bit rate), supported baud rates, dummyUsage.
 
+Lenient by default, like the EDS reader: a slip whose intent is clear is
+recovered and recorded in ``od.load_warnings`` as an error-severity `Problem`
+(file:line, element, what was done instead); ``strict=True`` raises at the
+first. Recovery: a dataType that is no CiA 301 basic type is served as
+OCTET_STRING (raw bytes), a missing/unparsable one skips the entry; a default,
+actual value or limit that does not fit is dropped; an unknown access type is
+ro, an unknown PDO mapping "no", bad objFlags 0; a repeated object or
+sub-index keeps the first; a sub-object without a name is named ``sub<n>``.
+
 Hostile input fails with `OdFileError` naming file, line and element: DOCTYPE
 and ENTITY declarations are refused (see `xmltree`), sizes are capped.
 """
@@ -30,7 +39,7 @@ and ENTITY declarations are refused (see `xmltree`), sizes are capped.
 from __future__ import annotations
 
 import re
-from typing import Callable, Dict, List, Optional, Tuple, Union
+from typing import Callable, Dict, List, Optional, Set, Union
 
 from .datatypes import DataType, Value
 from .errors import OdFileError, OdValueError
@@ -39,7 +48,7 @@ from .model import (ACCESS_TYPES, ODArray, ODRecord, ODVariable, ObjectDictionar
                     ObjectType, format_index)
 from .objects import ODObject
 from .textvalues import parse_int, parse_value
-from .validate import WARNING, Problem
+from .validate import ERROR, WARNING, Problem
 from .xmltree import Node, parse_xml
 
 __all__ = ["import_xdd"]
@@ -69,9 +78,10 @@ _RATE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(k|m)?\s*(?:bit/s|bps|baud)?", re.
 
 
 class _Reader:
-    def __init__(self, name: str, root: Node) -> None:
+    def __init__(self, name: str, root: Node, strict: bool = False) -> None:
         self.name = name
         self.root = root
+        self.strict = strict
         self.warnings: List[Problem] = []
         self.parameters: Dict[str, Node] = {}
         for node in root.iter("parameter"):
@@ -85,6 +95,15 @@ class _Reader:
     def warn(self, node: Optional[Node], problem: str, owner: Optional[int] = None) -> None:
         where = self.name if node is None else f"{self.name}:{node.line} {_describe(node, owner)}"
         self.warnings.append(Problem(WARNING, where, problem))
+
+    def deviate(self, node: Node, problem: str, instead: str,
+                owner: Optional[int] = None) -> None:
+        """A deviation strict mode refuses: raise when strict, else record it
+        (error severity) with what was done `instead`."""
+        if self.strict:
+            raise self.fail(node, problem, owner)
+        self.warnings.append(Problem(ERROR, f"{self.name}:{node.line} {_describe(node, owner)}",
+                                     f"{problem}; {instead}"))
 
     # -------------------------------------------------------- attributes
     def attr(self, node: Node, name: str, param: Optional[Node] = None) -> Optional[str]:
@@ -120,22 +139,30 @@ class _Reader:
 
     # -------------------------------------------------------- entries
     def data_type(self, node: Node, owner: Optional[int], param: Optional[Node],
-                  inherited: Optional[DataType]) -> DataType:
+                  inherited: Optional[DataType]) -> Optional[DataType]:
+        """The entry's type; None (a recorded deviation) when it cannot be known."""
         text = node.get("dataType")
         if text is not None and text.strip():
-            number = self.hex_attr(node, "dataType", 0xFFFF, owner)
+            try:
+                number = self.hex_attr(node, "dataType", 0xFFFF, owner)
+            except OdFileError as exc:
+                self.deviate(node, exc.problem, "entry skipped", owner)
+                return None
             try:
                 return DataType(number)
             except ValueError:
-                raise self.fail(node, f"dataType 0x{number:04X} is not a CiA 301 data type",
-                                owner) from None
+                self.deviate(node, f"dataType 0x{number:04X} is not a CiA 301 data type"
+                             + (" (manufacturer/profile complex type)" if number >= 0x40 else ""),
+                             "served as OCTET_STRING (raw bytes)", owner)
+                return DataType.OCTET_STRING
         if param is not None:
             for child in param.children:
                 if child.tag.upper() in _IEC_TYPES:
                     return _IEC_TYPES[child.tag.upper()]
         if inherited is not None:
             return inherited
-        raise self.fail(node, "dataType is missing", owner)
+        self.deviate(node, "dataType is missing", "entry skipped", owner)
+        return None
 
     def access(self, node: Node, owner: Optional[int], param: Optional[Node]) -> str:
         text = node.get("accessType") or node.get("accessUSDO")
@@ -149,8 +176,9 @@ class _Reader:
             return "ro"
         lowered = text.strip().lower()
         if lowered not in ACCESS_TYPES:
-            raise self.fail(node, f"access type {text!r} is not one of "
-                                  f"{', '.join(ACCESS_TYPES)}", owner)
+            self.deviate(node, f"access type {text!r} is not one of "
+                               f"{', '.join(ACCESS_TYPES)}", "taken as ro", owner)
+            return "ro"
         return lowered
 
     def pdo(self, node: Node, owner: Optional[int]) -> Optional[str]:
@@ -163,14 +191,19 @@ class _Reader:
                 return None
             table, key = _PDO_FD, text.strip().lower()
         if key not in table:
-            raise self.fail(node, f"PDO mapping {text!r} is not one of "
-                                  f"{', '.join(k for k in table if k)}", owner)
+            self.deviate(node, f"PDO mapping {text!r} is not one of "
+                               f"{', '.join(k for k in table if k)}", "taken as no", owner)
+            return None
         return table[key]
 
     def variable(self, node: Node, index: int, subindex: int, name: str,
-                 owner: Optional[int], inherited: Optional[DataType] = None) -> ODVariable:
+                 owner: Optional[int], inherited: Optional[DataType] = None
+                 ) -> Optional[ODVariable]:
+        """An entry; None when it is skipped (a recorded deviation)."""
         param = self.parameters.get(node.get("uniqueIDRef") or "")
         dtype = self.data_type(node, owner, param, inherited)
+        if dtype is None:
+            return None
         try:
             var = ODVariable(name, index, subindex, dtype, self.access(node, owner, param))
         except OdValueError as exc:
@@ -188,38 +221,42 @@ class _Reader:
             if "$" in text:
                 self.warn(node, f"{attr} {text!r} depends on the node-id; ignored", owner)
                 continue
-            value, _ = self.value(node, attr, text, dtype, owner)
-            self.guard(node, owner, attr, lambda: setattr(var, setter, value))
-        for attr, setter in (("defaultValue", var.set_default), ("actualValue", var.set_value)):
+            self.lenient_value(node, owner, attr, text, dtype, "limit dropped",
+                               lambda value, _r, _t: setattr(var, setter, value))
+        for attr, store in (("defaultValue", var.set_default), ("actualValue", var.set_value)):
             text = self.attr(node, attr, param)
             if text is None:
                 continue
-            value, relative = self.value(node, attr, text, dtype, owner)
-            if value is None and not text.strip():
-                continue  # defaultValue="" on a number: no default
-            self.guard(node, owner, attr, lambda: setter(value, relative, text.strip()))
+            self.lenient_value(node, owner, attr, text, dtype,
+                               "no default (the type's zero)" if attr == "defaultValue"
+                               else "no configured value", store)
         # stripped like every EDS value, so an EDS export reads back the same
         var.denotation = (node.get("denotation") or "").strip()
         var.unit = (node.get("unit") or "").strip()
-        flags = self.dec_attr(node, "objFlags", owner)
+        try:
+            flags = self.dec_attr(node, "objFlags", owner)
+        except OdFileError as exc:
+            self.deviate(node, exc.problem, "taken as 0", owner)
+            flags = 0
         if flags is not None and not 0 <= flags <= 0xFFFFFFFF:
-            raise self.fail(node, f"objFlags {flags} outside 0..0xFFFFFFFF (32 bits)", owner)
+            self.deviate(node, f"objFlags {flags} outside 0..0xFFFFFFFF (32 bits)",
+                         "taken as 0", owner)
+            flags = 0
         var.obj_flags = flags or 0
         return var
 
-    def value(self, node: Node, attr: str, text: str, dtype: DataType,
-              owner: Optional[int]) -> Tuple[Optional[Value], bool]:
+    def lenient_value(self, node: Node, owner: Optional[int], attr: str, text: str,
+                      dtype: DataType, instead: str,
+                      setter: Callable[[Optional[Value], bool, str], object]) -> None:
+        """Parse `text` and hand it to `setter(value, relative, text)`; a value
+        that does not parse or fit is a deviation: dropped unless strict."""
         try:
-            return parse_value(dtype, text)
+            value, relative = parse_value(dtype, text)
+            if value is None and not text.strip():
+                return  # defaultValue="" on a number: no value
+            setter(value, relative, text.strip())
         except OdValueError as exc:
-            raise self.fail(node, f"{attr} {text[:40]!r}: {exc.problem}", owner) from None
-
-    def guard(self, node: Node, owner: Optional[int], attr: str,
-              action: Callable[[], object]) -> None:
-        try:
-            action()
-        except OdValueError as exc:
-            raise self.fail(node, f"{attr}: {exc.problem}", owner) from None
+            self.deviate(node, f"{attr} {text[:40]!r}: {exc.problem}", instead, owner)
 
 
 def _describe(node: Node, owner: Optional[int]) -> str:
@@ -244,21 +281,22 @@ def _parameter_item(param: Node, name: str) -> Optional[str]:
 
 # ------------------------------------------------------------------ import
 def import_xdd(source: Source, node_id: Optional[int] = None,
-               mode: Optional[str] = None) -> ObjectDictionary:
+               mode: Optional[str] = None, strict: bool = False) -> ObjectDictionary:
     """An ObjectDictionary from an XDD or XDC file (path or open file).
 
     `node_id` resolves $NODEID (default: the XDC's deviceCommissioning
     nodeID); `mode` overrides the guess ('fd' for the CiA 1311 dialect or
-    when 0x1000 is an ARRAY / 0x1030 exists, else 'classic')."""
+    when 0x1000 is an ARRAY / 0x1030 exists, else 'classic'). Lenient unless
+    `strict` (see the module docstring)."""
     data, name = read_source(source)
-    return xdd_from_text(data, name, node_id, mode)
+    return xdd_from_text(data, name, node_id, mode, strict)
 
 
 def xdd_from_text(data: Union[bytes, str], name: str, node_id: Optional[int] = None,
-                  mode: Optional[str] = None) -> ObjectDictionary:
+                  mode: Optional[str] = None, strict: bool = False) -> ObjectDictionary:
     """`import_xdd` of content already read (`name` is used in messages)."""
     root = parse_xml(data, name)
-    reader = _Reader(name, root)
+    reader = _Reader(name, root, strict)
     lists = list(root.iter(*_LISTS))
     if not lists:
         raise OdFileError("no CANopenObjectList (or CANopenFDObjectList) element: "
@@ -281,8 +319,12 @@ def xdd_from_text(data: Union[bytes, str], name: str, node_id: Optional[int] = N
         if node.tag not in _OBJECTS:
             continue
         obj = _read_object(reader, node)
+        if obj is None:
+            continue
         if obj.index in od.indices:
-            raise reader.fail(node, f"object {format_index(obj.index)} is defined twice")
+            reader.deviate(node, f"object {format_index(obj.index)} is defined twice",
+                           "the first one is used")
+            continue
         od.add_object(obj)
     fd_dialect = object_list.tag == "CANopenFDObjectList"
     od.mode = mode if mode is not None else (
@@ -388,8 +430,9 @@ def _read_object(reader: _Reader, node: Node) -> Optional[ODObject]:
         object_type = ObjectType.VAR
     if object_type not in (ObjectType.VAR, ObjectType.ARRAY, ObjectType.RECORD,
                            ObjectType.DOMAIN):
-        raise reader.fail(node, f"objectType {object_type} is not VAR (7), ARRAY (8), "
-                                f"RECORD (9) or DOMAIN (2)")
+        reader.deviate(node, f"objectType {object_type} is not VAR (7), ARRAY (8), "
+                             f"RECORD (9) or DOMAIN (2)", "object skipped")
+        return None
     subs = [child for child in node.children if child.tag in _SUBS]
     if len(subs) > _MAX_SUBS:
         raise reader.fail(node, f"{len(subs)} sub-objects; at most {_MAX_SUBS} sub-indices exist")
@@ -411,21 +454,47 @@ def _read_object(reader: _Reader, node: Node) -> Optional[ODObject]:
     if not subs:
         raise reader.fail(node, "an ARRAY/RECORD object needs sub-objects")
     entries: Dict[int, ODVariable] = {}
+    skipped: Set[int] = set()
     for sub_node in subs:
         sub = reader.hex_attr(sub_node, "subIndex", 0xFF, index)
         if sub is None:
             raise reader.fail(sub_node, "subIndex is missing", index)
-        if sub in entries:
-            raise reader.fail(sub_node, f"sub-index {sub} is defined twice", index)
+        if sub in entries or sub in skipped:
+            reader.deviate(sub_node, f"sub-index {sub} is defined twice",
+                           "the first one is used", index)
+            continue
         sub_name = sub_node.get("name")
         if not sub_name or not sub_name.strip():
-            raise reader.fail(sub_node, "name is missing", index)
-        entries[sub] = reader.variable(sub_node, index, sub, sub_name.strip(), index,
-                                       own_type if sub else None)
+            sub_name = f"sub{sub}"
+            reader.deviate(sub_node, "name is missing", f"named {sub_name!r}", index)
+        entry = reader.variable(sub_node, index, sub, sub_name.strip(), index,
+                                own_type if sub else None)
+        if entry is None:
+            skipped.add(sub)
+        else:
+            entries[sub] = entry
+    if not entries:
+        reader.deviate(node, "no usable sub-objects", "object skipped")
+        return None
     if object_type == ObjectType.VAR:  # CiA 1311 files: infer from the elements
         elements = {var.data_type for sub, var in entries.items() if sub >= 1}
         object_type = ObjectType.ARRAY if own_type is not None and elements == {own_type} \
             else ObjectType.RECORD
+    count = entries.get(0)
+    if count is not None and count.data_type != DataType.UNSIGNED8:
+        # a value in sub-index 0, where the UNSIGNED8 count belongs (as the EDS reader)
+        sub0_node = next(sub_node for sub_node in subs
+                         if reader.hex_attr(sub_node, "subIndex", 0xFF, index) == 0)
+        problem = (f"sub-index 0 of {format_index(index)} is {count.data_type.name}, not the "
+                   f"UNSIGNED8 count of an ARRAY/RECORD")
+        if len(entries) == 1:
+            reader.deviate(sub0_node, problem, f"served as a VAR {format_index(index)} named "
+                                               f"{count.name!r}", index)
+            return count
+        reader.deviate(sub0_node, problem, f"replaced by 'Highest sub-index supported' "
+                                           f"(ro, {max(entries)})", index)
+        entries[0] = ODVariable("Highest sub-index supported", index, 0, DataType.UNSIGNED8,
+                                "ro", max(entries))
     container = ODArray(name.strip(), index) if object_type == ObjectType.ARRAY \
         else ODRecord(name.strip(), index)
     for sub in sorted(entries):

@@ -55,7 +55,8 @@ def round_trip(od) -> None:
 
 def _read_back(text, name: str, od):
     try:
-        return eds_from_text(text, name, node_id=od.node_id, mode=od.mode)
+        # strict: what the lenient import recovered must export as a clean file
+        return eds_from_text(text, name, node_id=od.node_id, mode=od.mode, strict=True)
     except OdFileError as exc:
         raise Finding(f"the export of an imported file cannot be read back: {exc}\n"
                       f"--- export ---\n{text}") from exc
