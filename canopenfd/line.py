@@ -422,7 +422,11 @@ class Line:
 
     def _event_command_failed(self, event: Event) -> Deferred:
         """CO_EV_COMMAND_FAILED: a = the command, b = -its status."""
-        log.warning("%s: command %d failed in the runtime: %s", self._where, event.a,
+        try:
+            command = CommandKind(event.a).name
+        except ValueError:
+            command = str(event.a)
+        log.warning("%s: command %s failed in the runtime: %s", self._where, command,
                     status_text(-event.b))
         return None
 

@@ -438,7 +438,7 @@ def test_one_runtime_write_per_set_and_32_producers_per_line(net, bus_name):
             maps.append(rpdo)
     for rpdo in maps[:32]:
         rpdo.transmit()
-    with pytest.raises(CanopenFDError, match=r"node 9 RPDO1: transmit\(\): line \d+: already "
+    with pytest.raises(CanopenFDError, match=r"node 9 RPDO1: transmit\(\): already "
                                              r"32 RPDO producers"):
         maps[32].transmit()
     first = maps[0]

@@ -24,9 +24,10 @@ README = pathlib.Path(__file__).resolve().parent.parent / "README.md"
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 #: README python blocks (1-based, in order) -> the world they run in; blocks of
-#: one world share a namespace and run in this order.
-WORLDS = {1: "none", 2: "fd", 3: "fd", 4: "fd", 5: "fd", 6: "fd", 7: "fd", 8: "classic",
-          9: "fd"}
+#: one world share a namespace and run in this order ("none": on their own in an
+#: empty directory, "repo": on their own in the source tree, for its sample files).
+WORLDS = {1: "none", 2: "fd", 3: "repo", 4: "fd", 5: "fd", 6: "fd", 7: "fd", 8: "fd",
+          9: "classic", 10: "fd"}
 
 
 def readme_blocks() -> List[Tuple[int, int, str]]:
@@ -91,9 +92,14 @@ def test_every_block_has_a_world():
 @pytest.mark.parametrize("kind", sorted(set(WORLDS.values())))
 def test_readme_blocks_run(kind, tmp_path):
     blocks = [(n, line, code) for n, line, code in readme_blocks() if WORLDS[n] == kind]
-    if kind == "none":
-        for n, line, code in blocks:
-            run_block(code, {}, f"README.md:{line}")
+    if kind in ("none", "repo"):                 # standalone; "repo": paths of the source tree
+        old = os.getcwd()
+        os.chdir(README.parent if kind == "repo" else tmp_path)
+        try:
+            for n, line, code in blocks:
+                run_block(code, {}, f"README.md:{line}")
+        finally:
+            os.chdir(old)
         return
     with world(kind, tmp_path) as names:
         for n, line, code in blocks:

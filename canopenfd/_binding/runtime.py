@@ -7,6 +7,7 @@ touching freed memory.
 
 from __future__ import annotations
 
+import re
 import threading
 from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple, Type, Union
 
@@ -18,6 +19,9 @@ from .constants import CommandKind, EventKind
 from .core import CData, ffi, lib
 from .od_tables import definitions
 from .transfers import TransferRequest
+
+#: The runtime's "line N: " prefix of its error texts.
+_LINE_NUMBER = re.compile(r"^line \d+: ")
 
 _ERRORS = {
     lib.CO_RT_ERR_ARGUMENT: ConfigurationError,
@@ -138,7 +142,9 @@ class Runtime:
 
     def _raise(self, status: int, what: str,
                overrides: Optional[Dict[int, Type[CanopenFDError]]] = None) -> None:
-        text = self.last_error() or status_text(status)
+        # The runtime numbers lines ("line 0: ..."); `what` names the line the
+        # way the user opened it, so the number would only mislead (a file line?).
+        text = _LINE_NUMBER.sub("", self.last_error() or status_text(status), count=1)
         kind = (overrides or {}).get(status) or _ERRORS.get(status, CanopenFDError)
         raise kind(f"{what}: {text}")
 
