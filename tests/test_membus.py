@@ -862,3 +862,17 @@ def test_add_node_takes_the_od_second_and_the_timeout_by_keyword(net, bus_name):
         line.add_node(6, demo_od("fd"), od=demo_od("fd"))
     with pytest.raises(ConfigurationError, match="heartbeat_timeout_ms must be an int"):
         line.add_node(6, True)
+
+
+def test_local_nmt_state_is_set_when_the_setter_returns(net, bus_name):
+    """node.nmt.state = ... is applied before it returns (in the caller's
+    thread, under the runtime lock): the next call already sees the state,
+    e.g. a TPDO sent right after entering OPERATIONAL."""
+    node = net.open_line(bus_name).create_local_node(1)
+    for _ in range(50):
+        node.nmt.state = "OPERATIONAL"
+        assert node.state == NmtState.OPERATIONAL
+        node.nmt.state = "PRE-OPERATIONAL"
+        assert node.state == NmtState.PRE_OPERATIONAL
+    node.nmt.state = "STOPPED"
+    assert node.state == NmtState.STOPPED

@@ -55,7 +55,8 @@ typedef struct co_rt_line_config {
 typedef enum co_rt_command_kind {
     CO_CMD_NODE_CREATE = 1,      /* create + boot the local node */
     CO_CMD_NMT_SEND = 2,         /* an NMT command on the line */
-    CO_CMD_NMT_LOCAL = 3,        /* an NMT command applied to the local node only */
+    CO_CMD_NMT_LOCAL = 3,        /* an NMT command applied to the local node only, before
+                                    co_rt_command returns (its status is the result) */
     CO_CMD_HEARTBEAT_TIME = 4,   /* the local node's 0x1017 producer time */
     CO_CMD_HB_WATCH = 5,         /* watch a node's heartbeat */
     CO_CMD_HB_UNWATCH = 6,

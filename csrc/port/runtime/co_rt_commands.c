@@ -100,6 +100,26 @@ static int validate_command(co_rt_t *rt, const co_rt_command_t *cmd)
     return check_command_args(rt, rt->lines[cmd->line], cmd);
 }
 
+static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd);
+
+/* A command applied in the caller's thread, under the runtime lock, before
+ * co_rt_command returns: the local node's own NMT state is then what the
+ * caller set (a PDO it sends next sees it), and a refusal is the return
+ * value, not a later CO_EV_COMMAND_FAILED. */
+static int apply_now(co_rt_t *rt, const co_rt_command_t *cmd)
+{
+    rt_line_t *l = rt->lines[cmd->line];
+    rt_mutex_lock(&rt->lock);
+    int status = CO_RT_ERR_CLOSED;
+    if (!rt->stopping) {
+        rt_line_step(l, co_rt_now_us());
+        status = apply_to_line(rt, l, cmd);
+    }
+    rt_mutex_unlock(&rt->lock);
+    rt_wake(rt);   /* frames it queued (a boot-up after a reset) go out */
+    return status;
+}
+
 int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
 {
     if (!rt || !command) {
@@ -111,6 +131,9 @@ int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
     }
     if (command->kind == CO_CMD_NODE_CREATE) {
         return rt_node_create_now(rt, command);
+    }
+    if (command->kind == CO_CMD_NMT_LOCAL) {
+        return apply_now(rt, command);
     }
     rt_line_t *l = rt->lines[command->line];
     bool send = command->kind == CO_CMD_SEND_FRAME;
