@@ -689,3 +689,28 @@ def test_python_canopen_attribute_names(classic):
     assert remote.tpdo["Demo UNSIGNED8"] is var is my_map["Demo UNSIGNED8"] is my_map[0]
     assert my_map.variables is my_map.map and isinstance(remote.tpdo, PdoMaps)
     assert isinstance(my_map, PdoMap)
+
+
+def test_read_from_an_od_without_the_pdo_entries_names_the_missing_entry(net, bus_name):
+    """read(from_od=True) of a PDO whose mapping count names an entry the
+    node's OD lacks (a vendor file's slip): ConfigurationError naming the
+    entry, not an AttributeError; a record key without a sub-index is
+    refused by name too."""
+    od = demo_od("fd", pdos=1)
+    U8, U32 = DataType.UNSIGNED8, DataType.UNSIGNED32
+    comm = ODRecord("RPDO 2 communication parameter", 0x1401)   # and no 0x1601
+    comm.add_member(ODVariable("Highest sub-index supported", 0x1401, 0, U8, "ro", 2))
+    comm.add_member(ODVariable("COB-ID used by RPDO", 0x1401, 1, U32, "rw", 0x305))
+    comm.add_member(ODVariable("Transmission type", 0x1401, 2, U8, "rw", 255))
+    od.add_object(comm)
+    mapping = ODArray("RPDO 2 mapping parameter", 0x1601)   # says 2 entries, has 1
+    mapping.add_member(ODVariable("Number of mapped objects", 0x1601, 0, U8, "rw", 2))
+    mapping.add_member(ODVariable("Mapped object 1", 0x1601, 1, U32, "rw", 0x23000120))
+    od.add_object(mapping)
+    drive = net.open_line(bus_name).add_node(5, od)
+    with pytest.raises(ConfigurationError, match=r"0x1601:02 is not in the object dictionary"):
+        drive.rpdo[2].read(from_od=True)
+    tpdo = drive.tpdo[1]
+    tpdo.read(from_od=True)
+    with pytest.raises(ConfigurationError, match="'Process data' sub None is not in"):
+        tpdo.add_variable("Process data", None)

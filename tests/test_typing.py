@@ -31,10 +31,6 @@ INSTALLED = pathlib.Path(canopenfd.__file__).resolve().parent
 # Modules with mypy errors left, being reworked in parallel (issue 14 item 7);
 # remove each as it becomes clean.
 EXCLUDED = {
-    "canopenfd.cli.demo",
-    "canopenfd.cli.entry",
-    "canopenfd.cli.od",
-    "canopenfd.cli.transfer",
     "canopenfd.od.datatypes",
     "canopenfd.od.eds",
     "canopenfd.od.ini",
@@ -45,7 +41,6 @@ EXCLUDED = {
     "canopenfd.od.variable",
     "canopenfd.od.xdd",
     "canopenfd.od.xmltree",
-    "canopenfd.services.pdo",
 }
 
 _MESSAGE = re.compile(r"^(?P<path>[^:\n]+\.pyi?):(?P<line>\d+): (?P<kind>error|note): ")

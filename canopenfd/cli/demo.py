@@ -98,7 +98,7 @@ def _demo_usdo(say: Callable[..., None], line: Line, remote: Any, device: Any,
         f"holds {'identical' if down_ok else 'DIFFERENT'} bytes")
     started = time.monotonic()
     transfer = client.start_upload(2, 0x2100, 0, max_size=total,
-                                  **({} if fd else {"size_hint": total}))
+                                  size_hint=0 if fd else total)
     ended = _finished(transfer)
     data = transfer.result()
     up_ok = data == payload
@@ -123,7 +123,9 @@ def _demo_node_od(mode: str) -> Any:
     from ..od import demo_od
 
     od = demo_od(mode, pdos=1)
-    od[0x1019].default = _SYNC_OVERFLOW
+    overflow = od.get_variable(0x1019, 0)
+    assert overflow is not None   # demo_od(pdos=...) has the SYNC objects
+    overflow.default = _SYNC_OVERFLOW
     return od
 
 
@@ -306,7 +308,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
         watched.on_bootup(lambda: say("node 1   sees node 2 boot-up"))
         watched.on_state_change(lambda s: say(f"node 1   sees node 2 {s.label}"))
         watched.on_heartbeat_started(lambda: say("node 1   node 2 heartbeat started"))
-        watched.on_heartbeat_lost(lambda: (say("node 1   node 2 heartbeat lost"), lost.set()))
+        def on_lost() -> None:
+            say("node 1   node 2 heartbeat lost")
+            lost.set()
+
+        watched.on_heartbeat_lost(on_lost)
 
         device_line = net.open_line("mem:demo", mode=mode)
         device = device_line.create_local_node(2, heartbeat_ms=100, od=_demo_node_od(mode),

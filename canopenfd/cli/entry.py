@@ -40,7 +40,8 @@ def main(argv: Optional[List[str]] = None, network: Optional[Network] = None) ->
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
-        return args.func(args)
+        status: int = args.func(args)
+        return status
     except (CanopenFDError, UsageError) as exc:
         print_error(str(exc))
         return EXIT_USAGE

@@ -36,7 +36,7 @@ _VALUE_WIDTH = 26
 def add_parsers(subparsers: Any) -> argparse.ArgumentParser:
     """Register `od show FILE` and `od check FILE` on the main parser's
     subparsers; the handler is set as `func` (the main parser's convention)."""
-    parser = subparsers.add_parser(
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "od", help="show or check an object dictionary file (EDS, DCF, XDD, XDC)",
         description="Read an EDS/DCF/XDD/XDC file (or builtin:fd, builtin:classic) and "
                     "print its entries or check it.")
@@ -243,7 +243,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     add_parsers(sub)
     args = parser.parse_args(["od", *(sys.argv[1:] if argv is None else argv)])
     try:
-        return args.func(args)
+        status: int = args.func(args)
+        return status
     except CanopenFDError as exc:
         print_error(str(exc))
         return EXIT_USAGE

@@ -38,7 +38,7 @@ from ..od import (DataType, ODVariable, ObjectDictionary, OdFileError, OdValueEr
                   TimeDifference, TimeOfDay, demo_od, import_od)
 from ..od import decode as _decode
 from ..od import encode as _encode
-from ..transfer import Transfer
+from ..transfer import Transfer, UsdoAbortError
 from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, builtin_od_kind,
                      command_line, parse_key, print_error, rate_text)
 
@@ -193,8 +193,10 @@ def _parse_int(dtype: DataType, text: str) -> int:
         if digits[:2].lower() == "0x":
             number = int(digits[2:], 16)
             # 0xFFFF as INTEGER16 is -1 (two's complement of the type's width)
-            if dtype.signed and sign > 0 and dtype.max < number < 1 << (8 * dtype.size):
-                number -= 1 << (8 * dtype.size)
+            size, high = dtype.size, dtype.max
+            if dtype.signed and sign > 0 and size is not None and high is not None and \
+                    high < number < 1 << (8 * size):
+                number -= 1 << (8 * size)
         else:
             number = int(digits, 10)
     except ValueError:
@@ -274,7 +276,7 @@ def format_value(dtype: DataType, value: Any) -> str:
     if isinstance(value, TimeDifference):
         return f"{value.to_timedelta()} ({value.days * 86_400_000 + value.ms} ms)"
     if isinstance(value, (bytes, bytearray)):
-        return hex_bytes(value)
+        return hex_bytes(bytes(value))
     return str(value)
 
 
@@ -474,7 +476,10 @@ def _where(index: int, sub: int, variable: Optional[ODVariable]) -> str:
 
 
 def _abort_text(error: AbortError) -> str:
-    return f"abort 0x{error.usdo_code:02X} ({error.meaning})"
+    """A broadcast answer's refusal: USDO's one-byte code, else the CiA 301 one."""
+    if isinstance(error, UsdoAbortError):
+        return f"abort 0x{error.usdo_code:02X} ({error.meaning})"
+    return f"abort 0x{error.code:08X} ({error.meaning})"
 
 
 # ------------------------------------------------------------------ read / write

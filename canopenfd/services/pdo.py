@@ -71,7 +71,8 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 import time
-from typing import Callable, Dict, Iterator, List, NamedTuple, Optional, Protocol, Tuple, Union
+from typing import (Callable, Dict, Iterator, List, NamedTuple, Optional, Protocol, Tuple, Union,
+                    overload)
 
 from .._binding.constants import EventKind
 from .._binding.context import Deferred, LineContext
@@ -212,7 +213,7 @@ def _add_context(exc: AbortError, pdo: str, step: str) -> None:
 
 
 # ------------------------------------------------------------------ collection
-class PdoMaps(Mapping):
+class PdoMaps(Mapping[int, "PdoMap"]):
     """The TPDOs or RPDOs of one node (`node.tpdo`, `node.rpdo`), by PDO
     number 1..512 (`node.tpdo[1]`), or by the index of the communication or
     mapping object (`node.tpdo[0x1A00]`). Only the PDOs the node's OD has
@@ -250,6 +251,14 @@ class PdoMaps(Mapping):
         if mapping <= key < mapping + 512:
             return key - mapping + 1
         return key
+
+    @overload
+    def __getitem__(self, key: int) -> "PdoMap":
+        ...
+
+    @overload
+    def __getitem__(self, key: str) -> "PdoVariable":
+        ...
 
     def __getitem__(self, key: Union[int, str]) -> Union["PdoMap", "PdoVariable"]:
         """The PdoMap of a number or index; for a name, the first mapped
@@ -446,7 +455,7 @@ class PdoVariable:
             low, high = (-(1 << (self.length - 1)), (1 << (self.length - 1)) - 1) \
                 if dtype.signed else (0, (1 << self.length) - 1)
             if not low <= int.from_bytes(data, "little", signed=dtype.signed) <= high:
-                raise ConfigurationError(f"{where}: {value} does not fit the {self.length} "
+                raise ConfigurationError(f"{where}: {value!r} does not fit the {self.length} "
                                          f"mapped bits of the {dtype.name} ({low}..{high})")
         elif not dtype.is_integer and int.from_bytes(data, "little") >> self.length:
             raise ConfigurationError(f"{where}: {value!r} ({len(data)} bytes) does not fit the "
@@ -637,13 +646,12 @@ class PdoMap:
         return f"0, 1..240, 254 or 255 (252/253 are for TPDOs on classic lines, not {why})"
 
     def _check_trans_type(self, value: object) -> int:
-        allowed = isinstance(value, int) and not isinstance(value, bool) and (
-            0 <= value <= 240 or value in (254, 255) or
-            (value in (252, 253) and not self.is_rpdo and self.mode == "classic"))
-        if not allowed:
-            raise ConfigurationError(f"{self.where}: trans_type must be "
-                                     f"{self._trans_type_expected()}, got {value!r}")
-        return value
+        if isinstance(value, int) and not isinstance(value, bool) and (
+                0 <= value <= 240 or value in (254, 255) or
+                (value in (252, 253) and not self.is_rpdo and self.mode == "classic")):
+            return value
+        raise ConfigurationError(f"{self.where}: trans_type must be "
+                                 f"{self._trans_type_expected()}, got {value!r}")
 
     @property
     def trans_type(self) -> Optional[int]:
@@ -1086,7 +1094,8 @@ class PdoMap:
         try:
             entry = od[index] if od is not None else None
             if isinstance(entry, (ODRecord, ODArray)):
-                entry = entry[subindex]
+                # an ARRAY/RECORD needs its sub-index (None: not a mappable entry)
+                entry = entry[subindex] if subindex is not None else None
             elif isinstance(entry, ODVariable) and not entry.in_object and \
                     subindex not in (0, None):
                 entry = None            # a VAR has sub 0 only
@@ -1250,13 +1259,24 @@ class PdoMap:
 
     def _from_od(self, index: int, sub: int, size: int, step: str,
                  optional: bool = False) -> Optional[int]:
-        var = self._od.get_variable(index, sub)
+        od = self._od
+        var = od.get_variable(index, sub) if od is not None else None
+        if var is None:
+            if optional:
+                return None
+            raise ConfigurationError(f"{self.where}, {step}: 0x{index:04X}:{sub:02X} is not in "
+                                     f"the object dictionary of "
+                                     f"{_where_of(self.node, self._remote)}")
+        value: Optional[Value]
         if var.value_base is not None:
             value, relative = var.value_base, var.value_relative_to_node_id
         else:
             value, relative = var.default_base, var.relative_to_node_id
         if value is None:
             return None if optional else 0
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ConfigurationError(f"{self.where}, {step}: 0x{index:04X}:{sub:02X} holds "
+                                     f"{value!r}, not an integer")
         return value + self.node.node_id if relative else value
 
     # ------------------------------------------------------------ save
