@@ -35,16 +35,6 @@ EXCLUDED = {
     "canopenfd.cli.entry",
     "canopenfd.cli.od",
     "canopenfd.cli.transfer",
-    "canopenfd.od.datatypes",
-    "canopenfd.od.eds",
-    "canopenfd.od.ini",
-    "canopenfd.od.model",
-    "canopenfd.od.objects",
-    "canopenfd.od.textvalues",
-    "canopenfd.od.validate",
-    "canopenfd.od.variable",
-    "canopenfd.od.xdd",
-    "canopenfd.od.xmltree",
     "canopenfd.services.pdo",
 }
 
