@@ -15,7 +15,8 @@ Choices where CiA 301/306 are silent:
   type: ro/const/rwr → 'tpdo', wo/rww → 'rpdo', rw → 'both'; an explicit
   direction (XDD ``TPDO``/``RPDO``) wins.
 - A node-id relative default (``$NODEID+0x180``) keeps its offset;
-  `default` adds the dictionary's `node_id` when it is known.
+  `default` adds the dictionary's `node_id` when it is known. Only numeric
+  types can be relative (set_default refuses the others, naming the entry).
 """
 
 from __future__ import annotations
