@@ -627,13 +627,17 @@ def test_node_id_relative_default_gets_the_node_id(net, bus_name):
 def test_node_id_relative_real_and_string_defaults(net, bus_name):
     """Only integers are relative in C; a REAL gets the node-id added once when
     served, a relative string is refused naming the entry (it crashed with a
-    TypeError before mypy pointed at it)."""
+    TypeError before mypy pointed at it): by set_default, and, when the flag is
+    set as a plain attribute, when the node is created."""
     real = ODVariable("Offset", 0x2001, 0, DataType.REAL32, "rw")
     real.set_default(0.5, relative_to_node_id=True)
     node = serve(net, bus_name, "fd", _single(real), node_id=0x21)
     assert node[0x2001].raw == 0x21 + 0.5
     text = ODVariable("Label", 0x2002, 0, DataType.VISIBLE_STRING, "rw")
-    text.set_default("abc", relative_to_node_id=True)
+    with pytest.raises(OdValueError, match="0x2002:00 Label: .*needs a numeric type"):
+        text.set_default("abc", relative_to_node_id=True)
+    text.set_default("abc")
+    text.relative_to_node_id = True   # behind set_default's check
     line = net.open_line(bus_name)
     with pytest.raises(ConfigurationError, match="0x2002:00 Label: .*needs a numeric type"):
         line.create_local_node(NODE, od=_single(text))

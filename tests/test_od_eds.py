@@ -184,6 +184,17 @@ def test_export_to_stream_string_and_dcf():
     assert again.node_id == 5 and again.bitrate == 500_000 and again == od
 
 
+def test_export_to_a_binary_stream_writes_utf8():
+    """A binary stream gets the UTF-8 bytes of the text (was: a TypeError from write)."""
+    od = import_eds(DCF)
+    od.device_info["VendorName"] = "Gerätebau"   # non-ASCII: the export writes UTF-8
+    buffer = io.BytesIO()
+    assert export_eds(od, buffer) is None
+    assert buffer.getvalue() == export_eds(od).encode("utf-8")
+    assert "VendorName=Gerätebau\n".encode("utf-8") in buffer.getvalue()
+    assert import_eds(io.BytesIO(buffer.getvalue())) == od
+
+
 def test_export_is_read_by_python_canopen(tmp_path):
     canopen = pytest.importorskip("canopen")
     od = demo_od("classic")

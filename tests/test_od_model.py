@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 
 from canopenfd.od import (DataType, ODArray, ODRecord, ODVariable, ObjectDictionary, ObjectType,
-                          OdValueError, demo_od)
+                          OdValueError, TimeDifference, demo_od)
 from canopenfd.od.demo import DOMAIN_MAX_LENGTH
+from canopenfd.od.textvalues import format_value
 
 U8, U16, U32 = DataType.UNSIGNED8, DataType.UNSIGNED16, DataType.UNSIGNED32
 
@@ -190,6 +191,39 @@ def test_node_id_relative_defaults():
     assert cob.default == 0x100 and not cob.relative_to_node_id
     with pytest.raises(OdValueError):
         od.node_id = 128
+
+
+def test_relative_default_needs_an_integer_type():
+    """A node-id relative default or value is an offset the node-id is added to:
+    refused on non-numeric types (was: accepted, then default_for() failed
+    with a TypeError). A REAL may be relative: the node-id is added when served."""
+    name = ODVariable("Name", 0x2000, 0, DataType.VISIBLE_STRING, "rw", "x")
+    with pytest.raises(OdValueError, match=r"^0x2000:00 Name: a node-id relative default "
+                                           r"needs a numeric type, not VISIBLE_STRING$"):
+        name.set_default("abc", relative_to_node_id=True)
+    assert name.default == "x" and not name.relative_to_node_id   # left as it was
+    with pytest.raises(OdValueError, match="0x2000:00 Name: a node-id relative value"):
+        name.set_value("abc", relative_to_node_id=True)
+    assert name.value is None and not name.value_relative_to_node_id
+    for dtype, default in ((DataType.BOOLEAN, True), (DataType.OCTET_STRING, b"\x01"),
+                           (DataType.TIME_DIFFERENCE, TimeDifference(1, 0))):
+        with pytest.raises(OdValueError, match=f"0x2001:00 V: .* not {dtype.name}$"):
+            ODVariable("V", 0x2001, 0, dtype, "rw", default, relative_to_node_id=True)
+    real = ODVariable("R", 0x2001, 0, DataType.REAL32, "rw", 0.5, relative_to_node_id=True)
+    assert real.default_for(0x21) == 0x21 + 0.5
+    # shown as it is (was: truncated to $NODEID+0x0 by int())
+    assert format_value(DataType.REAL32, real.default_base, True) == "$NODEID+0.5"
+    # the flag is a plain attribute: set behind the check's back, the default
+    # is refused where it is resolved, naming the entry, and validate() says so
+    od = minimal()
+    od.node_id = 5
+    od.add_object(name)
+    name.relative_to_node_id = True
+    with pytest.raises(OdValueError, match="0x2000:00 Name: a node-id relative value needs "
+                                           "a numeric type, not VISIBLE_STRING"):
+        name.default_for(5)
+    assert "error: 0x2000:00 Name: default is node-id relative, but VISIBLE_STRING is not " \
+        "a numeric type" in messages(od, "error")
 
 
 @pytest.mark.parametrize("access, expected", [

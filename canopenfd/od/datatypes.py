@@ -35,7 +35,7 @@ import math
 import operator
 import struct
 from dataclasses import dataclass
-from typing import Any, Dict, NamedTuple, Optional, Union
+from typing import Dict, NamedTuple, Optional, SupportsIndex, Union, cast
 
 from .errors import OdValueError
 
@@ -291,23 +291,25 @@ def check(dtype: DataType, value: object) -> Value:
         if isinstance(value, (bool, float, str, bytes)):
             raise OdValueError(f"{dtype.name} expects an int, got {_describe(value)}")
         try:
-            number = operator.index(value)
+            # cast: whatever lacks __index__ raises the TypeError handled here
+            number = operator.index(cast(SupportsIndex, value))
         except TypeError:
             raise OdValueError(f"{dtype.name} expects an int, got {_describe(value)}") from None
+        assert info.low is not None and info.high is not None   # integer kinds have bounds
         if not info.low <= number <= info.high:
             raise OdValueError(f"{number} outside {dtype.name} {info.low}..{info.high}")
         return number
     if kind == "real":
         if isinstance(value, (bool, str, bytes)) or not isinstance(value, (int, float)):
             raise OdValueError(f"{dtype.name} expects a float, got {_describe(value)}")
-        number = float(value)
-        if dtype == DataType.REAL32 and math.isfinite(number):
+        real = float(value)
+        if dtype == DataType.REAL32 and math.isfinite(real):
             try:
-                number = struct.unpack("<f", struct.pack("<f", number))[0]
+                real = struct.unpack("<f", struct.pack("<f", real))[0]
             except OverflowError:
                 raise OdValueError(f"{value!r} outside REAL32 range {dtype.range_text}") \
                     from None
-        return number
+        return real
     if kind == "vstring":
         if not isinstance(value, str):
             raise OdValueError(f"VISIBLE_STRING expects a str, got {_describe(value)}")
@@ -361,19 +363,18 @@ _ZEROS: Dict[str, Value] = {
 def encode(dtype: DataType, value: object) -> bytes:
     """The little-endian wire bytes of `value` (checked with `check`)."""
     dtype = DataType.parse(dtype)
-    checked: Any = check(dtype, value)   # Value, narrowed by info.kind below
+    checked = check(dtype, value)
     info = _INFO[dtype]
-    if info.kind == "bool":
+    # check() gives each kind its one Python type: dispatch on that type
+    if isinstance(checked, bool):
         return b"\x01" if checked else b"\x00"
-    if info.kind in ("int", "uint"):
-        return int(checked).to_bytes(info.size or 0, "little", signed=info.kind == "int")
-    if info.kind == "real":
+    if isinstance(checked, int):
+        return checked.to_bytes(info.size or 0, "little", signed=info.kind == "int")
+    if isinstance(checked, float):
         return struct.pack("<f" if info.size == 4 else "<d", checked)
-    if info.kind == "vstring":
-        return checked.encode("ascii")
-    if info.kind == "ustring":
-        return checked.encode("utf-16-le")
-    if info.kind == "octets":
+    if isinstance(checked, str):
+        return checked.encode("ascii" if info.kind == "vstring" else "utf-16-le")
+    if isinstance(checked, bytes):
         return checked
     return (checked.ms & _MS_MASK).to_bytes(4, "little") + checked.days.to_bytes(2, "little")
 
@@ -395,7 +396,8 @@ def decode(dtype: DataType, data: Union[bytes, bytearray, memoryview]) -> Value:
     if info.kind in ("int", "uint"):
         return int.from_bytes(data, "little", signed=info.kind == "int")
     if info.kind == "real":
-        return struct.unpack("<f" if info.size == 4 else "<d", data)[0]
+        real: float = struct.unpack("<f" if info.size == 4 else "<d", data)[0]
+        return real
     if info.kind == "vstring":
         return data.rstrip(b"\x00").decode("latin-1")
     if info.kind == "ustring":

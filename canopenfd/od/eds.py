@@ -57,9 +57,10 @@ lists and links at 65535 entries, files at 16 MiB.
 from __future__ import annotations
 
 import datetime as _dt
+import io
 import os
 import re
-from typing import Callable, Dict, List, Optional, Tuple, TypeVar, Union
+from typing import IO, Callable, Dict, List, Optional, Tuple, TypeVar, Union, cast
 
 from .datatypes import DataType, Value
 from .errors import OdFileError, OdValueError
@@ -132,7 +133,7 @@ class _Reader:
     def int_key(self, section: Section, key_name: str, default: Optional[int] = None,
                 low: int = 0, high: int = 0xFFFFFFFF) -> Optional[int]:
         text, key = self.raw(section, key_name)
-        if key is None or text == "":
+        if key is None or not text:
             return default
         try:
             number = parse_int(text)
@@ -164,7 +165,7 @@ class _Reader:
         """The entry's type; None (after a recorded deviation) when the entry
         must be skipped because its type cannot be known."""
         text, key = self.raw(section, "DataType")
-        if key is None or text == "":
+        if key is None or not text:
             if default is not None:
                 return default
             self.deviate(section, "DataType is missing", "entry skipped")
@@ -202,7 +203,7 @@ class _Reader:
 
     def flag(self, section: Section, key_name: str) -> bool:
         text, key = self.raw(section, key_name)
-        if key is None or text == "":
+        if key is None or not text:
             return False
         lowered = text.lower()
         if lowered in ("1", "0x1", "true", "yes"):
@@ -737,8 +738,17 @@ def export_eds(od: ObjectDictionary, dest: Union[Source, None] = None,
         with open(dest, "w", encoding="utf-8", newline="\n") as handle:
             handle.write(text)
     else:
-        dest.write(text)
+        _write_to_stream(dest, text)
     return None
+
+
+def _write_to_stream(dest: Union[IO[str], IO[bytes]], text: str) -> None:
+    """A text stream gets the text, a binary one (BytesIO, open(..., "wb")) its
+    UTF-8 bytes (casts: IO[...] cannot be told apart by isinstance, io's bases can)."""
+    if isinstance(dest, (io.RawIOBase, io.BufferedIOBase)):
+        cast(IO[bytes], dest).write(text.encode("utf-8"))
+    else:
+        cast(IO[str], dest).write(text)
 
 
 def _list_of(index: int) -> str:

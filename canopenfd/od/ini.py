@@ -84,8 +84,8 @@ def parse_ini(data: Union[bytes, str], name: str, strict: bool = False) -> IniFi
         raise OdFileError("the file is empty", name)
     nul = text.find("\x00")
     if nul >= 0:
-        line = text.count("\n", 0, nul) + 1
-        raise OdFileError("binary data (a NUL byte), not an EDS/DCF text file", name, line)
+        nul_line = text.count("\n", 0, nul) + 1
+        raise OdFileError("binary data (a NUL byte), not an EDS/DCF text file", name, nul_line)
     current: Optional[Section] = None
     for number, raw in enumerate(_LINE_SPLIT.split(text), start=1):
         line = raw.strip()
@@ -110,23 +110,21 @@ def parse_ini(data: Union[bytes, str], name: str, strict: bool = False) -> IniFi
             continue
         key, sep, value = line.partition("=")
         key = key.strip()
+        if sep and key and current is not None:
+            old = current.keys.get(key.lower())
+            if old is not None:
+                result.warnings.append((number, current.name, (
+                    f"duplicate key {key} (also at line {old.line}); the last one is used")))
+            current.keys[key.lower()] = Key(key, value.strip(), number)
+            continue
         if not sep or not key:
             problem = (f"expected key=value, a [section] or a ; comment, "
                        f"got {_shorten(line)!r}")
-        elif current is None:
-            problem = f"key {_shorten(key)!r} before the first [section]"
         else:
-            problem = ""
-        if problem:
-            if strict:
-                raise OdFileError(problem, name, number)
-            result.deviations.append((number, current.name if current else "", problem))
-            continue
-        old = current.keys.get(key.lower())
-        if old is not None:
-            result.warnings.append((number, current.name, (
-                f"duplicate key {key} (also at line {old.line}); the last one is used")))
-        current.keys[key.lower()] = Key(key, value.strip(), number)
+            problem = f"key {_shorten(key)!r} before the first [section]"
+        if strict:
+            raise OdFileError(problem, name, number)
+        result.deviations.append((number, current.name if current else "", problem))
     if not result.sections:  # not an EDS/DCF at all: no guessing
         if result.deviations:
             number, _, problem = result.deviations[0]

@@ -13,10 +13,10 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from typing import Dict, Iterator, List, Optional, Tuple, Union
+from typing import Dict, Iterator, List, Optional, Set, Tuple, Union
 
 from .errors import OdValueError
-from .objects import ODArray, ODObject, ODRecord, _by_name
+from .objects import ODArray, ODKey, ODObject, ODRecord, _by_name
 from .validate import Problem, validate
 from .variable import (ACCESS_TYPES, LINE_MODES, PDO_DIRECTIONS, ODVariable, ObjectType,
                        _check_int, format_index)
@@ -30,7 +30,7 @@ _KEY_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})(?:(?::|sub)(?:0x)?([0-9a-f]{1,2})
                      re.IGNORECASE)
 
 
-class ObjectDictionary(Mapping):
+class ObjectDictionary(Mapping[ODKey, ODObject]):
     """The objects of one device, by index (iteration in index order).
 
     Lookups: ``od[0x1017]``, ``od["Producer heartbeat time"]`` (names, exact
@@ -59,7 +59,7 @@ class ObjectDictionary(Mapping):
         #: [Comments] text.
         self.comments = ""
         #: Data type indices usable as dummy mapping entries ([DummyUsage]).
-        self.dummy_usage: set = set()
+        self.dummy_usage: Set[int] = set()
         #: Problems the importer noticed but could live with (Problem objects).
         self.load_warnings: List[Problem] = []
         #: The file this dictionary was read from ('' when built in code).
@@ -134,6 +134,8 @@ class ObjectDictionary(Mapping):
         return None
 
     def __contains__(self, key: object) -> bool:
+        if not isinstance(key, (int, str, tuple)):
+            return False   # what __getitem__ would refuse with KeyError
         try:
             self[key]
         except KeyError:
@@ -194,7 +196,9 @@ class ObjectDictionary(Mapping):
             return NotImplemented
         return not self.diff(other)
 
-    __hash__ = None
+    # mutable and compared by content: not hashable (the ignore: typeshed types
+    # object.__hash__ as a method, None is how Python spells 'unhashable')
+    __hash__ = None  # type: ignore[assignment]
 
 
 # ------------------------------------------------------------------ comparison
@@ -227,18 +231,17 @@ def _diff(left: ObjectDictionary, right: ObjectDictionary) -> List[str]:
             out.append(f"{where}: name {a.name!r} != {b.name!r}")
         if a.object_links != b.object_links:
             out.append(f"{where}: object links {a.object_links} != {b.object_links}")
-        if isinstance(a, ODVariable):
-            pairs = [(a, b)]
-        else:
-            subs = sorted(set(a.subindices) | set(b.subindices))
-            pairs = []
-            for sub in subs:
-                va, vb = a.subindices.get(sub), b.subindices.get(sub)
-                if va is None or vb is None:
+        pairs: List[Tuple[ODVariable, ODVariable]] = []
+        if isinstance(a, ODVariable) and isinstance(b, ODVariable):
+            pairs.append((a, b))
+        elif not isinstance(a, ODVariable) and not isinstance(b, ODVariable):
+            for sub in sorted(set(a.subindices) | set(b.subindices)):
+                left_var, right_var = a.subindices.get(sub), b.subindices.get(sub)
+                if left_var is None or right_var is None:
                     out.append(f"{format_index(index, sub)}: only in "
-                               f"{'right' if va is None else 'left'}")
+                               f"{'right' if left_var is None else 'left'}")
                 else:
-                    pairs.append((va, vb))
+                    pairs.append((left_var, right_var))
         for va, vb in pairs:
             for field in _VAR_FIELDS:
                 x, y = getattr(va, field), getattr(vb, field)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import Dict, Iterator, List, Optional, Protocol, Sequence, TypeVar, Union
+from typing import Dict, Iterator, List, Optional, Protocol, Sequence, Tuple, TypeVar, Union
 
 from .datatypes import DataType
 from .errors import OdValueError
@@ -16,16 +16,19 @@ from .variable import ODVariable, ObjectType, _check_int, format_index
 __all__ = ["ODRecord", "ODArray", "ODObject"]
 
 ODObject = Union[ODVariable, "ODRecord", "ODArray"]
+#: What an ObjectDictionary is indexed with: index, name or "0x1018:1" text,
+#: (index, sub-index).
+ODKey = Union[int, str, Tuple[int, int]]
 
 
-class _Container(Mapping):
+class _Container(Mapping[Union[int, str], ODVariable]):
     """What ODRecord and ODArray share: sub-entries by sub-index and by name."""
 
     object_type = ObjectType.RECORD
 
     def __init__(self, name: str, index: int) -> None:
         #: The ObjectDictionary the object was added to.
-        self.parent: Optional["Mapping[int, ODObject]"] = None
+        self.parent: Optional["Mapping[ODKey, ODObject]"] = None
         self.index = _check_int(index, 1, 0xFFFF, "index")
         self.name = str(name)
         self.description = ""
@@ -73,6 +76,8 @@ class _Container(Mapping):
         raise KeyError(f"{self.where} {self.name} has no sub-entry {key!r}")
 
     def __contains__(self, key: object) -> bool:
+        if not isinstance(key, (int, str)):
+            return False   # what __getitem__ would refuse with KeyError
         try:
             self[key]
         except KeyError:

@@ -61,9 +61,10 @@ def parse_int(text: str) -> int:
 def _parse_typed_int(dtype: DataType, text: str) -> int:
     number = parse_int(text)
     stripped = text.strip()
+    high, size = dtype.max, dtype.size   # both set for integer types
     if (dtype.is_integer and dtype.signed and stripped[:2].lower() == "0x"
-            and dtype.max < number < (1 << (8 * dtype.size))):
-        number -= 1 << (8 * dtype.size)
+            and high is not None and size is not None and high < number < (1 << (8 * size))):
+        number -= 1 << (8 * size)
     return number
 
 
@@ -134,18 +135,24 @@ def format_value(dtype: DataType, value: Optional[Value], relative: bool = False
     if relative:
         # a negative offset of a signed type as its two's complement (0xFFFF
         # for -1 in an INTEGER16), which parse_value reads back as negative
-        offset = int(value)
-        if offset < 0 and dtype.is_integer:
+        if isinstance(value, float):   # a REAL offset (ODVariable allows one): as it is
+            return f"$NODEID+{value!r}"
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise OdValueError(f"a node-id relative value is a numeric offset, "
+                               f"got {value!r} for {dtype.name}")
+        offset = value
+        if offset < 0 and dtype.is_integer and dtype.size is not None:
             offset += 1 << (8 * dtype.size)
         return f"$NODEID+0x{offset:X}"
     if dtype == DataType.BOOLEAN:
         return "1" if value else "0"
-    if dtype.is_integer:
+    # checked values: int for integer types, float (or an int limit) for reals
+    if dtype.is_integer and isinstance(value, (int, float)):
         number = int(value)
         if dtype.signed:
             return str(number)
         return f"0x{number:X}"
-    if dtype.is_real:
+    if dtype.is_real and isinstance(value, (int, float)):
         return repr(float(value))
     if isinstance(value, (TimeOfDay, TimeDifference)):
         return f"0x{(value.days << 32) | value.ms:X}"

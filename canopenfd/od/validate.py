@@ -9,9 +9,9 @@ COB-IDs); warnings are things CiA asks for that a node can live without
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, Iterable, Iterator, List, Optional, Protocol, Tuple
+from typing import Dict, Iterable, Iterator, List, Optional, Protocol, Tuple, Union
 
-from .datatypes import DataType, zero_value
+from .datatypes import DataType, Value, zero_value
 from .errors import OdValueError
 from .objects import ODArray, ODObject, ODRecord, _Container
 from .variable import ODVariable, format_index
@@ -89,7 +89,7 @@ class _Report:
         self.problems.append(Problem(WARNING, where, message))
 
 
-def _label(obj: object) -> str:
+def _label(obj: Union[ODVariable, _Container]) -> str:
     if isinstance(obj, ODVariable):
         return f"{obj.where} {obj.qualname}"
     return f"{obj.where} {obj.name}"
@@ -162,13 +162,13 @@ def _check_container(obj: _Container, report: _Report) -> None:
         element = obj.data_type
         for sub in sorted(obj.subindices):
             var = obj.subindices[sub]
-            if sub >= 1 and var.data_type != element:
+            if sub >= 1 and element is not None and var.data_type != element:
                 report.error(_label(var), f"ARRAY elements share one type: this one is "
                                           f"{var.data_type.name}, sub-index 1 "
                                           f"is {element.name}")
 
 
-def _check_known_type(obj: object, report: _Report) -> None:
+def _check_known_type(obj: ODObject, report: _Report) -> None:
     index = obj.index
     if index not in _KNOWN_TYPES:
         return
@@ -189,13 +189,15 @@ def _check_known_type(obj: object, report: _Report) -> None:
 
 
 # ------------------------------------------------------------------ entries
-def _candidates(od: ObjectDictionary, var: ODVariable, base: object,
-                relative: bool) -> List[object]:
+def _candidates(od: ObjectDictionary, var: ODVariable, base: Optional[Value],
+                relative: bool) -> List[Value]:
     """The values to check a (possibly node-id relative) default/value with."""
     if base is None:
         return []
     if not relative:
         return [base]
+    if isinstance(base, bool) or not isinstance(base, (int, float)):
+        return []   # relative, but not a number: reported by _check_entry
     if od.node_id is not None:
         return [base + od.node_id]
     return [base + 1, base + 127]
@@ -211,6 +213,9 @@ def _check_entry(od: ObjectDictionary, var: ODVariable, report: _Report) -> None
     for what, base, relative in (
             ("default", var.default_base, var.relative_to_node_id),
             ("value", var.value_base, var.value_relative_to_node_id)):
+        if relative and not var.data_type.is_numeric:
+            report.error(label, f"{what} is node-id relative, but {var.data_type.name} "
+                                f"is not a numeric type")
         for candidate in _candidates(od, var, base, relative):
             try:
                 var.check_value(candidate)

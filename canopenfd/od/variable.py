@@ -15,7 +15,8 @@ Choices where CiA 301/306 are silent:
   type: ro/const/rwr → 'tpdo', wo/rww → 'rpdo', rw → 'both'; an explicit
   direction (XDD ``TPDO``/``RPDO``) wins.
 - A node-id relative default (``$NODEID+0x180``) keeps its offset;
-  `default` adds the dictionary's `node_id` when it is known.
+  `default` adds the dictionary's `node_id` when it is known. Only numeric
+  types can be relative (set_default refuses the others, naming the entry).
 """
 
 from __future__ import annotations
@@ -89,10 +90,10 @@ class ODVariable:
         #: The default as written in the file (``$NODEID+0x180``, ``017``...), for
         #: display and export; cleared when `default` is assigned.
         self.default_expr: Optional[str] = None
-        self.relative_to_node_id = bool(relative_to_node_id)
         self._default: Optional[Value] = None
         if default is not None:
             self._default = self._checked(default)
+        self.relative_to_node_id = self._checked_relative(relative_to_node_id, "default")
         self.value_expr: Optional[str] = None
         self.value_relative_to_node_id = False
         self._value: Optional[Value] = None
@@ -214,11 +215,25 @@ class ODVariable:
         except OdValueError as exc:
             raise self._error(exc) from None
 
+    def _checked_relative(self, relative: bool, what: str) -> bool:
+        """`relative` as a bool; True only for a numeric type, the node-id being
+        added to it (integers in the node at each reset, a REAL once when served)."""
+        if relative and not self._data_type.is_numeric:
+            raise self._error(OdValueError(
+                f"a node-id relative {what} needs a numeric type, not {self._data_type.name}"))
+        return bool(relative)
+
     def _resolve(self, base: Optional[Value], relative: bool,
                  node_id: Optional[int] = None) -> Optional[Value]:
         if relative and base is not None:
             node = self.node_id if node_id is None else node_id
             if node:
+                # `relative_to_node_id` is a plain attribute and the type can be
+                # changed after: refuse here too rather than fail on the `+`
+                if isinstance(base, bool) or not isinstance(base, (int, float)):
+                    raise self._error(OdValueError(
+                        f"a node-id relative value needs a numeric type, "
+                        f"not {self._data_type.name} ({base!r})"))
                 return base + node
         return base
 
@@ -242,8 +257,9 @@ class ODVariable:
     def set_default(self, value: object, relative_to_node_id: bool = False,
                     expr: Optional[str] = None) -> None:
         """Set the default, optionally as an offset added to the node-id."""
-        self._default = None if value is None else self._checked(value)
-        self.relative_to_node_id = bool(relative_to_node_id)
+        checked = None if value is None else self._checked(value)
+        self.relative_to_node_id = self._checked_relative(relative_to_node_id, "default")
+        self._default = checked
         self.default_expr = expr
 
     def default_for(self, node_id: Optional[int]) -> Optional[Value]:
@@ -276,8 +292,9 @@ class ODVariable:
 
     def set_value(self, value: object, relative_to_node_id: bool = False,
                   expr: Optional[str] = None) -> None:
-        self._value = None if value is None else self._checked(value)
-        self.value_relative_to_node_id = bool(relative_to_node_id)
+        checked = None if value is None else self._checked(value)
+        self.value_relative_to_node_id = self._checked_relative(relative_to_node_id, "value")
+        self._value = checked
         self.value_expr = expr
 
     # python-canopen names
@@ -298,7 +315,9 @@ class ODVariable:
         if not self._data_type.is_numeric:
             raise OdValueError(f"{which} needs a numeric type, not {self._data_type.name}",
                                f"{self.where} {self.qualname}")
-        return self._checked(value)
+        checked = self._checked(value)
+        assert isinstance(checked, (int, float))   # what check() gives numeric types
+        return checked
 
     @property
     def low_limit(self) -> Union[int, float, None]:
@@ -421,13 +440,16 @@ class ODVariable:
 
     def _check_limits(self, checked: Value) -> Value:
         low, high = self._low_limit, self._high_limit
-        if low is not None and checked < low:
-            raise self._error(OdValueError(f"{checked!r} below LowLimit {low!r}"))
-        if high is not None and checked > high:
-            raise self._error(OdValueError(f"{checked!r} above HighLimit {high!r}"))
-        if self._max_length is not None and self.size is None:
-            length = len(checked.encode("utf-16-le")) if self._data_type == \
-                DataType.UNICODE_STRING else len(checked)
+        # limits are set on numeric types only (see _checked_limit)
+        if isinstance(checked, (int, float)):
+            if low is not None and checked < low:
+                raise self._error(OdValueError(f"{checked!r} below LowLimit {low!r}"))
+            if high is not None and checked > high:
+                raise self._error(OdValueError(f"{checked!r} above HighLimit {high!r}"))
+        # variable-length types hold str (the strings) or bytes (OCTET_STRING, DOMAIN)
+        if self._max_length is not None and isinstance(checked, (str, bytes)):
+            length = len(checked.encode("utf-16-le")) if isinstance(checked, str) and \
+                self._data_type == DataType.UNICODE_STRING else len(checked)
             if length > self._max_length:
                 raise self._error(OdValueError(
                     f"{length} bytes, more than the {self._max_length} allowed"))

@@ -148,6 +148,7 @@ class _Reader:
             except OdFileError as exc:
                 self.deviate(node, exc.problem, "entry skipped", owner)
                 return None
+            assert number is not None   # the attribute is there (text above)
             try:
                 return DataType(number)
             except ValueError:
@@ -310,8 +311,9 @@ def xdd_from_text(data: Union[bytes, str], name: str, node_id: Optional[int] = N
     if body is not None:
         for attr, key in (("fileName", "FileName"), ("fileCreator", "CreatedBy"),
                           ("fileCreationDate", "CreationDate"), ("fileVersion", "FileVersion")):
-            if body.get(attr):
-                od.file_info[key] = body.get(attr)
+            text = body.get(attr)
+            if text:
+                od.file_info[key] = text
     _read_identity(root, od)
     _read_commissioning(reader, root, od, node_id)
     _read_dummies(root, od)
@@ -387,8 +389,9 @@ def _read_commissioning(reader: _Reader, root: Node, od: ObjectDictionary,
         # only when valid, in EDS notation (a DCF export must read back)
         for attr, key in (("nodeName", "NodeName"), ("networkNumber", "NetNumber"),
                           ("networkName", "NetworkName"), ("CANopenManager", "CANopenManager")):
-            if node.get(attr) is not None:
-                od.device_commissioning[key] = node.get(attr)
+            text = node.get(attr)
+            if text is not None:
+                od.device_commissioning[key] = text
         text = node.get("nodeID")
         if text and text.strip():
             try:

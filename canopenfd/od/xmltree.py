@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Dict, Iterator, List, Optional, Union
+from typing import Dict, Iterator, List, NoReturn, Optional, Union
 from xml.parsers import expat
 
 from .errors import OdFileError
@@ -100,7 +100,7 @@ def parse_xml(data: Union[bytes, str], name: str) -> Node:
     stack: List[Node] = []
     count = [0]
 
-    def refuse(*_args: object) -> None:
+    def refuse(*_args: object) -> NoReturn:
         raise _Refused("DOCTYPE/ENTITY declarations are not allowed")
 
     def start(tag: str, attrs: Dict[str, str]) -> None:
