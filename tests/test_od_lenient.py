@@ -534,3 +534,17 @@ def test_xdd_value_in_sub0_is_repaired_and_exports_cleanly(tmp_path):
         'defaultValue="3"/>\n', "")), "alone.xdd")
     od = import_xdd(alone)
     assert od[0x2000].name == "Label" and od[0x2000].default == "x"
+
+
+def test_two_keys_with_one_number_in_an_object_list(tmp_path):
+    # found by CI's atheris run (fuzz_eds): "1" and "01" sorted as equal numbers
+    # made the keys themselves compare (TypeError)
+    path = write(tmp_path, HEAD + "[ManufacturerObjects]\nSupportedObjects=2\n1=0x2000\n"
+                 "01=0x2001\n2=0x2002\n" + VAR_2000 + VAR_2000.replace("2000", "2001")
+                 + VAR_2000.replace("2000", "2002"))
+    od = import_eds(path)
+    assert sorted(od) == [0x2000, 0x2001, 0x2002]
+    found = recovered(od)
+    assert any(f"{path}:6 " in text and "keys 1 and 01 both number entry 1" in text
+               for text in found), found
+    strict_refuses(path, 6, "keys 1 and 01 both number entry 1")

@@ -412,10 +412,18 @@ def _read_object_lists(reader: _Reader) -> Optional[Dict[int, Tuple[Section, Key
         present = True
         count = reader.int_key(section, "SupportedObjects", 0, 0, _MAX_LIST) or 0
         # the numbered keys as written: their count may disagree with SupportedObjects
-        numbered = sorted((int(key.name, 10), key) for key in section.keys.values()
-                          if _DECIMAL_RE.fullmatch(key.name)
-                          and 1 <= int(key.name, 10) <= _MAX_LIST)
-        present_numbers = {number for number, _ in numbered}
+        # (by number only: "1" and "01" are one number, and keys do not compare)
+        numbered = sorted(((int(key.name, 10), key) for key in section.keys.values()
+                           if _DECIMAL_RE.fullmatch(key.name)
+                           and 1 <= int(key.name, 10) <= _MAX_LIST),
+                          key=lambda pair: pair[0])
+        first_of: Dict[int, Key] = {}
+        for number, key in numbered:
+            if number in first_of:
+                reader.deviate(section, f"keys {first_of[number].name} and {key.name} both "
+                               f"number entry {number}", "both are used", key)
+            first_of.setdefault(number, key)
+        present_numbers = set(first_of)
         missing = [n for n in range(1, count + 1) if n not in present_numbers]
         if missing:
             reader.deviate(section, f"SupportedObjects={count} but key {missing[0]} is missing"
