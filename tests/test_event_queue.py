@@ -5,6 +5,7 @@ and the events that cannot be merged (EMCY here) still all arrive."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -98,3 +99,65 @@ def test_a_pdo_callback_that_keeps_up_sees_every_value_and_no_skips(net, bus_nam
     assert got.wait_count(200, scaled(10)) == [(i, 0) for i in range(200)]
     assert line.stats["events_coalesced"] == 0 and line.events_behind == {}
     assert line.stats["events_posted"] >= 200
+
+
+def _rss_kib() -> int:
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    raise AssertionError("no VmRSS")
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="Linux /proc only")
+def test_the_pages_a_backlog_filled_are_given_back_once_it_drained(bus_name):
+    """A burst that fills most of the 2 MiB event ring while the dispatcher is
+    held: once the queue is empty again the runtime gives the ring's pages
+    back (madvise), so RSS drops by about what the backlog took (the CI soak
+    saw a few MiB stay resident after a stall otherwise)."""
+    from canopenfd.od import demo_od
+    net = canopenfd.Network(stall_report_s=3600)
+    try:
+        monitor = net.open_line(bus_name, monitor=True)
+        gate, seen = threading.Event(), [0]
+
+        def held(frame):
+            gate.wait(scaled(30))
+            seen[0] += 1
+        monitor.on_frame(held)
+        line = net.open_line(bus_name)
+        maps = []
+        for node_id in range(2, 6):                  # 16 periodic RPDOs from C
+            drive = line.add_node(node_id, od=demo_od("fd", pdos=4))
+            for number in range(1, 5):
+                rpdo = drive.rpdo[number]
+                rpdo.read(from_od=True)
+                rpdo.cob_id = 0x200 + 0x100 * (number - 1) + node_id
+                rpdo.enabled = True
+                rpdo.clear()
+                rpdo.add_variable("Process data", f"Process data {number}")
+                maps.append(rpdo)
+        time.sleep(0.2)
+        before = _rss_kib()
+        for rpdo in maps:
+            rpdo.start(0.0002)                        # 80 000 frames/s
+        deadline = time.monotonic() + scaled(10)
+        while monitor.stats["events_posted"] < 16_000 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        for rpdo in maps:
+            rpdo.stop()
+        posted = monitor.stats["events_posted"]
+        assert posted >= 16_000, posted               # about 1.8 MB of events queued
+        peak = _rss_kib()
+        gate.set()
+        deadline = time.monotonic() + scaled(30)
+        while seen[0] < posted and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert seen[0] >= posted - 1
+        time.sleep(0.1)
+        after = _rss_kib()
+        assert peak - before >= 1024, (before, peak)  # the backlog was resident
+        assert after <= peak - 1024, (before, peak, after)
+        assert net.events_lost == 0
+    finally:
+        net.close()

@@ -9,7 +9,9 @@
 #include <errno.h>
 #include <signal.h>
 #include <stdlib.h>
+#include <stdint.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -112,6 +114,20 @@ int64_t rt_os_pread(int fd, void *buf, uint32_t n, uint64_t offset)
 int64_t rt_os_pwrite(int fd, const void *buf, uint32_t n, uint64_t offset)
 {
     return (int64_t)pwrite(fd, buf, n, (off_t)offset);
+}
+
+void rt_os_discard(void *p, size_t n)
+{
+    long page = sysconf(_SC_PAGESIZE);
+    if (page <= 0 || n == 0) {
+        return;
+    }
+    uintptr_t mask = (uintptr_t)page - 1u;
+    uintptr_t start = ((uintptr_t)p + mask) & ~mask;   /* whole pages inside only */
+    uintptr_t end = ((uintptr_t)p + n) & ~mask;
+    if (end > start) {
+        (void)madvise((void *)start, end - start, MADV_DONTNEED);
+    }
 }
 
 char *rt_os_strdup(const char *s)

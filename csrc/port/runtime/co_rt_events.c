@@ -14,6 +14,11 @@
 
 #include <stdlib.h>
 
+/* Trimming after a backlog (see trim): what stays resident, and how far past
+ * it a backlog must have gone before its pages are given back. */
+#define RT_EVENTS_KEEP_BYTES (64u * 1024u)
+#define RT_EVENTS_TRIM_MIN_BYTES (256u * 1024u)
+
 bool rt_events_open(rt_events_t *q, uint32_t capacity)
 {
     rt_mutex_init(&q->lock);
@@ -37,6 +42,10 @@ void rt_events_free(rt_events_t *q)
 
 static void ring_push(rt_events_t *q, const co_rt_event_t *ev)
 {
+    uint32_t end = q->head + q->count + 1u;   /* past the slot written (a wrap: all) */
+    if (end > q->reached) {
+        q->reached = end < q->capacity ? end : q->capacity;
+    }
     q->ring[(q->head + q->count) % q->capacity] = *ev;
     q->count++;
     q->pushed++;
@@ -163,6 +172,19 @@ bool rt_post(const rt_line_t *l, int kind, uint8_t node, uint32_t a, uint32_t b,
     return events_post(&l->rt->events, &ev);
 }
 
+/* The queue is empty: after a backlog that went far into the ring, give its
+ * pages back (the first RT_EVENTS_KEEP_BYTES stay: a consumer that keeps up
+ * uses only those), so a burst does not leave megabytes resident. */
+static void trim(rt_events_t *q)
+{
+    size_t keep = RT_EVENTS_KEEP_BYTES / sizeof *q->ring;
+    if (q->reached <= keep + RT_EVENTS_TRIM_MIN_BYTES / sizeof *q->ring) {
+        return;
+    }
+    rt_os_discard(q->ring + keep, (size_t)(q->reached - keep) * sizeof *q->ring);
+    q->reached = (uint32_t)keep;
+}
+
 int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_ms)
 {
     if (!rt || !events || max <= 0) {
@@ -186,6 +208,7 @@ int co_rt_wait_events(co_rt_t *rt, co_rt_event_t *events, int max, int timeout_m
          * ever touches the ring's first pages, so its memory becomes resident
          * only as far as a backlog really reached (not by wrapping around). */
         q->head = 0;
+        trim(q);
     }
     push_lost_marker(q);
     int result = (n == 0 && q->closed) ? CO_RT_ERR_CLOSED : n;

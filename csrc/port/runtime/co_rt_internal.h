@@ -264,6 +264,7 @@ typedef struct rt_events {
     uint32_t high_water;   /* from this many queued events on, sources coalesce */
     uint32_t head;
     uint32_t count;
+    uint32_t reached;      /* slots written since the ring was last trimmed (0..capacity) */
     uint64_t pushed;       /* events ever queued: the next one's sequence number */
     uint32_t lost;         /* dropped since the last CO_EV_EVENTS_LOST */
     uint32_t waiters;

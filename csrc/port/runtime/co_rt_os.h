@@ -99,6 +99,11 @@ int64_t rt_os_pread(int fd, void *buf, uint32_t n, uint64_t offset);
 int64_t rt_os_pwrite(int fd, const void *buf, uint32_t n, uint64_t offset);
 /* strdup is POSIX, not ISO C. NULL when out of memory. */
 char *rt_os_strdup(const char *s);
+/* Give the whole pages inside [p, p + n) of heap memory back to the system
+ * (their contents are lost; the memory stays usable and reads as zero or as
+ * before): a buffer a burst made resident stops counting once drained.
+ * Advisory: may do nothing (Windows does). */
+void rt_os_discard(void *p, size_t n);
 
 /* ---------------------------------------------------------------- atomics */
 

@@ -130,6 +130,14 @@ int64_t rt_os_pwrite(int fd, const void *buf, uint32_t n, uint64_t offset)
     return positional_io(fd, (void *)(uintptr_t)buf, n, offset, true);
 }
 
+void rt_os_discard(void *p, size_t n)
+{
+    /* Heap memory: no portable way to give single pages back; the ring
+     * stays resident as far as a backlog reached (bounded by its size). */
+    (void)p;
+    (void)n;
+}
+
 char *rt_os_strdup(const char *s)
 {
     size_t n = strlen(s) + 1;
