@@ -113,7 +113,7 @@ def _rss_kib() -> int:
 def test_the_pages_a_backlog_filled_are_given_back_once_it_drained(bus_name):
     """A burst that fills most of the 2 MiB event ring while the dispatcher is
     held: once the queue is empty again the runtime gives the ring's pages
-    back (madvise), so RSS drops by about what the backlog took (the CI soak
+    back (madvise), so RSS drops by about what the backlog filled (the CI soak
     saw a few MiB stay resident after a stall otherwise)."""
     from canopenfd.od import demo_od
     net = canopenfd.Network(stall_report_s=3600)
@@ -156,7 +156,9 @@ def test_the_pages_a_backlog_filled_are_given_back_once_it_drained(bus_name):
         assert seen[0] >= posted - 1
         time.sleep(0.1)
         after = _rss_kib()
-        assert peak - before >= 1024, (before, peak)  # the backlog was resident
+        # The ring's pages are resident at the peak (made so by the backlog, or
+        # already, when the allocator reused memory an earlier ring had touched);
+        # drained, they are given back.
         assert after <= peak - 1024, (before, peak, after)
         assert net.events_lost == 0
     finally:
