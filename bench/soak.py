@@ -23,9 +23,13 @@ kernel may reorder two frames of one socket on SMP; more than 1 in 1000
 fails --check), SYNCs, EMCYs, transfers ok/failed,
 heartbeat losses, then the runtime events lost, queue overflows and kernel
 drops. At the end the TPDOs stop and everything sent is compared with
-everything received. --check: exit 1 when anything was lost or failed, or
-when RSS grew by more than 10 % (and 4 MiB) or a descriptor leaked between
-the first interval and the end (a 2-minute version runs in CI's vcan lane).
+everything received. --check: exit 1 when anything was lost or failed, when a
+descriptor leaked between the first interval and the end, or when RSS looks
+like a leak: still growing over the last third of the run (by more than 2 %
+and 1 MiB), or grown by more than 12 MiB (and 25 %) in all. A one-time step
+while the process warms up (allocator arenas, the event ring after a stall)
+is no leak: CI's VM showed RSS settle at ~35 MiB, sometimes only after 90 s
+(a 2-minute version runs in CI's vcan lane).
 """
 
 from __future__ import annotations
@@ -233,6 +237,7 @@ def main() -> int:
         start = time.monotonic()
         end = start + args.minutes * 60
         first_rss = first_fds = None
+        samples: List[int] = []      # RSS (KiB) at every line, then at the end
         # the mapped value counts up every 10 ms: received PDOs must never go back
         counter = 0
         next_line = start + args.interval
@@ -244,6 +249,7 @@ def main() -> int:
             if time.monotonic() >= next_line:
                 next_line += args.interval
                 rss, fds = rss_kib(), open_fds()
+                samples.append(rss)
                 if first_rss is None:
                     first_rss, first_fds = rss, fds
                 lost = dev_net.events_lost + \
@@ -288,10 +294,14 @@ def main() -> int:
         if lost:
             problems.append(f"{lost} runtime events lost")
         if first_rss is not None:
+            samples.append(rss)
             growth = rss - first_rss
-            print(f"end: rss {first_rss / 1024:.1f} -> {rss / 1024:.1f} MiB, "
-                  f"fds {first_fds} -> {fds}")
-            if growth > max(first_rss // 10, 4096):
+            late = samples[(2 * len(samples)) // 3]   # the sample two thirds in
+            print(f"end: rss {first_rss / 1024:.1f} -> {rss / 1024:.1f} MiB "
+                  f"({late / 1024:.1f} two thirds in), fds {first_fds} -> {fds}")
+            if rss - late > max(late // 50, 1024):
+                problems.append(f"RSS still growing: {rss - late} KiB over the last third")
+            if growth > max(first_rss // 4, 12 * 1024):
                 problems.append(f"RSS grew by {growth} KiB")
             if fds > first_fds:
                 problems.append(f"{fds - first_fds} descriptors more")
