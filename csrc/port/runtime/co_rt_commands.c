@@ -103,9 +103,9 @@ static int validate_command(co_rt_t *rt, const co_rt_command_t *cmd)
 static int apply_to_line(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd);
 
 /* A command applied in the caller's thread, under the runtime lock, before
- * co_rt_command returns: the local node's own NMT state is then what the
- * caller set (a PDO it sends next sees it), and a refusal is the return
- * value, not a later CO_EV_COMMAND_FAILED. */
+ * co_rt_command returns: the local node exists, or its own NMT state is
+ * what the caller set (a PDO it sends next sees it), and a refusal is the
+ * return value, not a later CO_EV_COMMAND_FAILED. */
 static int apply_now(co_rt_t *rt, const co_rt_command_t *cmd)
 {
     rt_line_t *l = rt->lines[cmd->line];
@@ -129,10 +129,7 @@ int co_rt_command(co_rt_t *rt, const co_rt_command_t *command)
     if (status != CO_RT_OK) {
         return status;
     }
-    if (command->kind == CO_CMD_NODE_CREATE) {
-        return rt_node_create_now(rt, command);
-    }
-    if (command->kind == CO_CMD_NMT_LOCAL) {
+    if (command->kind == CO_CMD_NODE_CREATE || command->kind == CO_CMD_NMT_LOCAL) {
         return apply_now(rt, command);
     }
     rt_line_t *l = rt->lines[command->line];

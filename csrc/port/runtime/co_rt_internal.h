@@ -473,8 +473,6 @@ void rt_command_apply(co_rt_t *rt, const co_rt_command_t *cmd, uint64_t now);
 /* Under rt->lock: create and boot the line's local node (a = node-id,
  * b = heartbeat ms); on failure the line is left as it was. */
 int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd);
-/* From co_rt_command: rt_node_create under the lock, errors at once. */
-int rt_node_create_now(co_rt_t *rt, const co_rt_command_t *cmd);
 /* The line, locked, with a local node (or NULL with the error set, unlocked). */
 rt_line_t *rt_node_line(co_rt_t *rt, int line, const char *what);
 

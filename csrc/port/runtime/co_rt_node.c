@@ -185,22 +185,6 @@ int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 /* Creating the local node runs at once under the lock (the thread is not
  * processing then): the caller learns of a refused OD or store right away,
  * and the node exists for OD access as soon as the call returns. */
-int rt_node_create_now(co_rt_t *rt, const co_rt_command_t *cmd)
-{
-    rt_line_t *l = rt->lines[cmd->line];
-    rt_mutex_lock(&rt->lock);
-    int status = CO_RT_ERR_CLOSED;
-    if (!rt->stopping) {
-        rt_line_step(l, co_rt_now_us());
-        status = rt_node_create(rt, l, cmd);
-    }
-    rt_mutex_unlock(&rt->lock);
-    if (status == CO_RT_OK) {
-        rt_wake(rt);
-    }
-    return status;
-}
-
 rt_line_t *rt_node_line(co_rt_t *rt, int line, const char *what)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
