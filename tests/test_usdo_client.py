@@ -316,25 +316,57 @@ def done_events(monkeypatch):
     return seen
 
 
-def test_blocking_forms_wait_in_c_without_a_done_event(rig, done_events):
-    """upload()/download() block in the runtime (co_rt_transfer_wait) and ask
-    for no TRANSFER_DONE event, so the dispatcher thread does not wake and
-    compete for the GIL; an awaited transfer still gets its event."""
+def test_waiting_forms_wait_in_c_without_a_done_event(rig, done_events):
+    """upload()/download() and start_*().result() block in the runtime
+    (co_rt_transfer_wait); transfers ask for no TRANSFER_DONE event unless
+    awaited, so the dispatcher thread does not wake and compete for the GIL."""
     server, line, _ = rig
     remote = line.add_node(SERVER)
     for _ in range(5):
         remote.usdo.download(0x1017, (100).to_bytes(2, "little"))
         assert remote.usdo.upload(0x1017) == (100).to_bytes(2, "little")
+        remote.usdo.start_download(0x1017, (100).to_bytes(2, "little")).result()
+        assert remote.usdo.start_upload(0x1017).result() == (100).to_bytes(2, "little")
     line.usdo.download(SERVER, DOMAIN, 0, b"y" * 3000)                  # segmented
     assert line.usdo.upload(SERVER, DOMAIN) == b"y" * 3000
+    ended = line.usdo.start_upload(SERVER, DOMAIN)
+    time.sleep(scaled(0.2))                 # ends unheard: nobody waits or awaits
+    assert ended.done()
+    assert ended.result() == b"y" * 3000
     time.sleep(scaled(0.05))
     assert done_events == []
 
-    async def main():
-        return await remote.usdo.aupload(0x1017)
 
-    assert asyncio.run(main()) == (100).to_bytes(2, "little")
-    assert len(done_events) == 1     # the awaiting task heard it through the event
+def test_an_awaited_transfer_is_told_by_its_done_event(net, bus_name, done_events):
+    """An `await` asks the runtime for the TRANSFER_DONE event: the server
+    holds the upload until the task awaits, so the end comes through the
+    event (exactly one); a transfer that ended before it was awaited posts
+    none and the await returns at once."""
+    server = make_server(net, bus_name)
+    line = net.open_line(bus_name, mode="fd")
+    server[DOMAIN].data = b"held"
+    held = Recorder()
+    hold = server.on_read(DOMAIN, lambda request: (held(request), request.defer())[1])
+    transfer = line.usdo.start_upload(SERVER, DOMAIN, 0, timeout=scaled(10))
+    request = held.wait_count(1)[0]
+
+    async def main():
+        asyncio.get_running_loop().call_later(scaled(0.1), request.accept)
+        return await transfer
+
+    assert asyncio.run(main()) == b"held"
+    assert done_events == [transfer._handle]
+    server.remove_indication(hold)
+    early = line.usdo.start_upload(SERVER, DOMAIN, 0)
+    while not early.done():
+        time.sleep(0.001)
+
+    async def late():
+        return await early
+
+    assert asyncio.run(late()) == b"held"
+    time.sleep(scaled(0.05))
+    assert done_events == [transfer._handle]
 
 
 def test_an_await_and_a_blocking_wait_on_one_transfer_both_end(net, bus_name, done_events):

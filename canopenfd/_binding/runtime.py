@@ -315,6 +315,15 @@ class Runtime:
         return {name: getattr(out, name)
                 for name, _ in ffi.typeof("co_rt_transfer_result_t").fields}
 
+    def transfer_notify(self, line: int, handle: int, what: str) -> bool:
+        """Ask for the transfer's TRANSFER_DONE event; True when it ended
+        already (then none comes)."""
+        with self._lock:
+            rc = lib.co_rt_transfer_notify(self._live(what), line, handle)
+            if rc < 0:
+                self._raise(rc, what)
+        return rc == 1
+
     def transfer_wait(self, line: int, handle: int, timeout_ms: int, what: str) -> bool:
         """Block (GIL released) until the transfer ended or timeout_ms passed;
         True when it ended."""

@@ -38,7 +38,7 @@ class TransferRequest:
     max_size: int = 0                 # upload to memory: largest accepted (0 = default)
     block_threshold: int = 0          # SDO AUTO: block from this size
     progress: bool = False            # post progress events
-    done_event: bool = True           # post TRANSFER_DONE (False: the caller waits in C)
+    done_event: bool = False          # post TRANSFER_DONE (else: ask with transfer_notify)
 
     def to_c(self) -> CData:
         """The co_rt_transfer_request_t (cdata) of this request."""

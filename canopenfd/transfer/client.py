@@ -152,6 +152,10 @@ class Transfer:
             except RuntimeError:
                 pass   # the loop closed meanwhile: nobody awaits any more
 
+        # Transfers start without a done event (a caller blocking in C hears
+        # the end directly); an awaiting task needs it, so ask now.
+        if self._engine.notify_end(self._handle):
+            self._completion.set()   # ended already: no event comes
         self._completion.add_callback(wake_loop)
         return future.__await__()
 
@@ -219,6 +223,15 @@ class TransferEngine:
             raise
         except CanopenFDError:
             return True   # released: collect reports it
+
+    def notify_end(self, handle: int) -> bool:
+        """Have the runtime post TRANSFER_DONE when the transfer ends; True
+        when it ended already (then no event comes)."""
+        context = self._context
+        try:
+            return context.runtime.transfer_notify(context.index, handle, "notify")
+        except CanopenFDError:
+            return True   # released or closed: collect reports it
 
     def wait(self, handle: int, seconds: float) -> bool:
         """Block in the runtime until the transfer ended (True) or seconds passed."""
@@ -358,11 +371,11 @@ class TransferClient:
         size_hint (SDO): the bytes expected, so AUTO can pick a block upload.
         mode (SDO): 'auto', 'block' (a block upload whatever the size), or
         'expedited' / 'segmented' (a normal upload: the server picks which)."""
-        return self._begin_upload(node, index, sub, True, timeout=timeout, max_size=max_size,
+        return self._begin_upload(node, index, sub, timeout=timeout, max_size=max_size,
                                   file=file, progress=progress, size_hint=size_hint,
                                   mode=mode)
 
-    def _begin_upload(self, node: int, index: int, sub: int, done_event: bool, *,
+    def _begin_upload(self, node: int, index: int, sub: int, *,
                       timeout: float = 1.0, max_size: Optional[int] = None,
                       file: Optional[BinaryIO] = None,
                       progress: Optional[Progress] = None, size_hint: int = 0,
@@ -373,7 +386,6 @@ class TransferClient:
                                      f"{', '.join(self.UPLOAD_MODES)}")
         request = self._request(node, index, sub, True, timeout, what)
         request.mode = self.MODES.index(mode)
-        request.done_event = done_event
         if not 0 <= size_hint < 0xFFFFFFFF:
             raise ConfigurationError(f"{what}: size_hint {size_hint} outside 0..2^32-2")
         request.size = size_hint
@@ -395,11 +407,11 @@ class TransferClient:
         size), 'expedited', 'segmented', or 'bulk' (USDO) / 'block' (SDO).
         data_type (USDO): the CiA 301 type code sent (default DOMAIN 0x0F =
         raw bytes, accepted for any entry)."""
-        return self._begin_download(node, index, sub, data, True, mode=mode,
+        return self._begin_download(node, index, sub, data, mode=mode,
                                     data_type=data_type, timeout=timeout, progress=progress)
 
     def _begin_download(self, node: int, index: int, sub: int, data: DownloadSource,
-                        done_event: bool, *, mode: str = "auto",
+                        *, mode: str = "auto",
                         data_type: Union[None, int, str] = None, timeout: float = 1.0,
                         progress: Optional[Progress] = None) -> Transfer:
         what = f"{self.PROTOCOL} download 0x{index:04X}:{sub:02X} to node {node}"
@@ -407,7 +419,6 @@ class TransferClient:
             raise ConfigurationError(f"{what}: mode {mode!r} is not one of "
                                      f"{', '.join(self.MODES)}")
         request = self._request(node, index, sub, False, timeout, what)
-        request.done_event = done_event
         request.mode = self.MODES.index(mode)
         request.data_type = _DOMAIN if data_type is None else _type_code(data_type, what)
         keep: object   # what must stay alive while C reads it
@@ -446,20 +457,21 @@ class TransferClient:
         return self._engine.start(request, keep, progress, what)
 
     # ------------------------------------------------------------ blocking / async forms
-    # The blocking forms wait in C for the end (co_rt_transfer_wait): no
-    # TRANSFER_DONE event, so the dispatcher thread does not compete with the
-    # waking caller for the GIL (that race cost ~8 % of an expedited round trip).
+    # Transfers start without a TRANSFER_DONE event: result() waits in C
+    # (co_rt_transfer_wait), so the dispatcher thread does not wake to compete
+    # with the waking caller for the GIL (that race cost 6-8 % of an expedited
+    # round trip); only an `await` asks for the event (Transfer.__await__).
     def upload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
         """Read index:sub of node and wait for the data (options: start_upload;
         with file=, the data goes there and b"" comes back)."""
         _not_broadcast(node, f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X}")
-        transfer = self._begin_upload(node, index, sub, False, **options)
+        transfer = self._begin_upload(node, index, sub, **options)
         return uploaded_bytes(transfer.result())
 
     def download(self, node: int, index: int, sub: int, data: DownloadSource,
                  **options: Any) -> None:
         """Write data to index:sub of node and wait for the end (options: start_download)."""
-        self._begin_download(node, index, sub, data, False, **options).result()
+        self._begin_download(node, index, sub, data, **options).result()
 
     async def aupload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
         _not_broadcast(node, f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X}")

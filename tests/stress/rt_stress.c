@@ -131,6 +131,12 @@ static int one_transfer(round_t *r, int id, unsigned n, uint8_t *payload)
     if (n % 7u == 3u) {
         (void)co_rt_transfer_cancel(r->rt, r->tool, handle, 0x10);
     }
+    if (n % 5u == 1u) {                /* ask for the done event, racing the end */
+        int notified = co_rt_transfer_notify(r->rt, r->tool, handle);
+        if (notified < 0 && notified != CO_RT_ERR_CLOSED) {
+            return -1;
+        }
+    }
     int ended;
     do {
         ended = co_rt_transfer_wait(r->rt, r->tool, handle, 200);

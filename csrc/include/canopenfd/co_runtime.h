@@ -337,6 +337,12 @@ int co_rt_transfer_result(co_rt_t *rt, int line, int handle, co_rt_transfer_resu
  * returned is the news, and that caller tells whoever else in the
  * application waits for the end. */
 int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
+/* Ask for CO_EV_TRANSFER_DONE after all, for a transfer started with
+ * no_done_event (the application starts every transfer so and asks only when
+ * something must hear the end through the event loop, e.g. an awaiting task):
+ * 0 = the event will come, 1 = the transfer already ended (no event comes:
+ * the caller acts on the end itself), < 0 = error (CO_RT_ERR_STATE: released). */
+int co_rt_transfer_notify(co_rt_t *rt, int line, int handle);
 /* ---- process data and errors (co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c,
  * co_rt_guard.c, co_rt_stats.c) ---- */
 

@@ -623,6 +623,24 @@ int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms)
     }
 }
 
+int co_rt_transfer_notify(co_rt_t *rt, int line, int handle)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    /* Under the lock finished() either has run (1: no event comes) or will
+     * see the flag (0): the end is heard exactly once either way. */
+    rt_req_t *r = request_of(rt, l, handle);
+    int status = r ? !r->running : CO_RT_ERR_STATE;
+    if (r && r->running) {
+        r->done_event = true;
+    }
+    rt_mutex_unlock(&rt->lock);
+    return status;
+}
+
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
