@@ -29,7 +29,8 @@ from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "Mode", "NmtCommand", "NmtState",
-    "OdOrigin", "ParameterGroup", "RtStatus", "StoreStatus", "C_ENUMS", "c_members",
+    "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
+    "SleepPhase", "StoreStatus", "C_ENUMS", "c_members",
 ]
 
 
@@ -80,6 +81,16 @@ StoreStatus = _c_enum("StoreStatus", "CO_STORE_", "co_store_status_t",
 # ---------------------------------------------------------------- EMCY
 EmcyStatus = _c_enum("EmcyStatus", "CO_EMCY_STATUS_",
                      doc="Bits of the FD EMCY's status byte (priority mask and flags).")
+
+# ---------------------------------------------------------------- sleep and wake-up
+SleepPhase = _c_enum("SleepPhase", "CO_SLEEP_", "co_sleep_phase_t",
+                     doc="Phases of sleep and wake-up (co_sleep_phase_t, CiA 320).")
+SleepEvent = _c_enum("SleepEvent", "CO_SLEEP_EV_", "co_sleep_event_t",
+                     doc="What the sleep service reports (co_sleep_event_t).")
+SleepCause = _c_enum("SleepCause", "CO_SLEEP_BY_", "co_sleep_cause_t",
+                     doc="What woke a node (co_sleep_cause_t).")
+SleepAction = _c_enum("SleepAction", "CO_RT_SLEEP_", "co_rt_sleep_action_t",
+                      doc="What the application asks of the sleep service (co_rt_sleep_action_t).")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

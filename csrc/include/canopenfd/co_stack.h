@@ -34,6 +34,7 @@
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_client.h"
 #include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_sleep.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -78,7 +79,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_PDO = 9,
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
-    CO_STACK_PART_CLIENT = 12    /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_SLEEP = 17     /* sleep and wake-up (CiA 320), master or device */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -217,6 +219,11 @@ struct co_stack {
     co_usdo_client_t usdo_client;
     bool has_sdo_client;
     co_sdo_client_t sdo_client;
+    /* sleep and wake-up */
+    bool has_sleep;
+    co_sleep_t sleep;
+    co_sleep_fn sleep_ind;           /* the application's, behind the stack's own */
+    void *sleep_user;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -242,6 +249,10 @@ void co_stack_node_deinit(co_stack_t *stack);
  * has an OD, its 0x1280.. channels come first. */
 co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_config_t *config);
 void co_stack_client_deinit(co_stack_t *stack);
+/* Sleep and wake-up on the line (needs no memory): a master, or a device;
+ * waking up resets the local node's communication. */
+co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config);
+void co_stack_sleep_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -286,6 +297,7 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
 {
     return s->has_sdo_client ? &s->sdo_client : NULL;
 }
+static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */
