@@ -8,6 +8,7 @@
 #include "test_od_util.h"
 
 #include "canopenfd/co_flyma.h"
+#include "canopenfd/co_stack.h"
 
 #define DELAY_MS 500u
 #define DETECT_MS 100u
@@ -338,6 +339,92 @@ static void test_timing_from_od(void **state)
     assert_int_equal(c.capable_ms, 80);
 }
 
+/* ------------------------------------------------------------ co_stack */
+
+typedef struct stack_fx {
+    tu_bus_t tb;
+    tu_line_t l[3];
+    co_stack_t st[3];
+    co_stack_arena_t arena[3];
+    unsigned char memory[3][8 * 1024];
+    int masters_told[3];
+} stack_fx_t;
+
+static void on_stack_flyma(co_flyma_t *flyma, co_flyma_event_t event, co_flyma_state_t state,
+                           uint8_t master, uint8_t priority, void *user)
+{
+    (void)flyma;
+    (void)master;
+    (void)priority;
+    int *told = user;
+    if (event == CO_FLYMA_EV_STATE && state == CO_FLYMA_MASTER) {
+        (*told)++;
+    }
+}
+
+/* Three nodes built by co_stack (heartbeat 50 ms, the master's watched for
+ * 150 ms): node 11 (priority 0) becomes the master; taken off the bus, the
+ * others lose its heartbeat, reset the network with NMT (0x000 [82 00]),
+ * boot again and node 10 takes over. */
+static void test_stack_three_nodes_master_killed(void **state)
+{
+    (void)state;
+    stack_fx_t *fx = calloc(1, sizeof *fx);
+    assert_non_null(fx);
+    tu_bus_init(&fx->tb, CO_MODE_CLASSIC, false);
+    const uint8_t ids[3] = {10, 11, 12}, prio[3] = {1, 0, 1};
+    for (int i = 0; i < 3; i++) {
+        co_line_t *line = tu_bus_add_line(&fx->tb, &fx->l[i]);
+        co_stack_arena_init(&fx->arena[i], fx->memory[i], sizeof fx->memory[i]);
+        co_stack_line_config_t lc = {.heartbeat_entries = 4};
+        assert_int_equal(co_stack_init(&fx->st[i], line, &lc,
+                                       co_stack_arena_allocator(&fx->arena[i])), CO_STACK_OK);
+        co_stack_node_config_t nc = {.node_id = ids[i], .heartbeat_ms = 50};
+        assert_int_equal(co_stack_node_init(&fx->st[i], &nc), CO_STACK_OK);
+        co_stack_flyma_config_t fc = {
+            .flyma = {.priority = prio[i], .detect_ms = DETECT_MS, .delay_ms = DELAY_MS,
+                      .priority_slot_ms = PSLOT_MS, .device_slot_ms = DSLOT_MS,
+                      .multiple_master_ms = CYCLE_MS, .ind = on_stack_flyma,
+                      .user = &fx->masters_told[i]},
+            .master_heartbeat_ms = 150};
+        assert_int_equal(co_stack_flyma_init(&fx->st[i], &fc), CO_STACK_OK);
+        assert_int_equal(co_stack_flyma_init(&fx->st[i], &fc), CO_STACK_ERR_STATE);
+        assert_int_equal(co_stack_failed_part(&fx->st[i]), CO_STACK_PART_FLYMA);
+        assert_int_equal(co_stack_boot(&fx->st[i]), CO_STACK_OK);
+    }
+    /* power-on: two detections around the network reset, then node 11's slot */
+    tu_run_until(&fx->tb, 2 * (DELAY_MS + DETECT_MS) * TU_MS + 400 * TU_MS);
+    long reset = tu_log_find_id(&fx->tb, 0x000, 0);
+    tu_assert_logged(&fx->tb, reset, 0x000, (const uint8_t[]){0x82, 0x00}, 2);
+    assert_int_equal(co_flyma_state(co_stack_flyma(&fx->st[1])), CO_FLYMA_MASTER);
+    assert_int_equal(co_flyma_master(co_stack_flyma(&fx->st[0])), 11);
+    assert_int_equal(co_flyma_master(co_stack_flyma(&fx->st[2])), 11);
+    assert_int_equal(fx->masters_told[1], 1);
+
+    co_membus_detach(&fx->tb.bus, &fx->l[1].line);
+    tu_log_clear(&fx->tb);
+    uint64_t t_kill = fx->tb.now;
+    tu_run_until(&fx->tb, t_kill + (200 + DELAY_MS + DETECT_MS + 1700) * TU_MS);
+    long nmt = tu_log_find_id(&fx->tb, 0x000, 0);
+    tu_assert_logged(&fx->tb, nmt, 0x000, (const uint8_t[]){0x82, 0x00}, 2);
+    assert_true(fx->tb.log[nmt].t_us >= t_kill + 150 * TU_MS);
+    assert_true(fx->tb.log[nmt].t_us <= t_kill + 210 * TU_MS);
+    /* both booted again (boot-up 0x70A / 0x70C after the reset) */
+    long boot = -1;
+    for (size_t i = (size_t)nmt; i < fx->tb.log_count && boot < 0; i++) {
+        boot = fx->tb.log[i].frame.id == 0x70A ? (long)i : -1;
+    }
+    tu_assert_logged(&fx->tb, boot, 0x70A, (const uint8_t[]){0}, 1);
+    assert_int_equal(co_flyma_state(co_stack_flyma(&fx->st[0])), CO_FLYMA_MASTER);
+    assert_int_equal(co_flyma_master(co_stack_flyma(&fx->st[2])), 10);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, CO_FLYMA_ID_ACTIVE_MASTER, 0),
+                     CO_FLYMA_ID_ACTIVE_MASTER, (const uint8_t[]){0x01, 10}, 2);
+    for (int i = 0; i < 3; i++) {
+        co_stack_deinit(&fx->st[i]);
+    }
+    free(fx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -348,6 +435,7 @@ int main(void)
         cmocka_unit_test(test_detect_capable),
         cmocka_unit_test(test_malformed_and_idle),
         cmocka_unit_test(test_timing_from_od),
+        cmocka_unit_test(test_stack_three_nodes_master_killed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
