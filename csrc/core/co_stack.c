@@ -773,6 +773,8 @@ static void flyma_watch(co_stack_t *s, uint8_t master)
     if (master && s->flyma_watch_ms && s->flyma_watched != master &&
         co_hb_consumer_watch(&s->hb_consumer, master, s->flyma_watch_ms) == CO_HB_CONFIG_OK) {
         s->flyma_watched = master;
+        /* the master may be gone already: do not wait for a first heartbeat */
+        (void)co_hb_consumer_expect(&s->hb_consumer, master);
     }
 }
 

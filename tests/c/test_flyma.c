@@ -366,9 +366,8 @@ static void on_stack_flyma(co_flyma_t *flyma, co_flyma_event_t event, co_flyma_s
  * 150 ms): node 11 (priority 0) becomes the master; taken off the bus, the
  * others lose its heartbeat, reset the network with NMT (0x000 [82 00]),
  * boot again and node 10 takes over. */
-static void test_stack_three_nodes_master_killed(void **state)
+static void run_stack_master_killed(bool at_once)
 {
-    (void)state;
     stack_fx_t *fx = calloc(1, sizeof *fx);
     assert_non_null(fx);
     tu_bus_init(&fx->tb, CO_MODE_CLASSIC, false);
@@ -392,8 +391,16 @@ static void test_stack_three_nodes_master_killed(void **state)
         assert_int_equal(co_stack_failed_part(&fx->st[i]), CO_STACK_PART_FLYMA);
         assert_int_equal(co_stack_boot(&fx->st[i]), CO_STACK_OK);
     }
-    /* power-on: two detections around the network reset, then node 11's slot */
-    tu_run_until(&fx->tb, 2 * (DELAY_MS + DETECT_MS) * TU_MS + 400 * TU_MS);
+    /* power-on: two detections around the network reset, then node 11's slot;
+     * at_once: it dies the moment it was elected (no heartbeat of it after) */
+    uint64_t elected = 2 * (DELAY_MS + DETECT_MS) * TU_MS + 400 * TU_MS;
+    while (at_once && co_flyma_state(co_stack_flyma(&fx->st[0])) != CO_FLYMA_SLAVE) {
+        tu_run_until(&fx->tb, fx->tb.now + TU_MS);
+        assert_true(fx->tb.now < elected);
+    }
+    if (!at_once) {
+        tu_run_until(&fx->tb, elected);
+    }
     long reset = tu_log_find_id(&fx->tb, 0x000, 0);
     tu_assert_logged(&fx->tb, reset, 0x000, (const uint8_t[]){0x82, 0x00}, 2);
     assert_int_equal(co_flyma_state(co_stack_flyma(&fx->st[1])), CO_FLYMA_MASTER);
@@ -425,6 +432,20 @@ static void test_stack_three_nodes_master_killed(void **state)
     free(fx);
 }
 
+static void test_stack_three_nodes_master_killed(void **state)
+{
+    (void)state;
+    run_stack_master_killed(false);
+}
+
+/* The slaves watch the new master from the moment it is elected: one that
+ * dies before its first heartbeat is noticed too (co_hb_consumer_expect). */
+static void test_stack_master_killed_at_once(void **state)
+{
+    (void)state;
+    run_stack_master_killed(true);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -436,6 +457,7 @@ int main(void)
         cmocka_unit_test(test_malformed_and_idle),
         cmocka_unit_test(test_timing_from_od),
         cmocka_unit_test(test_stack_three_nodes_master_killed),
+        cmocka_unit_test(test_stack_master_killed_at_once),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

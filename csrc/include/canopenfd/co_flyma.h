@@ -117,6 +117,10 @@ bool co_flyma_force(co_flyma_t *flyma);
 
 static inline co_flyma_state_t co_flyma_state(const co_flyma_t *flyma) { return flyma->state; }
 static inline uint8_t co_flyma_master(const co_flyma_t *flyma) { return flyma->master; }
+static inline uint8_t co_flyma_master_priority(const co_flyma_t *flyma)
+{
+    return flyma->master_priority;
+}
 static inline const co_flyma_stats_t *co_flyma_stats(const co_flyma_t *flyma)
 {
     return &flyma->stats;
