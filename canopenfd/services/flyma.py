@@ -31,7 +31,7 @@ _TIMING = {"detect": ("detect_ms", 0.1), "delay": ("delay_ms", 0.5),
 
 class FlymaNotice(NamedTuple):
     """One event: what happened, the state after it, the active master's
-    node-id (0: none) and priority; for CAPABLE / CAPABLE_DONE `count` is
+    node-id (0: none) and priority; for CAPABLE / CAPABLE_DONE `answers` is
     the number of master-capable nodes that answered."""
 
     event: FlymaEvent
@@ -40,7 +40,7 @@ class FlymaNotice(NamedTuple):
     priority: int
 
     @property
-    def count(self) -> int:
+    def answers(self) -> int:
         return self.priority
 
 
@@ -165,7 +165,7 @@ class FlyingMaster:
         if kind == FlymaEvent.STATE:
             self._master = notice.master
         elif kind == FlymaEvent.CAPABLE_DONE:
-            self._capable = notice.count
+            self._capable = notice.answers
             self._capable_done += 1
         self._context.cond.notify_all()
         return lambda: self._callbacks.fire(notice)
