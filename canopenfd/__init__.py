@@ -26,6 +26,7 @@ from .node import LocalNode, LocalValue, RemoteNode
 from .od import ObjectDictionary, OdFileError, OdValueError, import_od
 from .services.emcy import Emcy
 from .services.indications import ODRequest
+from .services.flyma import FlymaEvent, FlymaNotice, FlymaState
 from .services.nmt import NmtCommand, NmtState
 from .services.sleep import SleepCause, SleepEvent, SleepNotice, SleepPhase
 from .transfer import SdoAbortError, Transfer, UsdoAbortError, UsdoTransfer
@@ -38,4 +39,5 @@ __all__ = [
     "Network", "Line", "connect", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
     "UsdoAbortError", "UsdoTransfer", "SdoAbortError", "Transfer",
     "SleepCause", "SleepEvent", "SleepNotice", "SleepPhase",
+    "FlymaEvent", "FlymaNotice", "FlymaState",
 ]

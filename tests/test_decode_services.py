@@ -88,6 +88,21 @@ def test_sleep(frame, text):
     assert Decoder().decode(frame) == text
 
 
+@pytest.mark.parametrize("frame, text", [
+    (Frame(0x071, bytes([0, 11])), "FLYMA active master node 11 priority 0"),
+    (Frame(0x072, b""), "FLYMA negotiation request"),
+    (Frame(0x073, b""), "FLYMA active master request"),
+    (Frame(0x074, b""), "FLYMA master capable"),
+    (Frame(0x075, b""), "FLYMA master capable request"),
+    (Frame(0x076, b""), "FLYMA force negotiation"),
+    (Frame(0x071, b"\x01"), "FLYMA active master malformed: 1 bytes, expected 2 (01)"),
+    (Frame(0x073, b"\x00"), "FLYMA active master request malformed: 1 bytes, expected 0 (00)"),
+])
+def test_flyma(frame, text):
+    assert decode(frame) == text
+    assert Decoder().decode(frame) == text
+
+
 # ------------------------------------------------------------------ TIME
 def test_time_agrees_with_the_c_codec_example():
     example = c_array("tests/c/test_time.c", "example_bytes")

@@ -29,6 +29,7 @@ from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "Mode", "NmtCommand", "NmtState",
+    "FlymaAction", "FlymaEvent", "FlymaState",
     "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
     "SleepPhase", "StoreStatus", "C_ENUMS", "c_members",
 ]
@@ -91,6 +92,14 @@ SleepCause = _c_enum("SleepCause", "CO_SLEEP_BY_", "co_sleep_cause_t",
                      doc="What woke a node (co_sleep_cause_t).")
 SleepAction = _c_enum("SleepAction", "CO_RT_SLEEP_", "co_rt_sleep_action_t",
                       doc="What the application asks of the sleep service (co_rt_sleep_action_t).")
+
+# ---------------------------------------------------------------- flying master
+FlymaState = _c_enum("FlymaState", "CO_FLYMA_", "co_flyma_state_t",
+                     doc="States of the flying-master negotiation (co_flyma_state_t, CiA 302-2).")
+FlymaEvent = _c_enum("FlymaEvent", "CO_FLYMA_EV_", "co_flyma_event_t",
+                     doc="What the flying master reports (co_flyma_event_t).")
+FlymaAction = _c_enum("FlymaAction", "CO_RT_FLYMA_", "co_rt_flyma_action_t",
+                      doc="What the application asks of the flying master.")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

@@ -22,6 +22,9 @@ __all__ = [
     "Mode",
     "NmtCommand",
     "NmtState",
+    "FlymaAction",
+    "FlymaEvent",
+    "FlymaState",
     "OdOrigin",
     "ParameterGroup",
     "RtStatus",
@@ -138,6 +141,7 @@ class EventKind(enum.IntEnum):
     GUARD = 18
     PDO_FRAME = 19
     SLEEP = 24
+    FLYMA = 25
 
 
 class FrameFlag(enum.IntEnum):
@@ -197,6 +201,30 @@ class NmtState(NmtStateBase):
     OPERATIONAL = 5
     PRE_OPERATIONAL = 127
     UNKNOWN = 255
+
+
+class FlymaAction(enum.IntEnum):
+    """What the application asks of the flying master."""
+    DETECT_CAPABLE = 1
+    FORCE = 2
+
+
+class FlymaEvent(enum.IntEnum):
+    """What the flying master reports (co_flyma_event_t)."""
+    STATE = 1
+    RESET_ALL = 2
+    CAPABLE = 3
+    CAPABLE_DONE = 4
+
+
+class FlymaState(enum.IntEnum):
+    """States of the flying-master negotiation (co_flyma_state_t, CiA 302-2)."""
+    IDLE = 0
+    WAITING = 1
+    DETECTING = 2
+    NEGOTIATING = 3
+    MASTER = 4
+    SLAVE = 5
 
 
 class OdOrigin(enum.IntEnum):

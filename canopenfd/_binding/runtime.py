@@ -558,6 +558,28 @@ class Runtime:
     def sleep_act(self, line: int, action: int, status: int, reason: int, what: str) -> None:
         self._call(what, lib.co_rt_sleep_act, line, action, status, reason)
 
+    def flyma_start(self, line: int, priority: int, timing_ms: Mapping[str, int],
+                    what: str) -> None:
+        """timing_ms: co_rt_flyma_config_t's *_ms fields (0 = the default)."""
+        config = ffi.new("co_rt_flyma_config_t *")
+        config.priority = priority
+        for name, value in timing_ms.items():
+            setattr(config, name, value)
+        self._call(what, lib.co_rt_flyma_start, line, config)
+
+    def flyma_stop(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_flyma_stop, line)
+
+    def flyma_act(self, line: int, action: int, what: str) -> None:
+        self._call(what, lib.co_rt_flyma_act, line, action)
+
+    def flyma_state(self, line: int, what: str) -> Tuple[int, int, int, Dict[str, int]]:
+        """(state, active master, its priority, counters) of the local node's flying master."""
+        out = ffi.new("co_rt_flyma_state_t *")
+        self._call(what, lib.co_rt_flyma_state, line, out)
+        return out.state, out.master, out.master_priority, {
+            name: getattr(out.stats, name) for name, _ in ffi.typeof("co_flyma_stats_t").fields}
+
     def sleep_state(self, line: int, what: str) -> Tuple[int, Dict[str, int]]:
         """(phase, counters) of the line's sleep service."""
         stats = ffi.new("co_sleep_stats_t *")

@@ -11,6 +11,7 @@ from typing import Any, Dict, Optional, Tuple
 from ..frame import FLAG_EXT, FLAG_FD
 from .dispatch import DecoderState, is_sdo_id
 from .emcy import EMCY_BASE
+from .flyma import FLYMA_IDS
 from .heartbeat import ERROR_CONTROL_BASE
 from .nmt import NMT_ID
 from .pdo import default_pdo
@@ -35,6 +36,7 @@ SERVICES: Dict[str, str] = {
     "heartbeat": "heartbeat, boot-up and node guarding (0x700 + node-id)",
     "lss": "LSS (0x7E4, 0x7E5)",
     "sleep": "sleep and wake-up (0x690..0x692)",
+    "flyma": "flying master negotiation (0x071..0x076)",
     "other": "every other frame",
 }
 #: Names that stand for several services.
@@ -72,6 +74,8 @@ def frame_service(frame: Any, state: Optional[DecoderState] = None) -> Classifie
         return "lss", ()
     if can_id in SLEEP_IDS:
         return "sleep", ()
+    if can_id in FLYMA_IDS:
+        return "flyma", ()
     if ERROR_CONTROL_BASE < can_id <= ERROR_CONTROL_BASE + 0x7F:
         return "heartbeat", (can_id - ERROR_CONTROL_BASE,)
     if is_sdo_id(can_id):

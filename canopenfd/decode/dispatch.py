@@ -11,6 +11,7 @@ from typing import Any, Optional
 
 from ..frame import FLAG_EXT, FLAG_FD, FLAG_RTR
 from .emcy import EMCY_BASE, emcy_text
+from .flyma import FLYMA_IDS, flyma_text
 from .heartbeat import ERROR_CONTROL_BASE, GuardingTracker, guarding_request_text, heartbeat_text
 from .nmt import NMT_ID, nmt_text
 from .pdo import PdoMap, default_pdo, default_pdo_text, pdo_text
@@ -86,6 +87,8 @@ def frame_meaning(frame: Any, state: Optional[DecoderState]) -> str:
         return time_text(data)
     if can_id in SLEEP_IDS:
         return sleep_text(can_id, data)
+    if can_id in FLYMA_IDS:
+        return flyma_text(can_id, data)
     if ERROR_CONTROL_BASE <= can_id <= ERROR_CONTROL_BASE + 0x7F:
         node = can_id - ERROR_CONTROL_BASE
         guarded = state is not None and state.guarding.is_reply(node, data)

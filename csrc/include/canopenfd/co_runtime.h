@@ -13,6 +13,7 @@
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_emcy.h"
+#include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
@@ -115,9 +116,11 @@ typedef enum co_rt_event_kind {
     CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
     CO_EV_PDO_FRAME = 19,      /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
                                   29-bit), b = frames seen on it so far, frame = it */
-    CO_EV_SLEEP = 24           /* sleep and wake-up (co_rt_sleep_start): a =
+    CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
                                   co_sleep_event_t, b = arg | arg2 << 8, node = the
                                   phase after it (co_sleep_phase_t) */
+    CO_EV_FLYMA = 25           /* flying master (co_rt_flyma_start): a = co_flyma_event_t,
+                                  b = master | priority << 8, node = co_flyma_state_t */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -458,6 +461,35 @@ int co_rt_sleep_objection(co_rt_t *rt, int line, uint8_t reason);
 int co_rt_sleep_act(co_rt_t *rt, int line, int action, uint8_t status, uint8_t reason);
 /* The phase (co_sleep_phase_t) and counters. */
 int co_rt_sleep_state(co_rt_t *rt, int line, co_sleep_stats_t *stats);
+
+/* ---- flying master of the local node (CiA 302-2; co_rt_flyma.c) */
+typedef struct co_rt_flyma_config {
+    uint8_t priority;             /* as co_flyma_config_t; the node's 0x1F90/0x1F91 */
+    uint16_t detect_ms;           /* override these where the OD has them */
+    uint16_t delay_ms;
+    uint16_t priority_slot_ms;
+    uint16_t device_slot_ms;
+    uint16_t multiple_master_ms;
+    uint16_t capable_ms;
+    uint16_t master_heartbeat_ms; /* a slave watches the active master this long */
+} co_rt_flyma_config_t;
+typedef enum co_rt_flyma_action {
+    CO_RT_FLYMA_DETECT_CAPABLE = 1,   /* 0x75: who can be master (CO_EV_FLYMA tells) */
+    CO_RT_FLYMA_FORCE = 2             /* 0x76 and a new negotiation */
+} co_rt_flyma_action_t;
+typedef struct co_rt_flyma_state {
+    int state;                    /* co_flyma_state_t */
+    uint8_t master;               /* the active master, 0 = none */
+    uint8_t master_priority;
+    co_flyma_stats_t stats;
+} co_rt_flyma_state_t;
+/* The line's local node takes part in the flying-master negotiation (it
+ * starts at once when the node runs, else at its boot). */
+int co_rt_flyma_start(co_rt_t *rt, int line, const co_rt_flyma_config_t *config);
+int co_rt_flyma_stop(co_rt_t *rt, int line);
+int co_rt_flyma_act(co_rt_t *rt, int line, int action);
+/* The state (idle when not started), the active master and the counters. */
+int co_rt_flyma_state(co_rt_t *rt, int line, co_rt_flyma_state_t *out);
 /* The counters of the line's process-data, error and SDO/USDO server
  * services (zeros for services the line does not run). */
 typedef struct co_rt_service_stats {
