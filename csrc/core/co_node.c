@@ -25,6 +25,9 @@ static void services_set_state(co_node_t *node, co_nmt_state_t state)
     if (s->server && s->server_state) {
         s->server_state(s->server, state);
     }
+    if (s->led) {
+        co_led_set_nmt_state(s->led, state);
+    }
 }
 
 static void on_state_changed(co_nmt_t *nmt, co_nmt_state_t old_state,
@@ -117,6 +120,35 @@ static bool bits_any(const uint8_t *map, size_t size)
     return false;
 }
 
+/* The error LED shows the causes the node tracks (bus-off and warning come
+ * straight from co_node_comm_event). */
+static void led_show_errors(co_node_t *node)
+{
+    co_led_t *led = node->services.led;
+    if (!led) {
+        return;
+    }
+    uint8_t active = 0;
+    if (node->life_lost || bits_any(node->hb_lost, sizeof node->hb_lost)) {
+        active |= CO_LED_CAUSE_ERROR_CONTROL;
+    }
+    if (node->sync_length_error) {
+        active |= CO_LED_CAUSE_SYNC;
+    }
+    if (bits_any(node->rpdo_late, sizeof node->rpdo_late)) {
+        active |= CO_LED_CAUSE_EVENT_TIMER;
+    }
+    co_led_set_causes(led, CO_LED_CAUSE_ERROR_CONTROL | CO_LED_CAUSE_SYNC |
+                               CO_LED_CAUSE_EVENT_TIMER, active);
+}
+
+static void led_cause(co_node_t *node, uint8_t cause, bool active)
+{
+    if (node->services.led) {
+        co_led_set_cause(node->services.led, cause, active);
+    }
+}
+
 /* The stack's own errors use CiA 301's code table; info (a node-id, a PDO
  * number) goes to the first manufacturer-specific bytes. */
 static void raise_error(co_node_t *node, uint16_t code, uint16_t info)
@@ -171,6 +203,7 @@ void co_node_heartbeat_event(co_node_t *node, uint8_t node_id, bool lost)
     } else {
         life_guard_changed(node);
     }
+    led_show_errors(node);
 }
 
 void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, void *user)
@@ -185,22 +218,31 @@ void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, vo
         node->life_lost = false;
         life_guard_changed(node);
     }
+    led_show_errors(node);
 }
 
 void co_node_comm_event(co_node_t *node, co_comm_event_t event)
 {
     switch (event) {
     case CO_COMM_BUS_OFF:
+        led_cause(node, CO_LED_CAUSE_BUS_OFF, true);
         raise_error(node, CO_NODE_EMCY_BUS_OFF, 0);   /* goes out after recovery */
         co_node_error_behaviour(node, 1);
         break;
     case CO_COMM_BUS_OFF_RECOVERED:
+        /* a controller back from bus-off starts with its error counters at 0 */
+        led_cause(node, CO_LED_CAUSE_BUS_OFF | CO_LED_CAUSE_WARNING, false);
         clear_error(node, CO_NODE_EMCY_BUS_OFF);
         break;
+    case CO_COMM_ERROR_WARNING:
+        led_cause(node, CO_LED_CAUSE_WARNING, true);
+        break;
     case CO_COMM_ERROR_PASSIVE:
+        led_cause(node, CO_LED_CAUSE_WARNING, true);
         raise_error(node, CO_NODE_EMCY_ERROR_PASSIVE, 0);
         break;
     case CO_COMM_ERROR_ACTIVE:
+        led_cause(node, CO_LED_CAUSE_BUS_OFF | CO_LED_CAUSE_WARNING, false);
         clear_error(node, CO_NODE_EMCY_ERROR_PASSIVE);
         clear_error(node, CO_NODE_EMCY_BUS_OFF);
         break;
@@ -230,6 +272,7 @@ static void on_sync(uint8_t counter, void *user)
     if (node->sync_length_error) {
         node->sync_length_error = false;   /* a SYNC of the right length came */
         clear_error(node, CO_SYNC_EMCY_LENGTH);
+        led_show_errors(node);
     }
     if (node->services.pdo) {
         co_pdo_sync(node->services.pdo, counter);
@@ -252,6 +295,7 @@ static void on_sync_error(co_sync_t *sync, uint16_t code, uint8_t length, void *
     if (!node->sync_length_error) {
         node->sync_length_error = true;
         raise_error(node, code, length);
+        led_show_errors(node);
     }
 }
 
@@ -293,6 +337,7 @@ static void on_rpdo_error_changed(co_pdo_t *pdo, uint16_t number, uint16_t code,
     } else if (!bits_any(map, CO_NODE_PDO_BITMAP)) {
         clear_error(node, code);
     }
+    led_show_errors(node);
 }
 
 static void on_pdo_received(co_pdo_t *pdo, uint16_t number, void *user)
@@ -348,6 +393,7 @@ static void services_reset(co_node_t *node)
         clear_error(node, own[i]);
     }
     forget_detected_errors(node);
+    led_show_errors(node);
 }
 
 static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)

@@ -9,6 +9,7 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_led.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_store.h"
@@ -47,6 +48,10 @@ typedef struct co_node_services {
      * void * adapter: the node links no server it does not run). */
     void *server;
     void (*server_state)(void *server, co_nmt_state_t state);
+    /* CiA 303-3 indicators: told the NMT state and the errors the node
+     * tracks (bus-off, warning, heartbeat/guarding lost, SYNC and RPDO
+     * deadline errors); may be NULL. */
+    co_led_t *led;
 } co_node_services_t;
 
 enum {

@@ -29,6 +29,7 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_led.h"
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
@@ -78,7 +79,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_PDO = 9,
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
-    CO_STACK_PART_CLIENT = 12    /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_LED = 14       /* CiA 303-3 indicators */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -164,6 +166,13 @@ typedef struct co_stack_node_config {
     uint8_t emcy_history;        /* 0x1003 entries at most, 0 = 254 */
     const co_node_indications_t *ind;   /* the node's (may be NULL) */
     void *user;
+    /* CiA 303-3 run and error LEDs (co_led, inside co_stack_t: no memory),
+     * fed by the node without the application: leds = true runs them;
+     * led_changed (may be NULL, needs leds) hears every change with `user`;
+     * led_same_phase: see co_led_config_t. */
+    bool leds;
+    bool led_same_phase;
+    co_led_fn led_changed;
 } co_stack_node_config_t;
 
 typedef struct co_stack_client_config {
@@ -217,6 +226,9 @@ struct co_stack {
     co_usdo_client_t usdo_client;
     bool has_sdo_client;
     co_sdo_client_t sdo_client;
+    /* the node's indicators */
+    bool has_led;
+    co_led_t led;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -286,6 +298,7 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
 {
     return s->has_sdo_client ? &s->sdo_client : NULL;
 }
+static inline co_led_t *co_stack_led(co_stack_t *s) { return s->has_led ? &s->led : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */
