@@ -30,6 +30,7 @@ __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "Mode", "NmtCommand", "NmtState",
     "OdOrigin", "ParameterGroup", "RtStatus", "StoreStatus", "C_ENUMS", "c_members",
+    "LedPattern", "LedWhich", "LedCause",
 ]
 
 
@@ -80,6 +81,14 @@ StoreStatus = _c_enum("StoreStatus", "CO_STORE_", "co_store_status_t",
 # ---------------------------------------------------------------- EMCY
 EmcyStatus = _c_enum("EmcyStatus", "CO_EMCY_STATUS_",
                      doc="Bits of the FD EMCY's status byte (priority mask and flags).")
+
+# ---------------------------------------------------------------- LED indicators (CiA 303-3)
+LedPattern = _c_enum("LedPattern", "CO_LED_", "co_led_pattern_t",
+                     doc="What a CiA 303-3 LED shows (co_led_pattern_t).")
+LedWhich = _c_enum("LedWhich", "CO_LED_", "co_led_which_t",
+                   doc="The run (green) and error (red) LEDs (co_led_which_t).")
+LedCause = _c_enum("LedCause", "CO_LED_CAUSE_", "co_led_cause_t",
+                   doc="What the error LED shows, one bit each (co_led_cause_t).")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

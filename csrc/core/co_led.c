@@ -135,10 +135,14 @@ static void refresh(co_led_t *led, uint64_t now_us)
         led->pattern[which] = patterns[which];
     }
     arm(led, now_us);
-    for (int which = 0; which < 2; which++) {
-        if (changed[which] && led->changed) {
-            led->changed(led, (co_led_which_t)which, led->on[which], led->pattern[which],
-                         led->user);
+    /* a LED going dark is told before one lighting up, so a bi-colour LED
+     * driven from the indication never shows both colours at once */
+    for (int lit = 0; lit < 2; lit++) {
+        for (int which = 0; which < 2; which++) {
+            if (changed[which] && led->on[which] == (lit != 0) && led->changed) {
+                led->changed(led, (co_led_which_t)which, led->on[which], led->pattern[which],
+                             led->user);
+            }
         }
     }
 }

@@ -191,6 +191,11 @@ typedef struct rt_sync {
     bool events;                             /* Python hears every SYNC */
 } rt_sync_t;
 
+/* LED glue (co_rt_led.c). */
+typedef struct rt_led {
+    bool events;                             /* Python hears every LED change */
+} rt_led_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -228,6 +233,7 @@ typedef struct rt_line {
     rt_sync_t sync;
     rt_socket_t sc;
     rt_host_t host;
+    rt_led_t led;
 } rt_line_t;
 
 /* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
@@ -531,5 +537,9 @@ uint32_t rt_pdo_watched_frames(const rt_line_t *l);
 bool rt_rpdo_out_line_init(rt_line_t *l);
 /* co_rt_sync.c: after the stack, Python hears SYNC through a listener. */
 bool rt_sync_line_init(rt_line_t *l);
+/* co_rt_led.c: the node's LED indication (user = the rt_line_t), given to
+ * co_stack at node creation while Python listens. */
+void rt_led_changed(co_led_t *led, co_led_which_t which, bool on, co_led_pattern_t pattern,
+                    void *user);
 
 #endif
