@@ -405,6 +405,22 @@ static void on_guard(co_stack_t *s, uint8_t node_id, co_guard_event_t event,
 static const co_stack_indications_t tool_ind = {.heartbeat = on_heartbeat, .emcy = on_emcy,
                                                 .guard = on_guard};
 
+/* The device's CiA 303-3 LEDs: every change names a LED and a pattern the
+ * LED really shows, its lit state is the timeline's, and the LED tick runs
+ * only while a pattern is not steady. */
+static void on_led(co_led_t *led, co_led_which_t which, bool on, co_led_pattern_t pattern,
+                   void *user)
+{
+    (void)user;
+    CHECK(which == CO_LED_RUN || which == CO_LED_ERROR, "LED indication for no LED");
+    CHECK(pattern >= CO_LED_OFF && pattern <= CO_LED_QUADRUPLE_FLASH &&
+          co_led_pattern(led, which) == pattern, "LED indication with a foreign pattern");
+    CHECK(co_led_is_on(led, which) == on, "LED indication off the pattern's timeline");
+    bool steady = (co_led_pattern(led, CO_LED_RUN) <= CO_LED_ON) &&
+                  (co_led_pattern(led, CO_LED_ERROR) <= CO_LED_ON);
+    CHECK(!steady || !co_timer_is_armed(&led->timer), "LED tick runs with both LEDs steady");
+}
+
 /* ------------------------------------------------------------ client slots */
 
 static slot_t *slot_of(void *user)
@@ -931,7 +947,7 @@ static void build(const fw_config_t *cfg)
     CHECK(co_stack_init(&W.dev, &W.dev_line.line, &dl, co_stack_arena_allocator(&W.dev_arena)) ==
           CO_STACK_OK, "device stack");
     co_stack_node_config_t nc = {.node_id = FW_NODE, .od = &W.od, .store_backend = &mem_ops,
-                                 .server_sessions = 4};
+                                 .server_sessions = 4, .leds = true, .led_changed = on_led};
     CHECK(co_stack_node_init(&W.dev, &nc) == CO_STACK_OK, "device node");
     if (cfg->device_client && cfg->mode == CO_MODE_CLASSIC) {
         co_stack_client_config_t dc = {.sessions = 2};
