@@ -742,6 +742,23 @@ static void store(fz_reader_t *r)
     }
 }
 
+/* b bit 7: LSS configuration in progress (bit 0) or not; else the cause
+ * bits of b's low 6 bits take those of the next byte. */
+static void led_input(fz_reader_t *r)
+{
+    uint8_t b = fz_u8(r);
+    co_led_t *led = co_stack_led(&W.dev);
+    if (!led) {
+        return;
+    }
+    co_line_set_time(&W.dev_line.line, W.now);
+    if (b & 0x80u) {
+        co_led_set_lss(led, (b & 1u) != 0);
+    } else {
+        co_led_set_causes(led, (uint8_t)(b & 0x3Fu), fz_u8(r));
+    }
+}
+
 static void action(uint8_t p, fz_reader_t *r)
 {
     if (W.cfg->action_count == 0) {
@@ -761,6 +778,7 @@ static void action(uint8_t p, fz_reader_t *r)
     case FW_TIME_SEND: time_send(r); break;
     case FW_WATCH: watch(r); break;
     case FW_STORE: store(r); break;
+    case FW_LED: led_input(r); break;
     default: break;
     }
 }
