@@ -98,9 +98,10 @@ static uint32_t tick_at(const co_led_t *led, uint64_t now_us)
     return (uint32_t)(ticks % (uint64_t)CO_LED_CYCLE_TICKS);
 }
 
-/* The timer runs while a pattern is not steady and someone listens; it
- * fires on the timebase's 50 ms boundaries (the next one after now, so a
- * late call does not fire a burst of catch-up ticks). */
+/* The timer runs while a pattern is not steady and someone listens. It
+ * fires on the timebase's 50 ms grid, at the next tick where a LED changes
+ * (a blinking LED wakes the line 5 times a second, not 20), and always
+ * after now, so a late call does not fire a burst of catch-up ticks. */
 static void arm(co_led_t *led, uint64_t now_us)
 {
     co_timer_list_t *timers = co_line_timers(led->line);
@@ -109,9 +110,26 @@ static void arm(co_led_t *led, uint64_t now_us)
         return;
     }
     uint64_t elapsed = now_us > led->timebase_us ? now_us - led->timebase_us : 0;
-    uint64_t next = led->timebase_us +
-                    (elapsed / (uint64_t)CO_LED_TICK_US + 1u) * (uint64_t)CO_LED_TICK_US;
-    co_timer_start(timers, &led->timer, next);
+    uint64_t tick = elapsed / (uint64_t)CO_LED_TICK_US;
+    uint32_t at = (uint32_t)(tick % (uint64_t)CO_LED_CYCLE_TICKS);
+    bool now_lit[2];
+    for (int which = 0; which < 2; which++) {
+        now_lit[which] = co_led_lit(led->pattern[which], (co_led_which_t)which,
+                                    led->same_phase, at);
+    }
+    uint32_t ahead = 1;
+    for (; ahead < (uint32_t)CO_LED_CYCLE_TICKS; ahead++) {
+        bool change = false;
+        for (int which = 0; which < 2; which++) {
+            change |= co_led_lit(led->pattern[which], (co_led_which_t)which, led->same_phase,
+                                 at + ahead) != now_lit[which];
+        }
+        if (change) {
+            break;
+        }
+    }
+    co_timer_start(timers, &led->timer,
+                   led->timebase_us + (tick + ahead) * (uint64_t)CO_LED_TICK_US);
 }
 
 /* Recompute both LEDs at now_us and tell what changed (all state is

@@ -275,10 +275,13 @@ static void test_steady_patterns_stop_the_timer(void **state)
     assert_int_equal(w->rec.log[1].which, CO_LED_ERROR);
     assert_true(w->rec.log[1].on);
 
-    /* pre-operational blinks: the 50 ms tick runs, until operational again */
+    /* pre-operational blinks: the timer runs, armed for the next change only
+     * (the run LED, a slot behind, lights at 200 ms), until operational again */
     at(w, 1000);
     co_led_set_nmt_state(&w->led, CO_NMT_PRE_OPERATIONAL);
-    assert_int_equal(co_timer_list_next(timers), 1050 * TU_MS);
+    assert_int_equal(co_timer_list_next(timers), 1200 * TU_MS);
+    at(w, 1200);
+    assert_int_equal(co_timer_list_next(timers), 1400 * TU_MS);
     at(w, 1330);
     size_t before = w->rec.count;
     co_led_set_nmt_state(&w->led, CO_NMT_OPERATIONAL);
@@ -302,10 +305,34 @@ static void test_steady_patterns_stop_the_timer(void **state)
     assert_false(co_led_is_on(&w->led, CO_LED_ERROR));
     co_line_set_time(&w->line.line, 6200 * TU_MS);
     assert_true(co_led_is_on(&w->led, CO_LED_ERROR));
-    /* an indication set again starts the tick at the next timebase boundary */
+    /* an indication set again arms the timer for the next change on the
+     * timebase's grid: the flash lit at 6200 ends at 6400 */
     co_line_set_time(&w->line.line, 6210 * TU_MS);
     co_led_set_indication(&w->led, record, &w->rec);
-    assert_int_equal(co_timer_list_next(timers), 6250 * TU_MS);
+    assert_int_equal(co_timer_list_next(timers), 6400 * TU_MS);
+    world_free(w);
+}
+
+/* The timer wakes the line only where a LED changes: every 50 ms while
+ * flickering, at each edge of a flash pattern (a quadruple flash: 8 edges
+ * in 2.4 s). */
+static void test_timer_fires_at_changes_only(void **state)
+{
+    (void)state;
+    world_t *w = world_new(false);
+    co_led_set_cause(&w->led, CO_LED_CAUSE_EVENT_TIMER, true);
+    uint32_t fired = 0;
+    for (uint64_t next; (next = co_timer_list_next(co_line_timers(&w->line.line))) <=
+                        2400 * TU_MS;) {
+        (void)co_line_process(&w->line.line, next);
+        fired++;
+    }
+    assert_int_equal(fired, 8);   /* lit at 0 (told at once), then 8 edges up to 2400 */
+    assert_int_equal(w->rec.count, 9);
+    co_led_set_lss(&w->led, true);
+    co_line_set_time(&w->line.line, 2400 * TU_MS);
+    uint64_t next = co_timer_list_next(co_line_timers(&w->line.line));
+    assert_int_equal(next, 2450 * TU_MS);
     world_free(w);
 }
 
@@ -415,7 +442,8 @@ static void test_late_processing(void **state)
     world_t *w = world_new(false);
     co_led_set_cause(&w->led, CO_LED_CAUSE_CONFIG, true);
     assert_int_equal(w->rec.count, 1);                    /* lit at 0 */
-    (void)co_line_process(&w->line.line, 780 * TU_MS);   /* due at 50 */
+    assert_int_equal(co_timer_list_next(co_line_timers(&w->line.line)), 200 * TU_MS);
+    (void)co_line_process(&w->line.line, 780 * TU_MS);   /* due at 200 */
     /* 780 ms: slot 3, dark: one change, not one per missed tick */
     assert_int_equal(w->rec.count, 2);
     assert_false(w->rec.log[1].on);
@@ -580,6 +608,7 @@ int main(void)
         cmocka_unit_test(test_error_led_timelines),
         cmocka_unit_test(test_run_led_timelines),
         cmocka_unit_test(test_steady_patterns_stop_the_timer),
+        cmocka_unit_test(test_timer_fires_at_changes_only),
         cmocka_unit_test(test_precedence),
         cmocka_unit_test(test_phase_alignment),
         cmocka_unit_test(test_late_processing),

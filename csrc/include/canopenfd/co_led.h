@@ -12,8 +12,9 @@
  *              error control event: double flash > warning limit (or error
  *              passive): single flash > invalid configuration: blinking > off
  *
- * Timing (a 50 ms tick on the line's timer list, running only while some
- * pattern is not steady): flickering 50 ms on / 50 ms off (the two LEDs in
+ * Timing (a timer on the line's timer list, on a 50 ms grid, armed for the
+ * next tick where a LED changes and only while some pattern is not steady
+ * and an indication listens): flickering 50 ms on / 50 ms off (the two LEDs in
  * antiphase); blinking 200 ms on / 200 ms off; an n-flash is n flashes of
  * 200 ms with 200 ms between them, then 1000 ms off. Both LEDs follow one
  * timebase started when the first non-steady pattern appears, so their
