@@ -108,6 +108,7 @@ static void forget_detected_errors(co_node_t *node)
     memset(node->hb_lost, 0, sizeof node->hb_lost);
     node->life_lost = false;
     node->sync_length_error = false;
+    node->sync_timeout = false;
 }
 
 static bool bits_any(const uint8_t *map, size_t size)
@@ -132,7 +133,7 @@ static void led_show_errors(co_node_t *node)
     if (node->life_lost || bits_any(node->hb_lost, sizeof node->hb_lost)) {
         active |= CO_LED_CAUSE_ERROR_CONTROL;
     }
-    if (node->sync_length_error) {
+    if (node->sync_length_error || node->sync_timeout) {
         active |= CO_LED_CAUSE_SYNC;
     }
     if (bits_any(node->rpdo_late, sizeof node->rpdo_late)) {
@@ -299,6 +300,15 @@ static void on_sync_error(co_sync_t *sync, uint16_t code, uint8_t length, void *
     }
 }
 
+/* SYNC consumer monitoring: shown on the error LED only (no EMCY). */
+static void on_sync_timeout(co_sync_t *sync, bool timed_out, void *user)
+{
+    (void)sync;
+    co_node_t *node = user;
+    node->sync_timeout = timed_out;
+    led_show_errors(node);
+}
+
 /* The node's record of which RPDOs are in error `code`. */
 static uint8_t *rpdo_error_map(co_node_t *node, uint16_t code)
 {
@@ -371,6 +381,10 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
         (void)co_sync_add_listener(services->sync, on_sync, node);
         co_sync_set_window_indication(services->sync, on_sync_window, node);
         co_sync_set_error_indication(services->sync, on_sync_error, node);
+        if (services->led) {
+            /* only the LED shows it: no monitoring timer without one */
+            co_sync_set_timeout_indication(services->sync, on_sync_timeout, node);
+        }
     }
     services_set_state(node, node->nmt.state);
 }
@@ -512,6 +526,7 @@ void co_node_deinit(co_node_t *node)
         co_sync_remove_listener(node->services.sync, on_sync, node);
         co_sync_set_window_indication(node->services.sync, NULL, NULL);
         co_sync_set_error_indication(node->services.sync, NULL, NULL);
+        co_sync_set_timeout_indication(node->services.sync, NULL, NULL);
     }
     memset(&node->services, 0, sizeof node->services);
     if (node->od) {

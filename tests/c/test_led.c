@@ -454,6 +454,106 @@ static void test_late_processing(void **state)
     world_free(w);
 }
 
+/* ------------------------------------------------------------ SYNC timeout */
+
+typedef struct timeouts {
+    uint64_t t_ms[16];
+    bool value[16];
+    int count;
+    const co_line_t *line;
+} timeouts_t;
+
+static void on_timeout(co_sync_t *sync, bool timed_out, void *user)
+{
+    (void)sync;
+    timeouts_t *t = user;
+    assert_true(t->count < 16);
+    t->t_ms[t->count] = co_line_now(t->line) / TU_MS;
+    t->value[t->count++] = timed_out;
+}
+
+static void sync_frame_at(tu_line_t *l, uint64_t t_ms)
+{
+    co_frame_t f = {.id = 0x80, .len = 0};
+    for (uint64_t next; (next = co_timer_list_next(co_line_timers(&l->line))) <= t_ms * TU_MS;) {
+        (void)co_line_process(&l->line, next);
+    }
+    assert_true(co_line_receive(&l->line, &f));
+    (void)co_line_process(&l->line, t_ms * TU_MS);
+}
+
+static void run_line(tu_line_t *l, uint64_t t_ms)
+{
+    for (uint64_t next; (next = co_timer_list_next(co_line_timers(&l->line))) <= t_ms * TU_MS;) {
+        (void)co_line_process(&l->line, next);
+    }
+    co_line_set_time(&l->line, t_ms * TU_MS);
+}
+
+/* The SYNC consumer's monitoring: from the first SYNC, 1.5 x 0x1006; over
+ * at the next SYNC, when the node leaves pre-operational/operational or the
+ * period changes; none for a producer or without 0x1006. */
+static void test_sync_consumer_timeout(void **state)
+{
+    (void)state;
+    tu_line_t *l = calloc(1, sizeof *l);
+    co_sync_t *sync = calloc(1, sizeof *sync);
+    timeouts_t t = {.line = &l->line};
+    assert_non_null(l);
+    assert_non_null(sync);
+    tu_line_init(l, CO_MODE_CLASSIC, false);
+    co_line_set_time(&l->line, 0);
+    assert_true(co_sync_init(sync, &l->line));
+    co_sync_config_t consume = {.cob_id = 0x80, .period_us = 100000};
+    co_sync_configure(sync, &consume);
+    co_sync_set_nmt_state(sync, CO_NMT_PRE_OPERATIONAL);
+    co_sync_set_timeout_indication(sync, on_timeout, &t);
+    run_line(l, 1000);
+    assert_int_equal(t.count, 0);              /* nothing before the first SYNC */
+    sync_frame_at(l, 1000);
+    sync_frame_at(l, 1140);                     /* in time */
+    run_line(l, 1289);
+    assert_int_equal(t.count, 0);
+    run_line(l, 1290);                          /* 1140 + 150 */
+    assert_int_equal(t.count, 1);
+    assert_int_equal(t.t_ms[0], 1290);
+    assert_true(t.value[0]);
+    run_line(l, 3000);
+    assert_int_equal(t.count, 1);               /* told once */
+    sync_frame_at(l, 3000);
+    assert_int_equal(t.count, 2);
+    assert_false(t.value[1]);
+    run_line(l, 3150);
+    assert_int_equal(t.count, 3);
+    /* stopped: monitoring ends, the timeout with it */
+    co_sync_set_nmt_state(sync, CO_NMT_STOPPED);
+    assert_int_equal(t.count, 4);
+    assert_false(t.value[3]);
+    co_sync_set_nmt_state(sync, CO_NMT_OPERATIONAL);
+    run_line(l, 5000);
+    assert_int_equal(t.count, 4);
+    /* a new period restarts monitoring at the next SYNC */
+    sync_frame_at(l, 5000);
+    consume.period_us = 200000;
+    co_sync_configure(sync, &consume);
+    run_line(l, 5400);
+    assert_int_equal(t.count, 4);
+    sync_frame_at(l, 5400);
+    run_line(l, 5700);
+    assert_int_equal(t.count, 5);
+    assert_int_equal(t.t_ms[4], 5700);
+    /* a producer does not monitor; changing to one ends the timeout */
+    co_sync_config_t produce = {.cob_id = 0x80 | CO_SYNC_PRODUCER_BIT, .period_us = 100000};
+    co_sync_configure(sync, &produce);
+    assert_int_equal(t.count, 6);
+    assert_false(t.value[5]);
+    run_line(l, 8000);
+    assert_int_equal(t.count, 6);
+    co_sync_deinit(sync);
+    free(sync);
+    free(l);
+}
+
 /* ------------------------------------------------------------ the stack */
 
 typedef struct stack_fx {
@@ -585,6 +685,43 @@ static void test_stack_wiring(void **state)
     tu_run_until(&fx->tb, 1700 * TU_MS);
     assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_OFF);
 
+    /* SYNC: the peer produces every 100 ms, the device consumes with 0x1006
+     * = 100 ms; the peer stops: 150 ms after its last SYNC the error LED
+     * triple-flashes; SYNC again: off. A wrong length is a SYNC error too. */
+    co_sync_config_t produce = {.cob_id = 0x80u | CO_SYNC_PRODUCER_BIT, .period_us = 100000};
+    co_sync_config_t consume = {.cob_id = 0x80u, .period_us = 100000};
+    co_sync_configure(co_stack_sync(&fx->dev), &consume);
+    co_line_set_time(&fx->peer_line.line, fx->tb.now);
+    co_sync_configure(co_stack_sync(&fx->peer), &produce);
+    tu_run_until(&fx->tb, 2000 * TU_MS);
+    assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_OFF);
+    uint64_t last_sync = 1700 + 300;   /* the peer's SYNCs: 1800, 1900, 2000 */
+    produce.period_us = 0;
+    co_sync_configure(co_stack_sync(&fx->peer), &produce);
+    tu_run_until(&fx->tb, (last_sync + 149) * TU_MS);
+    assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_OFF);
+    tu_run_until(&fx->tb, (last_sync + 150) * TU_MS);
+    assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_TRIPLE_FLASH);
+    c = last_change(&fx->rec, CO_LED_ERROR);
+    assert_int_equal(c->t_ms, last_sync + 150);
+    assert_int_equal(co_led_causes(led), CO_LED_CAUSE_SYNC);
+    produce.period_us = 100000;
+    co_line_set_time(&fx->peer_line.line, fx->tb.now);
+    co_sync_configure(co_stack_sync(&fx->peer), &produce);
+    tu_run_until(&fx->tb, (last_sync + 260) * TU_MS);
+    assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_OFF);
+    /* a SYNC of 2 bytes (this node without OD takes 0 or 1: a tool's rule) */
+    produce.period_us = 0;
+    co_sync_configure(co_stack_sync(&fx->peer), &produce);
+    co_line_set_time(&fx->peer_line.line, fx->tb.now);
+    assert_true(co_line_send(&fx->peer_line.line, 0x80, (const uint8_t[]){1, 2}, 2));
+    tu_step(&fx->tb, fx->tb.now);
+    assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_TRIPLE_FLASH);
+    co_sync_configure(co_stack_sync(&fx->dev), &(co_sync_config_t){.cob_id = 0x80u});
+    assert_true(co_line_send(&fx->peer_line.line, 0x80, NULL, 0));
+    tu_step(&fx->tb, fx->tb.now);
+    assert_int_equal(co_led_pattern(led, CO_LED_ERROR), CO_LED_OFF);
+
     /* LSS (the slave calls this): both flicker */
     co_led_set_lss(led, true);
     assert_int_equal(co_led_pattern(led, CO_LED_RUN), CO_LED_FLICKERING);
@@ -612,6 +749,7 @@ int main(void)
         cmocka_unit_test(test_precedence),
         cmocka_unit_test(test_phase_alignment),
         cmocka_unit_test(test_late_processing),
+        cmocka_unit_test(test_sync_consumer_timeout),
         cmocka_unit_test(test_stack_wiring),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

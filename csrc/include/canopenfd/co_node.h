@@ -85,6 +85,7 @@ struct co_node {
     bool sync_length_error;                     /* 0x8240 */
     bool overrun_told;                          /* 0x8110 sent at overrun_told_us */
     uint64_t overrun_told_us;
+    bool sync_timeout;                          /* no SYNC within 1.5 x 0x1006 (LED) */
 };
 
 extern const co_pdo_indications_t co_node_pdo_indications;
