@@ -133,3 +133,28 @@ def test_removing_the_last_callback_stops_the_events(net, bus_name):
     count = len(leds)
     time.sleep(scaled(0.6))
     assert len(leds) == count
+
+
+def test_sync_timeout_triple_flashes_the_error_led(net, bus_name):
+    from canopenfd.od import DataType, ODVariable, demo_od
+
+    od = demo_od("fd")
+    od.add_object(ODVariable("COB-ID SYNC message", 0x1005, 0, DataType.UNSIGNED32, "rw", 0x80))
+    od.add_object(ODVariable("Communication cycle period", 0x1006, 0, DataType.UNSIGNED32,
+                             "rw", 0))
+    line = net.open_line(bus_name, mode="fd")
+    node = line.create_local_node(NODE, od=od)
+    node[0x1006].raw = 50_000                  # a SYNC is expected every 50 ms
+    producer = net.open_line(bus_name, mode="fd")
+    producer.sync.start(0.05)
+    leds = Recorder()
+    node.on_led(leds)
+    time.sleep(scaled(0.3))
+    assert node.leds.error.pattern == "off"
+    producer.sync.stop()                       # 75 ms after the last SYNC: a SYNC error
+    leds.wait_for(lambda calls: ("error", True, "triple_flash") in calls, timeout=scaled(5))
+    assert node.leds.causes == frozenset({"sync"})
+    mark = len(leds)
+    producer.sync.start(0.05)
+    leds.wait_for(lambda calls: ("error", False, "off") in calls[mark:], timeout=scaled(5))
+    assert node.leds.causes == frozenset()
