@@ -28,6 +28,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_line.h",
     "csrc/include/canopenfd/co_nmt.h",
     "csrc/include/canopenfd/co_hb.h",
+    "csrc/include/canopenfd/co_led.h",
     "csrc/include/canopenfd/co_od.h",
     "csrc/include/canopenfd/co_store.h",
     "csrc/include/canopenfd/co_usdo.h",

@@ -18,6 +18,7 @@ from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
 from .services.flyma import FlyingMaster
 from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
+from .services.leds import LedStates, LocalLeds
 from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtCommand,
                            NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
@@ -70,6 +71,7 @@ class LocalNode:
         self._emcy = EmcyProducer(context, self, self._served, where)
         #: Flying master (CiA 302-2): start() once the node booted.
         self.flying_master = FlyingMaster(context, where)
+        self._leds = LocalLeds(context, self, where)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         if od is not None:
@@ -291,6 +293,31 @@ class LocalNode:
         """The node's EMCY producer: `raise_error(code, ...)`, `clear(code)`,
         `error_register`, `active`, `history` (see canopenfd.services.emcy)."""
         return self._emcy
+
+    # ---------------------------------------------------------------- LEDs (CiA 303-3)
+    def on_led(self, callback: Callable[[str, bool, str], None]
+               ) -> Callable[[str, bool, str], None]:
+        """callback(led, on, pattern) for every change of the node's CiA 303-3
+        indicators: led 'run' (green) or 'error' (red), on: lit now, pattern
+        'off', 'on', 'flickering', 'blinking', 'single_flash', 'double_flash',
+        'triple_flash' or 'quadruple_flash'. Enough to drive two GPIOs; the
+        stack times the patterns (see canopenfd.services.leds)."""
+        return self._leds.add_callback(callback)
+
+    def remove_led_callback(self, callback: Callable[[str, bool, str], None]) -> None:
+        """Forget an on_led callback (without any, no LED events are posted)."""
+        self._leds.remove_callback(callback)
+
+    @property
+    def leds(self) -> LedStates:
+        """What the LEDs show now: `leds.run.pattern`, `leds.error.on`,
+        `leds.causes` (the error causes active)."""
+        return self._leds.states
+
+    def set_configuration_error(self, active: bool) -> None:
+        """Show "invalid configuration" on the error LED (blinking) until
+        set_configuration_error(False); communication errors take precedence."""
+        self._leds.set_configuration_error(active)
 
 
 class RemoteNode:

@@ -32,6 +32,7 @@ __all__ = [
     "FlymaAction", "FlymaEvent", "FlymaState",
     "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
     "SleepPhase", "StoreStatus", "C_ENUMS", "c_members",
+    "LedPattern", "LedWhich", "LedCause",
 ]
 
 
@@ -100,6 +101,13 @@ FlymaEvent = _c_enum("FlymaEvent", "CO_FLYMA_EV_", "co_flyma_event_t",
                      doc="What the flying master reports (co_flyma_event_t).")
 FlymaAction = _c_enum("FlymaAction", "CO_RT_FLYMA_", "co_rt_flyma_action_t",
                       doc="What the application asks of the flying master.")
+# ---------------------------------------------------------------- LED indicators (CiA 303-3)
+LedPattern = _c_enum("LedPattern", "CO_LED_", "co_led_pattern_t",
+                     doc="What a CiA 303-3 LED shows (co_led_pattern_t).")
+LedWhich = _c_enum("LedWhich", "CO_LED_", "co_led_which_t",
+                   doc="The run (green) and error (red) LEDs (co_led_which_t).")
+LedCause = _c_enum("LedCause", "CO_LED_CAUSE_", "co_led_cause_t",
+                   doc="What the error LED shows, one bit each (co_led_cause_t).")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

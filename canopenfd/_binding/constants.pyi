@@ -35,6 +35,9 @@ __all__ = [
     "StoreStatus",
     "C_ENUMS",
     "c_members",
+    "LedPattern",
+    "LedWhich",
+    "LedCause",
 ]
 
 _NOT_IN_CDEF: Dict[str, Tuple[str, Dict[str, int]]]
@@ -140,6 +143,7 @@ class EventKind(enum.IntEnum):
     TIME = 17
     GUARD = 18
     PDO_FRAME = 19
+    LED = 20
     SLEEP = 24
     FLYMA = 25
 
@@ -302,3 +306,31 @@ class StoreStatus(enum.IntEnum):
     FOREIGN = 3
     IO = 4
     TOO_BIG = 5
+
+
+class LedPattern(enum.IntEnum):
+    """What a CiA 303-3 LED shows (co_led_pattern_t)."""
+    OFF = 0
+    ON = 1
+    FLICKERING = 2
+    BLINKING = 3
+    SINGLE_FLASH = 4
+    DOUBLE_FLASH = 5
+    TRIPLE_FLASH = 6
+    QUADRUPLE_FLASH = 7
+
+
+class LedWhich(enum.IntEnum):
+    """The run (green) and error (red) LEDs (co_led_which_t)."""
+    RUN = 0
+    ERROR = 1
+
+
+class LedCause(enum.IntEnum):
+    """What the error LED shows, one bit each (co_led_cause_t)."""
+    BUS_OFF = 1
+    WARNING = 2
+    ERROR_CONTROL = 4
+    SYNC = 8
+    EVENT_TIMER = 16
+    CONFIG = 32

@@ -535,6 +535,19 @@ class Runtime:
     def sync_listen(self, line: int, listen: bool, what: str) -> None:
         self._call(what, lib.co_rt_sync_listen, line, int(listen))
 
+    def led_listen(self, line: int, listen: bool, what: str) -> None:
+        self._call(what, lib.co_rt_led_listen, line, int(listen))
+
+    def led_state(self, line: int, what: str) -> Tuple[Tuple[int, int], Tuple[bool, bool], int]:
+        """((run pattern, error pattern), (run lit, error lit), cause bits)."""
+        out = ffi.new("co_rt_led_state_t *")
+        self._call(what, lib.co_rt_led_state, line, out)
+        return ((int(out.pattern[0]), int(out.pattern[1])),
+                (bool(out.on[0]), bool(out.on[1])), int(out.causes))
+
+    def led_causes(self, line: int, mask: int, active: int, what: str) -> None:
+        self._call(what, lib.co_rt_led_causes, line, mask, active)
+
     def time_send(self, line: int, unix_us: int, what: str) -> None:
         self._call(what, lib.co_rt_time_send, line, unix_us)
 

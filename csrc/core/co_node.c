@@ -25,6 +25,9 @@ static void services_set_state(co_node_t *node, co_nmt_state_t state)
     if (s->server && s->server_state) {
         s->server_state(s->server, state);
     }
+    if (s->led) {
+        co_led_set_nmt_state(s->led, state);
+    }
 }
 
 static void on_state_changed(co_nmt_t *nmt, co_nmt_state_t old_state,
@@ -105,6 +108,7 @@ static void forget_detected_errors(co_node_t *node)
     memset(node->hb_lost, 0, sizeof node->hb_lost);
     node->life_lost = false;
     node->sync_length_error = false;
+    node->sync_timeout = false;
 }
 
 static bool bits_any(const uint8_t *map, size_t size)
@@ -115,6 +119,35 @@ static bool bits_any(const uint8_t *map, size_t size)
         }
     }
     return false;
+}
+
+/* The error LED shows the causes the node tracks (bus-off and warning come
+ * straight from co_node_comm_event). */
+static void led_show_errors(co_node_t *node)
+{
+    co_led_t *led = node->services.led;
+    if (!led) {
+        return;
+    }
+    uint8_t active = 0;
+    if (node->life_lost || bits_any(node->hb_lost, sizeof node->hb_lost)) {
+        active |= CO_LED_CAUSE_ERROR_CONTROL;
+    }
+    if (node->sync_length_error || node->sync_timeout) {
+        active |= CO_LED_CAUSE_SYNC;
+    }
+    if (bits_any(node->rpdo_late, sizeof node->rpdo_late)) {
+        active |= CO_LED_CAUSE_EVENT_TIMER;
+    }
+    co_led_set_causes(led, CO_LED_CAUSE_ERROR_CONTROL | CO_LED_CAUSE_SYNC |
+                               CO_LED_CAUSE_EVENT_TIMER, active);
+}
+
+static void led_cause(co_node_t *node, uint8_t cause, bool active)
+{
+    if (node->services.led) {
+        co_led_set_cause(node->services.led, cause, active);
+    }
 }
 
 /* The stack's own errors use CiA 301's code table; info (a node-id, a PDO
@@ -171,6 +204,7 @@ void co_node_heartbeat_event(co_node_t *node, uint8_t node_id, bool lost)
     } else {
         life_guard_changed(node);
     }
+    led_show_errors(node);
 }
 
 void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, void *user)
@@ -185,22 +219,31 @@ void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, vo
         node->life_lost = false;
         life_guard_changed(node);
     }
+    led_show_errors(node);
 }
 
 void co_node_comm_event(co_node_t *node, co_comm_event_t event)
 {
     switch (event) {
     case CO_COMM_BUS_OFF:
+        led_cause(node, CO_LED_CAUSE_BUS_OFF, true);
         raise_error(node, CO_NODE_EMCY_BUS_OFF, 0);   /* goes out after recovery */
         co_node_error_behaviour(node, 1);
         break;
     case CO_COMM_BUS_OFF_RECOVERED:
+        /* a controller back from bus-off starts with its error counters at 0 */
+        led_cause(node, CO_LED_CAUSE_BUS_OFF | CO_LED_CAUSE_WARNING, false);
         clear_error(node, CO_NODE_EMCY_BUS_OFF);
         break;
+    case CO_COMM_ERROR_WARNING:
+        led_cause(node, CO_LED_CAUSE_WARNING, true);
+        break;
     case CO_COMM_ERROR_PASSIVE:
+        led_cause(node, CO_LED_CAUSE_WARNING, true);
         raise_error(node, CO_NODE_EMCY_ERROR_PASSIVE, 0);
         break;
     case CO_COMM_ERROR_ACTIVE:
+        led_cause(node, CO_LED_CAUSE_BUS_OFF | CO_LED_CAUSE_WARNING, false);
         clear_error(node, CO_NODE_EMCY_ERROR_PASSIVE);
         clear_error(node, CO_NODE_EMCY_BUS_OFF);
         break;
@@ -230,6 +273,7 @@ static void on_sync(uint8_t counter, void *user)
     if (node->sync_length_error) {
         node->sync_length_error = false;   /* a SYNC of the right length came */
         clear_error(node, CO_SYNC_EMCY_LENGTH);
+        led_show_errors(node);
     }
     if (node->services.pdo) {
         co_pdo_sync(node->services.pdo, counter);
@@ -252,7 +296,17 @@ static void on_sync_error(co_sync_t *sync, uint16_t code, uint8_t length, void *
     if (!node->sync_length_error) {
         node->sync_length_error = true;
         raise_error(node, code, length);
+        led_show_errors(node);
     }
+}
+
+/* SYNC consumer monitoring: shown on the error LED only (no EMCY). */
+static void on_sync_timeout(co_sync_t *sync, bool timed_out, void *user)
+{
+    (void)sync;
+    co_node_t *node = user;
+    node->sync_timeout = timed_out;
+    led_show_errors(node);
 }
 
 /* The node's record of which RPDOs are in error `code`. */
@@ -293,6 +347,7 @@ static void on_rpdo_error_changed(co_pdo_t *pdo, uint16_t number, uint16_t code,
     } else if (!bits_any(map, CO_NODE_PDO_BITMAP)) {
         clear_error(node, code);
     }
+    led_show_errors(node);
 }
 
 static void on_pdo_received(co_pdo_t *pdo, uint16_t number, void *user)
@@ -330,6 +385,10 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
         (void)co_sync_add_listener(services->sync, on_sync, node);
         co_sync_set_window_indication(services->sync, on_sync_window, node);
         co_sync_set_error_indication(services->sync, on_sync_error, node);
+        if (services->led) {
+            /* only the LED shows it: no monitoring timer without one */
+            co_sync_set_timeout_indication(services->sync, on_sync_timeout, node);
+        }
     }
     services_set_state(node, node->nmt.state);
 }
@@ -361,6 +420,7 @@ static void services_reset(co_node_t *node)
         clear_error(node, own[i]);
     }
     forget_detected_errors(node);
+    led_show_errors(node);
 }
 
 static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
@@ -479,6 +539,7 @@ void co_node_deinit(co_node_t *node)
         co_sync_remove_listener(node->services.sync, on_sync, node);
         co_sync_set_window_indication(node->services.sync, NULL, NULL);
         co_sync_set_error_indication(node->services.sync, NULL, NULL);
+        co_sync_set_timeout_indication(node->services.sync, NULL, NULL);
     }
     memset(&node->services, 0, sizeof node->services);
     if (node->od) {

@@ -443,6 +443,10 @@ static void node_undo(co_stack_t *s)
         co_node_deinit(&s->node);
         s->has_node = false;
     }
+    if (s->has_led) {
+        co_led_deinit(&s->led);
+        s->has_led = false;
+    }
     s->od = NULL;
     give_back(s, OWNER_NODE);
 }
@@ -567,7 +571,8 @@ static void usdo_server_state(void *server, co_nmt_state_t state)
 static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_config_t *c,
                                           const node_sizes_t *n)
 {
-    co_node_services_t services = {.sync = &s->sync, .time = &s->time};
+    co_node_services_t services = {.sync = &s->sync, .time = &s->time,
+                                   .led = s->has_led ? &s->led : NULL};
     co_stack_status_t status = s->od ? start_od_parts(s, c, n) : CO_STACK_OK;
     if (status == CO_STACK_OK) {
         status = start_emcy(s, n);
@@ -619,6 +624,9 @@ co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_conf
     if (config->od && !config->od->sealed) {
         return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
     }
+    if ((config->led_changed || config->led_same_phase) && !config->leds) {
+        return fail(s, CO_STACK_PART_LED, CO_STACK_ERR_ARGUMENT);
+    }
     node_sizes_t n;
     if (config->od && (config->od->mode != co_line_mode(s->line) ||
                        !node_sizes(s->line, config, &n))) {
@@ -633,6 +641,13 @@ co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_conf
     }
     s->has_node = true;
     s->od = config->od;
+    if (config->leds) {
+        co_led_config_t led = {.same_phase = config->led_same_phase,
+                               .changed = config->led_changed,
+                               .user = config->user};
+        co_led_init(&s->led, s->line, &led);
+        s->has_led = true;
+    }
     co_stack_status_t status = start_node_parts(s, config, &n);
     if (status != CO_STACK_OK) {
         co_stack_part_t part = s->failed;
@@ -873,6 +888,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_CLIENT: return "SDO/USDO client";
     case CO_STACK_PART_SLEEP: return "sleep and wake-up";
     case CO_STACK_PART_FLYMA: return "flying master";
+    case CO_STACK_PART_LED: return "LED indicators";
     }
     return "unknown part";
 }

@@ -109,6 +109,53 @@ static void restart_producer(co_sync_t *s)
 
 /* ------------------------------------------------------------- consumer */
 
+static void on_timeout_timer(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    (void)timer;
+    (void)now_us;
+    co_sync_t *s = user;
+    s->timed_out = true;
+    if (s->on_timeout) {
+        s->on_timeout(s, true, s->timeout_user);
+    }
+}
+
+static bool monitoring(const co_sync_t *s)
+{
+    return s->on_timeout && s->nmt_active && !co_sync_is_producer(s) &&
+           s->config.period_us > 0;
+}
+
+/* Monitoring ends (or restarts at the next SYNC): a timeout told is over. */
+static void stop_monitoring(co_sync_t *s)
+{
+    co_timer_cancel(co_line_timers(s->line), &s->timeout_timer);
+    if (s->timed_out) {
+        s->timed_out = false;
+        if (s->on_timeout) {
+            s->on_timeout(s, false, s->timeout_user);
+        }
+    }
+}
+
+/* A SYNC was received: the next is due within 1.5 periods. */
+static void sync_received(co_sync_t *s)
+{
+    if (!monitoring(s)) {
+        return;
+    }
+    stop_monitoring(s);
+    uint64_t limit = (uint64_t)s->config.period_us + s->config.period_us / 2u;
+    co_timer_start(co_line_timers(s->line), &s->timeout_timer, co_line_now(s->line) + limit);
+}
+
+void co_sync_set_timeout_indication(co_sync_t *sync, co_sync_timeout_fn fn, void *user)
+{
+    stop_monitoring(sync);
+    sync->on_timeout = fn;
+    sync->timeout_user = user;
+}
+
 static void on_sync_frame(co_line_t *line, const co_frame_t *frame, void *user)
 {
     (void)line;
@@ -129,6 +176,7 @@ static void on_sync_frame(co_line_t *line, const co_frame_t *frame, void *user)
         return;
     }
     s->stats.received++;
+    sync_received(s);
     sync_event(s, expected ? frame->data[0] : 0);
 }
 
@@ -170,6 +218,7 @@ static void apply(co_sync_t *s, const co_sync_config_t *config)
     s->config = c;
     update_subscription(s);
     if (restart) {
+        stop_monitoring(s);   /* starts again at the next SYNC received */
         restart_producer(s);
     }
     if (new_window && s->window_open) {
@@ -192,6 +241,7 @@ bool co_sync_init(co_sync_t *sync, co_line_t *line)
     sync->next_counter = 1;
     co_timer_init(&sync->producer_timer, on_producer_timer, sync);
     co_timer_init(&sync->window_timer, on_window_timer, sync);
+    co_timer_init(&sync->timeout_timer, on_timeout_timer, sync);
     sync->config.cob_id = CO_SYNC_DEFAULT_COB_ID;
     update_subscription(sync);
     return sync->subscribed;
@@ -202,6 +252,9 @@ void co_sync_deinit(co_sync_t *sync)
     co_sync_detach_od(sync);
     co_timer_cancel(co_line_timers(sync->line), &sync->producer_timer);
     co_timer_cancel(co_line_timers(sync->line), &sync->window_timer);
+    co_timer_cancel(co_line_timers(sync->line), &sync->timeout_timer);
+    sync->timed_out = false;
+    sync->on_timeout = NULL;
     if (sync->subscribed) {
         co_line_unsubscribe(sync->line, on_sync_frame, sync);
         sync->subscribed = false;
@@ -246,6 +299,7 @@ void co_sync_set_nmt_state(co_sync_t *sync, co_nmt_state_t state)
     if (!active) {
         co_timer_cancel(co_line_timers(sync->line), &sync->window_timer);
         sync->window_open = false;
+        stop_monitoring(sync);
     }
     /* CiA: the counter is reset to 1 when the device leaves stopped. */
     restart_producer(sync);

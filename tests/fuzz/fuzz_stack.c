@@ -8,7 +8,8 @@ static const uint32_t ids[] = {0x000, 0x080, 0x100, 0x085, 0x185, 0x205, 0x305, 
                                0x605, 0x609, 0x705, 0x703, 0x6A5, 0x081};
 static const uint8_t actions[] = {FW_CLIENT_START, FW_CLIENT_CANCEL, FW_SPLIT_MODE, FW_RESUME,
                                   FW_NMT_LOCAL, FW_NMT_MASTER, FW_OD_WRITE, FW_OD_PUT,
-                                  FW_PDO_TRIGGER, FW_EMCY, FW_TIME_SEND, FW_WATCH, FW_STORE};
+                                  FW_PDO_TRIGGER, FW_EMCY, FW_TIME_SEND, FW_WATCH, FW_STORE,
+                                  FW_LED};
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

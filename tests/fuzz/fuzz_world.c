@@ -405,6 +405,22 @@ static void on_guard(co_stack_t *s, uint8_t node_id, co_guard_event_t event,
 static const co_stack_indications_t tool_ind = {.heartbeat = on_heartbeat, .emcy = on_emcy,
                                                 .guard = on_guard};
 
+/* The device's CiA 303-3 LEDs: every change names a LED and a pattern the
+ * LED really shows, its lit state is the timeline's, and the LED tick runs
+ * only while a pattern is not steady. */
+static void on_led(co_led_t *led, co_led_which_t which, bool on, co_led_pattern_t pattern,
+                   void *user)
+{
+    (void)user;
+    CHECK(which == CO_LED_RUN || which == CO_LED_ERROR, "LED indication for no LED");
+    CHECK(pattern >= CO_LED_OFF && pattern <= CO_LED_QUADRUPLE_FLASH &&
+          co_led_pattern(led, which) == pattern, "LED indication with a foreign pattern");
+    CHECK(co_led_is_on(led, which) == on, "LED indication off the pattern's timeline");
+    bool steady = (co_led_pattern(led, CO_LED_RUN) <= CO_LED_ON) &&
+                  (co_led_pattern(led, CO_LED_ERROR) <= CO_LED_ON);
+    CHECK(!steady || !co_timer_is_armed(&led->timer), "LED tick runs with both LEDs steady");
+}
+
 /* ------------------------------------------------------------ client slots */
 
 static slot_t *slot_of(void *user)
@@ -726,6 +742,23 @@ static void store(fz_reader_t *r)
     }
 }
 
+/* b bit 7: LSS configuration in progress (bit 0) or not; else the cause
+ * bits of b's low 6 bits take those of the next byte. */
+static void led_input(fz_reader_t *r)
+{
+    uint8_t b = fz_u8(r);
+    co_led_t *led = co_stack_led(&W.dev);
+    if (!led) {
+        return;
+    }
+    co_line_set_time(&W.dev_line.line, W.now);
+    if (b & 0x80u) {
+        co_led_set_lss(led, (b & 1u) != 0);
+    } else {
+        co_led_set_causes(led, (uint8_t)(b & 0x3Fu), fz_u8(r));
+    }
+}
+
 static void action(uint8_t p, fz_reader_t *r)
 {
     if (W.cfg->action_count == 0) {
@@ -745,6 +778,7 @@ static void action(uint8_t p, fz_reader_t *r)
     case FW_TIME_SEND: time_send(r); break;
     case FW_WATCH: watch(r); break;
     case FW_STORE: store(r); break;
+    case FW_LED: led_input(r); break;
     default: break;
     }
 }
@@ -931,7 +965,7 @@ static void build(const fw_config_t *cfg)
     CHECK(co_stack_init(&W.dev, &W.dev_line.line, &dl, co_stack_arena_allocator(&W.dev_arena)) ==
           CO_STACK_OK, "device stack");
     co_stack_node_config_t nc = {.node_id = FW_NODE, .od = &W.od, .store_backend = &mem_ops,
-                                 .server_sessions = 4};
+                                 .server_sessions = 4, .leds = true, .led_changed = on_led};
     CHECK(co_stack_node_init(&W.dev, &nc) == CO_STACK_OK, "device node");
     if (cfg->device_client && cfg->mode == CO_MODE_CLASSIC) {
         co_stack_client_config_t dc = {.sessions = 2};

@@ -47,6 +47,7 @@ typedef enum fw_action {
     FW_TIME_SEND,         /* device or tool: send a TIME object */
     FW_WATCH,             /* tool: heartbeat / EMCY consumer watch, guarding */
     FW_STORE,             /* device: save / restore defaults */
+    FW_LED,               /* device: LED inputs an LSS slave or the application gives */
     FW_ACTION_COUNT
 } fw_action_t;
 

@@ -19,7 +19,7 @@ ACTIONS = {
     "pdo": ["odw", "odw", "odput", "trigger", "nmt", "nmt_master", "emcy", "store", "start"],
     "services": ["nmt", "nmt_master", "emcy", "time", "watch", "watch", "odw", "odput", "store"],
     "stack": ["start", "cancel", "split", "resume", "nmt", "nmt_master", "odw", "odput",
-              "trigger", "emcy", "time", "watch", "store"],
+              "trigger", "emcy", "time", "watch", "store", "led"],
 }
 # Frame CAN-ID tables (index = p of a FRAME record), as in fuzz_*.c.
 IDS = {
@@ -260,6 +260,11 @@ def stack_seeds():
                                                                       size=4).time(2)
                                      .act("nmt", 3).time(40).act("store", 0x81).act("nmt", 3)
                                      .time(40))
+        # LEDs: LSS flickering, the application's causes, NMT and comm events under them
+        seeds[m + "-leds"] = (head(S()).time(100).act("led", 0x81).time(120).act("led", 0x80)
+                              .act("led", 0x20, 0x20).time(450).act("nmt_master", 0)
+                              .time(50).comm(2).time(450).act("led", 0x3F, 0x1C).time(1000)
+                              .act("nmt_master", 1).comm(3).act("led", 0x3F, 0).time(1000))
     return seeds
 
 

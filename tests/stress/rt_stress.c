@@ -7,7 +7,8 @@
  * several threads at once, runs transfers (started, waited for, cancelled,
  * collected, released), commands (NMT, OD reads and writes, statistics),
  * master-side RPDO producers (opened, written, sent, periodic, on SYNC,
- * stopped, closed) and the event reader; then stops the runtime while all of that is in flight.
+ * stopped, closed), the device's LEDs (listened to, read, a cause set) and
+ * the event reader; then stops the runtime while all of that is in flight.
  * Every thread must see the stop (CO_RT_ERR_CLOSED) and end within a bound
  * (a thread still running after it is a hang), every transfer must have
  * ended correctly or with an error code, and after co_rt_free no file
@@ -215,6 +216,15 @@ static void *commander(void *arg)
         }
         uint32_t len = 0;
         if (co_rt_od_read(r->rt, r->device, 0x2000, 0, v, 4, &len) == CO_RT_ERR_CLOSED) {
+            break;
+        }
+        /* the device's LEDs: listened to on and off, read, the application's
+         * cause toggled, while NMT commands change the run LED */
+        co_rt_led_state_t leds;
+        if (co_rt_led_listen(r->rt, r->device, n % 3u != 0) == CO_RT_ERR_CLOSED ||
+            co_rt_led_state(r->rt, r->device, &leds) == CO_RT_ERR_CLOSED ||
+            co_rt_led_causes(r->rt, r->device, CO_LED_CAUSE_CONFIG,
+                             n % 5u ? 0 : CO_LED_CAUSE_CONFIG) == CO_RT_ERR_CLOSED) {
             break;
         }
         co_line_stats_t ls;

@@ -10,6 +10,7 @@
 #include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_led.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_store.h"
@@ -50,6 +51,10 @@ typedef struct co_node_services {
     void (*server_state)(void *server, co_nmt_state_t state);
     /* Flying master: started over at every reset (co_node_attach_flyma). */
     co_flyma_t *flyma;
+    /* CiA 303-3 indicators: told the NMT state and the errors the node
+     * tracks (bus-off, warning, heartbeat/guarding lost, SYNC and RPDO
+     * deadline errors); may be NULL. */
+    co_led_t *led;
 } co_node_services_t;
 
 enum {
@@ -83,6 +88,7 @@ struct co_node {
     bool sync_length_error;                     /* 0x8240 */
     bool overrun_told;                          /* 0x8110 sent at overrun_told_us */
     uint64_t overrun_told_us;
+    bool sync_timeout;                          /* no SYNC within 1.5 x 0x1006 (LED) */
 };
 
 extern const co_pdo_indications_t co_node_pdo_indications;

@@ -10,6 +10,7 @@
 #include "canopenfd/co_line.h"
 #include "canopenfd/co_nmt.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_led.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_emcy.h"
@@ -116,6 +117,9 @@ typedef enum co_rt_event_kind {
     CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
     CO_EV_PDO_FRAME = 19,      /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
                                   29-bit), b = frames seen on it so far, frame = it */
+    CO_EV_LED = 20,            /* a local node's LED changed (only after co_rt_led_listen):
+                                  a = co_led_which_t, b = 1 on / 0 off,
+                                  node = its co_led_pattern_t */
     CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
                                   co_sleep_event_t, b = arg | arg2 << 8, node = the
                                   phase after it (co_sleep_phase_t) */
@@ -524,6 +528,19 @@ int co_rt_local_state(co_rt_t *rt, int line);
 /* Last state seen of a remote node (co_nmt_state_t, CO_NMT_UNKNOWN if none). */
 int co_rt_remote_state(co_rt_t *rt, int line, int node_id);
 uint64_t co_rt_now_us(void);
+/* CiA 303-3 LEDs of the line's local node (co_rt_led.c). */
+typedef struct co_rt_led_state {
+    int pattern[2];            /* co_led_pattern_t, by co_led_which_t */
+    int on[2];                 /* lit now */
+    int causes;                /* co_led_cause_t bits active */
+} co_rt_led_state_t;
+/* Post CO_EV_LED for every change of the local node's LEDs (listen = 0:
+ * stop); the 50 ms LED tick runs only while someone listens. */
+int co_rt_led_listen(co_rt_t *rt, int line, int listen);
+int co_rt_led_state(co_rt_t *rt, int line, co_rt_led_state_t *out);
+/* The application's own error causes (CO_LED_CAUSE_CONFIG: invalid
+ * configuration): set the bits of mask to those of active. */
+int co_rt_led_causes(co_rt_t *rt, int line, int mask, int active);
 /* cffi:end */
 
 #endif

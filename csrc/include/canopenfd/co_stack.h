@@ -30,6 +30,7 @@
 #include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_led.h"
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
@@ -81,6 +82,7 @@ typedef enum co_stack_part {
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
     CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_LED = 14,      /* CiA 303-3 indicators */
     CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
     CO_STACK_PART_FLYMA = 18     /* flying master (CiA 302-2) */
 } co_stack_part_t;
@@ -168,6 +170,13 @@ typedef struct co_stack_node_config {
     uint8_t emcy_history;        /* 0x1003 entries at most, 0 = 254 */
     const co_node_indications_t *ind;   /* the node's (may be NULL) */
     void *user;
+    /* CiA 303-3 run and error LEDs (co_led, inside co_stack_t: no memory),
+     * fed by the node without the application: leds = true runs them;
+     * led_changed (may be NULL, needs leds) hears every change with `user`;
+     * led_same_phase: see co_led_config_t. */
+    bool leds;
+    bool led_same_phase;
+    co_led_fn led_changed;
 } co_stack_node_config_t;
 
 typedef struct co_stack_client_config {
@@ -233,6 +242,9 @@ struct co_stack {
     void *flyma_user;
     uint16_t flyma_watch_ms;
     uint8_t flyma_watched;           /* the active master whose heartbeat we watch, 0 none */
+    /* the node's indicators */
+    bool has_led;
+    co_led_t led;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -320,6 +332,7 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
 }
 static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
 static inline co_flyma_t *co_stack_flyma(co_stack_t *s) { return s->has_flyma ? &s->flyma : NULL; }
+static inline co_led_t *co_stack_led(co_stack_t *s) { return s->has_led ? &s->led : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */

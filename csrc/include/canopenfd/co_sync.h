@@ -30,6 +30,9 @@ typedef void (*co_sync_window_fn)(co_sync_t *sync, void *user);
  * data length. The integration raises the EMCY. */
 typedef void (*co_sync_error_fn)(co_sync_t *sync, uint16_t emcy_code, uint8_t length,
                                  void *user);
+/* Consumer monitoring: no SYNC came within 1.5 x 0x1006 of the last one
+ * (timed_out true), or SYNCs came back / monitoring stopped (false). */
+typedef void (*co_sync_timeout_fn)(co_sync_t *sync, bool timed_out, void *user);
 
 /* cffi:begin */
 typedef struct co_sync_stats {
@@ -77,6 +80,11 @@ struct co_sync {
     co_sync_error_fn on_error;
     void *error_user;
     co_sync_stats_t stats;
+    /* consumer monitoring (co_sync_set_timeout_indication) */
+    co_timer_t timeout_timer;
+    bool timed_out;
+    co_sync_timeout_fn on_timeout;
+    void *timeout_user;
 };
 
 /* Defaults: COB-ID 0x80, consumer only, no period, no window, no counter;
@@ -116,6 +124,14 @@ bool co_sync_add_listener(co_sync_t *sync, co_sync_fn fn, void *user);
 void co_sync_remove_listener(co_sync_t *sync, co_sync_fn fn, void *user);
 void co_sync_set_window_indication(co_sync_t *sync, co_sync_window_fn fn, void *user);
 void co_sync_set_error_indication(co_sync_t *sync, co_sync_error_fn fn, void *user);
+/* Monitor the SYNC consumer (only while an indication is set): from the
+ * first SYNC received in pre-operational / operational, with 0x1006 != 0
+ * and this node not producing, a SYNC must follow within 1.5 x 0x1006 of
+ * the previous one, else fn(sync, true); the next SYNC tells fn(sync,
+ * false), and so does the end of monitoring (NMT state left, COB-ID or
+ * period changed, indication replaced) while timed out. No EMCY is tied to
+ * it (CiA 301 defines none); CiA 303-3 shows it on the error LED. */
+void co_sync_set_timeout_indication(co_sync_t *sync, co_sync_timeout_fn fn, void *user);
 
 /* A synchronous action (a synchronous TPDO) asks whether it is still inside
  * the window of the last SYNC: true without a window (0x1007 = 0) or while

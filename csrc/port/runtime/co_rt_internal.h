@@ -196,6 +196,10 @@ typedef struct rt_sync {
 typedef struct rt_sleep {
     uint8_t objection;                       /* the device's answer to a query */
 } rt_sleep_t;
+/* LED glue (co_rt_led.c). */
+typedef struct rt_led {
+    bool events;                             /* Python hears every LED change */
+} rt_led_t;
 
 typedef struct rt_line {
     co_rt_t *rt;
@@ -235,6 +239,7 @@ typedef struct rt_line {
     rt_sleep_t sleep;
     rt_socket_t sc;
     rt_host_t host;
+    rt_led_t led;
 } rt_line_t;
 
 /* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
@@ -538,5 +543,9 @@ uint32_t rt_pdo_watched_frames(const rt_line_t *l);
 bool rt_rpdo_out_line_init(rt_line_t *l);
 /* co_rt_sync.c: after the stack, Python hears SYNC through a listener. */
 bool rt_sync_line_init(rt_line_t *l);
+/* co_rt_led.c: the node's LED indication (user = the rt_line_t), given to
+ * co_stack at node creation while Python listens. */
+void rt_led_changed(co_led_t *led, co_led_which_t which, bool on, co_led_pattern_t pattern,
+                    void *user);
 
 #endif
