@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, field
-from typing import Dict, Iterable, List, NamedTuple, Optional, Tuple
+from typing import Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 from .datatypes import encode
 from .errors import OdError, OdFileError, OdValueError
@@ -54,12 +54,17 @@ _PDO_INVALID = 0x80000000
 _PDO_RANGES = ((0x1400, 0x1600), (0x1800, 0x1A00))
 
 
-class ConciseEntry(NamedTuple):
-    """One entry: index, sub-index and the bytes written."""
+@dataclass(frozen=True)
+class ConciseEntry:
+    """One entry: index, sub-index and the bytes written; unpacks as
+    ``index, subindex, data = entry``."""
 
     index: int
     subindex: int
     data: bytes
+
+    def __iter__(self) -> Iterator[Union[int, bytes]]:
+        return iter((self.index, self.subindex, self.data))
 
     @property
     def where(self) -> str:
@@ -110,11 +115,13 @@ def parse_concise(data: bytes, source: str = "") -> List[ConciseEntry]:
     return entries
 
 
-def build_concise(entries: Iterable[Tuple[int, int, bytes]]) -> bytes:
+def build_concise(entries: Iterable[Union[ConciseEntry, Tuple[int, int, bytes]]]) -> bytes:
     """A concise DCF of (index, sub-index, data) entries, in the given order."""
     body = bytearray()
     count = 0
-    for index, sub, data in entries:
+    for item in entries:
+        index, sub, data = ((item.index, item.subindex, item.data)
+                            if isinstance(item, ConciseEntry) else item)
         if not 0 <= index <= 0xFFFF or not 0 <= sub <= 0xFF:
             raise OdValueError(f"index {index:#x} / sub-index {sub:#x} outside "
                                f"0..0xFFFF / 0..0xFF")
