@@ -133,6 +133,7 @@ class EventKind(enum.IntEnum):
     TIME = 17
     GUARD = 18
     PDO_FRAME = 19
+    CONFIG = 22
 
 
 class FrameFlag(enum.IntEnum):
