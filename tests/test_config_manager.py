@@ -18,7 +18,7 @@ from canopenfd.od import DataType, ODVariable, demo_od
 from canopenfd.od.concise import ConciseDcfError, build_concise
 from canopenfd.services.config import ConfigOutcome
 from helpers import Recorder, virtual_bus
-from test_concise import make_dcf, device_od, stamp_object
+from dcf_helpers import device_od, make_dcf, stamp_object
 
 NODE = 5
 DATE, TIME = 0x11223344, 0x55667788
