@@ -82,7 +82,8 @@ void co_concise_writer_init(co_concise_writer_t *w, uint8_t *buf, uint32_t capac
 /* Append an entry; false (nothing written, overflow set) when it does not fit. */
 bool co_concise_add(co_concise_writer_t *w, uint16_t index, uint8_t sub, const uint8_t *data,
                     uint32_t size);
-/* Append an unsigned value of 1..4 bytes, little-endian. */
+/* Append an unsigned value of 1..4 bytes, little-endian; another size is
+ * refused like an overflow (finish then fails). */
 bool co_concise_add_u32(co_concise_writer_t *w, uint16_t index, uint8_t sub, uint32_t value,
                         uint8_t size);
 /* Write the count; the DCF's length, or 0 after an overflow. */
