@@ -22,6 +22,7 @@ from .frame import Frame, fd_len_round
 from .node import LocalNode, RemoteNode
 from .od import ObjectDictionary, ODVariable, import_od
 from .od.fileio import Source
+from .services.config import ConfigManager
 from .services.emcy import Emcy, LineEmcy
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
@@ -83,6 +84,8 @@ class Line:
         # USDO on fd lines, SDO on classic lines (C sets it up at the first transfer)
         self._client: TransferClient = \
             UsdoClient(context) if self.mode == "fd" else SdoClient(context)
+        #: The configuration manager (CiA 302-3): concise DCFs into nodes.
+        self.manager = ConfigManager(context, f"line {self.channel!r}")
         self._comm = CallbackList(f"line {self.channel!r} comm event")
         self._frames = CallbackList(f"line {self.channel!r} frame")
         self._comm_events: List[CommEvent] = []

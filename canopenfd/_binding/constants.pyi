@@ -144,6 +144,7 @@ class EventKind(enum.IntEnum):
     GUARD = 18
     PDO_FRAME = 19
     LED = 20
+    CONFIG = 22
     SLEEP = 24
     FLYMA = 25
 

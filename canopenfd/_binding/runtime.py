@@ -365,6 +365,58 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
+    # ------------------------------------------------------------ configuration manager
+    def config_start(self, line: int, node: int, dcf: bytes, stamp: Optional[Tuple[int, int]],
+                     continue_on_error: bool, timeout_ms: int, what: str) -> int:
+        """Start a configuration (the DCF is copied): its handle."""
+        request = ffi.new("co_rt_config_request_t *")
+        data = ffi.from_buffer(dcf)
+        request.node = node
+        request.dcf = data
+        request.dcf_length = len(dcf)
+        request.check_stamp = int(stamp is not None)
+        request.date, request.time = stamp if stamp is not None else (0, 0)
+        request.continue_on_error = int(continue_on_error)
+        request.timeout_ms = timeout_ms
+        with self._lock:
+            rc = lib.co_rt_config_start(self._live(what), line, request)
+            if rc < 0:
+                self._raise(rc, what)
+        return int(rc)
+
+    def config_result(self, line: int, handle: int, what: str) -> Dict[str, int]:
+        out = ffi.new("co_rt_config_result_t *")
+        with self._lock:
+            rc = lib.co_rt_config_result(self._live(what), line, handle, out)
+            if rc < 0:
+                self._raise(rc, what)
+        return {name: int(getattr(out, name))
+                for name, _ in ffi.typeof("co_rt_config_result_t").fields}
+
+    def config_entries(self, line: int, handle: int, count: int,
+                       what: str) -> List[Tuple[int, int, int]]:
+        """[(index, sub, abort)] told so far, in order."""
+        out = ffi.new("co_rt_config_entry_t[]", max(count, 1))
+        with self._lock:
+            rc = lib.co_rt_config_entries(self._live(what), line, handle, out, count)
+            if rc < 0:
+                self._raise(rc, what)
+        return [(int(e.index), int(e.sub), int(e.abort)) for e in out[0:rc]]
+
+    def config_cancel(self, line: int, handle: int, what: str) -> None:
+        with self._lock:
+            rc = lib.co_rt_config_cancel(self._live(what), line, handle)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def config_release(self, line: int, handle: int, what: str) -> None:
+        with self._lock:
+            if self._stopped or self._rt == ffi.NULL:
+                return   # the network closed: the runtime freed it
+            rc = lib.co_rt_config_release(self._rt, line, handle)
+            if rc < 0:
+                self._raise(rc, what)
+
     def od_store(self, line: int, group_mask: int, save: bool, what: str) -> int:
         call = lib.co_rt_od_save if save else lib.co_rt_od_restore_defaults
         with self._lock:

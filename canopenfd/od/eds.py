@@ -272,6 +272,8 @@ class _Reader:
         if value_key is not None and value_key.value.strip():  # empty: nothing configured
             self.lenient_value(section, "ParameterValue", dtype, "no configured value",
                                var.set_value)
+            if var.value_base is not None:
+                var.value_line = value_key.line
         var.denotation = section.value("Denotation", "") or ""
         var.description = section.value("Description", "") or ""
         var.unit = section.value("Unit", "") or ""

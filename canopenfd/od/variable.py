@@ -96,6 +96,9 @@ class ODVariable:
         self.relative_to_node_id = self._checked_relative(relative_to_node_id, "default")
         self.value_expr: Optional[str] = None
         self.value_relative_to_node_id = False
+        #: The file line of the configured value (DCF ParameterValue), None when
+        #: unknown: messages about the value name it.
+        self.value_line: Optional[int] = None
         self._value: Optional[Value] = None
         self._low_limit: Union[int, float, None] = None
         self._high_limit: Union[int, float, None] = None

@@ -303,6 +303,23 @@ def store_seeds():
     }
 
 
+def concise_dcf_seeds():
+    def dcf(entries, count=None):
+        body = b"".join(struct.pack("<HBI", i, s, len(v)) + v for i, s, v in entries)
+        return struct.pack("<I", len(entries) if count is None else count) + body
+    good = [(0x1017, 0, struct.pack("<H", 1000)), (0x1800, 1, struct.pack("<I", 0x80000185)),
+            (0x1A00, 0, b"\x00"), (0x1A00, 1, struct.pack("<I", 0x60000108)),
+            (0x1A00, 0, b"\x01"), (0x1800, 1, struct.pack("<I", 0x185)),
+            (0x2000, 0, b"config text"), (0x2001, 0, b"")]
+    return {
+        "pdo-config": dcf(good),
+        "empty": dcf([]),
+        "count-mismatch": dcf(good[:2], count=3),
+        "trailing": dcf(good[:2]) + b"\x01\x02",
+        "size-past-end": dcf(good[:2])[:-1],
+    }
+
+
 def main():
     for h in ("usdo_server", "sdo_server"):
         write(h, {k: v.b for k, v in server_seeds(h, h.startswith("sdo")).items()})
@@ -312,6 +329,7 @@ def main():
     write("services", {k: v.b for k, v in services_seeds().items()})
     write("stack", {k: v.b for k, v in stack_seeds().items()})
     write("store", store_seeds())
+    write("concise_dcf", concise_dcf_seeds())
 
 
 if __name__ == "__main__":

@@ -120,6 +120,8 @@ typedef enum co_rt_event_kind {
     CO_EV_LED = 20,            /* a local node's LED changed (only after co_rt_led_listen):
                                   a = co_led_which_t, b = 1 on / 0 off,
                                   node = its co_led_pattern_t */
+    CO_EV_CONFIG = 22,         /* a configuration (co_rt_config_start) ended: node = the
+                                  node configured, a = handle, b = co_config_outcome_t */
     CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
                                   co_sleep_event_t, b = arg | arg2 << 8, node = the
                                   phase after it (co_sleep_phase_t) */
@@ -541,6 +543,53 @@ int co_rt_led_state(co_rt_t *rt, int line, co_rt_led_state_t *out);
 /* The application's own error causes (CO_LED_CAUSE_CONFIG: invalid
  * configuration): set the bits of mask to those of active. */
 int co_rt_led_causes(co_rt_t *rt, int line, int mask, int active);
+
+/* ---- Configuration manager (CiA 302-3, co_config.h) over the line's client:
+ * a concise DCF downloaded into a node (0x1020 compared first when a stamp is
+ * given, written last). The DCF is copied at the start; CO_EV_CONFIG tells
+ * the end; the result and each entry's abort code are collected, then the
+ * handle released. */
+typedef struct co_rt_config_request {
+    int node;                  /* 1..127 */
+    const uint8_t *dcf;        /* concise DCF, copied by co_rt_config_start */
+    uint32_t dcf_length;
+    int check_stamp;           /* compare / write 0x1020:01/02 with date and time */
+    uint32_t date;
+    uint32_t time;
+    int continue_on_error;     /* write the rest after a refused entry */
+    uint32_t timeout_ms;       /* per frame, 0 = the client's default */
+} co_rt_config_request_t;
+
+typedef struct co_rt_config_result {
+    int running;
+    int outcome;               /* co_config_outcome_t once ended */
+    uint32_t written;          /* DCF entries written */
+    uint32_t failed;           /* DCF entries refused */
+    uint16_t index;            /* the first failure / the unanswered transfer */
+    uint8_t sub;
+    int from_node;
+    uint32_t abort;            /* CiA 301 abort code */
+    uint32_t entry;            /* its DCF entry number */
+    uint32_t reported;         /* entries in co_rt_config_entries */
+} co_rt_config_result_t;
+
+typedef struct co_rt_config_entry {
+    uint16_t index;
+    uint8_t sub;
+    uint32_t abort;            /* 0 = written */
+} co_rt_config_entry_t;
+
+/* A handle (>= 0) or a co_rt_status_t (a malformed DCF: CO_RT_ERR_ARGUMENT,
+ * the byte offset in co_rt_last_error). */
+int co_rt_config_start(co_rt_t *rt, int line, const co_rt_config_request_t *request);
+int co_rt_config_result(co_rt_t *rt, int line, int handle, co_rt_config_result_t *out);
+/* Copy up to max entry outcomes in the order they were told (the count). */
+int co_rt_config_entries(co_rt_t *rt, int line, int handle, co_rt_config_entry_t *out,
+                         int max);
+/* End a running configuration (CANCELLED). */
+int co_rt_config_cancel(co_rt_t *rt, int line, int handle);
+/* Forget a configuration (a running one is cancelled first). */
+int co_rt_config_release(co_rt_t *rt, int line, int handle);
 /* cffi:end */
 
 #endif

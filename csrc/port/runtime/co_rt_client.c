@@ -703,3 +703,12 @@ int co_rt_transfer_release(co_rt_t *rt, int line, int handle)
     rt_mutex_unlock(&rt->lock);
     return status;
 }
+
+bool rt_client_cores(co_rt_t *rt, rt_line_t *l, co_usdo_client_t **usdo,
+                     co_sdo_client_t **sdo)
+{
+    rt_client_t *c = client_of(rt, l, 0);
+    *usdo = c ? c->usdo : NULL;
+    *sdo = c ? c->sdo : NULL;
+    return c != NULL;
+}

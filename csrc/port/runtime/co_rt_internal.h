@@ -240,6 +240,7 @@ typedef struct rt_line {
     rt_socket_t sc;
     rt_host_t host;
     rt_led_t led;
+    struct rt_config *config;        /* configurations (co_rt_config.c): at the first one */
 } rt_line_t;
 
 /* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
@@ -522,6 +523,15 @@ void rt_app_store_free(rt_line_t *l);
 
 /* ---------------------------------------------------------------- co_rt_client.c */
 void rt_client_free(rt_line_t *l);
+/* Under rt->lock: the line's core client (created at the first use), the
+ * USDO one on fd lines, the SDO one on classic lines; false (error set)
+ * when it cannot start. */
+bool rt_client_cores(co_rt_t *rt, rt_line_t *l, co_usdo_client_t **usdo,
+                     co_sdo_client_t **sdo);
+
+/* ---------------------------------------------------------------- co_rt_config.c */
+/* Before the client goes: running configurations end (nothing posted). */
+void rt_config_free(rt_line_t *l);
 
 /* ---------------------------------------------------------------- services' glue */
 /* The stack's indications that post to Python, one per service file. */

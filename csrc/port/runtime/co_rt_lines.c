@@ -98,6 +98,7 @@ static bool line_init_core(rt_line_t *l, const co_rt_line_config_t *c, uint32_t 
 void rt_line_free(rt_line_t *l)
 {
     /* the services first: their deinit still sees the OD and the domains */
+    rt_config_free(l);   /* before the client its configurations use */
     rt_client_free(l);
     co_stack_deinit(&l->stack);
     rt_socket_close(l);
