@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import enum
+from typing import Type, TypeVar, Union
+
 from .errors import ConfigurationError
 
-__all__ = ["check_node_id", "check_ms"]
+__all__ = ["check_node_id", "check_ms", "enum_member"]
+
+E = TypeVar("E", bound=enum.IntEnum)
 
 
 def check_node_id(node_id: object, where: str) -> int:
@@ -14,6 +19,17 @@ def check_node_id(node_id: object, where: str) -> int:
     if not 1 <= node_id <= 127:
         raise ConfigurationError(f"{where}: node-id {node_id} outside 1..127")
     return node_id
+
+
+def enum_member(kind: Type[E], value: Union[E, int, str], name: str, where: str) -> E:
+    """A member of `kind` given as itself, its value or its name in any case
+    ('master', 'ASLEEP'); ConfigurationError listing the names."""
+    try:
+        return kind[value.upper()] if isinstance(value, str) else kind(value)
+    except (KeyError, ValueError):
+        raise ConfigurationError(
+            f"{where}: {name} must be one of "
+            f"{', '.join(member.name.lower() for member in kind)}, got {value!r}") from None
 
 
 def check_ms(value: object, name: str, where: str) -> int:

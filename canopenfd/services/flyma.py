@@ -19,6 +19,7 @@ from .._binding.constants import EventKind, FlymaAction, FlymaEvent, FlymaState
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
+from .._checks import enum_member
 from ..errors import ConfigurationError
 
 __all__ = ["FlymaEvent", "FlymaNotice", "FlymaState", "FlyingMaster"]
@@ -137,14 +138,7 @@ class FlyingMaster:
         """Block until the negotiation reports `state` ('master', 'slave', ...);
         the active master's node-id then. TimeoutError names the state last heard."""
         where = self._where(f"wait_for({state!r})")
-        if isinstance(state, str):
-            try:
-                state = FlymaState[state.upper()]
-            except KeyError:
-                raise ConfigurationError(
-                    f"{where}: state must be one of "
-                    f"{', '.join(s.name.lower() for s in FlymaState)}") from None
-        wanted = FlymaState(state)
+        wanted = enum_member(FlymaState, state, "state", where)
         self._context.waiter.wait(lambda: self._state == wanted, timeout, where,
                                   lambda: f"still {self._state.name.lower()}")
         return self._master or None

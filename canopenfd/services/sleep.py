@@ -20,6 +20,7 @@ from .._binding.constants import EventKind, SleepAction, SleepCause, SleepEvent,
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
+from .._checks import enum_member
 from ..errors import ConfigurationError
 
 __all__ = ["SleepCause", "SleepEvent", "SleepNotice", "SleepPhase", "SleepService"]
@@ -158,14 +159,7 @@ class SleepService:
         """Block until the service reports `phase` (a SleepPhase or its name,
         e.g. 'asleep'); TimeoutError names the phase last heard."""
         where = self._where(f"wait_for({phase!r})")
-        if isinstance(phase, str):
-            try:
-                phase = SleepPhase[phase.upper()]
-            except KeyError:
-                raise ConfigurationError(
-                    f"{where}: phase must be one of "
-                    f"{', '.join(p.name.lower() for p in SleepPhase)}") from None
-        wanted = SleepPhase(phase)
+        wanted = enum_member(SleepPhase, phase, "phase", where)
         self._context.waiter.wait(lambda: self._phase == wanted, timeout, where,
                                   lambda: f"still {self._phase.name.lower()}")
         return wanted
