@@ -29,6 +29,8 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_lss.h"
+#include "canopenfd/co_lss_master.h"
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
@@ -78,7 +80,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_PDO = 9,
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
-    CO_STACK_PART_CLIENT = 12    /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_LSS = 13       /* LSS slave of the node or LSS master of the line */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -148,7 +151,7 @@ typedef struct co_stack_line_config {
 } co_stack_line_config_t;
 
 typedef struct co_stack_node_config {
-    uint8_t node_id;             /* 1..127 */
+    uint8_t node_id;             /* 1..127, or 255: unconfigured, waits for LSS */
     uint16_t heartbeat_ms;       /* 0x1017 without an OD */
     co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL */
     /* Parameters saved through this backend (NULL: defaults only; needs the OD). */
@@ -164,6 +167,18 @@ typedef struct co_stack_node_config {
     uint8_t emcy_history;        /* 0x1003 entries at most, 0 = 254 */
     const co_node_indications_t *ind;   /* the node's (may be NULL) */
     void *user;
+    /* LSS slave (CiA 305): runs when the OD has 0x1018:04 (serial number),
+     * unless lss_off. node_id 255 = unconfigured: only the LSS slave runs
+     * (no boot-up, heartbeat, EMCY, PDO, SDO/USDO server) until LSS gives
+     * the node a node-id and switches it back to waiting; then the node is
+     * set up with it (the OD's $NODEID defaults reloaded) and, when
+     * co_stack_boot was called, boots (boot-up with the new node-id). */
+    bool lss_off;
+    /* The application's LSS indications (may be NULL): bit timing, store,
+     * state changes; reset_communication tells that an unconfigured node
+     * now runs with its new node-id. */
+    const co_lss_slave_indications_t *lss_ind;
+    void *lss_user;
 } co_stack_node_config_t;
 
 typedef struct co_stack_client_config {
@@ -217,6 +232,18 @@ struct co_stack {
     co_usdo_client_t usdo_client;
     bool has_sdo_client;
     co_sdo_client_t sdo_client;
+    /* LSS: the node's slave (also while the node is unconfigured), the line's master */
+    bool has_lss_slave;
+    co_lss_slave_t lss_slave;
+    co_lss_slave_indications_t lss_wiring;   /* the stack's own, forwarding to lss_app */
+    const co_lss_slave_indications_t *lss_app;
+    void *lss_user;
+    bool unconfigured;           /* node_id 255: the node waits for LSS */
+    bool boot_requested;         /* co_stack_boot came while unconfigured */
+    co_stack_node_config_t node_config;   /* kept to set the node up once configured */
+    co_timer_t lss_timer;        /* sets the node up outside the LSS frame's handler */
+    bool has_lss_master;
+    co_lss_master_t lss_master;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -242,6 +269,10 @@ void co_stack_node_deinit(co_stack_t *stack);
  * has an OD, its 0x1280.. channels come first. */
 co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_config_t *config);
 void co_stack_client_deinit(co_stack_t *stack);
+/* The line's LSS master (no memory taken); timeout_ms per step, 0 = 100. */
+co_stack_status_t co_stack_lss_master_init(co_stack_t *stack, uint32_t timeout_ms,
+                                           co_lss_done_fn on_done, void *user);
+void co_stack_lss_master_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -286,6 +317,16 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
 {
     return s->has_sdo_client ? &s->sdo_client : NULL;
 }
+static inline co_lss_slave_t *co_stack_lss_slave(co_stack_t *s)
+{
+    return s->has_lss_slave ? &s->lss_slave : NULL;
+}
+static inline co_lss_master_t *co_stack_lss_master(co_stack_t *s)
+{
+    return s->has_lss_master ? &s->lss_master : NULL;
+}
+/* The node waits for LSS to give it a node-id (co_stack_has_node is false). */
+static inline bool co_stack_unconfigured(const co_stack_t *s) { return s->unconfigured; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */
