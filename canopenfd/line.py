@@ -23,6 +23,7 @@ from .node import LocalNode, RemoteNode
 from .od import ObjectDictionary, ODVariable, import_od
 from .od.fileio import Source
 from .services.emcy import Emcy, LineEmcy
+from .services.lss import LssMaster
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.sync import SyncService
@@ -74,6 +75,7 @@ class Line:
         self.local_node: Optional[LocalNode] = None
         #: SYNC producer and callbacks (see canopenfd.services.sync).
         self.sync = SyncService(context)
+        self._lss: Optional[LssMaster] = None
         #: TIME transmit and callbacks.
         self.time = TimeService(context)
         self._emcy = LineEmcy(context)
@@ -400,6 +402,16 @@ class Line:
         require_protocol(self._context, "SDO")
         assert isinstance(self._client, SdoClient)    # what classic lines make
         return self._client
+
+    # ---------------------------------------------------------------- LSS
+    @property
+    def lss(self) -> LssMaster:
+        """The LSS master (CiA 305) of this line: switch, configure, inquire,
+        identify, fast scan (see canopenfd.services.lss)."""
+        with self._context.cond:
+            if self._lss is None:
+                self._lss = LssMaster(self._context)
+            return self._lss
 
     # ---------------------------------------------------------------- events
     def _event_comm(self, event: Event) -> Deferred:

@@ -347,6 +347,15 @@ bool co_lss_master_init(co_lss_master_t *master, co_line_t *line, uint32_t timeo
     return co_line_subscribe(line, CO_LSS_ID_SLAVE, CO_LSS_ID_SLAVE, on_answer, master);
 }
 
+bool co_lss_master_set_timeout(co_lss_master_t *master, uint32_t timeout_ms)
+{
+    if (co_lss_master_busy(master)) {
+        return false;
+    }
+    master->timeout_us = (uint64_t)(timeout_ms ? timeout_ms : 100u) * 1000u;
+    return true;
+}
+
 void co_lss_master_deinit(co_lss_master_t *master)
 {
     co_timer_cancel(co_line_timers(master->line), &master->timer);

@@ -123,6 +123,8 @@ struct co_lss_master {
 bool co_lss_master_init(co_lss_master_t *master, co_line_t *line, uint32_t timeout_ms,
                         co_lss_done_fn on_done, void *user);
 void co_lss_master_deinit(co_lss_master_t *master);
+/* The step timeout of the next requests (0 = 100 ms); false while busy. */
+bool co_lss_master_set_timeout(co_lss_master_t *master, uint32_t timeout_ms);
 static inline bool co_lss_master_busy(const co_lss_master_t *m)
 {
     return m->request != CO_LSS_REQ_NONE;

@@ -14,6 +14,7 @@
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_guard.h"
+#include "canopenfd/co_lss_master.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sync.h"
@@ -112,8 +113,10 @@ typedef enum co_rt_event_kind {
     CO_EV_SYNC = 16,           /* a = counter (0 = none); only after co_rt_sync_listen */
     CO_EV_TIME = 17,           /* TIME received: a = ms after midnight, b = days since 1984 */
     CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
-    CO_EV_PDO_FRAME = 19       /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
+    CO_EV_PDO_FRAME = 19,      /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
                                   29-bit), b = frames seen on it so far, frame = it */
+    CO_EV_LSS = 21             /* the line's LSS master finished a request (co_rt_lss_start):
+                                  a = co_lss_request_t, b = co_lss_status_t; co_rt_lss_result */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -446,6 +449,36 @@ typedef struct co_rt_service_stats {
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */
 int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor);
+
+/* ---- LSS master of the line (co_rt_lss.c): one request at a time, its end
+ * posted as CO_EV_LSS, its result read with co_rt_lss_result. */
+enum {
+    CO_RT_LSS_SWITCH_GLOBAL = 100,        /* value[0] = co_lss_state_t; no answer, no event */
+    CO_RT_LSS_ACTIVATE_BIT_TIMING = 101   /* value[0] = switch delay ms; no answer, no event */
+};
+typedef struct co_rt_lss_request {
+    int kind;                  /* co_lss_request_t (1..9) or CO_RT_LSS_* */
+    /* SWITCH_SELECTIVE: vendor, product, revision, serial; CONFIGURE_NODE_ID:
+     * node-id; CONFIGURE_BIT_TIMING: selector, index; INQUIRE: the CS
+     * (0x5A..0x5E); IDENTIFY_REMOTE and SCAN: vendor, product, revision low,
+     * revision high, serial low, serial high */
+    uint32_t value[6];
+    uint8_t node_ids[127];     /* FASTSCAN: node-ids to give, in order */
+    int node_id_count;
+    int timeout_ms;            /* per step, 0 = 100 */
+} co_rt_lss_request_t;
+typedef struct co_rt_lss_device {
+    uint32_t address[4];       /* vendor, product, revision, serial */
+    uint8_t node_id;           /* FASTSCAN: given; SCAN: 0 */
+} co_rt_lss_device_t;
+/* Start a request: CO_RT_ERR_STATE while one runs, CO_RT_ERR_ARGUMENT for
+ * bad values (the error text says which). */
+int co_rt_lss_start(co_rt_t *rt, int line, const co_rt_lss_request_t *request);
+/* The last finished request's result and up to max of the devices it found;
+ * returns the devices copied, CO_RT_ERR_STATE when none finished yet. */
+int co_rt_lss_result(co_rt_t *rt, int line, co_lss_master_result_t *out,
+                     co_rt_lss_device_t *devices, int max);
+int co_rt_lss_stats(co_rt_t *rt, int line, co_lss_master_stats_t *out);
 
 /* Upload to memory: copy the data (returns the byte count, or a status). */
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);

@@ -191,6 +191,14 @@ typedef struct rt_sync {
     bool events;                             /* Python hears every SYNC */
 } rt_sync_t;
 
+/* The line's LSS master glue (co_rt_lss.c): what the last request found. */
+typedef struct rt_lss {
+    bool finished;                   /* a request finished since the line opened */
+    co_lss_master_result_t result;
+    uint8_t node_ids[127];           /* the running fast scan's list */
+    co_lss_device_t devices[127];
+} rt_lss_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -228,6 +236,7 @@ typedef struct rt_line {
     rt_sync_t sync;
     rt_socket_t sc;
     rt_host_t host;
+    rt_lss_t lss;
 } rt_line_t;
 
 /* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
