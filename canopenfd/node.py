@@ -17,6 +17,7 @@ from .od.datatypes import Value
 from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
 from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
+from .services.lss import LssSlave
 from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtCommand,
                            NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
@@ -67,6 +68,8 @@ class LocalNode:
         self._indications = Indications(context, self, self._served, where,
                                         self._store.persist_request)
         self._emcy = EmcyProducer(context, self, self._served, where)
+        #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
+        self.lss = LssSlave(context, node_id, where)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         if od is not None:

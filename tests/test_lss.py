@@ -115,3 +115,45 @@ def test_wrong_use(rig):
         lss.start_inquire("serial")
     with pytest.raises(LssError):
         running.result()
+
+
+# ---------------------------------------------------------------- our node's slave
+def test_local_node_store_and_bit_timing(net, bus_name):
+    node = net.open_line(bus_name, mode="classic").create_local_node(7, od=identity_od(7))
+    line = net.open_line(bus_name, mode="classic")
+    line.lss.timeout_ms = 500
+    states, stored, activations = Recorder(), Recorder(), Recorder()
+    node.lss.on_state_change(states)
+    node.lss.on_activate_bit_timing(activations)
+    assert node.lss.info == {"state": "waiting", "active": 7, "pending": 7, "persistent": 7}
+    line.lss.switch_global("configuration")
+    states.wait_for(lambda c: c == ["configuration"], 2, "state")
+    line.lss.configure_node_id(12)
+    assert node.lss.info["pending"] == 12
+    # Not supported until the application says how.
+    with pytest.raises(LssError, match="error 1"):
+        line.lss.store()
+    with pytest.raises(LssError, match="error 1"):
+        line.lss.configure_bit_timing(3)
+    node.lss.on_store(stored)
+    node.lss.accept_bit_timings([2, 3])
+    line.lss.store()                              # answered once the callback returned
+    assert stored.snapshot() == [12]
+    assert node.lss.info["persistent"] == 12
+    line.lss.configure_bit_timing(3)
+    with pytest.raises(LssError, match="error 1"):
+        line.lss.configure_bit_timing(4)
+    line.lss.activate_bit_timing(250)
+    activations.wait_for(lambda c: c == [250], 2, "activation")
+
+    def broken(node_id):
+        raise OSError("EEPROM gone")
+
+    node.lss.on_store(broken)
+    with pytest.raises(LssError, match="error 2") as info:
+        line.lss.store()
+    assert info.value.error == 2
+    line.lss.switch_global("waiting")
+    states.wait_for(lambda c: c == ["configuration", "waiting"], 2, "state")
+    with pytest.raises(ConfigurationError, match="ints 0..31"):
+        node.lss.accept_bit_timings([32])

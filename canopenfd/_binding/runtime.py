@@ -577,6 +577,17 @@ class Runtime:
         return {name: getattr(out, name)
                 for name, _ in ffi.typeof("co_lss_master_stats_t").fields}
 
+    def lss_slave_config(self, line: int, store: bool, bit_timings: int, what: str) -> None:
+        self._call(what, lib.co_rt_lss_slave_config, line, int(store), bit_timings)
+
+    def lss_slave_answer(self, line: int, error: int, what: str) -> None:
+        self._call(what, lib.co_rt_lss_slave_answer, line, error)
+
+    def lss_slave_info(self, line: int, what: str) -> Tuple[int, int, int, int]:
+        out = ffi.new("uint8_t[4]")
+        self._call(what, lib.co_rt_lss_slave_info, line, out)
+        return out[0], out[1], out[2], out[3]
+
     def host_receive(self, line: int, cframe: CData) -> int:
         """Hand a frame to a host-driver line; returns the status (no raise:
         the caller is a bridge thread that decides what to do)."""

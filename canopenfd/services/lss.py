@@ -13,6 +13,7 @@ blocks until it ends (or is awaited with the `a...` form).
 from __future__ import annotations
 
 import asyncio
+import logging
 import threading
 from typing import (Any, Callable, Dict, Generator, Generic, List, NamedTuple, Optional,
                     Sequence, Tuple, TypeVar)
@@ -20,10 +21,12 @@ from typing import (Any, Callable, Dict, Generator, Generic, List, NamedTuple, O
 from .._binding.constants import EventKind, LssRequest, LssStatus
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import chain
+from .._callbacks import CallbackList, chain
 from ..errors import CanopenFDError, ConfigurationError
 
-__all__ = ["LssDevice", "LssError", "LssMaster"]
+__all__ = ["LssDevice", "LssError", "LssMaster", "LssSlave"]
+
+log = logging.getLogger(__name__)
 
 SWITCH_GLOBAL = 100            # CO_RT_LSS_SWITCH_GLOBAL
 ACTIVATE_BIT_TIMING = 101      # CO_RT_LSS_ACTIVATE_BIT_TIMING
@@ -349,3 +352,94 @@ def _found(result: Result, devices: List[LssDevice], where: str) -> List[LssDevi
         error.found = devices   # type: ignore[attr-defined]
         raise error
     return devices
+
+
+# ---------------------------------------------------------------- the local node's slave
+SLAVE_STATE = 110          # CO_RT_LSS_SLAVE_STATE
+SLAVE_STORE = 111          # CO_RT_LSS_SLAVE_STORE
+SLAVE_ACTIVATE = 112       # CO_RT_LSS_SLAVE_ACTIVATE
+SLAVE_BIT_TIMING = 113     # CO_RT_LSS_SLAVE_BIT_TIMING
+STORE_OK, STORE_MEDIA_ERROR = 0, 2
+
+
+class LssSlave:
+    """The LSS slave of a local node (`node.lss`; the C stack runs it when the
+    node's OD has 0x1018:04). What it decides itself: configure node-id
+    (pending until reset communication), inquire, identify, fast scan. What
+    the application decides: store (`on_store`) and which bit timings it
+    accepts (`accept_bit_timings`); without them both are "not supported"."""
+
+    def __init__(self, context: LineContext, node_id: int, where: str) -> None:
+        self._context = context
+        self._where = where
+        self._store: Optional[Callable[[int], None]] = None
+        self._bit_timings = 0
+        self._state_callbacks = CallbackList(f"LSS state of {where}")
+        self._activate_callbacks = CallbackList(f"LSS activate bit timing of {where}")
+        context.subscribe(EventKind.LSS, self._event, node=node_id)
+
+    def on_store(self, callback: Optional[Callable[[int], None]]) -> None:
+        """callback(node_id) persists the node-id a master stores (the node
+        starts with it next time); an exception answers "storage media
+        access error". None: store is "not supported" again."""
+        self._store = callback
+        self._configure(f"node.lss.on_store on {self._where}")
+
+    def accept_bit_timings(self, indexes: Sequence[int]) -> None:
+        """The indexes of the CiA standard bit-timing table (0 = 1000 kbit/s ..
+        8 = 10 kbit/s) "configure bit timing" accepts."""
+        where = f"node.lss.accept_bit_timings({list(indexes)!r}) on {self._where}"
+        mask = 0
+        for index in indexes:
+            if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index <= 31:
+                raise ConfigurationError(f"{where}: indexes must be ints 0..31")
+            mask |= 1 << index
+        self._bit_timings = mask
+        self._configure(where)
+
+    def on_state_change(self, callback: Callable[[str], None]) -> Callable[[str], None]:
+        """callback('waiting' or 'configuration') at each LSS state change."""
+        return self._state_callbacks.add(callback)
+
+    def on_activate_bit_timing(self, callback: Callable[[int], None]
+                               ) -> Callable[[int], None]:
+        """callback(delay_ms): switch to the accepted bit timing after delay_ms."""
+        return self._activate_callbacks.add(callback)
+
+    @property
+    def info(self) -> Dict[str, Any]:
+        """{'state': 'waiting' | 'configuration', 'active', 'pending',
+        'persistent': node-ids (255 = none)}."""
+        state, active, pending, persistent = self._context.runtime.lss_slave_info(
+            self._context.index, f"node.lss.info on {self._where}")
+        return {"state": "configuration" if state else "waiting", "active": active,
+                "pending": pending, "persistent": persistent}
+
+    def _configure(self, where: str) -> None:
+        self._context.runtime.lss_slave_config(self._context.index, self._store is not None,
+                                               self._bit_timings, where)
+
+    def _event(self, event: Event) -> Deferred:
+        """CO_EV_LSS of this node: a = CO_RT_LSS_SLAVE_*, b = its value."""
+        if event.a == SLAVE_STATE:
+            state = "configuration" if event.b else "waiting"
+            return lambda: self._state_callbacks.fire(state)
+        if event.a == SLAVE_ACTIVATE:
+            delay = event.b
+            return lambda: self._activate_callbacks.fire(delay)
+        if event.a == SLAVE_STORE:
+            store, node_id = self._store, event.b
+            return lambda: self._answer_store(store, node_id)
+        return None
+
+    def _answer_store(self, store: Optional[Callable[[int], None]], node_id: int) -> None:
+        """Dispatcher thread: the application persists, then the slave answers."""
+        error = STORE_MEDIA_ERROR
+        if store is not None:
+            try:
+                store(node_id)
+                error = STORE_OK
+            except Exception:  # noqa: BLE001 - the master hears "media error"
+                log.exception("%s: LSS store of node-id %d failed", self._where, node_id)
+        self._context.runtime.lss_slave_answer(self._context.index, error,
+                                               f"LSS store answer on {self._where}")

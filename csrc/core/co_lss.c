@@ -250,18 +250,43 @@ static void configure_bit_timing(co_lss_slave_t *s, uint8_t selector, uint8_t in
                  0);
 }
 
-static void store_configuration(co_lss_slave_t *s)
+static void store_answered(co_lss_slave_t *s, uint8_t node_id, uint8_t error)
 {
-    uint8_t error = CO_LSS_ERR_STORE_NOT_SUPPORTED;
-    if (s->ind && s->ind->store) {
-        error = s->ind->store(s, s->pending_node_id, s->user);
-    }
     if (error == CO_LSS_ERR_OK) {
-        s->persistent_node_id = s->pending_node_id;
+        s->persistent_node_id = node_id;
     } else if (error != CO_LSS_ERR_STORE_MEDIA) {
         error = CO_LSS_ERR_STORE_NOT_SUPPORTED;   /* nothing else is defined */
     }
     answer_bytes(s, CO_LSS_CS_STORE_CONFIGURATION, error, 0);
+}
+
+static void store_configuration(co_lss_slave_t *s)
+{
+    if (s->store_waiting) {
+        s->stats.store_busy++;   /* the application still writes the last one */
+        return;
+    }
+    uint8_t error = CO_LSS_ERR_STORE_NOT_SUPPORTED;
+    uint8_t node_id = s->pending_node_id;
+    if (s->ind && s->ind->store) {
+        error = s->ind->store(s, node_id, s->user);
+    }
+    if (error == CO_LSS_ERR_LATER) {
+        s->store_waiting = true;
+        s->store_node_id = node_id;
+        return;
+    }
+    store_answered(s, node_id, error);
+}
+
+bool co_lss_slave_store_answer(co_lss_slave_t *slave, uint8_t error)
+{
+    if (!slave->store_waiting) {
+        return false;
+    }
+    slave->store_waiting = false;
+    store_answered(slave, slave->store_node_id, error);
+    return true;
 }
 
 static void inquire(co_lss_slave_t *s, uint8_t cs)

@@ -383,6 +383,27 @@ static void test_store(void **state)
     assert_int_equal(f->stores, 4);
     assert_int_equal(co_lss_slave_persistent_node_id(&f->slave), 9);
     assert_int_equal(co_lss_slave_active_node_id(&f->slave), 0x20);
+    /* The application answers later (it writes its medium first). */
+    feed(f, 0x11, 10, 0, 0, 0, 0, 0, 0);
+    expect_bytes(f, 0x11, 0, 0);
+    f->store_answer = CO_LSS_ERR_LATER;
+    feed(f, 0x17, 0, 0, 0, 0, 0, 0, 0);
+    expect_silence(f);
+    feed(f, 0x17, 0, 0, 0, 0, 0, 0, 0);         /* a second one while waiting */
+    expect_silence(f);
+    assert_int_equal(co_lss_slave_stats(&f->slave)->store_busy, 1);
+    assert_int_equal(f->stores, 5);
+    feed(f, 0x11, 11, 0, 0, 0, 0, 0, 0);         /* pending changes meanwhile */
+    expect_bytes(f, 0x11, 0, 0);
+    assert_true(co_lss_slave_store_answer(&f->slave, CO_LSS_ERR_OK));
+    expect_bytes(f, 0x17, 0, 0);
+    assert_int_equal(co_lss_slave_persistent_node_id(&f->slave), 10);   /* what was asked */
+    assert_false(co_lss_slave_store_answer(&f->slave, CO_LSS_ERR_OK));
+    expect_silence(f);
+    feed(f, 0x17, 0, 0, 0, 0, 0, 0, 0);
+    assert_true(co_lss_slave_store_answer(&f->slave, CO_LSS_ERR_STORE_MEDIA));
+    expect_bytes(f, 0x17, 2, 0);
+    assert_int_equal(co_lss_slave_persistent_node_id(&f->slave), 10);
 }
 
 /* An unconfigured node (255) that gets a node-id: switched back to

@@ -74,7 +74,10 @@ enum {
     CO_LSS_ERR_BIT_TIMING = 1,           /* configure bit timing: not supported */
     CO_LSS_ERR_STORE_NOT_SUPPORTED = 1,
     CO_LSS_ERR_STORE_MEDIA = 2,          /* storage media access error */
-    CO_LSS_ERR_SPECIFIC = 0xFF           /* implementation specific: byte 2 says more */
+    CO_LSS_ERR_SPECIFIC = 0xFF,          /* implementation specific: byte 2 says more */
+    /* Not on the wire: the store indication answers later, through
+     * co_lss_slave_store_answer (the application writes its medium). */
+    CO_LSS_ERR_LATER = 0xFE
 };
 
 enum {
@@ -111,6 +114,7 @@ typedef struct co_lss_slave_stats {
     uint32_t bad_argument;     /* a known command with a value out of its range */
     uint32_t not_in_state;     /* a command the current state does not serve */
     uint32_t tx_failed;        /* an answer the tx queue refused */
+    uint32_t store_busy;       /* a store request while the last one waits for its answer */
 } co_lss_slave_stats_t;
 /* cffi:end */
 
@@ -151,7 +155,8 @@ typedef struct co_lss_slave_indications {
     void (*activate_bit_timing)(co_lss_slave_t *slave, uint16_t delay_ms, void *user);
     /* store configuration: persist node_id (the pending one) and the
      * pending bit timing; returns CO_LSS_ERR_OK, _STORE_NOT_SUPPORTED or
-     * _STORE_MEDIA. NULL: not supported. */
+     * _STORE_MEDIA, or CO_LSS_ERR_LATER to answer with
+     * co_lss_slave_store_answer. NULL: not supported. */
     uint8_t (*store)(co_lss_slave_t *slave, uint8_t node_id, void *user);
     /* the LSS state changed */
     void (*state_changed)(co_lss_slave_t *slave, co_lss_state_t state, void *user);
@@ -175,6 +180,8 @@ struct co_lss_slave {
     uint8_t identify_seen;           /* identify remote slave: bit per part received */
     uint32_t identify[6];            /* ... and the values */
     uint8_t fastscan_pos;            /* fast scan: the part being checked (LSSPos) */
+    bool store_waiting;              /* a store's answer comes from the application */
+    uint8_t store_node_id;           /* ... for this node-id */
     const co_lss_slave_indications_t *ind;
     void *user;
     co_lss_slave_stats_t stats;
@@ -186,6 +193,9 @@ struct co_lss_slave {
 bool co_lss_slave_init(co_lss_slave_t *slave, co_line_t *line, const co_lss_address_t *address,
                        uint8_t node_id, const co_lss_slave_indications_t *ind, void *user);
 void co_lss_slave_deinit(co_lss_slave_t *slave);
+/* The answer to a store the indication deferred (CO_LSS_ERR_LATER): error
+ * as the indication would have returned it. False when none waits. */
+bool co_lss_slave_store_answer(co_lss_slave_t *slave, uint8_t error);
 /* The node resets communication: the pending node-id becomes the active one
  * (returned). */
 uint8_t co_lss_slave_reset_communication(co_lss_slave_t *slave);

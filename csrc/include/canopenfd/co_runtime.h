@@ -479,6 +479,22 @@ int co_rt_lss_start(co_rt_t *rt, int line, const co_rt_lss_request_t *request);
 int co_rt_lss_result(co_rt_t *rt, int line, co_lss_master_result_t *out,
                      co_rt_lss_device_t *devices, int max);
 int co_rt_lss_stats(co_rt_t *rt, int line, co_lss_master_stats_t *out);
+/* The local node's LSS slave (a node whose OD has 0x1018:04) posts CO_EV_LSS
+ * with node = its node-id and a = one of these: */
+enum {
+    CO_RT_LSS_SLAVE_STATE = 110,      /* b = co_lss_state_t */
+    CO_RT_LSS_SLAVE_STORE = 111,      /* b = node-id to persist: co_rt_lss_slave_answer */
+    CO_RT_LSS_SLAVE_ACTIVATE = 112,   /* b = switch delay ms */
+    CO_RT_LSS_SLAVE_BIT_TIMING = 113  /* b = selector << 8 | index, accepted */
+};
+/* store != 0: store requests are the application's (answered with
+ * co_rt_lss_slave_answer), else "not supported". bit_timings: bit n set =
+ * table 0 index n accepted (0: none). */
+int co_rt_lss_slave_config(co_rt_t *rt, int line, int store, uint32_t bit_timings);
+/* Answer the store request: 0 stored, 1 not supported, 2 storage media error. */
+int co_rt_lss_slave_answer(co_rt_t *rt, int line, int error);
+/* state, active, pending and persistent node-id of the local node's slave. */
+int co_rt_lss_slave_info(co_rt_t *rt, int line, uint8_t out[4]);
 
 /* Upload to memory: copy the data (returns the byte count, or a status). */
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);

@@ -192,3 +192,123 @@ int co_rt_lss_stats(co_rt_t *rt, int line, co_lss_master_stats_t *out)
     rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
+
+/* ---------------------------------------------------------------- the local node's slave */
+
+static uint8_t own_id(const rt_line_t *l)
+{
+    return co_line_node_id(&l->line);
+}
+
+static bool slave_check_bit_timing(co_lss_slave_t *slave, uint8_t selector, uint8_t index,
+                                   void *user)
+{
+    (void)slave;
+    rt_line_t *l = user;
+    bool ok = selector == 0u && index < 32u && (l->lss.bit_timings >> index) & 1u;
+    if (ok) {
+        rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_BIT_TIMING,
+                (uint32_t)selector << 8 | index, NULL);
+    }
+    return ok;
+}
+
+static void slave_activate(co_lss_slave_t *slave, uint16_t delay_ms, void *user)
+{
+    (void)slave;
+    rt_line_t *l = user;
+    rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_ACTIVATE, delay_ms, NULL);
+}
+
+static uint8_t slave_store(co_lss_slave_t *slave, uint8_t node_id, void *user)
+{
+    (void)slave;
+    rt_line_t *l = user;
+    if (!l->lss.store_by_app) {
+        return CO_LSS_ERR_STORE_NOT_SUPPORTED;
+    }
+    /* The thread never waits for Python: the answer comes with
+     * co_rt_lss_slave_answer once the application has written it. */
+    if (!rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_STORE, node_id, NULL)) {
+        return CO_LSS_ERR_STORE_MEDIA;   /* nobody will hear of it */
+    }
+    return CO_LSS_ERR_LATER;
+}
+
+static void slave_state(co_lss_slave_t *slave, co_lss_state_t state, void *user)
+{
+    (void)slave;
+    rt_line_t *l = user;
+    rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_STATE, (uint32_t)state, NULL);
+}
+
+const co_lss_slave_indications_t *rt_lss_slave_indications(rt_line_t *l)
+{
+    l->lss.slave_ind = (co_lss_slave_indications_t){slave_check_bit_timing, slave_activate,
+                                                    slave_store, slave_state, NULL};
+    return &l->lss.slave_ind;
+}
+
+/* The slave, under rt->lock; NULL with the error set. */
+static co_lss_slave_t *slave_of(co_rt_t *rt, rt_line_t *l)
+{
+    co_lss_slave_t *s = co_stack_lss_slave(&l->stack);
+    if (!s) {
+        rt_set_error(rt, "line %d: no LSS slave (a local node whose OD has the serial "
+                     "number 0x1018:04)", l->index);
+    }
+    return s;
+}
+
+int co_rt_lss_slave_config(co_rt_t *rt, int line, int store, uint32_t bit_timings)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    l->lss.store_by_app = store != 0;
+    l->lss.bit_timings = bit_timings;
+    rt_mutex_unlock(&rt->lock);
+    return CO_RT_OK;
+}
+
+int co_rt_lss_slave_answer(co_rt_t *rt, int line, int error)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (error < CO_LSS_ERR_OK || error > CO_LSS_ERR_STORE_MEDIA) {
+        return rt_argument_error(rt, "line %d: LSS store answer %d: 0 stored, 1 not "
+                                 "supported, 2 storage media error", line, error);
+    }
+    rt_mutex_lock(&rt->lock);
+    co_line_set_time(&l->line, co_rt_now_us());
+    co_lss_slave_t *s = slave_of(rt, l);
+    int status = CO_RT_ERR_STATE;
+    if (s && co_lss_slave_store_answer(s, (uint8_t)error)) {
+        status = CO_RT_OK;
+    } else if (s) {
+        rt_set_error(rt, "line %d: no LSS store request waits for an answer", line);
+    }
+    return rt_kick_unlock(rt, status);
+}
+
+int co_rt_lss_slave_info(co_rt_t *rt, int line, uint8_t out[4])
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l || !out) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    co_lss_slave_t *s = slave_of(rt, l);
+    if (s) {
+        out[0] = (uint8_t)co_lss_slave_state(s);
+        out[1] = co_lss_slave_active_node_id(s);
+        out[2] = co_lss_slave_pending_node_id(s);
+        out[3] = co_lss_slave_persistent_node_id(s);
+    }
+    rt_mutex_unlock(&rt->lock);
+    return s ? CO_RT_OK : CO_RT_ERR_STATE;
+}

@@ -159,7 +159,9 @@ int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     co_stack_node_config_t config = {.node_id = (uint8_t)cmd->args.node_create.node_id,
                                      .heartbeat_ms = (uint16_t)cmd->args.node_create.heartbeat_ms,
                                      .ind = &node_indications,
-                                     .user = l};
+                                     .user = l,
+                                     .lss_ind = rt_lss_slave_indications(l),
+                                     .lss_user = l};
     int status = l->has_od ? prepare_od(rt, l, config.node_id, &config) : CO_RT_OK;
     if (status == CO_RT_OK) {
         co_stack_status_t s = co_stack_node_init(&l->stack, &config);
