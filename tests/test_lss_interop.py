@@ -65,6 +65,12 @@ def test_python_canopen_configures_our_slave(rig):
         lss.configure_bit_timing(2)
     with pytest.raises(LssError, match="LSS Error: 1"):
         lss.store_configuration()
+    # Once the application persists node-ids, store succeeds.
+    stored = []
+    node.lss.on_store(stored.append)
+    lss.store_configuration()
+    assert stored == [9]
+    assert node.lss.info["persistent"] == 9
     lss.send_switch_state_global(lss.WAITING_STATE)
     with pytest.raises(LssError):
         lss.inquire_node_id()
