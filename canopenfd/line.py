@@ -23,7 +23,7 @@ from .node import LocalNode, RemoteNode
 from .od import ObjectDictionary, ODVariable, import_od
 from .od.fileio import Source
 from .services.emcy import Emcy, LineEmcy
-from .services.lss import LssMaster
+from .services.lss import UNCONFIGURED, LssMaster
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.sync import SyncService
@@ -137,7 +137,8 @@ class Line:
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
-        node_id = check_node_id(node_id, f"create_local_node on {self._where}")
+        if node_id != UNCONFIGURED:
+            node_id = check_node_id(node_id, f"create_local_node on {self._where}")
         heartbeat_ms = check_ms(heartbeat_ms, "heartbeat_ms",
                                 f"create_local_node({node_id}) on {self._where}")
         context = self._context
@@ -153,6 +154,11 @@ class Line:
             context.runtime.require_open(f"create_local_node({node_id}) on {self._where}")
             served = _served_od(od, node_id, store, f"create_local_node({node_id}) on "
                                 f"{self._where}")
+            if node_id == UNCONFIGURED and (served is None or (0x1018, 4) not in served):
+                raise ConfigurationError(
+                    f"create_local_node(255) on {self._where}: an unconfigured node needs an "
+                    "OD with the serial number 0x1018:04 (its LSS address), else nothing "
+                    "could ever give it a node-id")
             checked_store = check_store(store, f"create_local_node({node_id}) on {self._where}")
             scope = context.scoped()
             node = LocalNode(self, scope, node_id, heartbeat_ms, served, checked_store)

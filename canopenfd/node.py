@@ -70,6 +70,7 @@ class LocalNode:
         self._emcy = EmcyProducer(context, self, self._served, where)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
         self.lss = LssSlave(context, node_id, where)
+        self.lss.add_configured_hook(self._lss_configured)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         if od is not None:
@@ -79,6 +80,12 @@ class LocalNode:
 
     def __repr__(self) -> str:
         return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
+
+    def _lss_configured(self, node_id: int) -> None:
+        """Created unconfigured (255), LSS gave the node node_id: it runs with it."""
+        self.node_id = node_id
+        self._slave.node_id = node_id
+        self._context.local_node_id = node_id
 
     @property
     def _where(self) -> str:

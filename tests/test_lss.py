@@ -7,6 +7,7 @@ test_stack_lss.c); interop with python-canopen in test_lss_interop.py."""
 from __future__ import annotations
 
 import asyncio
+import time
 
 import pytest
 
@@ -14,7 +15,7 @@ from canopenfd import ConfigurationError
 from canopenfd.od import demo_od
 from canopenfd.services.lss import LssDevice, LssError
 from canopenfd._binding.constants import LssStatus
-from helpers import Recorder
+from helpers import Recorder, scaled
 
 IDENTITY = (0x000001A2, 0x00BEEF01, 0x00020003, 0x80000001)
 
@@ -157,3 +158,27 @@ def test_local_node_store_and_bit_timing(net, bus_name):
     states.wait_for(lambda c: c == ["configuration", "waiting"], 2, "state")
     with pytest.raises(ConfigurationError, match="ints 0..31"):
         node.lss.accept_bit_timings([32])
+
+
+def test_unconfigured_local_node_gets_its_node_id(net, bus_name):
+    device = net.open_line(bus_name, mode="classic").create_local_node(
+        255, 50, od=identity_od(0x42))
+    line = net.open_line(bus_name, mode="classic")
+    configured, frames = Recorder(), Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    assert device.state.label == "INITIALISING"
+    time.sleep(scaled(0.3))                           # silent: no boot-up, no heartbeat
+    assert [f for f in frames.snapshot() if 0x700 <= f.id <= 0x77F] == []
+    device.lss.on_configured(configured)
+    assert line.lss.identify_non_configured() == 1
+    with pytest.raises(ConfigurationError, match="needs an OD with the serial number"):
+        net.open_line(bus_name, mode="classic").create_local_node(255)
+    found = line.lss.fast_scan([20, 21])
+    assert found == [LssDevice(*IDENTITY[:3], 0x42, 20)]
+    configured.wait_for(lambda c: c == [20], 2, "configured")
+    assert device.node_id == 20
+    device.nmt.wait_for_state("PRE-OPERATIONAL", timeout=2)
+    assert line.states[20] == "PRE-OPERATIONAL"       # boot-up heard with node-id 20
+    assert line.lss.identify_non_configured() == 0
+    with pytest.raises(ConfigurationError, match="node-id 0 outside"):
+        net.open_line(bus_name, mode="classic").create_local_node(0)

@@ -91,3 +91,37 @@ def test_python_canopen_fast_scan_skips_a_configured_node(rig):
     lss, _ = rig
     # Our node has a node-id: it takes no part in fast scan (CiA 305).
     assert lss.fast_scan() == (False, None)
+
+
+def test_python_canopen_fast_scans_our_unconfigured_node():
+    """Our node starts with node-id 255 (only LSS runs); python-canopen's fast
+    scan finds its address, configures node-id 12 and switches it back to
+    waiting: our node boots with 12, which python-canopen sees."""
+    channel = f"lss-{os.getpid()}-{next(_channels)}"
+    peer = canopen.Network()
+    peer.connect(interface="virtual", channel=channel)
+    # few 1-bits: python-canopen waits its full response timeout for each
+    identity = {1: 0x00000001, 2: 0x00000002, 3: 0x00000001, 4: 0x80000000}
+    od = demo_od("classic")
+    for sub, value in identity.items():
+        od[0x1018][sub].default = value
+    try:
+        with canopenfd.Network() as net:
+            line = net.open_line(bus=virtual_bus(channel), mode="classic")
+            node = line.create_local_node(255, od=od)
+            assert node.state.label == "INITIALISING"      # no boot-up without a node-id
+            remote = peer.add_node(12)
+            found, address = peer.lss.fast_scan()
+            assert found is True
+            assert address == [identity[1], identity[2], identity[3], identity[4]]
+            peer.lss.configure_node_id(12)
+            assert node.node_id == 255                     # pending until back to waiting
+            peer.lss.send_switch_state_global(peer.lss.WAITING_STATE)
+            remote.nmt.wait_for_bootup(timeout=5)
+            assert node.node_id == 12
+            node.nmt.wait_for_state("PRE-OPERATIONAL", timeout=5)
+            assert node.lss.info["active"] == 12
+            # Configured now: a second fast scan finds nobody.
+            assert peer.lss.fast_scan() == (False, None)
+    finally:
+        peer.disconnect()

@@ -359,6 +359,9 @@ SLAVE_STATE = 110          # CO_RT_LSS_SLAVE_STATE
 SLAVE_STORE = 111          # CO_RT_LSS_SLAVE_STORE
 SLAVE_ACTIVATE = 112       # CO_RT_LSS_SLAVE_ACTIVATE
 SLAVE_BIT_TIMING = 113     # CO_RT_LSS_SLAVE_BIT_TIMING
+SLAVE_CONFIGURED = 114     # CO_RT_LSS_SLAVE_CONFIGURED
+SLAVE_EVENTS = 255         # the node of the slave's events (the master's: 0)
+UNCONFIGURED = 255
 STORE_OK, STORE_MEDIA_ERROR = 0, 2
 
 
@@ -375,8 +378,10 @@ class LssSlave:
         self._store: Optional[Callable[[int], None]] = None
         self._bit_timings = 0
         self._state_callbacks = CallbackList(f"LSS state of {where}")
+        self._configured_callbacks = CallbackList(f"LSS node-id of {where}")
+        self._configured_hooks: List[Callable[[int], None]] = []
         self._activate_callbacks = CallbackList(f"LSS activate bit timing of {where}")
-        context.subscribe(EventKind.LSS, self._event, node=node_id)
+        context.subscribe(EventKind.LSS, self._event, node=SLAVE_EVENTS)
 
     def on_store(self, callback: Optional[Callable[[int], None]]) -> None:
         """callback(node_id) persists the node-id a master stores (the node
@@ -400,6 +405,16 @@ class LssSlave:
     def on_state_change(self, callback: Callable[[str], None]) -> Callable[[str], None]:
         """callback('waiting' or 'configuration') at each LSS state change."""
         return self._state_callbacks.add(callback)
+
+    def on_configured(self, callback: Callable[[int], None]) -> Callable[[int], None]:
+        """callback(node_id): a node created with node-id 255 got node_id from LSS
+        and runs (booted) with it now."""
+        return self._configured_callbacks.add(callback)
+
+    def add_configured_hook(self, hook: Callable[[int], None]) -> None:
+        """For the node itself: hook(node_id) runs under the line's condition
+        as soon as the event is handled, before any waiter wakes."""
+        self._configured_hooks.append(hook)
 
     def on_activate_bit_timing(self, callback: Callable[[int], None]
                                ) -> Callable[[int], None]:
@@ -427,6 +442,11 @@ class LssSlave:
         if event.a == SLAVE_ACTIVATE:
             delay = event.b
             return lambda: self._activate_callbacks.fire(delay)
+        if event.a == SLAVE_CONFIGURED:
+            node_id = event.b
+            for hook in self._configured_hooks:
+                hook(node_id)
+            return lambda: self._configured_callbacks.fire(node_id)
         if event.a == SLAVE_STORE:
             store, node_id = self._store, event.b
             return lambda: self._answer_store(store, node_id)

@@ -480,12 +480,15 @@ int co_rt_lss_result(co_rt_t *rt, int line, co_lss_master_result_t *out,
                      co_rt_lss_device_t *devices, int max);
 int co_rt_lss_stats(co_rt_t *rt, int line, co_lss_master_stats_t *out);
 /* The local node's LSS slave (a node whose OD has 0x1018:04) posts CO_EV_LSS
- * with node = its node-id and a = one of these: */
+ * with node = 255 (whatever its node-id: the master's events have node 0)
+ * and a = one of these: */
 enum {
     CO_RT_LSS_SLAVE_STATE = 110,      /* b = co_lss_state_t */
     CO_RT_LSS_SLAVE_STORE = 111,      /* b = node-id to persist: co_rt_lss_slave_answer */
     CO_RT_LSS_SLAVE_ACTIVATE = 112,   /* b = switch delay ms */
-    CO_RT_LSS_SLAVE_BIT_TIMING = 113  /* b = selector << 8 | index, accepted */
+    CO_RT_LSS_SLAVE_BIT_TIMING = 113, /* b = selector << 8 | index, accepted */
+    CO_RT_LSS_SLAVE_CONFIGURED = 114  /* a node created with node-id 255 got b from LSS:
+                                         it runs (and booted) with it now */
 };
 /* store != 0: store requests are the application's (answered with
  * co_rt_lss_slave_answer), else "not supported". bit_timings: bit n set =

@@ -195,9 +195,11 @@ int co_rt_lss_stats(co_rt_t *rt, int line, co_lss_master_stats_t *out)
 
 /* ---------------------------------------------------------------- the local node's slave */
 
+/* Slave events carry node 255, whatever the node's id (it may change). */
 static uint8_t own_id(const rt_line_t *l)
 {
-    return co_line_node_id(&l->line);
+    (void)l;
+    return CO_LSS_NODE_ID_UNCONFIGURED;
 }
 
 static bool slave_check_bit_timing(co_lss_slave_t *slave, uint8_t selector, uint8_t index,
@@ -242,10 +244,19 @@ static void slave_state(co_lss_slave_t *slave, co_lss_state_t state, void *user)
     rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_STATE, (uint32_t)state, NULL);
 }
 
+/* co_stack set the node up with the node-id LSS gave it. */
+static void slave_configured(co_lss_slave_t *slave, uint8_t node_id, void *user)
+{
+    (void)slave;
+    rt_line_t *l = user;
+    rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_CONFIGURED, node_id, NULL);
+}
+
 const co_lss_slave_indications_t *rt_lss_slave_indications(rt_line_t *l)
 {
     l->lss.slave_ind = (co_lss_slave_indications_t){slave_check_bit_timing, slave_activate,
-                                                    slave_store, slave_state, NULL};
+                                                    slave_store, slave_state,
+                                                    slave_configured};
     return &l->lss.slave_ind;
 }
 

@@ -151,6 +151,11 @@ static int hook_od(co_rt_t *rt, rt_line_t *l)
 
 int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
+    if (co_stack_unconfigured(&l->stack)) {
+        rt_set_error(rt, "line %d already has a local node, waiting for an LSS node-id",
+                     l->index);
+        return CO_RT_ERR_STATE;
+    }
     if (rt_has_node(l)) {
         rt_set_error(rt, "line %d already has local node %u", l->index,
                      co_stack_node(&l->stack)->nmt.node_id);
