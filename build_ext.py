@@ -41,6 +41,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_lss_master.h",
     "csrc/include/canopenfd/co_sdo_server.h",
     "csrc/include/canopenfd/co_usdo_server.h",
+    "csrc/include/canopenfd/co_sleep.h",
     "csrc/include/canopenfd/co_runtime.h",
 ]
 # Public headers: csrc/include/canopenfd (included as "canopenfd/co_x.h"); the

@@ -26,6 +26,7 @@ from .services.emcy import Emcy, LineEmcy
 from .services.lss import UNCONFIGURED, LssMaster
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
+from .services.sleep import SleepService
 from .services.sync import SyncService
 from .services.time import TimeService
 from .transfer.client import TransferClient, require_protocol
@@ -78,6 +79,8 @@ class Line:
         self._lss: Optional[LssMaster] = None
         #: TIME transmit and callbacks.
         self.time = TimeService(context)
+        #: Sleep and wake-up, master or device (see canopenfd.services.sleep).
+        self.sleep = SleepService(context)
         self._emcy = LineEmcy(context)
         # USDO on fd lines, SDO on classic lines (C sets it up at the first transfer)
         self._client: TransferClient = \

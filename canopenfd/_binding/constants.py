@@ -29,8 +29,8 @@ from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "LssRequest", "LssStatus", "Mode",
-    "NmtCommand", "NmtState",
-    "OdOrigin", "ParameterGroup", "RtStatus", "StoreStatus", "C_ENUMS", "c_members",
+    "NmtCommand", "NmtState", "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction",
+    "SleepCause", "SleepEvent", "SleepPhase", "StoreStatus", "C_ENUMS", "c_members",
 ]
 
 
@@ -87,6 +87,15 @@ LssRequest = _c_enum("LssRequest", "CO_LSS_REQ_", "co_lss_request_t",
                      doc="Requests of the LSS master (co_lss_request_t).")
 LssStatus = _c_enum("LssStatus", "CO_LSS_", "co_lss_status_t",
                     doc="How an LSS master request ended (co_lss_status_t).")
+# ---------------------------------------------------------------- sleep and wake-up
+SleepPhase = _c_enum("SleepPhase", "CO_SLEEP_", "co_sleep_phase_t",
+                     doc="Phases of sleep and wake-up (co_sleep_phase_t, CiA 320).")
+SleepEvent = _c_enum("SleepEvent", "CO_SLEEP_EV_", "co_sleep_event_t",
+                     doc="What the sleep service reports (co_sleep_event_t).")
+SleepCause = _c_enum("SleepCause", "CO_SLEEP_BY_", "co_sleep_cause_t",
+                     doc="What woke a node (co_sleep_cause_t).")
+SleepAction = _c_enum("SleepAction", "CO_RT_SLEEP_", "co_rt_sleep_action_t",
+                      doc="What the application asks of the sleep service (co_rt_sleep_action_t).")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

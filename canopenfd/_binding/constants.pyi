@@ -27,6 +27,10 @@ __all__ = [
     "OdOrigin",
     "ParameterGroup",
     "RtStatus",
+    "SleepAction",
+    "SleepCause",
+    "SleepEvent",
+    "SleepPhase",
     "StoreStatus",
     "C_ENUMS",
     "c_members",
@@ -136,6 +140,7 @@ class EventKind(enum.IntEnum):
     GUARD = 18
     PDO_FRAME = 19
     LSS = 21
+    SLEEP = 24
 
 
 class FrameFlag(enum.IntEnum):
@@ -252,6 +257,43 @@ class RtStatus(enum.IntEnum):
     ERR_NO_INTERFACE = -2
     ERR_ARGUMENT = -1
     OK = 0
+
+
+class SleepAction(enum.IntEnum):
+    """What the application asks of the sleep service (co_rt_sleep_action_t)."""
+    CHECK = 1
+    START = 2
+    REQUEST = 3
+    WAKE = 4
+
+
+class SleepCause(enum.IntEnum):
+    """What woke a node (co_sleep_cause_t)."""
+    APPLICATION = 0
+    BUS = 1
+    WAKE_MESSAGE = 2
+
+
+class SleepEvent(enum.IntEnum):
+    """What the sleep service reports (co_sleep_event_t)."""
+    QUERY = 1
+    OBJECTION = 2
+    REQUEST = 3
+    PREPARE = 4
+    SILENT = 5
+    ASLEEP = 6
+    WAKE = 7
+    WAKE_MESSAGE = 8
+    REFUSED = 9
+
+
+class SleepPhase(enum.IntEnum):
+    """Phases of sleep and wake-up (co_sleep_phase_t, CiA 320)."""
+    AWAKE = 0
+    CHECKING = 1
+    PREPARING = 2
+    SILENT = 3
+    ASLEEP = 4
 
 
 class StoreStatus(enum.IntEnum):

@@ -1,13 +1,15 @@
 """The services of lines and nodes; each takes a narrow line context, never a Line.
 
 nmt (NMT master and slave, heartbeat), emcy, pdo, sync, time, guard (node
-guarding), indications (on_read / on_write), store (parameter stores),
+guarding), sleep (sleep and wake-up, CiA 320), indications (on_read / on_write), store (parameter stores),
 served_od (the local node's values, domains and change callbacks); views:
 what services see of their node (Protocols).
 """
 
 from .guard import GuardEvent
+from .sleep import SleepNotice, SleepService
 from .sync import SyncService
 from .time import TIME_EPOCH, TimeService
 
-__all__ = ["SyncService", "TimeService", "GuardEvent", "TIME_EPOCH"]
+__all__ = ["SleepNotice", "SleepService", "SyncService", "TimeService", "GuardEvent",
+           "TIME_EPOCH"]

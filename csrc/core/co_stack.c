@@ -894,6 +894,49 @@ void co_stack_client_deinit(co_stack_t *stack)
     give_back(stack, OWNER_CLIENT);
 }
 
+/* ---------------------------------------------------------------- sleep */
+
+/* The application hears every phase first; waking up then resets the local
+ * node's communication (CiA 320: a node awake again starts over). */
+static uint8_t on_sleep(co_sleep_t *sleep, co_sleep_event_t event, uint8_t arg, uint8_t arg2,
+                        void *user)
+{
+    co_stack_t *s = user;
+    uint8_t answer = s->sleep_ind ? s->sleep_ind(sleep, event, arg, arg2, s->sleep_user) : 0;
+    if (event == CO_SLEEP_EV_WAKE && s->has_node) {
+        co_nmt_apply(&s->node.nmt, CO_NMT_CMD_RESET_COMMUNICATION);
+    }
+    return answer;
+}
+
+co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config)
+{
+    if (!stack || !stack->line || !config) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    if (stack->has_sleep) {
+        return fail(stack, CO_STACK_PART_SLEEP, CO_STACK_ERR_STATE);
+    }
+    co_sleep_config_t own = *config;
+    own.ind = on_sleep;
+    own.user = stack;
+    stack->sleep_ind = config->ind;
+    stack->sleep_user = config->user;
+    if (!co_sleep_init(&stack->sleep, stack->line, &own)) {
+        return fail(stack, CO_STACK_PART_SLEEP, CO_STACK_ERR_TAKEN);
+    }
+    stack->has_sleep = true;
+    return CO_STACK_OK;
+}
+
+void co_stack_sleep_deinit(co_stack_t *stack)
+{
+    if (stack && stack->has_sleep) {
+        co_sleep_deinit(&stack->sleep);
+        stack->has_sleep = false;
+    }
+}
+
 /* ---------------------------------------------------------------- all */
 
 void co_stack_deinit(co_stack_t *stack)
@@ -901,6 +944,7 @@ void co_stack_deinit(co_stack_t *stack)
     if (!stack || !stack->line) {
         return;
     }
+    co_stack_sleep_deinit(stack);
     co_stack_client_deinit(stack);
     co_stack_node_deinit(stack);
     line_undo(stack);
@@ -929,6 +973,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_SERVER: return "SDO/USDO server";
     case CO_STACK_PART_CLIENT: return "SDO/USDO client";
     case CO_STACK_PART_LSS: return "LSS";
+    case CO_STACK_PART_SLEEP: return "sleep and wake-up";
     }
     return "unknown part";
 }

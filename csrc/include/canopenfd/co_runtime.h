@@ -17,6 +17,7 @@
 #include "canopenfd/co_lss_master.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_sleep.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
 #include "canopenfd/co_usdo_server.h"
@@ -115,8 +116,11 @@ typedef enum co_rt_event_kind {
     CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
     CO_EV_PDO_FRAME = 19,      /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
                                   29-bit), b = frames seen on it so far, frame = it */
-    CO_EV_LSS = 21             /* the line's LSS master finished a request (co_rt_lss_start):
+    CO_EV_LSS = 21,            /* the line's LSS master finished a request (co_rt_lss_start):
                                   a = co_lss_request_t, b = co_lss_status_t; co_rt_lss_result */
+    CO_EV_SLEEP = 24           /* sleep and wake-up (co_rt_sleep_start): a =
+                                  co_sleep_event_t, b = arg | arg2 << 8, node = the
+                                  phase after it (co_sleep_phase_t) */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -432,6 +436,31 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
 int co_rt_sync_listen(co_rt_t *rt, int line, int listen);
 /* Send a TIME stamp (microseconds since 1970, UTC). */
 int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
+
+/* ---- sleep and wake-up (CiA 320; co_rt_sleep.c) */
+typedef struct co_rt_sleep_config {
+    int master;                /* 1: power management master, 0: device */
+    uint16_t check_ms;         /* as co_sleep_config_t (0 = 1000 ms each) */
+    uint16_t prepare_ms;
+    uint16_t silent_ms;
+    uint16_t wake_repeat_ms;
+    uint8_t objection;         /* device: the reason answered to every query (0 = agree) */
+} co_rt_sleep_config_t;
+typedef enum co_rt_sleep_action {
+    CO_RT_SLEEP_CHECK = 1,     /* master: query, then sleep unless a device objects */
+    CO_RT_SLEEP_START = 2,     /* master: sleep command at once; device: sleep alone */
+    CO_RT_SLEEP_REQUEST = 3,   /* device: ask the master for sleep */
+    CO_RT_SLEEP_WAKE = 4       /* wake up with the wake-up message [status, reason] */
+} co_rt_sleep_action_t;
+/* The line takes part in sleep and wake-up (once; CO_EV_SLEEP tells every
+ * event); waking up resets the local node's communication. */
+int co_rt_sleep_start(co_rt_t *rt, int line, const co_rt_sleep_config_t *config);
+int co_rt_sleep_stop(co_rt_t *rt, int line);
+/* The device's answer to later queries (0 = agree). */
+int co_rt_sleep_objection(co_rt_t *rt, int line, uint8_t reason);
+int co_rt_sleep_act(co_rt_t *rt, int line, int action, uint8_t status, uint8_t reason);
+/* The phase (co_sleep_phase_t) and counters. */
+int co_rt_sleep_state(co_rt_t *rt, int line, co_sleep_stats_t *stats);
 /* The counters of the line's process-data, error and SDO/USDO server
  * services (zeros for services the line does not run). */
 typedef struct co_rt_service_stats {

@@ -36,6 +36,7 @@
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_client.h"
 #include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_sleep.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -81,7 +82,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
     CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
-    CO_STACK_PART_LSS = 13       /* LSS slave of the node or LSS master of the line */
+    CO_STACK_PART_LSS = 13,      /* LSS slave of the node or LSS master of the line */
+    CO_STACK_PART_SLEEP = 17     /* sleep and wake-up (CiA 320), master or device */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -244,6 +246,11 @@ struct co_stack {
     co_timer_t lss_timer;        /* sets the node up outside the LSS frame's handler */
     bool has_lss_master;
     co_lss_master_t lss_master;
+    /* sleep and wake-up */
+    bool has_sleep;
+    co_sleep_t sleep;
+    co_sleep_fn sleep_ind;           /* the application's, behind the stack's own */
+    void *sleep_user;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -273,6 +280,10 @@ void co_stack_client_deinit(co_stack_t *stack);
 co_stack_status_t co_stack_lss_master_init(co_stack_t *stack, uint32_t timeout_ms,
                                            co_lss_done_fn on_done, void *user);
 void co_stack_lss_master_deinit(co_stack_t *stack);
+/* Sleep and wake-up on the line (needs no memory): a master, or a device;
+ * waking up resets the local node's communication. */
+co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config);
+void co_stack_sleep_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -327,6 +338,7 @@ static inline co_lss_master_t *co_stack_lss_master(co_stack_t *s)
 }
 /* The node waits for LSS to give it a node-id (co_stack_has_node is false). */
 static inline bool co_stack_unconfigured(const co_stack_t *s) { return s->unconfigured; }
+static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */
