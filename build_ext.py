@@ -38,6 +38,8 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_sync.h",
     "csrc/include/canopenfd/co_time.h",
     "csrc/include/canopenfd/co_guard.h",
+    "csrc/include/canopenfd/co_lss.h",
+    "csrc/include/canopenfd/co_lss_master.h",
     "csrc/include/canopenfd/co_sdo_server.h",
     "csrc/include/canopenfd/co_usdo_server.h",
     "csrc/include/canopenfd/co_sleep.h",

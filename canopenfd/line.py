@@ -24,6 +24,7 @@ from .od import ObjectDictionary, ODVariable, import_od
 from .od.fileio import Source
 from .services.config import ConfigManager
 from .services.emcy import Emcy, LineEmcy
+from .services.lss import UNCONFIGURED, LssMaster
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.sleep import SleepService
@@ -76,6 +77,7 @@ class Line:
         self.local_node: Optional[LocalNode] = None
         #: SYNC producer and callbacks (see canopenfd.services.sync).
         self.sync = SyncService(context)
+        self._lss: Optional[LssMaster] = None
         #: TIME transmit and callbacks.
         self.time = TimeService(context)
         #: Sleep and wake-up, master or device (see canopenfd.services.sleep).
@@ -141,7 +143,8 @@ class Line:
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
-        node_id = check_node_id(node_id, f"create_local_node on {self._where}")
+        if node_id != UNCONFIGURED:
+            node_id = check_node_id(node_id, f"create_local_node on {self._where}")
         heartbeat_ms = check_ms(heartbeat_ms, "heartbeat_ms",
                                 f"create_local_node({node_id}) on {self._where}")
         context = self._context
@@ -157,6 +160,11 @@ class Line:
             context.runtime.require_open(f"create_local_node({node_id}) on {self._where}")
             served = _served_od(od, node_id, store, f"create_local_node({node_id}) on "
                                 f"{self._where}")
+            if node_id == UNCONFIGURED and (served is None or (0x1018, 4) not in served):
+                raise ConfigurationError(
+                    f"create_local_node(255) on {self._where}: an unconfigured node needs an "
+                    "OD with the serial number 0x1018:04 (its LSS address), else nothing "
+                    "could ever give it a node-id")
             checked_store = check_store(store, f"create_local_node({node_id}) on {self._where}")
             scope = context.scoped()
             node = LocalNode(self, scope, node_id, heartbeat_ms, served, checked_store)
@@ -406,6 +414,16 @@ class Line:
         require_protocol(self._context, "SDO")
         assert isinstance(self._client, SdoClient)    # what classic lines make
         return self._client
+
+    # ---------------------------------------------------------------- LSS
+    @property
+    def lss(self) -> LssMaster:
+        """The LSS master (CiA 305) of this line: switch, configure, inquire,
+        identify, fast scan (see canopenfd.services.lss)."""
+        with self._context.cond:
+            if self._lss is None:
+                self._lss = LssMaster(self._context)
+            return self._lss
 
     # ---------------------------------------------------------------- events
     def _event_comm(self, event: Event) -> Deferred:

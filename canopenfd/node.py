@@ -19,6 +19,7 @@ from .services.flyma import FlyingMaster
 from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
 from .services.leds import LedStates, LocalLeds
+from .services.lss import LssSlave
 from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtCommand,
                            NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
@@ -72,6 +73,9 @@ class LocalNode:
         #: Flying master (CiA 302-2): start() once the node booted.
         self.flying_master = FlyingMaster(context, where)
         self._leds = LocalLeds(context, self, where)
+        #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
+        self.lss = LssSlave(context, node_id, where)
+        self.lss.add_configured_hook(self._lss_configured)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         if od is not None:
@@ -81,6 +85,12 @@ class LocalNode:
 
     def __repr__(self) -> str:
         return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
+
+    def _lss_configured(self, node_id: int) -> None:
+        """Created unconfigured (255), LSS gave the node node_id: it runs with it."""
+        self.node_id = node_id
+        self._slave.node_id = node_id
+        self._context.local_node_id = node_id
 
     @property
     def _where(self) -> str:

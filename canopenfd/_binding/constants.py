@@ -28,8 +28,8 @@ from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 
 __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
-    "GuardEventCode", "HeartbeatEvent", "Indicate", "Mode", "NmtCommand", "NmtState",
-    "FlymaAction", "FlymaEvent", "FlymaState",
+    "GuardEventCode", "HeartbeatEvent", "Indicate", "LssRequest", "LssStatus", "Mode",
+    "NmtCommand", "NmtState", "FlymaAction", "FlymaEvent", "FlymaState",
     "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
     "SleepPhase", "StoreStatus", "C_ENUMS", "c_members",
     "LedPattern", "LedWhich", "LedCause",
@@ -84,6 +84,11 @@ StoreStatus = _c_enum("StoreStatus", "CO_STORE_", "co_store_status_t",
 EmcyStatus = _c_enum("EmcyStatus", "CO_EMCY_STATUS_",
                      doc="Bits of the FD EMCY's status byte (priority mask and flags).")
 
+# ---------------------------------------------------------------- LSS
+LssRequest = _c_enum("LssRequest", "CO_LSS_REQ_", "co_lss_request_t",
+                     doc="Requests of the LSS master (co_lss_request_t).")
+LssStatus = _c_enum("LssStatus", "CO_LSS_", "co_lss_status_t",
+                    doc="How an LSS master request ended (co_lss_status_t).")
 # ---------------------------------------------------------------- sleep and wake-up
 SleepPhase = _c_enum("SleepPhase", "CO_SLEEP_", "co_sleep_phase_t",
                      doc="Phases of sleep and wake-up (co_sleep_phase_t, CiA 320).")

@@ -19,6 +19,8 @@ __all__ = [
     "GuardEventCode",
     "HeartbeatEvent",
     "Indicate",
+    "LssRequest",
+    "LssStatus",
     "Mode",
     "NmtCommand",
     "NmtState",
@@ -144,6 +146,7 @@ class EventKind(enum.IntEnum):
     GUARD = 18
     PDO_FRAME = 19
     LED = 20
+    LSS = 21
     CONFIG = 22
     SLEEP = 24
     FLYMA = 25
@@ -182,6 +185,33 @@ class Indicate(enum.IntEnum):
     READ = 1
     WRITE = 2
     STORE = 4
+
+
+class LssRequest(enum.IntEnum):
+    """Requests of the LSS master (co_lss_request_t)."""
+    NONE = 0
+    SWITCH_SELECTIVE = 1
+    CONFIGURE_NODE_ID = 2
+    CONFIGURE_BIT_TIMING = 3
+    STORE = 4
+    INQUIRE = 5
+    IDENTIFY_REMOTE = 6
+    IDENTIFY_NON_CONFIGURED = 7
+    FASTSCAN = 8
+    SCAN = 9
+
+
+class LssStatus(enum.IntEnum):
+    """How an LSS master request ended (co_lss_status_t)."""
+    OK = 0
+    TIMEOUT = 1
+    REFUSED = 2
+    CANCELLED = 3
+    TX_FAILED = 4
+    DUPLICATE = 5
+    NO_NODE_ID = 6
+    LOST = 7
+    FULL = 8
 
 
 class Mode(enum.IntEnum):

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import re
 import threading
-from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple, Type, Union
+from typing import (Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Type,
+                    Union)
 
 from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
 from ..frame import Frame
@@ -655,6 +656,51 @@ class Runtime:
     def guard(self, line: int, node_id: int, guard_ms: int, life_factor: int,
               what: str) -> None:
         self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)
+
+    def lss_start(self, line: int, kind: int, values: Sequence[int], node_ids: Sequence[int],
+                  timeout_ms: int, what: str) -> None:
+        """Start a request of the line's LSS master (co_rt_lss_start)."""
+        request = ffi.new("co_rt_lss_request_t *")
+        request.kind = kind
+        for i, value in enumerate(values):
+            request.value[i] = value
+        for i, node_id in enumerate(node_ids):
+            request.node_ids[i] = node_id
+        request.node_id_count = len(node_ids)
+        request.timeout_ms = timeout_ms
+        self._call(what, lib.co_rt_lss_start, line, request)
+
+    def lss_result(self, line: int, what: str
+                   ) -> Tuple[Dict[str, int], List[Tuple[Tuple[int, int, int, int], int]]]:
+        """The last finished LSS request: its co_lss_master_result_t fields and
+        the devices it found as ((vendor, product, revision, serial), node_id)."""
+        out = ffi.new("co_lss_master_result_t *")
+        devices = ffi.new("co_rt_lss_device_t[127]")
+        count = self._call(what, lib.co_rt_lss_result, line, out, devices, 127)
+        result = {name: getattr(out, name)
+                  for name, _ in ffi.typeof("co_lss_master_result_t").fields}
+        found: List[Tuple[Tuple[int, int, int, int], int]] = []
+        for i in range(count):
+            a = devices[i].address
+            found.append(((a[0], a[1], a[2], a[3]), devices[i].node_id))
+        return result, found
+
+    def lss_stats(self, line: int, what: str) -> Dict[str, int]:
+        out = ffi.new("co_lss_master_stats_t *")
+        self._call(what, lib.co_rt_lss_stats, line, out)
+        return {name: getattr(out, name)
+                for name, _ in ffi.typeof("co_lss_master_stats_t").fields}
+
+    def lss_slave_config(self, line: int, store: bool, bit_timings: int, what: str) -> None:
+        self._call(what, lib.co_rt_lss_slave_config, line, int(store), bit_timings)
+
+    def lss_slave_answer(self, line: int, error: int, what: str) -> None:
+        self._call(what, lib.co_rt_lss_slave_answer, line, error)
+
+    def lss_slave_info(self, line: int, what: str) -> Tuple[int, int, int, int]:
+        out = ffi.new("uint8_t[4]")
+        self._call(what, lib.co_rt_lss_slave_info, line, out)
+        return out[0], out[1], out[2], out[3]
 
     def host_receive(self, line: int, cframe: CData) -> int:
         """Hand a frame to a host-driver line; returns the status (no raise:

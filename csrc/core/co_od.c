@@ -454,6 +454,11 @@ static bool load_default(co_od_t *od, co_od_entry_t *e)
     return changed;
 }
 
+void co_od_set_node_id(co_od_t *od, uint8_t node_id)
+{
+    od->node_id = node_id;
+}
+
 bool co_od_seal(co_od_t *od, uint8_t node_id)
 {
     uint32_t i, j;

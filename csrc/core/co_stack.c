@@ -325,6 +325,10 @@ static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t eve
 
 static void line_undo(co_stack_t *s)
 {
+    if (s->has_lss_master) {
+        co_lss_master_deinit(&s->lss_master);
+        s->has_lss_master = false;
+    }
     if (CO_CONFIG_CLASSIC && s->has_guard_master) {
         co_hb_consumer_set_filter(&s->hb_consumer, NULL, NULL);
         co_guard_master_deinit(&s->guard_master);
@@ -607,6 +611,152 @@ static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_con
     return status;
 }
 
+/* ---------------------------------------------------------------- LSS slave */
+
+enum { OD_IDENTITY = 0x1018 };
+
+static bool lss_wanted(const co_stack_node_config_t *c)
+{
+    return !c->lss_off && c->od && co_od_find(c->od, OD_IDENTITY, 4) != NULL;
+}
+
+/* The application's indications, reached through the stack's own. */
+static bool lss_check_bit_timing(co_lss_slave_t *slave, uint8_t selector, uint8_t index,
+                                 void *user)
+{
+    co_stack_t *s = user;
+    return s->lss_app && s->lss_app->check_bit_timing &&
+           s->lss_app->check_bit_timing(slave, selector, index, s->lss_user);
+}
+
+static void lss_activate_bit_timing(co_lss_slave_t *slave, uint16_t delay_ms, void *user)
+{
+    co_stack_t *s = user;
+    if (s->lss_app && s->lss_app->activate_bit_timing) {
+        s->lss_app->activate_bit_timing(slave, delay_ms, s->lss_user);
+    }
+}
+
+static uint8_t lss_store(co_lss_slave_t *slave, uint8_t node_id, void *user)
+{
+    co_stack_t *s = user;
+    if (s->lss_app && s->lss_app->store) {
+        return s->lss_app->store(slave, node_id, s->lss_user);
+    }
+    return CO_LSS_ERR_STORE_NOT_SUPPORTED;
+}
+
+static void lss_state_changed(co_lss_slave_t *slave, co_lss_state_t state, void *user)
+{
+    co_stack_t *s = user;
+    if (s->lss_app && s->lss_app->state_changed) {
+        s->lss_app->state_changed(slave, state, s->lss_user);
+    }
+}
+
+/* An unconfigured node got its node-id: set it up outside the frame's
+ * handler (a timer due now, run once this co_line_process drained rx). */
+static void lss_reset_communication(co_lss_slave_t *slave, uint8_t node_id, void *user)
+{
+    (void)slave;
+    (void)node_id;
+    co_stack_t *s = user;
+    if (s->unconfigured) {
+        co_timer_start(co_line_timers(s->line), &s->lss_timer, co_line_now(s->line));
+    }
+}
+
+static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t *config,
+                                     const node_sizes_t *n);
+
+static void lss_configured(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    (void)timer;
+    (void)now_us;
+    co_stack_t *s = user;
+    uint8_t id = co_lss_slave_reset_communication(&s->lss_slave);
+    if (!s->unconfigured || id < 1u || id > 127u) {
+        return;
+    }
+    co_stack_node_config_t c = s->node_config;
+    c.node_id = id;
+    /* As sealing with the node-id would have: $NODEID defaults with it. */
+    co_od_set_node_id(c.od, id);
+    co_od_load_defaults(c.od, CO_GROUP_ALL);
+    node_sizes_t n;
+    (void)node_sizes(s->line, &c, &n);   /* checked by co_stack_node_init */
+    if (node_create(s, &c, &n) != CO_STACK_OK) {
+        return;                          /* co_stack_failed_part says which part */
+    }
+    s->unconfigured = false;
+    if (s->boot_requested) {
+        co_node_boot(&s->node);
+    }
+    if (s->lss_app && s->lss_app->reset_communication) {
+        s->lss_app->reset_communication(&s->lss_slave, id, s->lss_user);
+    }
+}
+
+static co_stack_status_t lss_start(co_stack_t *s, const co_stack_node_config_t *c)
+{
+    co_lss_address_t address;
+    for (uint8_t part = 0; part < 4u; part++) {
+        if (!co_od_get_u32(c->od, OD_IDENTITY, (uint8_t)(part + 1u), &address.part[part])) {
+            address.part[part] = 0;   /* an identity sub-entry the OD lacks */
+        }
+    }
+    s->lss_app = c->lss_ind;
+    s->lss_user = c->lss_user;
+    s->lss_wiring = (co_lss_slave_indications_t){lss_check_bit_timing, lss_activate_bit_timing,
+                                                 lss_store, lss_state_changed,
+                                                 lss_reset_communication};
+    co_timer_init(&s->lss_timer, lss_configured, s);
+    if (!co_lss_slave_init(&s->lss_slave, s->line, &address, c->node_id, &s->lss_wiring, s)) {
+        return fail(s, CO_STACK_PART_LSS, CO_STACK_ERR_TAKEN);
+    }
+    s->has_lss_slave = true;
+    return CO_STACK_OK;
+}
+
+static void lss_undo(co_stack_t *s)
+{
+    if (s->has_lss_slave) {
+        co_timer_cancel(co_line_timers(s->line), &s->lss_timer);
+        co_lss_slave_deinit(&s->lss_slave);
+        s->has_lss_slave = false;
+    }
+    s->unconfigured = false;
+    s->boot_requested = false;
+}
+
+/* ---------------------------------------------------------------- node set-up */
+
+/* The node itself, its node-id known (1..127). */
+static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t *config,
+                                     const node_sizes_t *n)
+{
+    if (!co_node_init(&s->node, s->line, config->node_id, config->heartbeat_ms, config->ind,
+                      config->user)) {
+        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
+    }
+    s->has_node = true;
+    s->od = config->od;
+    if (config->leds) {
+        co_led_config_t led = {.same_phase = config->led_same_phase,
+                               .changed = config->led_changed,
+                               .user = config->user};
+        co_led_init(&s->led, s->line, &led);
+        s->has_led = true;
+    }
+    co_stack_status_t status = start_node_parts(s, config, n);
+    if (status != CO_STACK_OK) {
+        co_stack_part_t part = s->failed;
+        node_undo(s);
+        s->failed = part;
+    }
+    return status;
+}
+
 co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_config_t *config)
 {
     if (!stack || !stack->line || !config) {
@@ -614,12 +764,17 @@ co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_conf
     }
     co_stack_t *s = stack;
     s->failed = CO_STACK_PART_NONE;
-    if (s->has_node) {
+    if (s->has_node || s->unconfigured) {
         return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
     }
-    if (config->node_id < 1 || config->node_id > 127 ||
+    bool unconfigured = config->node_id == CO_LSS_NODE_ID_UNCONFIGURED;
+    if ((!unconfigured && (config->node_id < 1 || config->node_id > 127)) ||
         (config->store_backend && !config->od)) {
         return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_ARGUMENT);
+    }
+    if (unconfigured && !lss_wanted(config)) {
+        /* nothing could ever give it a node-id */
+        return fail(s, CO_STACK_PART_LSS, CO_STACK_ERR_ARGUMENT);
     }
     if (config->od && !config->od->sealed) {
         return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
@@ -635,30 +790,31 @@ co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_conf
     if (!config->od) {
         (void)node_sizes(s->line, config, &n);
     }
-    if (!co_node_init(&s->node, s->line, config->node_id, config->heartbeat_ms, config->ind,
-                      config->user)) {
-        return fail(s, CO_STACK_PART_NODE, CO_STACK_ERR_STATE);
+    if (unconfigured) {
+        co_stack_status_t status = lss_start(s, config);
+        if (status == CO_STACK_OK) {
+            s->unconfigured = true;
+            s->node_config = *config;
+        }
+        return status;
     }
-    s->has_node = true;
-    s->od = config->od;
-    if (config->leds) {
-        co_led_config_t led = {.same_phase = config->led_same_phase,
-                               .changed = config->led_changed,
-                               .user = config->user};
-        co_led_init(&s->led, s->line, &led);
-        s->has_led = true;
-    }
-    co_stack_status_t status = start_node_parts(s, config, &n);
-    if (status != CO_STACK_OK) {
-        co_stack_part_t part = s->failed;
-        node_undo(s);
-        s->failed = part;
+    co_stack_status_t status = node_create(s, config, &n);
+    if (status == CO_STACK_OK && lss_wanted(config)) {
+        status = lss_start(s, config);
+        if (status != CO_STACK_OK) {
+            node_undo(s);
+            s->failed = CO_STACK_PART_LSS;
+        }
     }
     return status;
 }
 
 co_stack_status_t co_stack_boot(co_stack_t *stack)
 {
+    if (stack && stack->unconfigured) {
+        stack->boot_requested = true;   /* boots once LSS gives it a node-id */
+        return CO_STACK_OK;
+    }
     if (!stack || !stack->has_node) {
         return CO_STACK_ERR_STATE;
     }
@@ -671,8 +827,38 @@ co_stack_status_t co_stack_boot(co_stack_t *stack)
 
 void co_stack_node_deinit(co_stack_t *stack)
 {
-    if (stack && stack->has_node) {
-        node_undo(stack);
+    if (stack && stack->line) {
+        lss_undo(stack);
+        if (stack->has_node) {
+            node_undo(stack);
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- LSS master */
+
+co_stack_status_t co_stack_lss_master_init(co_stack_t *stack, uint32_t timeout_ms,
+                                           co_lss_done_fn on_done, void *user)
+{
+    if (!stack || !stack->line) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    stack->failed = CO_STACK_PART_NONE;
+    if (stack->has_lss_master) {
+        return fail(stack, CO_STACK_PART_LSS, CO_STACK_ERR_STATE);
+    }
+    if (!co_lss_master_init(&stack->lss_master, stack->line, timeout_ms, on_done, user)) {
+        return fail(stack, CO_STACK_PART_LSS, CO_STACK_ERR_TAKEN);
+    }
+    stack->has_lss_master = true;
+    return CO_STACK_OK;
+}
+
+void co_stack_lss_master_deinit(co_stack_t *stack)
+{
+    if (stack && stack->has_lss_master) {
+        co_lss_master_deinit(&stack->lss_master);
+        stack->has_lss_master = false;
     }
 }
 
@@ -886,6 +1072,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_GUARD_SLAVE: return "node guarding slave";
     case CO_STACK_PART_SERVER: return "SDO/USDO server";
     case CO_STACK_PART_CLIENT: return "SDO/USDO client";
+    case CO_STACK_PART_LSS: return "LSS";
     case CO_STACK_PART_SLEEP: return "sleep and wake-up";
     case CO_STACK_PART_FLYMA: return "flying master";
     case CO_STACK_PART_LED: return "LED indicators";

@@ -273,6 +273,9 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def);
  * (still unsealed, refused_index set) when a check fails, or when the OD is
  * already sealed. */
 bool co_od_seal(co_od_t *od, uint8_t node_id);
+/* A sealed OD's node-id changes (LSS gave an unconfigured node one): what
+ * $NODEID-relative defaults add from the next co_od_load_defaults on. */
+void co_od_set_node_id(co_od_t *od, uint8_t node_id);
 bool co_od_subscribe(co_od_t *od, uint16_t first_index, uint8_t first_sub, uint16_t last_index,
                      uint8_t last_sub, const co_od_handler_t *handler, void *user);
 /* Remove every subscription of (handler, user); not while a transfer of the

@@ -16,6 +16,7 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
+#include "canopenfd/co_lss_master.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sleep.h"
@@ -120,6 +121,8 @@ typedef enum co_rt_event_kind {
     CO_EV_LED = 20,            /* a local node's LED changed (only after co_rt_led_listen):
                                   a = co_led_which_t, b = 1 on / 0 off,
                                   node = its co_led_pattern_t */
+    CO_EV_LSS = 21,            /* the line's LSS master finished a request (co_rt_lss_start):
+                                  a = co_lss_request_t, b = co_lss_status_t; co_rt_lss_result */
     CO_EV_CONFIG = 22,         /* a configuration (co_rt_config_start) ended: node = the
                                   node configured, a = handle, b = co_config_outcome_t */
     CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
@@ -513,6 +516,55 @@ typedef struct co_rt_service_stats {
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */
 int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor);
+
+/* ---- LSS master of the line (co_rt_lss.c): one request at a time, its end
+ * posted as CO_EV_LSS, its result read with co_rt_lss_result. */
+enum {
+    CO_RT_LSS_SWITCH_GLOBAL = 100,        /* value[0] = co_lss_state_t; no answer, no event */
+    CO_RT_LSS_ACTIVATE_BIT_TIMING = 101   /* value[0] = switch delay ms; no answer, no event */
+};
+typedef struct co_rt_lss_request {
+    int kind;                  /* co_lss_request_t (1..9) or CO_RT_LSS_* */
+    /* SWITCH_SELECTIVE: vendor, product, revision, serial; CONFIGURE_NODE_ID:
+     * node-id; CONFIGURE_BIT_TIMING: selector, index; INQUIRE: the CS
+     * (0x5A..0x5E); IDENTIFY_REMOTE and SCAN: vendor, product, revision low,
+     * revision high, serial low, serial high */
+    uint32_t value[6];
+    uint8_t node_ids[127];     /* FASTSCAN: node-ids to give, in order */
+    int node_id_count;
+    int timeout_ms;            /* per step, 0 = 100 */
+} co_rt_lss_request_t;
+typedef struct co_rt_lss_device {
+    uint32_t address[4];       /* vendor, product, revision, serial */
+    uint8_t node_id;           /* FASTSCAN: given; SCAN: 0 */
+} co_rt_lss_device_t;
+/* Start a request: CO_RT_ERR_STATE while one runs, CO_RT_ERR_ARGUMENT for
+ * bad values (the error text says which). */
+int co_rt_lss_start(co_rt_t *rt, int line, const co_rt_lss_request_t *request);
+/* The last finished request's result and up to max of the devices it found;
+ * returns the devices copied, CO_RT_ERR_STATE when none finished yet. */
+int co_rt_lss_result(co_rt_t *rt, int line, co_lss_master_result_t *out,
+                     co_rt_lss_device_t *devices, int max);
+int co_rt_lss_stats(co_rt_t *rt, int line, co_lss_master_stats_t *out);
+/* The local node's LSS slave (a node whose OD has 0x1018:04) posts CO_EV_LSS
+ * with node = 255 (whatever its node-id: the master's events have node 0)
+ * and a = one of these: */
+enum {
+    CO_RT_LSS_SLAVE_STATE = 110,      /* b = co_lss_state_t */
+    CO_RT_LSS_SLAVE_STORE = 111,      /* b = node-id to persist: co_rt_lss_slave_answer */
+    CO_RT_LSS_SLAVE_ACTIVATE = 112,   /* b = switch delay ms */
+    CO_RT_LSS_SLAVE_BIT_TIMING = 113, /* b = selector << 8 | index, accepted */
+    CO_RT_LSS_SLAVE_CONFIGURED = 114  /* a node created with node-id 255 got b from LSS:
+                                         it runs (and booted) with it now */
+};
+/* store != 0: store requests are the application's (answered with
+ * co_rt_lss_slave_answer), else "not supported". bit_timings: bit n set =
+ * table 0 index n accepted (0: none). */
+int co_rt_lss_slave_config(co_rt_t *rt, int line, int store, uint32_t bit_timings);
+/* Answer the store request: 0 stored, 1 not supported, 2 storage media error. */
+int co_rt_lss_slave_answer(co_rt_t *rt, int line, int error);
+/* state, active, pending and persistent node-id of the local node's slave. */
+int co_rt_lss_slave_info(co_rt_t *rt, int line, uint8_t out[4]);
 
 /* Upload to memory: copy the data (returns the byte count, or a status). */
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);

@@ -31,6 +31,8 @@
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
 #include "canopenfd/co_led.h"
+#include "canopenfd/co_lss.h"
+#include "canopenfd/co_lss_master.h"
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
@@ -82,6 +84,7 @@ typedef enum co_stack_part {
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
     CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_LSS = 13,      /* LSS slave of the node or LSS master of the line */
     CO_STACK_PART_LED = 14,      /* CiA 303-3 indicators */
     CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
     CO_STACK_PART_FLYMA = 18     /* flying master (CiA 302-2) */
@@ -154,7 +157,7 @@ typedef struct co_stack_line_config {
 } co_stack_line_config_t;
 
 typedef struct co_stack_node_config {
-    uint8_t node_id;             /* 1..127 */
+    uint8_t node_id;             /* 1..127, or 255: unconfigured, waits for LSS */
     uint16_t heartbeat_ms;       /* 0x1017 without an OD */
     co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL */
     /* Parameters saved through this backend (NULL: defaults only; needs the OD). */
@@ -177,6 +180,18 @@ typedef struct co_stack_node_config {
     bool leds;
     bool led_same_phase;
     co_led_fn led_changed;
+    /* LSS slave (CiA 305): runs when the OD has 0x1018:04 (serial number),
+     * unless lss_off. node_id 255 = unconfigured: only the LSS slave runs
+     * (no boot-up, heartbeat, EMCY, PDO, SDO/USDO server) until LSS gives
+     * the node a node-id and switches it back to waiting; then the node is
+     * set up with it (the OD's $NODEID defaults reloaded) and, when
+     * co_stack_boot was called, boots (boot-up with the new node-id). */
+    bool lss_off;
+    /* The application's LSS indications (may be NULL): bit timing, store,
+     * state changes; reset_communication tells that an unconfigured node
+     * now runs with its new node-id. */
+    const co_lss_slave_indications_t *lss_ind;
+    void *lss_user;
 } co_stack_node_config_t;
 
 typedef struct co_stack_client_config {
@@ -230,6 +245,18 @@ struct co_stack {
     co_usdo_client_t usdo_client;
     bool has_sdo_client;
     co_sdo_client_t sdo_client;
+    /* LSS: the node's slave (also while the node is unconfigured), the line's master */
+    bool has_lss_slave;
+    co_lss_slave_t lss_slave;
+    co_lss_slave_indications_t lss_wiring;   /* the stack's own, forwarding to lss_app */
+    const co_lss_slave_indications_t *lss_app;
+    void *lss_user;
+    bool unconfigured;           /* node_id 255: the node waits for LSS */
+    bool boot_requested;         /* co_stack_boot came while unconfigured */
+    co_stack_node_config_t node_config;   /* kept to set the node up once configured */
+    co_timer_t lss_timer;        /* sets the node up outside the LSS frame's handler */
+    bool has_lss_master;
+    co_lss_master_t lss_master;
     /* sleep and wake-up */
     bool has_sleep;
     co_sleep_t sleep;
@@ -270,6 +297,10 @@ void co_stack_node_deinit(co_stack_t *stack);
  * has an OD, its 0x1280.. channels come first. */
 co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_config_t *config);
 void co_stack_client_deinit(co_stack_t *stack);
+/* The line's LSS master (no memory taken); timeout_ms per step, 0 = 100. */
+co_stack_status_t co_stack_lss_master_init(co_stack_t *stack, uint32_t timeout_ms,
+                                           co_lss_done_fn on_done, void *user);
+void co_stack_lss_master_deinit(co_stack_t *stack);
 /* Sleep and wake-up on the line (needs no memory): a master, or a device;
  * waking up resets the local node's communication. */
 co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config);
@@ -330,6 +361,16 @@ static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
 {
     return s->has_sdo_client ? &s->sdo_client : NULL;
 }
+static inline co_lss_slave_t *co_stack_lss_slave(co_stack_t *s)
+{
+    return s->has_lss_slave ? &s->lss_slave : NULL;
+}
+static inline co_lss_master_t *co_stack_lss_master(co_stack_t *s)
+{
+    return s->has_lss_master ? &s->lss_master : NULL;
+}
+/* The node waits for LSS to give it a node-id (co_stack_has_node is false). */
+static inline bool co_stack_unconfigured(const co_stack_t *s) { return s->unconfigured; }
 static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
 static inline co_flyma_t *co_stack_flyma(co_stack_t *s) { return s->has_flyma ? &s->flyma : NULL; }
 static inline co_led_t *co_stack_led(co_stack_t *s) { return s->has_led ? &s->led : NULL; }

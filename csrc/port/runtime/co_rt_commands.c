@@ -61,7 +61,10 @@ static int check_command_args(co_rt_t *rt, const rt_line_t *l, const co_rt_comma
 {
     switch (cmd->kind) {
     case CO_CMD_NODE_CREATE:
-        return first_error(check_node_id(rt, cmd->args.node_create.node_id, false),
+        /* 255: an unconfigured node, which only LSS can give a node-id */
+        return first_error(cmd->args.node_create.node_id == CO_LSS_NODE_ID_UNCONFIGURED
+                               ? CO_RT_OK
+                               : check_node_id(rt, cmd->args.node_create.node_id, false),
                            check_ms(rt, "heartbeat time", cmd->args.node_create.heartbeat_ms));
     case CO_CMD_NMT_SEND:
         return first_error(check_nmt_command(rt, cmd->args.nmt_send.command),

@@ -192,6 +192,17 @@ typedef struct rt_sync {
     bool events;                             /* Python hears every SYNC */
 } rt_sync_t;
 
+/* The line's LSS master glue (co_rt_lss.c): what the last request found. */
+typedef struct rt_lss {
+    bool finished;                   /* a request finished since the line opened */
+    co_lss_master_result_t result;
+    uint8_t node_ids[127];           /* the running fast scan's list */
+    co_lss_device_t devices[127];
+    /* the local node's slave */
+    co_lss_slave_indications_t slave_ind;
+    bool store_by_app;
+    uint32_t bit_timings;            /* bit n: table 0 index n accepted */
+} rt_lss_t;
 /* Sleep and wake-up glue (co_rt_sleep.c). */
 typedef struct rt_sleep {
     uint8_t objection;                       /* the device's answer to a query */
@@ -241,6 +252,7 @@ typedef struct rt_line {
     rt_host_t host;
     rt_led_t led;
     struct rt_config *config;        /* configurations (co_rt_config.c): at the first one */
+    rt_lss_t lss;
 } rt_line_t;
 
 /* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
@@ -538,6 +550,9 @@ void rt_config_free(rt_line_t *l);
 void rt_emcy_on_received(co_stack_t *stack, uint8_t node_id, const co_emcy_msg_t *msg,
                          void *user);
 void rt_time_on_received(co_stack_t *stack, const co_time_of_day_t *tod, void *user);
+/* co_rt_lss.c: the indications of the local node's LSS slave. */
+const co_lss_slave_indications_t *rt_lss_slave_indications(rt_line_t *l);
+
 void rt_guard_on_event(co_stack_t *stack, uint8_t node_id, co_guard_event_t event,
                        co_nmt_state_t state, void *user);
 /* co_rt_pdo.c: before the stack, hear watched PDO frames before any

@@ -151,6 +151,11 @@ static int hook_od(co_rt_t *rt, rt_line_t *l)
 
 int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
 {
+    if (co_stack_unconfigured(&l->stack)) {
+        rt_set_error(rt, "line %d already has a local node, waiting for an LSS node-id",
+                     l->index);
+        return CO_RT_ERR_STATE;
+    }
     if (rt_has_node(l)) {
         rt_set_error(rt, "line %d already has local node %u", l->index,
                      co_stack_node(&l->stack)->nmt.node_id);
@@ -163,7 +168,9 @@ int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
                                      /* CiA 303-3 LEDs: Python hears them while
                                       * it listens (co_rt_led.c) */
                                      .leds = true,
-                                     .led_changed = l->led.events ? rt_led_changed : NULL};
+                                     .led_changed = l->led.events ? rt_led_changed : NULL,
+                                     .lss_ind = rt_lss_slave_indications(l),
+                                     .lss_user = l};
     int status = l->has_od ? prepare_od(rt, l, config.node_id, &config) : CO_RT_OK;
     if (status == CO_RT_OK) {
         co_stack_status_t s = co_stack_node_init(&l->stack, &config);

@@ -1,0 +1,184 @@
+"""line.lss, the Python LSS master (the runtime's C master), against our own
+local nodes' LSS slaves on an in-process bus: the bytes it sends, results,
+refusals, timeouts, identify and scan, awaitable forms. Fast scan of
+unconfigured devices is covered by the C tests (tests/c/test_lss_master.c,
+test_stack_lss.c); interop with python-canopen in test_lss_interop.py."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+
+from canopenfd import ConfigurationError
+from canopenfd.od import demo_od
+from canopenfd.services.lss import LssDevice, LssError
+from canopenfd._binding.constants import LssStatus
+from helpers import Recorder, scaled
+
+IDENTITY = (0x000001A2, 0x00BEEF01, 0x00020003, 0x80000001)
+
+
+def identity_od(serial: int):
+    od = demo_od("classic")
+    for sub, value in enumerate(IDENTITY[:3] + (serial,), start=1):
+        od[0x1018][sub].default = value
+    return od
+
+
+@pytest.fixture
+def rig(net, bus_name):
+    """Our nodes 5 and 6 (same vendor/product/revision, serials 1 and 2) and
+    a master line; a monitor records every frame."""
+    for node_id, serial in ((5, 0x80000001), (6, 0x80000002)):
+        net.open_line(bus_name, mode="classic").create_local_node(node_id,
+                                                                   od=identity_od(serial))
+    line = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    line.lss.timeout_ms = 50
+    return line, frames
+
+
+def lss_frames(frames, can_id):
+    return [bytes(f.data) for f in frames.snapshot() if f.id == can_id]
+
+
+def test_select_inquire_configure(rig):
+    line, frames = rig
+    lss = line.lss
+    assert lss.switch_selective(*IDENTITY) is True
+    sent = frames.wait_for(lambda c: lss_frames(frames, 0x7E5)[:4] if len(
+        lss_frames(frames, 0x7E5)) >= 4 else None, 2, "selective frames")
+    assert sent[0] == bytes([0x40, 0xA2, 0x01, 0, 0, 0, 0, 0])
+    assert sent[3] == bytes([0x43, 0x01, 0, 0, 0x80, 0, 0, 0])
+    assert bytes([0x44, 0, 0, 0, 0, 0, 0, 0]) in lss_frames(frames, 0x7E4)
+    assert lss.inquire("node_id") == 5
+    assert lss.inquire("serial") == 0x80000001
+    assert asyncio.run(lss.ainquire("product_code")) == IDENTITY[1]
+    lss.configure_node_id(9)
+    assert lss.inquire("node_id") == 5          # pending until reset communication
+    with pytest.raises(LssError) as info:
+        lss.store()                               # this node has no store indication
+    assert info.value.status == LssStatus.REFUSED and info.value.error == 1
+    assert "not supported" in str(info.value)
+    with pytest.raises(LssError, match="error 1"):
+        lss.configure_bit_timing(2)
+    lss.switch_global("waiting")
+    # Nobody in configuration: no answer.
+    with pytest.raises(LssError, match="no answer") as info:
+        lss.inquire("node_id")
+    assert info.value.status == LssStatus.TIMEOUT
+    assert lss.switch_selective(IDENTITY[0], IDENTITY[1], IDENTITY[2], 0x12345) is False
+
+
+def test_both_in_configuration_answers_counted(rig):
+    line, _ = rig
+    line.lss.switch_global("configuration")
+    assert line.lss.inquire("node_id") in (5, 6)
+    assert line.lss.stats["duplicates"] == 1
+    line.lss.switch_global("waiting")
+
+
+def test_identify_and_scan(rig):
+    line, _ = rig
+    lss = line.lss
+    assert lss.identify_remote(IDENTITY[0], IDENTITY[1]) >= 1
+    assert lss.identify_remote(IDENTITY[0], IDENTITY[1], serials=(0x80000002, 0xFFFFFFFF)) == 1
+    assert lss.identify_remote(IDENTITY[0] + 1, IDENTITY[1]) == 0
+    assert lss.identify_non_configured() == 0      # both have node-ids
+    found = lss.scan(IDENTITY[0], IDENTITY[1], serials=(0x80000000, 0x8000FFFF))
+    assert found == [LssDevice(*IDENTITY[:3], 0x80000001, 0),
+                     LssDevice(*IDENTITY[:3], 0x80000002, 0)]
+    # Configured nodes take no part in fast scan.
+    assert lss.fast_scan([20, 21]) == []
+
+
+def test_wrong_use(rig):
+    line, _ = rig
+    lss = line.lss
+    with pytest.raises(ConfigurationError, match="node_id must be 1..127 or 255"):
+        lss.configure_node_id(0)
+    with pytest.raises(ConfigurationError, match="what must be one of"):
+        lss.inquire("colour")
+    with pytest.raises(ConfigurationError, match="state must be"):
+        lss.switch_global("sleeping")
+    with pytest.raises(ConfigurationError, match="low 0x5 is above high 0x4"):
+        lss.scan(1, 2, serials=(5, 4))
+    with pytest.raises(ConfigurationError, match="node_ids must be"):
+        lss.fast_scan([0])
+    with pytest.raises(ConfigurationError, match="vendor_id must be an int"):
+        lss.identify_remote(-1, 0)
+    # One request at a time.
+    running = lss.start_inquire("node_id")
+    with pytest.raises(ConfigurationError, match="still running"):
+        lss.start_inquire("serial")
+    with pytest.raises(LssError):
+        running.result()
+
+
+# ---------------------------------------------------------------- our node's slave
+def test_local_node_store_and_bit_timing(net, bus_name):
+    node = net.open_line(bus_name, mode="classic").create_local_node(7, od=identity_od(7))
+    line = net.open_line(bus_name, mode="classic")
+    line.lss.timeout_ms = 500
+    states, stored, activations = Recorder(), Recorder(), Recorder()
+    node.lss.on_state_change(states)
+    node.lss.on_activate_bit_timing(activations)
+    assert node.lss.info == {"state": "waiting", "active": 7, "pending": 7, "persistent": 7}
+    line.lss.switch_global("configuration")
+    states.wait_for(lambda c: c == ["configuration"], 2, "state")
+    line.lss.configure_node_id(12)
+    assert node.lss.info["pending"] == 12
+    # Not supported until the application says how.
+    with pytest.raises(LssError, match="error 1"):
+        line.lss.store()
+    with pytest.raises(LssError, match="error 1"):
+        line.lss.configure_bit_timing(3)
+    node.lss.on_store(stored)
+    node.lss.accept_bit_timings([2, 3])
+    line.lss.store()                              # answered once the callback returned
+    assert stored.snapshot() == [12]
+    assert node.lss.info["persistent"] == 12
+    line.lss.configure_bit_timing(3)
+    with pytest.raises(LssError, match="error 1"):
+        line.lss.configure_bit_timing(4)
+    line.lss.activate_bit_timing(250)
+    activations.wait_for(lambda c: c == [250], 2, "activation")
+
+    def broken(node_id):
+        raise OSError("EEPROM gone")
+
+    node.lss.on_store(broken)
+    with pytest.raises(LssError, match="error 2") as info:
+        line.lss.store()
+    assert info.value.error == 2
+    line.lss.switch_global("waiting")
+    states.wait_for(lambda c: c == ["configuration", "waiting"], 2, "state")
+    with pytest.raises(ConfigurationError, match="ints 0..31"):
+        node.lss.accept_bit_timings([32])
+
+
+def test_unconfigured_local_node_gets_its_node_id(net, bus_name):
+    device = net.open_line(bus_name, mode="classic").create_local_node(
+        255, 50, od=identity_od(0x42))
+    line = net.open_line(bus_name, mode="classic")
+    configured, frames = Recorder(), Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    assert device.state.label == "INITIALISING"
+    time.sleep(scaled(0.3))                           # silent: no boot-up, no heartbeat
+    assert [f for f in frames.snapshot() if 0x700 <= f.id <= 0x77F] == []
+    device.lss.on_configured(configured)
+    assert line.lss.identify_non_configured() == 1
+    with pytest.raises(ConfigurationError, match="needs an OD with the serial number"):
+        net.open_line(bus_name, mode="classic").create_local_node(255)
+    found = line.lss.fast_scan([20, 21])
+    assert found == [LssDevice(*IDENTITY[:3], 0x42, 20)]
+    configured.wait_for(lambda c: c == [20], 2, "configured")
+    assert device.node_id == 20
+    device.nmt.wait_for_state("PRE-OPERATIONAL", timeout=2)
+    assert line.states[20] == "PRE-OPERATIONAL"       # boot-up heard with node-id 20
+    assert line.lss.identify_non_configured() == 0
+    with pytest.raises(ConfigurationError, match="node-id 0 outside"):
+        net.open_line(bus_name, mode="classic").create_local_node(0)
