@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers import run_cli, scaled
+from helpers import Recorder, run_cli, scaled
 
 from canopenfd import Frame
 from canopenfd.decode import (Decoder, PdoMap, decode, describe, emcy_code_text,
@@ -86,6 +86,54 @@ def test_sync(frame, text):
 def test_sleep(frame, text):
     assert decode(frame) == text
     assert Decoder().decode(frame) == text
+
+
+@pytest.mark.parametrize("frame, text", [
+    (Frame(0x7E5, bytes([0x04, 1]) + bytes(6)), "LSS switch global configuration"),
+    (Frame(0x7E5, bytes([0x04, 0]) + bytes(6)), "LSS switch global waiting"),
+    (Frame(0x7E5, bytes([0x11, 9]) + bytes(6)), "LSS configure node-id 9"),
+    (Frame(0x7E5, bytes([0x13, 0, 4]) + bytes(5)), "LSS configure bit timing table 0 index 4"),
+    (Frame(0x7E5, bytes([0x15, 0xE8, 0x03]) + bytes(5)), "LSS activate bit timing delay 1000 ms"),
+    (Frame(0x7E5, bytes([0x17]) + bytes(7)), "LSS store configuration"),
+    (Frame(0x7E5, bytes([0x40, 0x78, 0x56, 0x34, 0x12]) + bytes(3)),
+     "LSS switch selective vendor 0x12345678"),
+    (Frame(0x7E5, bytes([0x4B, 0xFF, 0xFF, 0xFF, 0xFF]) + bytes(3)),
+     "LSS identify remote slave serial high 0xFFFFFFFF"),
+    (Frame(0x7E5, bytes([0x4C]) + bytes(7)), "LSS identify non-configured remote slave"),
+    (Frame(0x7E5, bytes([0x51, 0, 0, 0, 0, 0x80, 0, 0, ])),
+     "LSS fast scan id 0x00000000 bit 128 sub vendor next vendor"),
+    (Frame(0x7E5, bytes([0x51, 0, 0, 0, 0x80, 31, 3, 3])),
+     "LSS fast scan id 0x80000000 bit 31 sub serial next serial"),
+    (Frame(0x7E5, bytes([0x5E]) + bytes(7)), "LSS inquire node-id"),
+    (Frame(0x7E4, bytes([0x11, 0]) + bytes(6)), "LSS answer configure node-id ok"),
+    (Frame(0x7E4, bytes([0x17, 1]) + bytes(6)), "LSS answer store configuration error 1"),
+    (Frame(0x7E4, bytes([0x13, 0xFF, 7]) + bytes(5)),
+     "LSS answer configure bit timing error 255 (specific 0x07)"),
+    (Frame(0x7E4, bytes([0x44]) + bytes(7)), "LSS answer switch selective: configuration"),
+    (Frame(0x7E4, bytes([0x4F]) + bytes(7)), "LSS answer identify / fast scan"),
+    (Frame(0x7E4, bytes([0x50]) + bytes(7)), "LSS answer non-configured slave"),
+    (Frame(0x7E4, bytes([0x5A, 0x78, 0x56, 0x34, 0x12]) + bytes(3)),
+     "LSS answer inquire vendor 0x12345678"),
+    (Frame(0x7E4, bytes([0x5E, 5]) + bytes(6)), "LSS answer inquire node-id 5"),
+    (Frame(0x7E5, bytes([0x99]) + bytes(7)),
+     "LSS request malformed: unknown command 0x99 (99 00 00 00 00 00 00 00)"),
+    (Frame(0x7E4, b"\x44"), "LSS malformed: 1 bytes, expected 8 (44)"),
+])
+def test_lss(frame, text):
+    assert decode(frame) == text
+    assert Decoder().decode(frame) == text
+
+
+def test_lss_texts_of_the_frames_our_master_sends(net, bus_name):
+    """The monitor reads the frames the C master puts on the bus."""
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    line = net.open_line(bus_name, mode="classic")
+    line.lss.switch_global("configuration")
+    line.lss.switch_global("waiting")
+    texts = frames.wait_for(lambda c: [decode(f) for f in c if f.id == 0x7E5][:2] or None, 5,
+                            "two LSS requests")
+    assert texts == ["LSS switch global configuration", "LSS switch global waiting"]
 
 
 @pytest.mark.parametrize("frame, text", [

@@ -13,6 +13,7 @@ from .dispatch import DecoderState, is_sdo_id
 from .emcy import EMCY_BASE
 from .flyma import FLYMA_IDS
 from .heartbeat import ERROR_CONTROL_BASE
+from .lss import LSS_MASTER_ID, LSS_SLAVE_ID
 from .nmt import NMT_ID
 from .pdo import default_pdo
 from .raw import frame_fields
@@ -20,8 +21,6 @@ from .sleep import SLEEP_IDS
 from .sync import SYNC_ID
 from .time import TIME_ID
 
-#: LSS (CiA 305): master requests and slave responses (not decoded, only named).
-LSS_MASTER_ID, LSS_SLAVE_ID = 0x7E5, 0x7E4
 
 #: Every service a frame is classified as, with what it covers (the monitor's help).
 SERVICES: Dict[str, str] = {

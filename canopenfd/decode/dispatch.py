@@ -13,6 +13,7 @@ from ..frame import FLAG_EXT, FLAG_FD, FLAG_RTR
 from .emcy import EMCY_BASE, emcy_text
 from .flyma import FLYMA_IDS, flyma_text
 from .heartbeat import ERROR_CONTROL_BASE, GuardingTracker, guarding_request_text, heartbeat_text
+from .lss import LSS_MASTER_ID, LSS_SLAVE_ID, lss_text
 from .nmt import NMT_ID, nmt_text
 from .pdo import PdoMap, default_pdo, default_pdo_text, pdo_text
 from .raw import format_flags, format_raw, frame_fields
@@ -89,6 +90,8 @@ def frame_meaning(frame: Any, state: Optional[DecoderState]) -> str:
         return sleep_text(can_id, data)
     if can_id in FLYMA_IDS:
         return flyma_text(can_id, data)
+    if can_id in (LSS_MASTER_ID, LSS_SLAVE_ID):
+        return lss_text(can_id, data)
     if ERROR_CONTROL_BASE <= can_id <= ERROR_CONTROL_BASE + 0x7F:
         node = can_id - ERROR_CONTROL_BASE
         guarded = state is not None and state.guarding.is_reply(node, data)
