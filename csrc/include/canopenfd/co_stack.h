@@ -29,6 +29,7 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
+#include "canopenfd/co_manager.h"
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
@@ -78,7 +79,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_PDO = 9,
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
-    CO_STACK_PART_CLIENT = 12    /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
+    CO_STACK_PART_MANAGER = 16   /* CiA 302-2 network manager (co_manager) */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -172,6 +174,16 @@ typedef struct co_stack_client_config {
     uint32_t timeout_ms;         /* default per-frame timeout, 0 = 1000 */
 } co_stack_client_config_t;
 
+/* The network manager (CiA 302-2): needs the local node (its OD with
+ * 0x1F80 bit 0 set) and the client; its slave table is sized from 0x1F81. */
+typedef struct co_stack_manager_config {
+    uint8_t parallel;            /* boot processes at once, 0 = the client's sessions */
+    uint8_t hooks;               /* CO_MANAGER_HOOK_* the application answers */
+    uint32_t retry_ms;           /* 0 = CO_MANAGER_DEFAULT_RETRY_MS */
+    co_manager_event_fn on_event;   /* may be NULL */
+    void *user;
+} co_stack_manager_config_t;
+
 /* A block the stack holds (what it gives back at deinit). */
 typedef struct co_stack_block {
     void *memory;
@@ -217,6 +229,9 @@ struct co_stack {
     co_usdo_client_t usdo_client;
     bool has_sdo_client;
     co_sdo_client_t sdo_client;
+    /* the network manager */
+    bool has_manager;
+    co_manager_t manager;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -242,6 +257,15 @@ void co_stack_node_deinit(co_stack_t *stack);
  * has an OD, its 0x1280.. channels come first. */
 co_stack_status_t co_stack_client_init(co_stack_t *stack, const co_stack_client_config_t *config);
 void co_stack_client_deinit(co_stack_t *stack);
+/* The network manager over the node and the client (CO_STACK_ERR_STATE
+ * without them or when one runs, CO_STACK_ERR_OD when 0x1F80 bit 0 is
+ * clear). Start it with co_manager_start(co_stack_manager(stack)). It is
+ * fed the line's error control frames and losses; it goes when the node or
+ * the client goes. */
+size_t co_stack_manager_need(co_stack_t *stack);
+co_stack_status_t co_stack_manager_init(co_stack_t *stack,
+                                        const co_stack_manager_config_t *config);
+void co_stack_manager_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -285,6 +309,10 @@ static inline co_usdo_client_t *co_stack_usdo_client(co_stack_t *s)
 static inline co_sdo_client_t *co_stack_sdo_client(co_stack_t *s)
 {
     return s->has_sdo_client ? &s->sdo_client : NULL;
+}
+static inline co_manager_t *co_stack_manager(co_stack_t *s)
+{
+    return s->has_manager ? &s->manager : NULL;
 }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
