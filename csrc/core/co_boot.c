@@ -72,7 +72,7 @@ static void enter(co_boot_t *b, co_boot_step_t step)
     case CO_BOOT_STEP_DEVICE_TYPE:
         b->step = (uint8_t)step;
         b->error = CO_BOOT_ERR_B;
-        read_entry(b, 0x1000, 0, true);
+        read_entry(b, 0x1000, e->device_type_sub, true);
         return;
     case CO_BOOT_STEP_VENDOR:
         enter_identity(b, step, e->vendor_id, CO_BOOT_ERR_D, 1, CO_BOOT_STEP_PRODUCT);

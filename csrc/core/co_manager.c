@@ -457,7 +457,9 @@ co_manager_status_t co_manager_start(co_manager_t *m)
             .config_date = od_u32(m->od, 0x1F26, id),
             .config_time = od_u32(m->od, 0x1F27, id),
             .software_id = od_u32(m->od, 0x1F55, id),
-            .heartbeat_ms = heartbeat_time_of(m->od, id)};
+            .heartbeat_ms = heartbeat_time_of(m->od, id),
+            /* CiA 1301: 0x1000 is an ARRAY on fd lines (logical device 1 checked) */
+            .device_type_sub = co_line_mode(m->line) == CO_MODE_FD ? 1u : 0u};
         (void)co_boot_init(&s->boot, m->line, id, &m->access);
         co_timer_init(&s->retry, on_retry, s);
         s->status = CO_MANAGER_SLAVE_PENDING;

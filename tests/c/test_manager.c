@@ -58,7 +58,12 @@ static void slave_od(od_store_t *d, co_mode_t mode, uint8_t node_id, uint32_t se
                      uint16_t heartbeat_ms)
 {
     od_begin(d, mode);
-    od_add(d, 0x1000, 0, VAR, U32, RO, DEVICE_TYPE);
+    if (mode == CO_MODE_FD) {   /* CiA 1301: one device type per logical device */
+        od_add(d, 0x1000, 0, ARR, U8, RO, 1);
+        od_add(d, 0x1000, 1, ARR, U32, RO, DEVICE_TYPE);
+    } else {
+        od_add(d, 0x1000, 0, VAR, U32, RO, DEVICE_TYPE);
+    }
     od_add(d, 0x1001, 0, VAR, U8, RO, 0);
     od_add(d, 0x1017, 0, VAR, U16, RW, heartbeat_ms);
     od_add(d, 0x1018, 0, REC, U8, RO, 4);

@@ -6,8 +6,8 @@
  *
  *   start -> 1F81 bit 0 clear: done, error A (not in the network list)
  *         -> 1F81 bit 2 clear: no checks, straight to ERROR_CONTROL
- *   DEVICE_TYPE  read 0x1000 (no answer: B; differs from 1F84 when that is
- *                not 0: C)
+ *   DEVICE_TYPE  read 0x1000 (sub 1 on fd lines; no answer: B; differs from
+ *                1F84 when that is not 0: C)
  *   VENDOR .. SERIAL  read 0x1018:01..04 and compare with 1F85..1F88, each
  *                only when the expected value is not 0 (D, M, N, O on a
  *                difference or an abort)
@@ -62,25 +62,26 @@ enum {
 #define CO_BOOT_ABORT_TIMEOUT 0x05040000u
 
 /* cffi:begin */
-/* The result of a boot process: OK, or the CiA 302-2 error status letter. */
+/* The result of a boot process: OK, or the CiA 302-2 error status letter
+ * (the value is the letter's ASCII code). */
 typedef enum co_boot_error {
     CO_BOOT_OK = 0,
-    CO_BOOT_ERR_A = 'A',   /* not in the network list (0x1F81 bit 0 clear) */
-    CO_BOOT_ERR_B = 'B',   /* no answer: device type 0x1000, or no boot-up after reset */
-    CO_BOOT_ERR_C = 'C',   /* device type differs from 0x1F84 */
-    CO_BOOT_ERR_D = 'D',   /* vendor-ID 0x1018:01 differs from 0x1F85 (or no answer) */
-    CO_BOOT_ERR_E = 'E',   /* keep-alive check: no heartbeat within its consumer time */
-    CO_BOOT_ERR_F = 'F',   /* keep-alive check: no node guarding answer */
-    CO_BOOT_ERR_G = 'G',   /* software check: 0x1F55 is 0, or 0x1F56:01 not readable */
-    CO_BOOT_ERR_H = 'H',   /* software differs, update not allowed */
-    CO_BOOT_ERR_I = 'I',   /* software update failed */
-    CO_BOOT_ERR_J = 'J',   /* configuration update failed */
-    CO_BOOT_ERR_K = 'K',   /* start of error control: no first heartbeat */
-    CO_BOOT_ERR_L = 'L',   /* keep-alive: the node was operational (not reset, not checked
-                              further); the manager treats it as booted */
-    CO_BOOT_ERR_M = 'M',   /* product code 0x1018:02 differs from 0x1F86 */
-    CO_BOOT_ERR_N = 'N',   /* revision 0x1018:03 differs from 0x1F87 */
-    CO_BOOT_ERR_O = 'O'    /* serial number 0x1018:04 differs from 0x1F88 */
+    CO_BOOT_ERR_A = 0x41, /* 'A': not in the network list (0x1F81 bit 0 clear) */
+    CO_BOOT_ERR_B = 0x42, /* 'B': no answer: device type 0x1000, or no boot-up after reset */
+    CO_BOOT_ERR_C = 0x43, /* 'C': device type differs from 0x1F84 */
+    CO_BOOT_ERR_D = 0x44, /* 'D': vendor-ID 0x1018:01 differs from 0x1F85 (or no answer) */
+    CO_BOOT_ERR_E = 0x45, /* 'E': keep-alive check: no heartbeat within its consumer time */
+    CO_BOOT_ERR_F = 0x46, /* 'F': keep-alive check: no node guarding answer */
+    CO_BOOT_ERR_G = 0x47, /* 'G': software check: 0x1F55 is 0, or 0x1F56:01 not readable */
+    CO_BOOT_ERR_H = 0x48, /* 'H': software differs, update not allowed */
+    CO_BOOT_ERR_I = 0x49, /* 'I': software update failed */
+    CO_BOOT_ERR_J = 0x4A, /* 'J': configuration update failed */
+    CO_BOOT_ERR_K = 0x4B, /* 'K': start of error control: no first heartbeat */
+    CO_BOOT_ERR_L = 0x4C, /* 'L': keep-alive: the node was operational (not reset, not checked
+                               further); the manager treats it as booted */
+    CO_BOOT_ERR_M = 0x4D, /* 'M': product code 0x1018:02 differs from 0x1F86 */
+    CO_BOOT_ERR_N = 0x4E, /* 'N': revision 0x1018:03 differs from 0x1F87 */
+    CO_BOOT_ERR_O = 0x4F  /* 'O': serial number 0x1018:04 differs from 0x1F88 */
 } co_boot_error_t;
 
 /* Where a process is. */
@@ -142,6 +143,9 @@ typedef struct co_boot_expect {
     uint32_t config_time;            /* 0x1F27 */
     uint32_t software_id;            /* 0x1F55 */
     uint16_t heartbeat_ms;           /* the manager's 0x1016 consumer time of the node */
+    uint8_t device_type_sub;         /* 0x1000 sub-index read: 0 on classic lines, 1 on fd
+                                        lines (CiA 1301: an ARRAY, one device type per
+                                        logical device; the first is checked) */
     uint32_t reset_timeout_ms;       /* 0 = CO_BOOT_DEFAULT_RESET_TIMEOUT_MS */
     uint32_t guard_timeout_ms;       /* 0 = CO_BOOT_DEFAULT_GUARD_TIMEOUT_MS */
 } co_boot_expect_t;

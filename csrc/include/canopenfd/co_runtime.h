@@ -112,8 +112,15 @@ typedef enum co_rt_event_kind {
     CO_EV_SYNC = 16,           /* a = counter (0 = none); only after co_rt_sync_listen */
     CO_EV_TIME = 17,           /* TIME received: a = ms after midnight, b = days since 1984 */
     CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
-    CO_EV_PDO_FRAME = 19       /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
+    CO_EV_PDO_FRAME = 19,      /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
                                   29-bit), b = frames seen on it so far, frame = it */
+    CO_EV_MANAGER = 23         /* network manager (co_rt_manager_start): node = slave,
+                                  a = co_manager_event_t | error letter << 8 |
+                                  mandatory << 16 | NMT command << 24; BOOT reports:
+                                  b = co_boot_event_t | step << 8 | sub << 16 |
+                                  matched << 24, frame.data = index (2 bytes LE), the
+                                  node's last state, bytes got (capped at 255),
+                                  expected, got, abort (4 bytes LE each) */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -446,6 +453,23 @@ typedef struct co_rt_service_stats {
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */
 int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor);
+/* ---- network manager, CiA 302-2 (co_rt_manager.c) ---- */
+/* (Re)start the network boot-up of the line's local node (its OD: 0x1F80
+ * bit 0 set, 0x1F81..): hooks = CO_MANAGER_HOOK_* the application answers
+ * (with co_rt_manager_continue), parallel = boot processes at once (0 = the
+ * client's channels), retry_ms = a silent slave asked again after (0 = 1 s).
+ * Events: CO_EV_MANAGER. */
+int co_rt_manager_start(co_rt_t *rt, int line, int hooks, int parallel, int retry_ms);
+/* Stop every boot process (the slaves stay as they are). */
+int co_rt_manager_stop(co_rt_t *rt, int line);
+/* The application's answer: what = CO_MANAGER_EV_UPDATE_SOFTWARE,
+ * CO_MANAGER_EV_UPDATE_CONFIG (node_id, done) or
+ * CO_MANAGER_EV_READY_OPERATIONAL (node_id and done not used).
+ * CO_RT_ERR_STATE when nothing waits for that answer. */
+int co_rt_manager_continue(co_rt_t *rt, int line, int what, int node_id, int done);
+/* The manager's phase (co_manager_phase_t), or a status < 0. With node_id
+ * 1..127: that slave's co_manager_slave_status_t | error letter << 8. */
+int co_rt_manager_state(co_rt_t *rt, int line, int node_id);
 
 /* Upload to memory: copy the data (returns the byte count, or a status). */
 int co_rt_transfer_data(co_rt_t *rt, int line, int handle, uint8_t *buf, uint32_t capacity);

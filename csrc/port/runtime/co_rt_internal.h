@@ -510,6 +510,9 @@ void rt_app_store_free(rt_line_t *l);
 
 /* ---------------------------------------------------------------- co_rt_client.c */
 void rt_client_free(rt_line_t *l);
+/* Under rt->lock: the line's client exists (created now if needed); false
+ * with the reason set. */
+bool rt_client_ready(co_rt_t *rt, rt_line_t *l);
 
 /* ---------------------------------------------------------------- services' glue */
 /* The stack's indications that post to Python, one per service file. */
