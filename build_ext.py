@@ -39,6 +39,8 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_guard.h",
     "csrc/include/canopenfd/co_sdo_server.h",
     "csrc/include/canopenfd/co_usdo_server.h",
+    "csrc/include/canopenfd/co_boot.h",
+    "csrc/include/canopenfd/co_manager.h",
     "csrc/include/canopenfd/co_runtime.h",
 ]
 # Public headers: csrc/include/canopenfd (included as "canopenfd/co_x.h"); the

@@ -23,6 +23,7 @@ from .node import LocalNode, RemoteNode
 from .od import ObjectDictionary, ODVariable, import_od
 from .od.fileio import Source
 from .services.emcy import Emcy, LineEmcy
+from .services.manager import NetworkManager
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.sync import SyncService
@@ -77,6 +78,9 @@ class Line:
         #: TIME transmit and callbacks.
         self.time = TimeService(context)
         self._emcy = LineEmcy(context)
+        #: CiA 302-2 network start-up run by the local node (see
+        #: canopenfd.services.manager).
+        self.manager = NetworkManager(context)
         # USDO on fd lines, SDO on classic lines (C sets it up at the first transfer)
         self._client: TransferClient = \
             UsdoClient(context) if self.mode == "fd" else SdoClient(context)

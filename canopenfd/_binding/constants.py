@@ -29,7 +29,8 @@ from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "Mode", "NmtCommand", "NmtState",
-    "OdOrigin", "ParameterGroup", "RtStatus", "StoreStatus", "C_ENUMS", "c_members",
+    "OdOrigin", "ParameterGroup", "RtStatus", "StoreStatus", "BootError", "BootEvent",
+    "BootStep", "ManagerEventCode", "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
 ]
 
 
@@ -80,6 +81,21 @@ StoreStatus = _c_enum("StoreStatus", "CO_STORE_", "co_store_status_t",
 # ---------------------------------------------------------------- EMCY
 EmcyStatus = _c_enum("EmcyStatus", "CO_EMCY_STATUS_",
                      doc="Bits of the FD EMCY's status byte (priority mask and flags).")
+
+# ---------------------------------------------------------------- CiA 302-2 network manager
+BootError = _c_enum("BootError", "CO_BOOT_", "co_boot_error_t",
+                    doc="Result of a boot-slave process: OK or the CiA 302-2 error letter "
+                        "(value = the letter's ASCII code).")
+BootStep = _c_enum("BootStep", "CO_BOOT_STEP_", "co_boot_step_t",
+                   doc="Steps of a boot-slave process (co_boot_step_t).")
+BootEvent = _c_enum("BootEvent", "CO_BOOT_EV_", "co_boot_event_t",
+                    doc="Reports of a boot-slave process (co_boot_event_t).")
+ManagerEventCode = _c_enum("ManagerEventCode", "CO_MANAGER_EV_", "co_manager_event_t",
+                           doc="What the network manager reports (co_manager_event_t).")
+ManagerPhase = _c_enum("ManagerPhase", "CO_MANAGER_", "co_manager_phase_t",
+                       doc="Phase of the network start-up (co_manager_phase_t).")
+SlaveStatus = _c_enum("SlaveStatus", "CO_MANAGER_SLAVE_", "co_manager_slave_status_t",
+                      doc="Where a slave of the network list is (co_manager_slave_status_t).")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

@@ -2,12 +2,15 @@
 
 nmt (NMT master and slave, heartbeat), emcy, pdo, sync, time, guard (node
 guarding), indications (on_read / on_write), store (parameter stores),
-served_od (the local node's values, domains and change callbacks); views:
+served_od (the local node's values, domains and change callbacks), manager
+(CiA 302-2 network start-up); views:
 what services see of their node (Protocols).
 """
 
 from .guard import GuardEvent
+from .manager import ManagerEvent, NetworkManager, NetworkStartError
 from .sync import SyncService
 from .time import TIME_EPOCH, TimeService
 
-__all__ = ["SyncService", "TimeService", "GuardEvent", "TIME_EPOCH"]
+__all__ = ["SyncService", "TimeService", "GuardEvent", "TIME_EPOCH", "ManagerEvent",
+           "NetworkManager", "NetworkStartError"]
