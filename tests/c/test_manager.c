@@ -618,6 +618,87 @@ static void test_fd_network_boots_over_usdo(void **state)
     fx_free(fx);
 }
 
+/* 0x1F80 bit 4 with a mandatory slave: its loss resets every node (the
+ * manager too) and the start-up runs again. */
+static void test_heartbeat_lost_reset_all(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    plan_t p = {.startup = CO_MANAGER_STARTUP_MANAGER | CO_MANAGER_STARTUP_RESET_ALL,
+                .assignment = {0, 0x0D, 0, 0},
+                .heartbeat = {(2u << 16) | 300u, 0}};
+    co_manager_t *m = fx_manager(fx, &p, 0);
+    station_t *s2 = fx_slave(fx, 2, 1, 100, true);
+    tu_run_until(&fx->tb, 10 * TU_MS);
+    start(fx, m);
+    tu_run_until(&fx->tb, 500 * TU_MS);
+    assert_int_equal(count_event(fx, CO_MANAGER_EV_NETWORK_STARTED, 0xFF), 1);
+    co_line_set_time(&s2->tl.line, fx->tb.now);
+    co_node_set_heartbeat(co_stack_node(&s2->stack), 0);
+    tu_log_clear(&fx->tb);
+    tu_run_until(&fx->tb, 2000 * TU_MS);
+    long reset = find_frame(&fx->tb, 0x000, (const uint8_t[]){0x81}, 1, 0);
+    tu_assert_logged(&fx->tb, reset, 0x000, (const uint8_t[]){0x81, 0x00}, 2);
+    /* the manager reset itself (its boot-up) and booted the network again */
+    assert_true(find_frame(&fx->tb, 0x700 + MANAGER, (const uint8_t[]){0x00}, 1, 0) > reset);
+    assert_true(find_frame(&fx->tb, 0x000, NMT_RESET_COMM_2, 2, 0) > reset);
+    assert_int_equal(count_event(fx, CO_MANAGER_EV_NETWORK_STARTED, 0xFF), 2);
+    assert_int_equal(state_of(&fx->manager), CO_NMT_OPERATIONAL);
+    assert_int_equal(state_of(s2), CO_NMT_OPERATIONAL);
+    fx_free(fx);
+}
+
+/* An optional slave that fails (here: software check asked, 0x1F55 not
+ * set: G) is reported, not started, and does not halt the start. */
+static void test_optional_failure_does_not_halt(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    plan_t p = {.startup = CO_MANAGER_STARTUP_MANAGER, .assignment = {0, 0x0D, 0x25, 0}};
+    co_manager_t *m = fx_manager(fx, &p, 0);
+    fx_slave(fx, 2, 1, 0, true);
+    station_t *s3 = fx_slave(fx, 3, 1, 0, true);
+    tu_run_until(&fx->tb, 10 * TU_MS);
+    start(fx, m);
+    tu_run_until(&fx->tb, 300 * TU_MS);
+    /* 0x1F81:3 asks for the software check (bit 5) without 0x1F55: G */
+    assert_int_equal(co_manager_slave_status(m, 3), CO_MANAGER_SLAVE_FAILED);
+    assert_int_equal(co_manager_slave_error(m, 3), CO_BOOT_ERR_G);
+    long failed = find_event(fx, CO_MANAGER_EV_SLAVE_FAILED, 3, 0);
+    assert_true(failed >= 0);
+    assert_false(fx->events[failed].mandatory);
+    assert_int_equal(count_event(fx, CO_MANAGER_EV_HALTED, 0xFF), 0);
+    assert_int_equal(co_manager_phase(m), CO_MANAGER_RUNNING);
+    assert_int_equal(state_of(s3), CO_NMT_PRE_OPERATIONAL);   /* never started */
+    fx_free(fx);
+}
+
+/* co_stack_manager_need says what co_stack_manager_init takes. */
+static void test_manager_memory_need(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    plan_t p = {.startup = CO_MANAGER_STARTUP_MANAGER, .assignment = {0, 0x0D, 0x05, 0x05}};
+    station_t *st = &fx->manager;
+    tu_bus_add_line(&fx->tb, &st->tl);
+    manager_od(&st->od, CO_MODE_CLASSIC, &p);
+    station_stack(st, 0);
+    co_stack_node_config_t nc = {.node_id = MANAGER, .od = &st->od.od};
+    assert_int_equal(co_stack_node_init(&st->stack, &nc), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2};
+    assert_int_equal(co_stack_client_init(&st->stack, &cc), CO_STACK_OK);
+    assert_int_equal(co_manager_slaves_in(&st->od.od, MANAGER), 3);
+    size_t need = co_stack_manager_need(&st->stack);
+    assert_int_equal(need, CO_STACK_BLOCK(3 * sizeof(co_manager_slave_t)));
+    size_t before = st->arena.used;
+    co_stack_manager_config_t mc = {0};
+    assert_int_equal(co_stack_manager_init(&st->stack, &mc), CO_STACK_OK);
+    assert_int_equal(st->arena.used - before, need);
+    co_stack_manager_deinit(&st->stack);
+    assert_int_equal(st->arena.used, before);   /* given back */
+    fx_free(fx);
+}
+
 static void test_wrong_use_is_refused(void **state)
 {
     (void)state;
@@ -679,6 +760,9 @@ int main(void)
         cmocka_unit_test(test_device_type_mismatch_reported),
         cmocka_unit_test(test_heartbeat_lost_reboots_the_slave),
         cmocka_unit_test(test_heartbeat_lost_stop_all),
+        cmocka_unit_test(test_heartbeat_lost_reset_all),
+        cmocka_unit_test(test_optional_failure_does_not_halt),
+        cmocka_unit_test(test_manager_memory_need),
         cmocka_unit_test(test_fd_network_boots_over_usdo),
         cmocka_unit_test(test_wrong_use_is_refused),
     };
