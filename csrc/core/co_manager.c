@@ -180,7 +180,12 @@ static void launch_pending(co_manager_t *m)
         }
         s->status = CO_MANAGER_SLAVE_BOOTING;
         m->booting++;
-        (void)co_boot_start(&s->boot, &s->expect);
+        if (!co_boot_start(&s->boot, &s->expect)) {
+            /* cannot happen for a pending slave (its process is not running);
+             * kept so a slot is never lost */
+            m->booting--;
+            s->status = CO_MANAGER_SLAVE_FAILED;
+        }
     }
     m->launching = false;
 }
