@@ -35,13 +35,17 @@ def mode(request):
 
 def manager_od(mode: str, startup: int, slaves: Dict[int, int],
                device_types: Dict[int, int] = None, heartbeats: Dict[int, int] = None,
-               boot_time_ms: int = 0):
-    """The demo OD plus the manager's objects: 0x1F80, 0x1F81/0x1F84 for nodes
-    1..5, 0x1F89 and consumer heartbeat times (0x1016:1.. = the nodes given)."""
+               boot_time_ms: int = 0, vendors: Dict[int, int] = None,
+               serials: Dict[int, int] = None):
+    """The demo OD plus the manager's objects: 0x1F80, 0x1F81/0x1F84/0x1F85/
+    0x1F88 for nodes 1..5, 0x1F89 and consumer heartbeat times (0x1016:1.. =
+    the nodes given)."""
     od = demo_od(mode)
     od.add_object(ODVariable("NMT startup", 0x1F80, 0, DataType.UNSIGNED32, "rw", startup))
     for index, name, values in ((0x1F81, "Slave assignment", slaves),
-                                (0x1F84, "Device type identification", device_types or {})):
+                                (0x1F84, "Device type identification", device_types or {}),
+                                (0x1F85, "Vendor identification", vendors or {}),
+                                (0x1F88, "Serial number", serials or {})):
         array = ODArray(name, index)
         array.add_member(ODVariable("Highest sub-index supported", index, 0,
                                     DataType.UNSIGNED8, "ro", 5))
@@ -207,7 +211,8 @@ def _their_od(canopen):
 def test_python_canopen_slave_kept_alive(net):
     """python-canopen's LocalNode 5, operational with 50 ms heartbeats: our
     manager (keep-alive, 0x1F81:5 = 0x1D, heartbeat consumer 300 ms) checks
-    its device type and identity over SDO (python-canopen's server answers),
+    its device type, vendor-ID and serial number over SDO (python-canopen's
+    server answers; product and revision are not expected, so not read),
     then sees it operational: L, no reset, no start."""
     canopen = pytest.importorskip("canopen")
     channel = f"manager-{os.getpid()}-{next(_channels)}"
@@ -219,7 +224,7 @@ def test_python_canopen_slave_kept_alive(net):
         theirs.nmt.state = "OPERATIONAL"
         theirs.nmt.start_heartbeat(50)
         od = manager_od("classic", 0x01, {5: 0x1D}, device_types={5: 0x00020191},
-                        heartbeats={5: 300})
+                        heartbeats={5: 300}, vendors={5: 0x0000ABCD}, serials={5: 0x5005})
         frames = Recorder()
         line = net.open_line(bus=virtual_bus(channel), mode="classic")
         line.create_local_node(MANAGER, od=od)
@@ -230,13 +235,19 @@ def test_python_canopen_slave_kept_alive(net):
         line.manager.wait_started(scaled(5))
         assert line.manager.slave(5)[1] == "L"
         checked = [e for e in line.manager.events if e.boot_event == "checked"]
-        assert [(e.od_index, e.got) for e in checked] == [(0x1000, 0x00020191)]
+        assert [(e.od_index, e.od_sub, e.got, e.matched) for e in checked] == [
+            (0x1000, 0, 0x00020191, True), (0x1018, 1, 0x0000ABCD, True),
+            (0x1018, 4, 0x5005, True)]
         assert theirs.nmt.state == "OPERATIONAL"
         assert not [f for f in frames.snapshot() if f.id == 0]     # no NMT at all
-        reads = [bytes(f.data[:4]) for f in frames.snapshot() if f.id == 0x605]
-        assert reads == [bytes([0x40, 0x00, 0x10, 0x00])]
+        reads = [bytes(f.data) for f in frames.snapshot() if f.id == 0x605]
+        assert reads == [bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
+                         bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0]),
+                         bytes([0x40, 0x18, 0x10, 0x04, 0, 0, 0, 0])]
         answers = [bytes(f.data) for f in frames.snapshot() if f.id == 0x585]
-        assert answers == [bytes([0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x02, 0x00])]
+        assert answers == [bytes([0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x02, 0x00]),
+                           bytes([0x43, 0x18, 0x10, 0x01, 0xCD, 0xAB, 0x00, 0x00]),
+                           bytes([0x43, 0x18, 0x10, 0x04, 0x05, 0x50, 0x00, 0x00])]
     finally:
         theirs.nmt.stop_heartbeat()
         peer.disconnect()
