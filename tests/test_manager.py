@@ -23,6 +23,7 @@ from canopenfd import ConfigurationError
 from canopenfd.od import DataType, ODArray, ODVariable, demo_od
 from canopenfd.services import ManagerEvent, NetworkStartError
 from canopenfd.services.manager import ManagerPhase, SlaveStatus
+from canopenfd.services.store import MemoryStore
 
 MANAGER = 1
 _channels = itertools.count(1)
@@ -36,16 +37,17 @@ def mode(request):
 def manager_od(mode: str, startup: int, slaves: Dict[int, int],
                device_types: Dict[int, int] = None, heartbeats: Dict[int, int] = None,
                boot_time_ms: int = 0, vendors: Dict[int, int] = None,
-               serials: Dict[int, int] = None):
+               serials: Dict[int, int] = None, software: Dict[int, int] = None):
     """The demo OD plus the manager's objects: 0x1F80, 0x1F81/0x1F84/0x1F85/
-    0x1F88 for nodes 1..5, 0x1F89 and consumer heartbeat times (0x1016:1.. =
-    the nodes given)."""
+    0x1F88/0x1F55 for nodes 1..5, 0x1F89 and consumer heartbeat times
+    (0x1016:1.. = the nodes given)."""
     od = demo_od(mode)
     od.add_object(ODVariable("NMT startup", 0x1F80, 0, DataType.UNSIGNED32, "rw", startup))
     for index, name, values in ((0x1F81, "Slave assignment", slaves),
                                 (0x1F84, "Device type identification", device_types or {}),
                                 (0x1F85, "Vendor identification", vendors or {}),
-                                (0x1F88, "Serial number", serials or {})):
+                                (0x1F88, "Serial number", serials or {}),
+                                (0x1F55, "Expected software identification", software or {})):
         array = ODArray(name, index)
         array.add_member(ODVariable("Highest sub-index supported", index, 0,
                                     DataType.UNSIGNED8, "ro", 5))
@@ -59,11 +61,26 @@ def manager_od(mode: str, startup: int, slaves: Dict[int, int],
     return od
 
 
+def software_od(mode: str, software_id: int):
+    """A slave's demo OD with its program software identification 0x1F56:01
+    (stored: a reset communication reloads it from the store)."""
+    od = demo_od(mode)
+    array = ODArray("Program software identification", 0x1F56)
+    array.add_member(ODVariable("Highest sub-index supported", 0x1F56, 0, DataType.UNSIGNED8,
+                                "ro", 1))
+    program = ODVariable("Program 1", 0x1F56, 1, DataType.UNSIGNED32, "rw", software_id)
+    program.store = True
+    array.add_member(program)
+    od.add_object(array)
+    return od
+
+
 class Rig:
     """Manager node 1 and slave nodes on one in-process bus, a monitor of
     every frame and the manager's events."""
 
-    def __init__(self, net, bus_name, mode, od, slaves=(2, 3), slave_heartbeat_ms=0):
+    def __init__(self, net, bus_name, mode, od, slaves=(2, 3), slave_heartbeat_ms=0,
+                 slave_od=None, slave_store=None):
         self.mode = mode
         self.frames = Recorder()
         net.open_line(bus_name, mode=mode, monitor=True).on_frame(self.frames)
@@ -71,7 +88,8 @@ class Rig:
         for node in slaves:
             line = net.open_line(bus_name, mode=mode)
             self.slaves[node] = line.create_local_node(node, slave_heartbeat_ms,
-                                                       od=demo_od(mode))
+                                                       od=slave_od or demo_od(mode),
+                                                       store=slave_store)
         self.line = net.open_line(bus_name, mode=mode)
         self.node = self.line.create_local_node(MANAGER, od=od)
         self.manager = self.line.manager
@@ -167,6 +185,42 @@ def test_hooks_answered_from_callbacks_and_awaited(net, bus_name):
     rig.slaves[2].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
     with pytest.raises(canopenfd.CanopenFDError, match="does not wait"):
         rig.manager.continue_operational()      # nothing waits for it any more
+
+
+def test_software_update_hook_then_checked_again(net, bus_name, mode):
+    """0x1F81:2 = 0x6D (check the software, update allowed): the slave's
+    0x1F56:01 = 0x0101 differs from 0x1F55:2 = 0x0102, the application is asked,
+    "updates" it and says done; the process checks the node again from its
+    device type on and boots it. Without the hook the manager answers
+    "failed": error I."""
+    od = manager_od(mode, 0x01, {2: 0x6D}, software={2: 0x0102})
+    rig = Rig(net, bus_name, mode, od, slaves=(2,), slave_od=software_od(mode, 0x0101),
+              slave_store=MemoryStore())
+
+    def update(event: ManagerEvent) -> None:
+        if event.kind == "update-software":
+            slave = rig.slaves[event.node_id]
+            slave[0x1F56, 1].raw = 0x0102              # the new program, kept across
+            slave.save_parameters()                    # the reset the manager sends
+            rig.manager.continue_software(event.node_id)
+
+    rig.manager.add_callback(update)
+    rig.manager.start(software_hook=True)
+    rig.manager.wait_started(scaled(5))
+    software = [(e.got, e.matched) for e in rig.manager.events
+                if e.boot_event == "checked" and e.od_index == 0x1F56]
+    assert software == [(0x0101, False), (0x0102, True)]
+    device_type_reads = [e for e in rig.manager.events
+                         if e.boot_event == "checked" and e.od_index == 0x1000]
+    assert len(device_type_reads) == 2                   # checked again after the update
+    assert rig.manager.slave(2) == (SlaveStatus.BOOTED, "")
+    # the same without the hook: nobody updates, I
+    rig.slaves[2][0x1F56, 1].raw = 0x0101
+    rig.slaves[2].save_parameters()
+    rig.manager.start()
+    with pytest.raises(NetworkStartError) as caught:
+        rig.manager.wait_started(scaled(5))
+    assert caught.value.error == "I"
 
 
 def test_wrong_use_is_refused(net, bus_name):

@@ -203,6 +203,7 @@ bool co_boot_start(co_boot_t *boot, const co_boot_expect_t *expect)
     boot->expect = *expect;
     boot->state = CO_NMT_UNKNOWN;
     boot->reading = false;
+    boot->updated = false;
     boot->step = CO_BOOT_STEP_DEVICE_TYPE;   /* running while STARTED is told */
     co_boot_report_t r;
     memset(&r, 0, sizeof r);
@@ -314,6 +315,9 @@ void co_boot_upload_done(co_boot_t *boot, uint32_t abort, const uint8_t *data, u
             finish(boot, CO_BOOT_ERR_G);
         } else if (matched) {
             enter(boot, CO_BOOT_STEP_CONFIG_DATE);
+        } else if (boot->updated) {
+            /* an update that did not take: asking again could loop for ever */
+            finish(boot, CO_BOOT_ERR_I);
         } else if ((boot->expect.assignment &
                     (CO_BOOT_ASSIGN_UPDATE_SOFTWARE | CO_BOOT_ASSIGN_KEEP_ALIVE)) ==
                    CO_BOOT_ASSIGN_UPDATE_SOFTWARE) {
@@ -388,6 +392,9 @@ static bool continue_step(co_boot_t *boot, co_boot_step_t step, bool done,
 bool co_boot_continue_software(co_boot_t *boot, bool done)
 {
     /* new software: the node is checked again from its identity on */
+    if (boot && boot->step == CO_BOOT_STEP_UPDATE_SOFTWARE && done) {
+        boot->updated = true;
+    }
     return continue_step(boot, CO_BOOT_STEP_UPDATE_SOFTWARE, done, CO_BOOT_STEP_DEVICE_TYPE,
                          CO_BOOT_ERR_I);
 }

@@ -453,6 +453,23 @@ static void test_i_software_update_hook(void **state)
     assert_done(f, CO_BOOT_OK);
     assert_false(co_boot_continue_software(&f->boot, true));
     free(f);
+    /* the update "worked" but the node still has the old software: I, not
+     * a second question (that could go on for ever) */
+    f = fake_new();
+    software_expect(&e, CO_BOOT_ASSIGN_UPDATE_SOFTWARE);
+    to_software(f, &e);
+    answer(f, 0x0101);
+    assert_true(co_boot_continue_software(&f->boot, true));
+    pass_identity(f, &e);
+    frame(f, 0x00);
+    answer(f, 0x0101);
+    assert_done(f, CO_BOOT_ERR_I);
+    unsigned asked = 0;
+    for (unsigned i = 0; i < f->report_count; i++) {
+        asked += f->reports[i].event == CO_BOOT_EV_UPDATE_SOFTWARE;
+    }
+    assert_int_equal(asked, 1);
+    free(f);
     /* the update failed: I */
     f = fake_new();
     software_expect(&e, CO_BOOT_ASSIGN_UPDATE_SOFTWARE);

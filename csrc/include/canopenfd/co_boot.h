@@ -22,7 +22,8 @@
  *                or the read aborted: G); differs: with bit 6 set and bit 4
  *                clear the application updates the software
  *                (CO_BOOT_EV_UPDATE_SOFTWARE, co_boot_continue_software:
- *                done -> again from DEVICE_TYPE, failed -> I), else H
+ *                done -> again from DEVICE_TYPE, failed -> I; still
+ *                different after the update -> I), else H
  *   CONFIG_DATE/TIME  with 1F26 and 1F27 both not 0, read 0x1020:01/02;
  *                both equal: configuration is current
  *   CONFIG_UPDATE otherwise the application brings the configuration
@@ -189,6 +190,7 @@ struct co_boot {
     uint8_t error;                   /* co_boot_error_t the current step fails with */
     uint8_t state;                   /* last NMT state seen of the node */
     uint8_t retries;                 /* repeats left of the current read */
+    bool updated;                    /* the software was updated in this process */
     bool reading;                    /* an upload runs */
     uint16_t index;                  /* the read running */
     uint8_t sub;
