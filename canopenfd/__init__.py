@@ -26,7 +26,9 @@ from .node import LocalNode, LocalValue, RemoteNode
 from .od import ObjectDictionary, OdFileError, OdValueError, import_od
 from .services.emcy import Emcy
 from .services.indications import ODRequest
+from .services.flyma import FlymaEvent, FlymaNotice, FlymaState
 from .services.nmt import NmtCommand, NmtState
+from .services.sleep import SleepCause, SleepEvent, SleepNotice, SleepPhase
 from .transfer import SdoAbortError, Transfer, UsdoAbortError, UsdoTransfer
 
 __all__ = [
@@ -36,4 +38,6 @@ __all__ = [
     "Frame", "Emcy", "NmtCommand", "NmtState", "decode",
     "Network", "Line", "connect", "CommEvent", "LocalNode", "RemoteNode", "ODRequest",
     "UsdoAbortError", "UsdoTransfer", "SdoAbortError", "Transfer",
+    "SleepCause", "SleepEvent", "SleepNotice", "SleepPhase",
+    "FlymaEvent", "FlymaNotice", "FlymaState",
 ]

@@ -26,6 +26,7 @@ from .services.emcy import Emcy, LineEmcy
 from .services.manager import NetworkManager
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
+from .services.sleep import SleepService
 from .services.sync import SyncService
 from .services.time import TimeService
 from .transfer.client import TransferClient, require_protocol
@@ -77,6 +78,8 @@ class Line:
         self.sync = SyncService(context)
         #: TIME transmit and callbacks.
         self.time = TimeService(context)
+        #: Sleep and wake-up, master or device (see canopenfd.services.sleep).
+        self.sleep = SleepService(context)
         self._emcy = LineEmcy(context)
         #: CiA 302-2 network start-up run by the local node (see
         #: canopenfd.services.manager).

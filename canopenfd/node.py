@@ -15,6 +15,7 @@ from .errors import ConfigurationError
 from .od import ODVariable, ObjectDictionary
 from .od.datatypes import Value
 from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
+from .services.flyma import FlyingMaster
 from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
 from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtCommand,
@@ -67,6 +68,8 @@ class LocalNode:
         self._indications = Indications(context, self, self._served, where,
                                         self._store.persist_request)
         self._emcy = EmcyProducer(context, self, self._served, where)
+        #: Flying master (CiA 302-2): start() once the node booted.
+        self.flying_master = FlyingMaster(context, where)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         if od is not None:

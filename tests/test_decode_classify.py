@@ -24,6 +24,11 @@ from canopenfd.od import DataType, ODVariable, demo_od
     (Frame(0x70A, rtr=True, rtr_len=1), ("heartbeat", (10,))),         # guarding request
     (Frame(0x7E5, bytes(8)), ("lss", ())),
     (Frame(0x7E4, bytes(8)), ("lss", ())),
+    (Frame(0x691, bytes([1]) + bytes(7)), ("sleep", ())),
+    (Frame(0x690, bytes([0x81, 2]) + bytes(6)), ("sleep", ())),
+    (Frame(0x692, bytes([3]) + bytes(7)), ("sleep", ())),
+    (Frame(0x071, bytes([0, 11])), ("flyma", ())),
+    (Frame(0x076, b""), ("flyma", ())),
     (Frame(0x605, bytes(8)), ("sdo", (5,))),
     (Frame(0x585, bytes(8)), ("sdo", (5,))),
     (Frame(0x67F, bytes([5, 1, 1, 0]), fd=True), ("usdo", (127, 5))),  # client 127 -> node 5

@@ -69,6 +69,40 @@ def test_sync(frame, text):
     assert Decoder().decode(frame) == text
 
 
+# ------------------------------------------------------------------ sleep and wake-up
+@pytest.mark.parametrize("frame, text", [
+    (Frame(0x691, bytes([1]) + bytes(7)), "SLEEP query"),
+    (Frame(0x691, bytes([2]) + bytes(7)), "SLEEP command"),
+    (Frame(0x690, bytes([0x81, 0x42]) + bytes(6)), "SLEEP objection reason 0x42"),
+    (Frame(0x692, bytes([3]) + bytes(7)), "SLEEP request"),
+    (Frame(0x691, bytes([0x10, 0x20]) + bytes(6)),
+     "SLEEP wake-up from the master status 0x10 reason 0x20"),
+    (Frame(0x690, bytes([0, 1]) + bytes(6)), "SLEEP wake-up from a device status 0x00 reason 0x01"),
+    (fd(0x691, bytes([1]) + bytes(7)), "SLEEP query [FD BRS]"),
+    (Frame(0x691, b"\x01"), "SLEEP malformed: 1 bytes, expected 8 (01)"),
+    (Frame(0x692, bytes([7]) + bytes(7)),
+     "SLEEP request malformed: command 0x07 (07 00 00 00 00 00 00 00)"),
+])
+def test_sleep(frame, text):
+    assert decode(frame) == text
+    assert Decoder().decode(frame) == text
+
+
+@pytest.mark.parametrize("frame, text", [
+    (Frame(0x071, bytes([0, 11])), "FLYMA active master node 11 priority 0"),
+    (Frame(0x072, b""), "FLYMA negotiation request"),
+    (Frame(0x073, b""), "FLYMA active master request"),
+    (Frame(0x074, b""), "FLYMA master capable"),
+    (Frame(0x075, b""), "FLYMA master capable request"),
+    (Frame(0x076, b""), "FLYMA force negotiation"),
+    (Frame(0x071, b"\x01"), "FLYMA active master malformed: 1 bytes, expected 2 (01)"),
+    (Frame(0x073, b"\x00"), "FLYMA active master request malformed: 1 bytes, expected 0 (00)"),
+])
+def test_flyma(frame, text):
+    assert decode(frame) == text
+    assert Decoder().decode(frame) == text
+
+
 # ------------------------------------------------------------------ TIME
 def test_time_agrees_with_the_c_codec_example():
     example = c_array("tests/c/test_time.c", "example_bytes")

@@ -29,8 +29,10 @@ from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "Mode", "NmtCommand", "NmtState",
-    "OdOrigin", "ParameterGroup", "RtStatus", "StoreStatus", "BootError", "BootEvent",
-    "BootStep", "ManagerEventCode", "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
+    "FlymaAction", "FlymaEvent", "FlymaState",
+    "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
+    "SleepPhase", "StoreStatus", "BootError", "BootEvent", "BootStep", "ManagerEventCode",
+    "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
 ]
 
 
@@ -81,6 +83,24 @@ StoreStatus = _c_enum("StoreStatus", "CO_STORE_", "co_store_status_t",
 # ---------------------------------------------------------------- EMCY
 EmcyStatus = _c_enum("EmcyStatus", "CO_EMCY_STATUS_",
                      doc="Bits of the FD EMCY's status byte (priority mask and flags).")
+
+# ---------------------------------------------------------------- sleep and wake-up
+SleepPhase = _c_enum("SleepPhase", "CO_SLEEP_", "co_sleep_phase_t",
+                     doc="Phases of sleep and wake-up (co_sleep_phase_t, CiA 320).")
+SleepEvent = _c_enum("SleepEvent", "CO_SLEEP_EV_", "co_sleep_event_t",
+                     doc="What the sleep service reports (co_sleep_event_t).")
+SleepCause = _c_enum("SleepCause", "CO_SLEEP_BY_", "co_sleep_cause_t",
+                     doc="What woke a node (co_sleep_cause_t).")
+SleepAction = _c_enum("SleepAction", "CO_RT_SLEEP_", "co_rt_sleep_action_t",
+                      doc="What the application asks of the sleep service (co_rt_sleep_action_t).")
+
+# ---------------------------------------------------------------- flying master
+FlymaState = _c_enum("FlymaState", "CO_FLYMA_", "co_flyma_state_t",
+                     doc="States of the flying-master negotiation (co_flyma_state_t, CiA 302-2).")
+FlymaEvent = _c_enum("FlymaEvent", "CO_FLYMA_EV_", "co_flyma_event_t",
+                     doc="What the flying master reports (co_flyma_event_t).")
+FlymaAction = _c_enum("FlymaAction", "CO_RT_FLYMA_", "co_rt_flyma_action_t",
+                      doc="What the application asks of the flying master.")
 
 # ---------------------------------------------------------------- CiA 302-2 network manager
 BootError = _c_enum("BootError", "CO_BOOT_", "co_boot_error_t",

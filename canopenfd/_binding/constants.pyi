@@ -22,9 +22,16 @@ __all__ = [
     "Mode",
     "NmtCommand",
     "NmtState",
+    "FlymaAction",
+    "FlymaEvent",
+    "FlymaState",
     "OdOrigin",
     "ParameterGroup",
     "RtStatus",
+    "SleepAction",
+    "SleepCause",
+    "SleepEvent",
+    "SleepPhase",
     "StoreStatus",
     "BootError",
     "BootEvent",
@@ -140,6 +147,8 @@ class EventKind(enum.IntEnum):
     GUARD = 18
     PDO_FRAME = 19
     MANAGER = 23
+    SLEEP = 24
+    FLYMA = 25
 
 
 class FrameFlag(enum.IntEnum):
@@ -201,6 +210,30 @@ class NmtState(NmtStateBase):
     UNKNOWN = 255
 
 
+class FlymaAction(enum.IntEnum):
+    """What the application asks of the flying master."""
+    DETECT_CAPABLE = 1
+    FORCE = 2
+
+
+class FlymaEvent(enum.IntEnum):
+    """What the flying master reports (co_flyma_event_t)."""
+    STATE = 1
+    RESET_ALL = 2
+    CAPABLE = 3
+    CAPABLE_DONE = 4
+
+
+class FlymaState(enum.IntEnum):
+    """States of the flying-master negotiation (co_flyma_state_t, CiA 302-2)."""
+    IDLE = 0
+    WAITING = 1
+    DETECTING = 2
+    NEGOTIATING = 3
+    MASTER = 4
+    SLAVE = 5
+
+
 class OdOrigin(enum.IntEnum):
     """Who wrote an object dictionary entry (co_od_origin_t)."""
     LOCAL = 0
@@ -229,6 +262,43 @@ class RtStatus(enum.IntEnum):
     ERR_NO_INTERFACE = -2
     ERR_ARGUMENT = -1
     OK = 0
+
+
+class SleepAction(enum.IntEnum):
+    """What the application asks of the sleep service (co_rt_sleep_action_t)."""
+    CHECK = 1
+    START = 2
+    REQUEST = 3
+    WAKE = 4
+
+
+class SleepCause(enum.IntEnum):
+    """What woke a node (co_sleep_cause_t)."""
+    APPLICATION = 0
+    BUS = 1
+    WAKE_MESSAGE = 2
+
+
+class SleepEvent(enum.IntEnum):
+    """What the sleep service reports (co_sleep_event_t)."""
+    QUERY = 1
+    OBJECTION = 2
+    REQUEST = 3
+    PREPARE = 4
+    SILENT = 5
+    ASLEEP = 6
+    WAKE = 7
+    WAKE_MESSAGE = 8
+    REFUSED = 9
+
+
+class SleepPhase(enum.IntEnum):
+    """Phases of sleep and wake-up (co_sleep_phase_t, CiA 320)."""
+    AWAKE = 0
+    CHECKING = 1
+    PREPARING = 2
+    SILENT = 3
+    ASLEEP = 4
 
 
 class StoreStatus(enum.IntEnum):

@@ -539,6 +539,55 @@ class Runtime:
     def time_send(self, line: int, unix_us: int, what: str) -> None:
         self._call(what, lib.co_rt_time_send, line, unix_us)
 
+    def sleep_start(self, line: int, master: bool, check_ms: int, prepare_ms: int,
+                    silent_ms: int, wake_repeat_ms: int, objection: int, what: str) -> None:
+        config = ffi.new("co_rt_sleep_config_t *")
+        config.master = int(master)
+        config.check_ms = check_ms
+        config.prepare_ms = prepare_ms
+        config.silent_ms = silent_ms
+        config.wake_repeat_ms = wake_repeat_ms
+        config.objection = objection
+        self._call(what, lib.co_rt_sleep_start, line, config)
+
+    def sleep_stop(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_sleep_stop, line)
+
+    def sleep_objection(self, line: int, reason: int, what: str) -> None:
+        self._call(what, lib.co_rt_sleep_objection, line, reason)
+
+    def sleep_act(self, line: int, action: int, status: int, reason: int, what: str) -> None:
+        self._call(what, lib.co_rt_sleep_act, line, action, status, reason)
+
+    def flyma_start(self, line: int, priority: int, timing_ms: Mapping[str, int],
+                    what: str) -> None:
+        """timing_ms: co_rt_flyma_config_t's *_ms fields (0 = the default)."""
+        config = ffi.new("co_rt_flyma_config_t *")
+        config.priority = priority
+        for name, value in timing_ms.items():
+            setattr(config, name, value)
+        self._call(what, lib.co_rt_flyma_start, line, config)
+
+    def flyma_stop(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_flyma_stop, line)
+
+    def flyma_act(self, line: int, action: int, what: str) -> None:
+        self._call(what, lib.co_rt_flyma_act, line, action)
+
+    def flyma_state(self, line: int, what: str) -> Tuple[int, int, int, Dict[str, int]]:
+        """(state, active master, its priority, counters) of the local node's flying master."""
+        out = ffi.new("co_rt_flyma_state_t *")
+        self._call(what, lib.co_rt_flyma_state, line, out)
+        return out.state, out.master, out.master_priority, {
+            name: getattr(out.stats, name) for name, _ in ffi.typeof("co_flyma_stats_t").fields}
+
+    def sleep_state(self, line: int, what: str) -> Tuple[int, Dict[str, int]]:
+        """(phase, counters) of the line's sleep service."""
+        stats = ffi.new("co_sleep_stats_t *")
+        phase = self._call(what, lib.co_rt_sleep_state, line, stats)
+        return phase, {name: getattr(stats, name)
+                       for name, _ in ffi.typeof("co_sleep_stats_t").fields}
+
     def guard(self, line: int, node_id: int, guard_ms: int, life_factor: int,
               what: str) -> None:
         self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)

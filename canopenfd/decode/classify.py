@@ -11,10 +11,12 @@ from typing import Any, Dict, Optional, Tuple
 from ..frame import FLAG_EXT, FLAG_FD
 from .dispatch import DecoderState, is_sdo_id
 from .emcy import EMCY_BASE
+from .flyma import FLYMA_IDS
 from .heartbeat import ERROR_CONTROL_BASE
 from .nmt import NMT_ID
 from .pdo import default_pdo
 from .raw import frame_fields
+from .sleep import SLEEP_IDS
 from .sync import SYNC_ID
 from .time import TIME_ID
 
@@ -33,6 +35,8 @@ SERVICES: Dict[str, str] = {
     "usdo": "USDO (CAN FD frames on the same CAN-IDs)",
     "heartbeat": "heartbeat, boot-up and node guarding (0x700 + node-id)",
     "lss": "LSS (0x7E4, 0x7E5)",
+    "sleep": "sleep and wake-up (0x690..0x692)",
+    "flyma": "flying master negotiation (0x071..0x076)",
     "other": "every other frame",
 }
 #: Names that stand for several services.
@@ -68,6 +72,10 @@ def frame_service(frame: Any, state: Optional[DecoderState] = None) -> Classifie
         return "time", ()
     if can_id in (LSS_MASTER_ID, LSS_SLAVE_ID):
         return "lss", ()
+    if can_id in SLEEP_IDS:
+        return "sleep", ()
+    if can_id in FLYMA_IDS:
+        return "flyma", ()
     if ERROR_CONTROL_BASE < can_id <= ERROR_CONTROL_BASE + 0x7F:
         return "heartbeat", (can_id - ERROR_CONTROL_BASE,)
     if is_sdo_id(can_id):

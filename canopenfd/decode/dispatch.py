@@ -11,12 +11,14 @@ from typing import Any, Optional
 
 from ..frame import FLAG_EXT, FLAG_FD, FLAG_RTR
 from .emcy import EMCY_BASE, emcy_text
+from .flyma import FLYMA_IDS, flyma_text
 from .heartbeat import ERROR_CONTROL_BASE, GuardingTracker, guarding_request_text, heartbeat_text
 from .nmt import NMT_ID, nmt_text
 from .pdo import PdoMap, default_pdo, default_pdo_text, pdo_text
 from .raw import format_flags, format_raw, frame_fields
 from .sdo import SdoBlockTracker, sdo_text
 from .service_ids import ServiceIds, service_text
+from .sleep import SLEEP_IDS, sleep_text
 from .sync import SYNC_ID, sync_text
 from .time import TIME_ID, time_text
 from .usdo import usdo_text
@@ -83,6 +85,10 @@ def frame_meaning(frame: Any, state: Optional[DecoderState]) -> str:
         return emcy_text(can_id - EMCY_BASE, data, fd)
     if can_id == TIME_ID:
         return time_text(data)
+    if can_id in SLEEP_IDS:
+        return sleep_text(can_id, data)
+    if can_id in FLYMA_IDS:
+        return flyma_text(can_id, data)
     if ERROR_CONTROL_BASE <= can_id <= ERROR_CONTROL_BASE + 0x7F:
         node = can_id - ERROR_CONTROL_BASE
         guarded = state is not None and state.guarding.is_reply(node, data)

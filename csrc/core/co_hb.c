@@ -264,6 +264,18 @@ co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
                                     ((uint32_t)node_id << 16) | time_ms);
 }
 
+bool co_hb_consumer_expect(co_hb_consumer_t *c, uint8_t node_id)
+{
+    co_hb_entry_t *e = node_id ? entry_of(c, node_id) : NULL;
+    if (!e || e->time_ms == 0) {
+        return false;
+    }
+    e->monitor = CO_HB_MONITOR_ACTIVE;
+    co_timer_start(co_line_timers(c->line), &e->timer,
+                   co_line_now(c->line) + (uint64_t)e->time_ms * 1000u);
+    return true;
+}
+
 co_hb_config_result_t co_hb_consumer_tick(co_hb_consumer_t *c, uint8_t node_id,
                                           uint16_t interval_ms)
 {

@@ -219,6 +219,10 @@ bool co_line_tx_pop(co_line_t *line, co_frame_t *out)
 /* Queue a frame already checked for the line; overflow and full events. */
 static bool queue_tx(co_line_t *line, const co_frame_t *frame)
 {
+    if (line->silent) {
+        line->stats.tx_silenced++;
+        return false;
+    }
     if (!co_queue_push(&line->tx, frame)) {
         line->stats.tx_overflow++;
         co_line_comm_event(line, CO_COMM_TX_OVERFLOW);
@@ -229,6 +233,24 @@ static bool queue_tx(co_line_t *line, const co_frame_t *frame)
         co_line_comm_event(line, CO_COMM_TX_QUEUE_FULL);
     }
     return true;
+}
+
+void co_line_set_silent(co_line_t *line, bool silent)
+{
+    if (silent && !line->silent) {
+        line->stats.tx_silenced += co_queue_count(&line->tx);
+        while (!co_queue_is_empty(&line->tx)) {
+            queue_drop_head(&line->tx);
+        }
+        line->tx_was_full = false;
+    }
+    line->silent = silent;
+}
+
+void co_line_watch_rx(co_line_t *line, co_rx_fn fn, void *user)
+{
+    line->rx_watch = fn;
+    line->rx_watch_user = user;
 }
 
 bool co_line_send_raw(co_line_t *line, const co_frame_t *frame)
@@ -298,6 +320,9 @@ static void dispatch(co_line_t *line, const co_frame_t *frame)
     if ((frame->flags & CO_FRAME_FD) && line->mode == CO_MODE_CLASSIC) {
         line->stats.rx_wrong_format++;
         return;
+    }
+    if (line->rx_watch) {
+        line->rx_watch(line, frame, line->rx_watch_user);
     }
     if ((frame->flags & (CO_FRAME_RTR | CO_FRAME_EXT)) || line->id_map[frame->id] == 0) {
         dispatch_other(line, frame);

@@ -321,7 +321,11 @@ const co_pdo_indications_t co_node_pdo_indications = {
 
 void co_node_attach_services(co_node_t *node, const co_node_services_t *services)
 {
+    co_flyma_t *flyma = node->services.flyma;   /* attached on its own */
     node->services = *services;
+    if (!services->flyma) {
+        node->services.flyma = flyma;
+    }
     if (services->sync) {
         (void)co_sync_add_listener(services->sync, on_sync, node);
         co_sync_set_window_indication(services->sync, on_sync_window, node);
@@ -330,11 +334,20 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
     services_set_state(node, node->nmt.state);
 }
 
+void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma)
+{
+    node->services.flyma = flyma;
+}
+
 /* Resets reload what the OD now says; the errors the node detected start
- * over (the watched nodes, the PDOs and guarding start over too). */
+ * over (the watched nodes, the PDOs and guarding start over too, a flying
+ * master negotiates again). */
 static void services_reset(co_node_t *node)
 {
     const co_node_services_t *s = &node->services;
+    if (s->flyma) {
+        co_flyma_boot(s->flyma);
+    }
     if (s->pdo) {
         co_pdo_reload(s->pdo);
     }

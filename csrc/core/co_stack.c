@@ -271,6 +271,9 @@ static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t eve
     if (s->has_manager && event == CO_HB_LOST) {
         co_manager_ec_lost(&s->manager, node_id);
     }
+    if (s->has_flyma && event == CO_HB_LOST) {
+        co_flyma_node_lost(&s->flyma, node_id);
+    }
 }
 
 static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
@@ -318,6 +321,9 @@ static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t eve
     }
     if (s->has_manager && event == CO_GUARD_LOST) {
         co_manager_ec_lost(&s->manager, node_id);
+    }
+    if (s->has_flyma && event == CO_GUARD_LOST) {
+        co_flyma_node_lost(&s->flyma, node_id);
     }
 }
 
@@ -406,6 +412,7 @@ static bool od_has(const co_stack_t *s, uint16_t index)
 static void node_undo(co_stack_t *s)
 {
     co_stack_manager_deinit(s);   /* it runs over the node */
+    co_stack_flyma_deinit(s);   /* it runs for the node */
     if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
         co_stack_client_deinit(s);   /* bound to the node's OD */
     }
@@ -648,6 +655,9 @@ co_stack_status_t co_stack_boot(co_stack_t *stack)
         return CO_STACK_ERR_STATE;
     }
     co_node_boot(&stack->node);
+    if (stack->has_flyma) {
+        co_flyma_boot(&stack->flyma);
+    }
     return CO_STACK_OK;
 }
 
@@ -714,6 +724,124 @@ void co_stack_client_deinit(co_stack_t *stack)
         stack->has_sdo_client = false;
     }
     give_back(stack, OWNER_CLIENT);
+}
+
+/* ---------------------------------------------------------------- sleep */
+
+/* The application hears every phase first; waking up then resets the local
+ * node's communication (CiA 320: a node awake again starts over). */
+static uint8_t on_sleep(co_sleep_t *sleep, co_sleep_event_t event, uint8_t arg, uint8_t arg2,
+                        void *user)
+{
+    co_stack_t *s = user;
+    uint8_t answer = s->sleep_ind ? s->sleep_ind(sleep, event, arg, arg2, s->sleep_user) : 0;
+    if (event == CO_SLEEP_EV_WAKE && s->has_node) {
+        co_nmt_apply(&s->node.nmt, CO_NMT_CMD_RESET_COMMUNICATION);
+    }
+    return answer;
+}
+
+co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config)
+{
+    if (!stack || !stack->line || !config) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    if (stack->has_sleep) {
+        return fail(stack, CO_STACK_PART_SLEEP, CO_STACK_ERR_STATE);
+    }
+    co_sleep_config_t own = *config;
+    own.ind = on_sleep;
+    own.user = stack;
+    stack->sleep_ind = config->ind;
+    stack->sleep_user = config->user;
+    if (!co_sleep_init(&stack->sleep, stack->line, &own)) {
+        return fail(stack, CO_STACK_PART_SLEEP, CO_STACK_ERR_TAKEN);
+    }
+    stack->has_sleep = true;
+    return CO_STACK_OK;
+}
+
+void co_stack_sleep_deinit(co_stack_t *stack)
+{
+    if (stack && stack->has_sleep) {
+        co_sleep_deinit(&stack->sleep);
+        stack->has_sleep = false;
+    }
+}
+
+/* ---------------------------------------------------------------- flying master */
+
+/* A slave watches the active master's heartbeat, a master nobody's. */
+static void flyma_watch(co_stack_t *s, uint8_t master)
+{
+    if (s->flyma_watched && s->flyma_watched != master) {
+        co_hb_consumer_unwatch(&s->hb_consumer, s->flyma_watched);
+        s->flyma_watched = 0;
+    }
+    if (master && s->flyma_watch_ms && s->flyma_watched != master &&
+        co_hb_consumer_watch(&s->hb_consumer, master, s->flyma_watch_ms) == CO_HB_CONFIG_OK) {
+        s->flyma_watched = master;
+        /* the master may be gone already: do not wait for a first heartbeat */
+        (void)co_hb_consumer_expect(&s->hb_consumer, master);
+    }
+}
+
+static void on_flyma(co_flyma_t *flyma, co_flyma_event_t event, co_flyma_state_t state,
+                     uint8_t master, uint8_t priority, void *user)
+{
+    co_stack_t *s = user;
+    if (event == CO_FLYMA_EV_STATE) {
+        flyma_watch(s, state == CO_FLYMA_SLAVE ? master : 0);
+    }
+    if (s->flyma_ind) {
+        s->flyma_ind(flyma, event, state, master, priority, s->flyma_user);
+    }
+    if (event == CO_FLYMA_EV_RESET_ALL) {
+        /* every node, this one included: its reset starts the flying master over */
+        (void)co_nmt_master_send(s->line, &s->node.nmt, CO_NMT_CMD_RESET_COMMUNICATION, 0,
+                                 true);
+    }
+}
+
+co_stack_status_t co_stack_flyma_init(co_stack_t *stack, const co_stack_flyma_config_t *config)
+{
+    if (!stack || !stack->line || !config) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    co_stack_t *s = stack;
+    if (!s->has_node || s->has_flyma) {
+        return fail(s, CO_STACK_PART_FLYMA, CO_STACK_ERR_STATE);
+    }
+    co_flyma_config_t c = config->flyma;
+    if (s->od) {
+        co_flyma_config_from_od(&c, s->od);
+    }
+    s->flyma_ind = c.ind;
+    s->flyma_user = c.user;
+    c.ind = on_flyma;
+    c.user = s;
+    if (!co_flyma_init(&s->flyma, s->line, &c)) {
+        return fail(s, CO_STACK_PART_FLYMA, CO_STACK_ERR_TAKEN);
+    }
+    s->has_flyma = true;
+    s->flyma_watch_ms = config->master_heartbeat_ms;
+    s->flyma_watched = 0;
+    co_node_attach_flyma(&s->node, &s->flyma);
+    if (co_node_state(&s->node) != CO_NMT_INITIALISING) {
+        co_flyma_boot(&s->flyma);   /* the node runs already */
+    }
+    return CO_STACK_OK;
+}
+
+void co_stack_flyma_deinit(co_stack_t *stack)
+{
+    if (!stack || !stack->has_flyma) {
+        return;
+    }
+    co_node_attach_flyma(&stack->node, NULL);
+    flyma_watch(stack, 0);
+    co_flyma_deinit(&stack->flyma);
+    stack->has_flyma = false;
 }
 
 /* ---------------------------------------------------------------- the manager */
@@ -799,6 +927,7 @@ void co_stack_deinit(co_stack_t *stack)
     if (!stack || !stack->line) {
         return;
     }
+    co_stack_sleep_deinit(stack);
     co_stack_client_deinit(stack);
     co_stack_node_deinit(stack);
     line_undo(stack);
@@ -827,6 +956,8 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_SERVER: return "SDO/USDO server";
     case CO_STACK_PART_CLIENT: return "SDO/USDO client";
     case CO_STACK_PART_MANAGER: return "network manager";
+    case CO_STACK_PART_SLEEP: return "sleep and wake-up";
+    case CO_STACK_PART_FLYMA: return "flying master";
     }
     return "unknown part";
 }

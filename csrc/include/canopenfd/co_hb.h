@@ -115,6 +115,11 @@ co_hb_config_result_t co_hb_consumer_watch(co_hb_consumer_t *c, uint8_t node_id,
 co_hb_config_result_t co_hb_consumer_tick(co_hb_consumer_t *c, uint8_t node_id,
                                           uint16_t interval_ms);
 void co_hb_consumer_untick(co_hb_consumer_t *c, uint8_t node_id);
+/* A heartbeat of a watched node is due now: its monitoring starts as if one
+ * had just come (LOST after its consumer time unless one does), for a node
+ * that may already be gone (a flying master's slave watching the new active
+ * master). False when the node has no entry with a time. */
+bool co_hb_consumer_expect(co_hb_consumer_t *c, uint8_t node_id);
 /* Stop watching a node (its entry becomes unused); harmless if not watched. */
 void co_hb_consumer_unwatch(co_hb_consumer_t *c, uint8_t node_id);
 /* 0x1016 value of an entry. */

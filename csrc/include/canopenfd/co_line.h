@@ -47,6 +47,7 @@ typedef struct co_line_stats {
     uint32_t hb_bad_length;
     uint32_t hb_bad_state;
     uint32_t hb_bad_node;
+    uint32_t tx_silenced;          /* frames not sent because the line was silent (sleep) */
 } co_line_stats_t;
 /* cffi:end */
 
@@ -105,6 +106,9 @@ struct co_line {
     co_tx_space_cb_t tx_space[CO_LINE_MAX_TX_SPACE];
     uint8_t other_count;
     co_other_receiver_t other[CO_LINE_MAX_OTHER];
+    bool silent;                  /* co_line_set_silent: nothing is queued for sending */
+    co_rx_fn rx_watch;            /* co_line_watch_rx: sees every valid received frame */
+    void *rx_watch_user;
 };
 
 typedef struct co_line_config {
@@ -174,6 +178,15 @@ bool co_line_rx_pop(co_line_t *line, co_frame_t *out);
 bool co_line_tx_pop(co_line_t *line, co_frame_t *out);
 /* Driver side: report a communication-state change. */
 void co_line_comm_event(co_line_t *line, co_comm_event_t event);
+
+/* Silence the line (the sleep service's silent phase): frames queued for
+ * sending are dropped and no new ones are taken, each counted in
+ * tx_silenced; receiving goes on. */
+void co_line_set_silent(co_line_t *line, bool silent);
+static inline bool co_line_is_silent(const co_line_t *line) { return line->silent; }
+/* One watcher (NULL: none) that sees every valid received frame before it is
+ * dispatched: the sleep service wakes on bus traffic with it. */
+void co_line_watch_rx(co_line_t *line, co_rx_fn fn, void *user);
 
 /* Service side: queue a frame for transmission. On fd lines the line adds its
  * FD/BRS flags and rounds the length up (zero padding); RTR frames stay

@@ -7,6 +7,7 @@
 #define CO_NODE_H
 
 #include "canopenfd/co_emcy.h"
+#include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
 #include "canopenfd/co_od.h"
@@ -47,6 +48,8 @@ typedef struct co_node_services {
      * void * adapter: the node links no server it does not run). */
     void *server;
     void (*server_state)(void *server, co_nmt_state_t state);
+    /* Flying master: started over at every reset (co_node_attach_flyma). */
+    co_flyma_t *flyma;
 } co_node_services_t;
 
 enum {
@@ -101,6 +104,8 @@ bool co_node_attach_od(co_node_t *node, co_od_t *od, co_store_t *store,
 void co_node_boot(co_node_t *node);
 /* Wire the services (see co_node_services_t) before co_node_boot(). */
 void co_node_attach_services(co_node_t *node, const co_node_services_t *services);
+/* The flying master the node runs (NULL: none); every reset starts it over. */
+void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma);
 /* Errors the stack detects outside the node's services, told by the
  * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and
  * 0x1029:01), and the line's communication events (bus-off 0x8140 with

@@ -13,9 +13,11 @@
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_emcy.h"
+#include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_sleep.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
 #include "canopenfd/co_usdo_server.h"
@@ -114,13 +116,18 @@ typedef enum co_rt_event_kind {
     CO_EV_GUARD = 18,          /* guarded node: a = co_guard_event_t, b = its NMT state */
     CO_EV_PDO_FRAME = 19,      /* a watched PDO (co_rt_pdo_watch): a = CAN-ID (bit 29 =
                                   29-bit), b = frames seen on it so far, frame = it */
-    CO_EV_MANAGER = 23         /* network manager (co_rt_manager_start): node = slave,
+    CO_EV_MANAGER = 23,        /* network manager (co_rt_manager_start): node = slave,
                                   a = co_manager_event_t | error letter << 8 |
                                   mandatory << 16 | NMT command << 24; BOOT reports:
                                   b = co_boot_event_t | step << 8 | sub << 16 |
                                   matched << 24, frame.data = index (2 bytes LE), the
                                   node's last state, bytes got (capped at 255),
                                   expected, got, abort (4 bytes LE each) */
+    CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
+                                  co_sleep_event_t, b = arg | arg2 << 8, node = the
+                                  phase after it (co_sleep_phase_t) */
+    CO_EV_FLYMA = 25           /* flying master (co_rt_flyma_start): a = co_flyma_event_t,
+                                  b = master | priority << 8, node = co_flyma_state_t */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -436,6 +443,60 @@ int co_rt_sync_producer(co_rt_t *rt, int line, uint32_t period_us, uint32_t wind
 int co_rt_sync_listen(co_rt_t *rt, int line, int listen);
 /* Send a TIME stamp (microseconds since 1970, UTC). */
 int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
+
+/* ---- sleep and wake-up (CiA 320; co_rt_sleep.c) */
+typedef struct co_rt_sleep_config {
+    int master;                /* 1: power management master, 0: device */
+    uint16_t check_ms;         /* as co_sleep_config_t (0 = 1000 ms each) */
+    uint16_t prepare_ms;
+    uint16_t silent_ms;
+    uint16_t wake_repeat_ms;
+    uint8_t objection;         /* device: the reason answered to every query (0 = agree) */
+} co_rt_sleep_config_t;
+typedef enum co_rt_sleep_action {
+    CO_RT_SLEEP_CHECK = 1,     /* master: query, then sleep unless a device objects */
+    CO_RT_SLEEP_START = 2,     /* master: sleep command at once; device: sleep alone */
+    CO_RT_SLEEP_REQUEST = 3,   /* device: ask the master for sleep */
+    CO_RT_SLEEP_WAKE = 4       /* wake up with the wake-up message [status, reason] */
+} co_rt_sleep_action_t;
+/* The line takes part in sleep and wake-up (once; CO_EV_SLEEP tells every
+ * event); waking up resets the local node's communication. */
+int co_rt_sleep_start(co_rt_t *rt, int line, const co_rt_sleep_config_t *config);
+int co_rt_sleep_stop(co_rt_t *rt, int line);
+/* The device's answer to later queries (0 = agree). */
+int co_rt_sleep_objection(co_rt_t *rt, int line, uint8_t reason);
+int co_rt_sleep_act(co_rt_t *rt, int line, int action, uint8_t status, uint8_t reason);
+/* The phase (co_sleep_phase_t) and counters. */
+int co_rt_sleep_state(co_rt_t *rt, int line, co_sleep_stats_t *stats);
+
+/* ---- flying master of the local node (CiA 302-2; co_rt_flyma.c) */
+typedef struct co_rt_flyma_config {
+    uint8_t priority;             /* as co_flyma_config_t; the node's 0x1F90/0x1F91 */
+    uint16_t detect_ms;           /* override these where the OD has them */
+    uint16_t delay_ms;
+    uint16_t priority_slot_ms;
+    uint16_t device_slot_ms;
+    uint16_t multiple_master_ms;
+    uint16_t capable_ms;
+    uint16_t master_heartbeat_ms; /* a slave watches the active master this long */
+} co_rt_flyma_config_t;
+typedef enum co_rt_flyma_action {
+    CO_RT_FLYMA_DETECT_CAPABLE = 1,   /* 0x75: who can be master (CO_EV_FLYMA tells) */
+    CO_RT_FLYMA_FORCE = 2             /* 0x76 and a new negotiation */
+} co_rt_flyma_action_t;
+typedef struct co_rt_flyma_state {
+    int state;                    /* co_flyma_state_t */
+    uint8_t master;               /* the active master, 0 = none */
+    uint8_t master_priority;
+    co_flyma_stats_t stats;
+} co_rt_flyma_state_t;
+/* The line's local node takes part in the flying-master negotiation (it
+ * starts at once when the node runs, else at its boot). */
+int co_rt_flyma_start(co_rt_t *rt, int line, const co_rt_flyma_config_t *config);
+int co_rt_flyma_stop(co_rt_t *rt, int line);
+int co_rt_flyma_act(co_rt_t *rt, int line, int action);
+/* The state (idle when not started), the active master and the counters. */
+int co_rt_flyma_state(co_rt_t *rt, int line, co_rt_flyma_state_t *out);
 /* The counters of the line's process-data, error and SDO/USDO server
  * services (zeros for services the line does not run). */
 typedef struct co_rt_service_stats {

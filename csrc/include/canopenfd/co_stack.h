@@ -27,6 +27,7 @@
 #define CO_STACK_H
 
 #include "canopenfd/co_emcy.h"
+#include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
 #include "canopenfd/co_manager.h"
@@ -35,6 +36,7 @@
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_client.h"
 #include "canopenfd/co_sdo_server.h"
+#include "canopenfd/co_sleep.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -80,7 +82,9 @@ typedef enum co_stack_part {
     CO_STACK_PART_GUARD_SLAVE = 10,
     CO_STACK_PART_SERVER = 11,   /* SDO server channels (classic) or USDO sessions (fd) */
     CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
-    CO_STACK_PART_MANAGER = 16   /* CiA 302-2 network manager (co_manager) */
+    CO_STACK_PART_MANAGER = 16,  /* CiA 302-2 network manager (co_manager) */
+    CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
+    CO_STACK_PART_FLYMA = 18     /* flying master (CiA 302-2) */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -232,6 +236,18 @@ struct co_stack {
     /* the network manager */
     bool has_manager;
     co_manager_t manager;
+    /* sleep and wake-up */
+    bool has_sleep;
+    co_sleep_t sleep;
+    co_sleep_fn sleep_ind;           /* the application's, behind the stack's own */
+    void *sleep_user;
+    /* flying master */
+    bool has_flyma;
+    co_flyma_t flyma;
+    co_flyma_fn flyma_ind;           /* the application's, behind the stack's own */
+    void *flyma_user;
+    uint16_t flyma_watch_ms;
+    uint8_t flyma_watched;           /* the active master whose heartbeat we watch, 0 none */
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -266,6 +282,22 @@ size_t co_stack_manager_need(co_stack_t *stack);
 co_stack_status_t co_stack_manager_init(co_stack_t *stack,
                                         const co_stack_manager_config_t *config);
 void co_stack_manager_deinit(co_stack_t *stack);
+/* Sleep and wake-up on the line (needs no memory): a master, or a device;
+ * waking up resets the local node's communication. */
+co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config);
+void co_stack_sleep_deinit(co_stack_t *stack);
+/* Flying master of the local node (needs the node; no memory). The OD's
+ * 0x1F90/0x1F91 entries, where present, override config's timing. A slave
+ * watches the active master's heartbeat for master_heartbeat_ms (0: only
+ * what 0x1016 says); losing it (or a network reset another node asked for)
+ * starts a new negotiation; a network reset the service asks for goes out
+ * as NMT reset communication to all nodes, this one included. */
+typedef struct co_stack_flyma_config {
+    co_flyma_config_t flyma;
+    uint16_t master_heartbeat_ms;
+} co_stack_flyma_config_t;
+co_stack_status_t co_stack_flyma_init(co_stack_t *stack, const co_stack_flyma_config_t *config);
+void co_stack_flyma_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -314,6 +346,8 @@ static inline co_manager_t *co_stack_manager(co_stack_t *s)
 {
     return s->has_manager ? &s->manager : NULL;
 }
+static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
+static inline co_flyma_t *co_stack_flyma(co_stack_t *s) { return s->has_flyma ? &s->flyma : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */

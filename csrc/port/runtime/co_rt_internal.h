@@ -11,7 +11,8 @@
  *   co_rt_commands.c checking and applying mailbox commands
  *   co_rt_node.c     the local node: creation, its OD hooks, NMT/heartbeat view
  *   co_rt_od.c, co_rt_store.c, co_rt_client.c        OD access, app store, clients
- *   co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c, co_rt_guard.c
+ *   co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c, co_rt_guard.c,
+ *   co_rt_sleep.c
  *                    one service's runtime glue each (its state: rt_<service>_t)
  *   co_rt_stats.c    counter snapshots
  * The OS itself is reached through co_rt_os.h only (../posix, ../windows).
@@ -191,6 +192,11 @@ typedef struct rt_sync {
     bool events;                             /* Python hears every SYNC */
 } rt_sync_t;
 
+/* Sleep and wake-up glue (co_rt_sleep.c). */
+typedef struct rt_sleep {
+    uint8_t objection;                       /* the device's answer to a query */
+} rt_sleep_t;
+
 typedef struct rt_line {
     co_rt_t *rt;
     int index;
@@ -226,6 +232,7 @@ typedef struct rt_line {
     rt_pdo_t pdo;
     rt_rpdo_out_t rpdo_out[RT_RPDO_PRODUCERS];
     rt_sync_t sync;
+    rt_sleep_t sleep;
     rt_socket_t sc;
     rt_host_t host;
 } rt_line_t;
