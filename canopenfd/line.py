@@ -25,6 +25,7 @@ from .od.fileio import Source
 from .services.config import ConfigManager
 from .services.emcy import Emcy, LineEmcy
 from .services.lss import UNCONFIGURED, LssMaster
+from .services.manager import NetworkManager
 from .services.nmt import NmtMaster, NmtState, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.sleep import SleepService
@@ -86,8 +87,11 @@ class Line:
         # USDO on fd lines, SDO on classic lines (C sets it up at the first transfer)
         self._client: TransferClient = \
             UsdoClient(context) if self.mode == "fd" else SdoClient(context)
-        #: The configuration manager (CiA 302-3): concise DCFs into nodes.
-        self.manager = ConfigManager(context, f"line {self.channel!r}")
+        #: The network manager: CiA 302-2 start-up run by the local node
+        #: (canopenfd.services.manager) and the CiA 302-3 configuration
+        #: manager, `manager.configure(node, dcf)` (canopenfd.services.config).
+        self.manager = NetworkManager(context,
+                                      ConfigManager(context, f"line {self.channel!r}"))
         self._comm = CallbackList(f"line {self.channel!r} comm event")
         self._frames = CallbackList(f"line {self.channel!r} frame")
         self._comm_events: List[CommEvent] = []

@@ -31,7 +31,8 @@ __all__ = [
     "GuardEventCode", "HeartbeatEvent", "Indicate", "LssRequest", "LssStatus", "Mode",
     "NmtCommand", "NmtState", "FlymaAction", "FlymaEvent", "FlymaState",
     "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
-    "SleepPhase", "StoreStatus", "C_ENUMS", "c_members",
+    "SleepPhase", "StoreStatus", "BootError", "BootEvent", "BootStep", "ManagerEventCode",
+    "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
     "LedPattern", "LedWhich", "LedCause",
 ]
 
@@ -113,6 +114,21 @@ LedWhich = _c_enum("LedWhich", "CO_LED_", "co_led_which_t",
                    doc="The run (green) and error (red) LEDs (co_led_which_t).")
 LedCause = _c_enum("LedCause", "CO_LED_CAUSE_", "co_led_cause_t",
                    doc="What the error LED shows, one bit each (co_led_cause_t).")
+
+# ---------------------------------------------------------------- CiA 302-2 network manager
+BootError = _c_enum("BootError", "CO_BOOT_", "co_boot_error_t",
+                    doc="Result of a boot-slave process: OK or the CiA 302-2 error letter "
+                        "(value = the letter's ASCII code).")
+BootStep = _c_enum("BootStep", "CO_BOOT_STEP_", "co_boot_step_t",
+                   doc="Steps of a boot-slave process (co_boot_step_t).")
+BootEvent = _c_enum("BootEvent", "CO_BOOT_EV_", "co_boot_event_t",
+                    doc="Reports of a boot-slave process (co_boot_event_t).")
+ManagerEventCode = _c_enum("ManagerEventCode", "CO_MANAGER_EV_", "co_manager_event_t",
+                           doc="What the network manager reports (co_manager_event_t).")
+ManagerPhase = _c_enum("ManagerPhase", "CO_MANAGER_", "co_manager_phase_t",
+                       doc="Phase of the network start-up (co_manager_phase_t).")
+SlaveStatus = _c_enum("SlaveStatus", "CO_MANAGER_SLAVE_", "co_manager_slave_status_t",
+                      doc="Where a slave of the network list is (co_manager_slave_status_t).")
 
 # ---------------------------------------------------------------- not in the cdef
 # C enums the binding does not carry (they are outside the headers' cffi

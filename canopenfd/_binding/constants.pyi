@@ -35,6 +35,12 @@ __all__ = [
     "SleepEvent",
     "SleepPhase",
     "StoreStatus",
+    "BootError",
+    "BootEvent",
+    "BootStep",
+    "ManagerEventCode",
+    "ManagerPhase",
+    "SlaveStatus",
     "C_ENUMS",
     "c_members",
     "LedPattern",
@@ -148,6 +154,7 @@ class EventKind(enum.IntEnum):
     LED = 20
     LSS = 21
     CONFIG = 22
+    MANAGER = 23
     SLEEP = 24
     FLYMA = 25
 
@@ -337,6 +344,87 @@ class StoreStatus(enum.IntEnum):
     FOREIGN = 3
     IO = 4
     TOO_BIG = 5
+
+
+class BootError(enum.IntEnum):
+    """Result of a boot-slave process: OK or the CiA 302-2 error letter (value = the letter's ASCII code)."""
+    OK = 0
+    ERR_A = 65
+    ERR_B = 66
+    ERR_C = 67
+    ERR_D = 68
+    ERR_E = 69
+    ERR_F = 70
+    ERR_G = 71
+    ERR_H = 72
+    ERR_I = 73
+    ERR_J = 74
+    ERR_K = 75
+    ERR_L = 76
+    ERR_M = 77
+    ERR_N = 78
+    ERR_O = 79
+
+
+class BootEvent(enum.IntEnum):
+    """Reports of a boot-slave process (co_boot_event_t)."""
+    STARTED = 1
+    CHECKED = 2
+    UPDATE_SOFTWARE = 3
+    UPDATE_CONFIG = 4
+    DONE = 5
+
+
+class BootStep(enum.IntEnum):
+    """Steps of a boot-slave process (co_boot_step_t)."""
+    IDLE = 0
+    DEVICE_TYPE = 1
+    VENDOR = 2
+    PRODUCT = 3
+    REVISION = 4
+    SERIAL = 5
+    NODE_STATE = 6
+    RESET_COMM = 7
+    SOFTWARE = 8
+    UPDATE_SOFTWARE = 9
+    CONFIG_DATE = 10
+    CONFIG_TIME = 11
+    UPDATE_CONFIG = 12
+    ERROR_CONTROL = 13
+    DONE = 14
+
+
+class ManagerEventCode(enum.IntEnum):
+    """What the network manager reports (co_manager_event_t)."""
+    BOOT = 1
+    SLAVE_BOOTED = 2
+    SLAVE_FAILED = 3
+    UPDATE_SOFTWARE = 4
+    UPDATE_CONFIG = 5
+    READY_OPERATIONAL = 6
+    NETWORK_STARTED = 7
+    HALTED = 8
+    SLAVE_STARTED = 9
+    ERROR_CONTROL = 10
+
+
+class ManagerPhase(enum.IntEnum):
+    """Phase of the network start-up (co_manager_phase_t)."""
+    IDLE = 0
+    BOOTING = 1
+    READY = 2
+    RUNNING = 3
+    HALTED = 4
+
+
+class SlaveStatus(enum.IntEnum):
+    """Where a slave of the network list is (co_manager_slave_status_t)."""
+    NONE = 0
+    PENDING = 1
+    BOOTING = 2
+    WAITING = 3
+    BOOTED = 4
+    FAILED = 5
 
 
 class LedPattern(enum.IntEnum):

@@ -50,7 +50,8 @@ class Event(NamedTuple):
     b: int
     time_us: int              # CLOCK_MONOTONIC
     frame: Optional[Frame]    # FRAME (monitor lines), PDO_FRAME
-    data: bytes               # EMCY: the encoded EMCY; PDO: the RPDO's mapped values
+    data: bytes               # EMCY: the encoded EMCY; PDO: the RPDO's mapped values;
+    #                           MANAGER: a boot report's index, values, abort
     coalesced: int = 0        # PDO, PDO_FRAME: older values of the source it replaced
 
 
@@ -701,6 +702,28 @@ class Runtime:
         out = ffi.new("uint8_t[4]")
         self._call(what, lib.co_rt_lss_slave_info, line, out)
         return out[0], out[1], out[2], out[3]
+    # ---------------------------------------------------------------- network manager
+    def manager_start(self, line: int, hooks: int, parallel: int, retry_ms: int,
+                      what: str) -> None:
+        self._call(what, lib.co_rt_manager_start, line, hooks, parallel, retry_ms)
+
+    def manager_stop(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_manager_stop, line)
+
+    def manager_continue(self, line: int, answer: int, node_id: int, done: bool,
+                         what: str) -> None:
+        self._call(what, lib.co_rt_manager_continue, line, answer, node_id, int(done))
+
+    def manager_state(self, line: int, node_id: int, what: str) -> Optional[int]:
+        """The manager's phase (node_id 0) or a slave's status | error << 8; None
+        while no manager runs."""
+        with self._lock:
+            rc = lib.co_rt_manager_state(self._live(what), line, node_id)
+        if rc == lib.CO_RT_ERR_STATE:
+            return None
+        if rc < 0:
+            self._raise(rc, what)
+        return rc
 
     def host_receive(self, line: int, cframe: CData) -> int:
         """Hand a frame to a host-driver line; returns the status (no raise:
@@ -744,7 +767,7 @@ class Runtime:
 # an IntEnum member lookup costs ~0.1 us each.
 _EV_FRAME = int(EventKind.FRAME)
 _EV_PDO_FRAME = int(EventKind.PDO_FRAME)
-_EV_WITH_DATA = (int(EventKind.EMCY), int(EventKind.PDO))
+_EV_WITH_DATA = (int(EventKind.EMCY), int(EventKind.PDO), int(EventKind.MANAGER))
 
 
 def _event(ev: CData) -> Event:
@@ -757,7 +780,8 @@ def _event(ev: CData) -> Event:
     elif kind == _EV_PDO_FRAME:
         frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
     elif kind in _EV_WITH_DATA:
-        # the encoded EMCY / the RPDO's mapped values (no CAN frame flags)
+        # the encoded EMCY / the RPDO's mapped values / a boot report's details
+        # (no CAN frame flags)
         data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
     return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data, ev.coalesced)
 

@@ -2,14 +2,16 @@
 
 nmt (NMT master and slave, heartbeat), emcy, pdo, sync, time, guard (node
 guarding), sleep (sleep and wake-up, CiA 320), indications (on_read / on_write), store (parameter stores),
-served_od (the local node's values, domains and change callbacks); views:
+served_od (the local node's values, domains and change callbacks), manager
+(CiA 302-2 network start-up); views:
 what services see of their node (Protocols).
 """
 
 from .guard import GuardEvent
+from .manager import ManagerEvent, NetworkManager, NetworkStartError
 from .sleep import SleepNotice, SleepService
 from .sync import SyncService
 from .time import TIME_EPOCH, TimeService
 
 __all__ = ["SleepNotice", "SleepService", "SyncService", "TimeService", "GuardEvent",
-           "TIME_EPOCH"]
+           "TIME_EPOCH", "ManagerEvent", "NetworkManager", "NetworkStartError"]

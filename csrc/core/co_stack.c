@@ -6,7 +6,7 @@
 
 #include <string.h>
 
-enum { OWNER_LINE = 0, OWNER_NODE = 1, OWNER_CLIENT = 2 };
+enum { OWNER_LINE = 0, OWNER_NODE = 1, OWNER_CLIENT = 2, OWNER_MANAGER = 3 };
 
 /* ---------------------------------------------------------------- arena */
 
@@ -268,6 +268,9 @@ static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t eve
     if (s->has_node && (event == CO_HB_LOST || event == CO_HB_STARTED)) {
         co_node_heartbeat_event(&s->node, node_id, event == CO_HB_LOST);
     }
+    if (s->has_manager && event == CO_HB_LOST) {
+        co_manager_ec_lost(&s->manager, node_id);
+    }
     if (s->has_flyma && event == CO_HB_LOST) {
         co_flyma_node_lost(&s->flyma, node_id);
     }
@@ -315,6 +318,9 @@ static void on_guard(co_guard_master_t *m, uint8_t node_id, co_guard_event_t eve
     if (s->has_node && (event == CO_GUARD_LOST || event == CO_GUARD_RESUMED)) {
         /* a guarded node is a monitored node: its loss is a communication error */
         co_node_heartbeat_event(&s->node, node_id, event == CO_GUARD_LOST);
+    }
+    if (s->has_manager && event == CO_GUARD_LOST) {
+        co_manager_ec_lost(&s->manager, node_id);
     }
     if (s->has_flyma && event == CO_GUARD_LOST) {
         co_flyma_node_lost(&s->flyma, node_id);
@@ -409,6 +415,7 @@ static bool od_has(const co_stack_t *s, uint16_t index)
 /* Undo co_stack_node_init, part by part (each flag says what is running). */
 static void node_undo(co_stack_t *s)
 {
+    co_stack_manager_deinit(s);   /* it runs over the node */
     co_stack_flyma_deinit(s);   /* it runs for the node */
     if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
         co_stack_client_deinit(s);   /* bound to the node's OD */
@@ -908,6 +915,7 @@ void co_stack_client_deinit(co_stack_t *stack)
     if (!stack || !stack->line) {
         return;
     }
+    co_stack_manager_deinit(stack);   /* it reads through the client */
     if (CO_CONFIG_FD && stack->has_usdo_client) {
         co_usdo_client_deinit(&stack->usdo_client);
         stack->has_usdo_client = false;
@@ -1037,6 +1045,82 @@ void co_stack_flyma_deinit(co_stack_t *stack)
     stack->has_flyma = false;
 }
 
+/* ---------------------------------------------------------------- the manager */
+
+/* The manager peeks at every frame of 0x700..0x77F (boot-ups, heartbeats,
+ * guarding answers), then the guarding master takes its nodes' answers. */
+static bool manager_ec_filter(co_line_t *line, const co_frame_t *frame, void *user)
+{
+    co_stack_t *s = user;
+    co_manager_ec_frame(&s->manager, frame);
+    return CO_CONFIG_CLASSIC && s->has_guard_master &&
+           co_guard_master_receive(line, frame, &s->guard_master);
+}
+
+static uint8_t manager_slaves(co_stack_t *s)
+{
+    uint8_t n = co_manager_slaves_in(s->od, co_line_node_id(s->line));
+    return n ? n : 1u;
+}
+
+size_t co_stack_manager_need(co_stack_t *stack)
+{
+    if (!stack || !stack->has_node || !stack->od) {
+        return 0;
+    }
+    return CO_STACK_BLOCK(sizeof(co_manager_slave_t) * manager_slaves(stack));
+}
+
+co_stack_status_t co_stack_manager_init(co_stack_t *stack,
+                                        const co_stack_manager_config_t *config)
+{
+    if (!stack || !stack->line || !config) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    co_stack_t *s = stack;
+    s->failed = CO_STACK_PART_NONE;
+    if (!s->has_node || !s->od || s->has_manager || (!s->has_sdo_client && !s->has_usdo_client)) {
+        return fail(s, CO_STACK_PART_MANAGER, CO_STACK_ERR_STATE);
+    }
+    uint32_t startup = 0;
+    if (!co_od_get_u32(s->od, 0x1F80, 0, &startup) || !(startup & CO_MANAGER_STARTUP_MANAGER)) {
+        return fail(s, CO_STACK_PART_MANAGER, CO_STACK_ERR_OD);
+    }
+    uint8_t capacity = manager_slaves(s);
+    co_manager_slave_t *slaves = take(s, OWNER_MANAGER, sizeof *slaves * capacity);
+    if (!slaves) {
+        return fail(s, CO_STACK_PART_MANAGER, CO_STACK_ERR_NO_MEMORY);
+    }
+    co_manager_config_t c = {.slaves = slaves, .capacity = capacity,
+                             .parallel = config->parallel, .hooks = config->hooks,
+                             .retry_ms = config->retry_ms, .on_event = config->on_event,
+                             .user = config->user};
+    if (!co_manager_init(&s->manager, s->line, s->od, &s->node.nmt,
+                         s->has_sdo_client ? &s->sdo_client : NULL,
+                         s->has_usdo_client ? &s->usdo_client : NULL,
+                         s->has_guard_master ? &s->guard_master : NULL, &c)) {
+        give_back(s, OWNER_MANAGER);
+        return fail(s, CO_STACK_PART_MANAGER, CO_STACK_ERR_ARGUMENT);
+    }
+    s->has_manager = true;
+    co_hb_consumer_set_filter(&s->hb_consumer, manager_ec_filter, s);
+    return CO_STACK_OK;
+}
+
+void co_stack_manager_deinit(co_stack_t *stack)
+{
+    if (!stack || !stack->has_manager) {
+        return;
+    }
+    co_manager_deinit(&stack->manager);
+    stack->has_manager = false;
+    /* the guarding master gets the frames first again */
+    co_hb_consumer_set_filter(&stack->hb_consumer,
+                              stack->has_guard_master ? co_guard_master_receive : NULL,
+                              stack->has_guard_master ? &stack->guard_master : NULL);
+    give_back(stack, OWNER_MANAGER);
+}
+
 /* ---------------------------------------------------------------- all */
 
 void co_stack_deinit(co_stack_t *stack)
@@ -1073,6 +1157,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_SERVER: return "SDO/USDO server";
     case CO_STACK_PART_CLIENT: return "SDO/USDO client";
     case CO_STACK_PART_LSS: return "LSS";
+    case CO_STACK_PART_MANAGER: return "network manager";
     case CO_STACK_PART_SLEEP: return "sleep and wake-up";
     case CO_STACK_PART_FLYMA: return "flying master";
     case CO_STACK_PART_LED: return "LED indicators";

@@ -125,6 +125,13 @@ typedef enum co_rt_event_kind {
                                   a = co_lss_request_t, b = co_lss_status_t; co_rt_lss_result */
     CO_EV_CONFIG = 22,         /* a configuration (co_rt_config_start) ended: node = the
                                   node configured, a = handle, b = co_config_outcome_t */
+    CO_EV_MANAGER = 23,        /* network manager (co_rt_manager_start): node = slave,
+                                  a = co_manager_event_t | error letter << 8 |
+                                  mandatory << 16 | NMT command << 24; BOOT reports:
+                                  b = co_boot_event_t | step << 8 | sub << 16 |
+                                  matched << 24, frame.data = index (2 bytes LE), the
+                                  node's last state, bytes got (capped at 255),
+                                  expected, got, abort (4 bytes LE each) */
     CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
                                   co_sleep_event_t, b = arg | arg2 << 8, node = the
                                   phase after it (co_sleep_phase_t) */
@@ -516,6 +523,23 @@ typedef struct co_rt_service_stats {
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */
 int co_rt_guard(co_rt_t *rt, int line, int node_id, int guard_ms, int life_factor);
+/* ---- network manager, CiA 302-2 (co_rt_manager.c) ---- */
+/* (Re)start the network boot-up of the line's local node (its OD: 0x1F80
+ * bit 0 set, 0x1F81..): hooks = CO_MANAGER_HOOK_* the application answers
+ * (with co_rt_manager_continue), parallel = boot processes at once (0 = the
+ * client's channels), retry_ms = a silent slave asked again after (0 = 1 s).
+ * Events: CO_EV_MANAGER. */
+int co_rt_manager_start(co_rt_t *rt, int line, int hooks, int parallel, int retry_ms);
+/* Stop every boot process (the slaves stay as they are). */
+int co_rt_manager_stop(co_rt_t *rt, int line);
+/* The application's answer: what = CO_MANAGER_EV_UPDATE_SOFTWARE,
+ * CO_MANAGER_EV_UPDATE_CONFIG (node_id, done) or
+ * CO_MANAGER_EV_READY_OPERATIONAL (node_id and done not used).
+ * CO_RT_ERR_STATE when nothing waits for that answer. */
+int co_rt_manager_continue(co_rt_t *rt, int line, int what, int node_id, int done);
+/* The manager's phase (co_manager_phase_t), or a status < 0. With node_id
+ * 1..127: that slave's co_manager_slave_status_t | error letter << 8. */
+int co_rt_manager_state(co_rt_t *rt, int line, int node_id);
 
 /* ---- LSS master of the line (co_rt_lss.c): one request at a time, its end
  * posted as CO_EV_LSS, its result read with co_rt_lss_result. */

@@ -33,6 +33,7 @@
 #include "canopenfd/co_led.h"
 #include "canopenfd/co_lss.h"
 #include "canopenfd/co_lss_master.h"
+#include "canopenfd/co_manager.h"
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
@@ -86,6 +87,7 @@ typedef enum co_stack_part {
     CO_STACK_PART_CLIENT = 12,   /* SDO client channels (classic) or USDO sessions (fd) */
     CO_STACK_PART_LSS = 13,      /* LSS slave of the node or LSS master of the line */
     CO_STACK_PART_LED = 14,      /* CiA 303-3 indicators */
+    CO_STACK_PART_MANAGER = 16,  /* CiA 302-2 network manager (co_manager) */
     CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
     CO_STACK_PART_FLYMA = 18     /* flying master (CiA 302-2) */
 } co_stack_part_t;
@@ -200,6 +202,16 @@ typedef struct co_stack_client_config {
     uint32_t timeout_ms;         /* default per-frame timeout, 0 = 1000 */
 } co_stack_client_config_t;
 
+/* The network manager (CiA 302-2): needs the local node (its OD with
+ * 0x1F80 bit 0 set) and the client; its slave table is sized from 0x1F81. */
+typedef struct co_stack_manager_config {
+    uint8_t parallel;            /* boot processes at once, 0 = the client's sessions */
+    uint8_t hooks;               /* CO_MANAGER_HOOK_* the application answers */
+    uint32_t retry_ms;           /* 0 = CO_MANAGER_DEFAULT_RETRY_MS */
+    co_manager_event_fn on_event;   /* may be NULL */
+    void *user;
+} co_stack_manager_config_t;
+
 /* A block the stack holds (what it gives back at deinit). */
 typedef struct co_stack_block {
     void *memory;
@@ -257,6 +269,9 @@ struct co_stack {
     co_timer_t lss_timer;        /* sets the node up outside the LSS frame's handler */
     bool has_lss_master;
     co_lss_master_t lss_master;
+    /* the network manager */
+    bool has_manager;
+    co_manager_t manager;
     /* sleep and wake-up */
     bool has_sleep;
     co_sleep_t sleep;
@@ -301,6 +316,15 @@ void co_stack_client_deinit(co_stack_t *stack);
 co_stack_status_t co_stack_lss_master_init(co_stack_t *stack, uint32_t timeout_ms,
                                            co_lss_done_fn on_done, void *user);
 void co_stack_lss_master_deinit(co_stack_t *stack);
+/* The network manager over the node and the client (CO_STACK_ERR_STATE
+ * without them or when one runs, CO_STACK_ERR_OD when 0x1F80 bit 0 is
+ * clear). Start it with co_manager_start(co_stack_manager(stack)). It is
+ * fed the line's error control frames and losses; it goes when the node or
+ * the client goes. */
+size_t co_stack_manager_need(co_stack_t *stack);
+co_stack_status_t co_stack_manager_init(co_stack_t *stack,
+                                        const co_stack_manager_config_t *config);
+void co_stack_manager_deinit(co_stack_t *stack);
 /* Sleep and wake-up on the line (needs no memory): a master, or a device;
  * waking up resets the local node's communication. */
 co_stack_status_t co_stack_sleep_init(co_stack_t *stack, const co_sleep_config_t *config);
@@ -371,6 +395,10 @@ static inline co_lss_master_t *co_stack_lss_master(co_stack_t *s)
 }
 /* The node waits for LSS to give it a node-id (co_stack_has_node is false). */
 static inline bool co_stack_unconfigured(const co_stack_t *s) { return s->unconfigured; }
+static inline co_manager_t *co_stack_manager(co_stack_t *s)
+{
+    return s->has_manager ? &s->manager : NULL;
+}
 static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
 static inline co_flyma_t *co_stack_flyma(co_stack_t *s) { return s->has_flyma ? &s->flyma : NULL; }
 static inline co_led_t *co_stack_led(co_stack_t *s) { return s->has_led ? &s->led : NULL; }

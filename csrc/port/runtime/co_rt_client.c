@@ -278,6 +278,11 @@ static rt_client_t *client_of(co_rt_t *rt, rt_line_t *l, uint8_t node_id)
     return c;
 }
 
+bool rt_client_ready(co_rt_t *rt, rt_line_t *l)
+{
+    return client_of(rt, l, 0) != NULL;
+}
+
 void rt_client_free(rt_line_t *l)
 {
     rt_client_t *c = l->client;

@@ -544,6 +544,9 @@ bool rt_client_cores(co_rt_t *rt, rt_line_t *l, co_usdo_client_t **usdo,
 /* ---------------------------------------------------------------- co_rt_config.c */
 /* Before the client goes: running configurations end (nothing posted). */
 void rt_config_free(rt_line_t *l);
+/* Under rt->lock: the line's client exists (created now if needed); false
+ * with the reason set. */
+bool rt_client_ready(co_rt_t *rt, rt_line_t *l);
 
 /* ---------------------------------------------------------------- services' glue */
 /* The stack's indications that post to Python, one per service file. */

@@ -1,0 +1,564 @@
+/* co_manager: the CiA 302-2 network start-up over co_boot (see co_manager.h). */
+#include "canopenfd/co_manager.h"
+
+#include "canopenfd/co_stack.h"   /* CO_CONFIG_CLASSIC / CO_CONFIG_FD */
+#include "canopenfd/co_usdo.h"
+
+#include <stddef.h>
+#include <string.h>
+
+static void emit(co_manager_t *m, co_manager_report_t *r)
+{
+    if (m->on_event) {
+        m->on_event(m, r, m->user);
+    }
+}
+
+static void emit_simple(co_manager_t *m, co_manager_event_t event, const co_manager_slave_t *s,
+                        uint8_t error, uint8_t command)
+{
+    co_manager_report_t r;
+    memset(&r, 0, sizeof r);
+    r.event = (uint8_t)event;
+    r.node_id = s ? s->node_id : 0;
+    r.mandatory = s ? s->mandatory : false;
+    r.error = error;
+    r.command = command;
+    emit(m, &r);
+}
+
+static co_manager_slave_t *slave_of(co_manager_t *m, uint8_t node_id)
+{
+    if (node_id < 1 || node_id > 127 || m->slot_of[node_id] == 0) {
+        return NULL;
+    }
+    return &m->slaves[m->slot_of[node_id] - 1];
+}
+
+static co_manager_slave_t *slave_of_boot(co_boot_t *boot)
+{
+    /* the boot process is a member of its slave */
+    return (co_manager_slave_t *)(void *)((char *)boot - offsetof(co_manager_slave_t, boot));
+}
+
+static uint32_t od_u32(const co_od_t *od, uint16_t index, uint8_t sub)
+{
+    uint32_t v = 0;
+    return co_od_get_u32(od, index, sub, &v) ? v : 0;
+}
+
+static bool send_nmt(co_manager_t *m, co_nmt_command_t command, uint8_t node_id)
+{
+    /* to node 0 the manager follows too, unless the application switches it */
+    bool self = node_id == 0 && !(command == CO_NMT_CMD_START &&
+                                  (m->startup & CO_MANAGER_STARTUP_APP_OPERATIONAL));
+    return co_nmt_master_send(m->line, m->local, command, node_id, self);
+}
+
+/* ------------------------------------------------------------ the access */
+
+static void read_done(co_manager_slave_t *s, uint32_t abort)
+{
+    s->reading = false;
+    co_boot_upload_done(&s->boot, abort, s->sink.data, s->sink.size);
+}
+
+static void sdo_done(co_sdo_request_t *req)
+{
+    co_manager_slave_t *s = req->user;
+    read_done(s, req->abort);
+}
+
+static void usdo_done(co_usdo_request_t *req)
+{
+    co_manager_slave_t *s = req->user;
+    read_done(s, req->abort ? co_usdo_abort_to_co(req->abort) : 0);
+}
+
+static uint32_t access_upload(co_boot_t *boot, uint16_t index, uint8_t sub, void *user)
+{
+    co_manager_t *m = user;
+    co_manager_slave_t *s = slave_of_boot(boot);
+    s->sink.data = s->data;
+    s->sink.size = 0;
+    s->sink.capacity = sizeof s->data;
+    if (CO_CONFIG_CLASSIC && m->sdo) {
+        memset(&s->req.sdo, 0, sizeof s->req.sdo);
+        s->req.sdo = (co_sdo_request_t){.server = s->node_id, .index = index, .sub = sub,
+                                        .upload = true, .mode = CO_SDO_MODE_SEGMENTED,
+                                        .sink = co_sdo_buffer_sink, .ctx = &s->sink,
+                                        .done = sdo_done, .user = s};
+        uint32_t refused = co_sdo_client_start(m->sdo, &s->req.sdo);
+        s->reading = refused == 0;
+        return refused;
+    }
+    if (!CO_CONFIG_FD || !m->usdo) {
+        return 0x08000000u;
+    }
+    memset(&s->req.usdo, 0, sizeof s->req.usdo);
+    s->req.usdo = (co_usdo_request_t){.server = s->node_id, .index = index, .sub = sub,
+                                      .upload = true, .sink = co_usdo_buffer_sink,
+                                      .ctx = &s->sink, .done = usdo_done, .user = s};
+    uint8_t refused = co_usdo_client_start(m->usdo, &s->req.usdo);
+    s->reading = refused == 0;
+    return refused ? co_usdo_abort_to_co(refused) : 0;
+}
+
+static bool access_nmt(co_boot_t *boot, co_nmt_command_t command, void *user)
+{
+    co_manager_t *m = user;
+    return send_nmt(m, command, slave_of_boot(boot)->node_id);
+}
+
+static bool access_guard(co_boot_t *boot, void *user)
+{
+    co_manager_t *m = user;
+    if (co_line_mode(m->line) != CO_MODE_CLASSIC) {
+        return false;   /* no remote frames on fd lines */
+    }
+    co_frame_t rtr;
+    memset(&rtr, 0, sizeof rtr);
+    rtr.id = CO_NMT_EC_COB_ID_BASE + slave_of_boot(boot)->node_id;
+    rtr.flags = CO_FRAME_RTR;
+    rtr.len = 1;
+    return co_line_send_frame(m->line, &rtr);
+}
+
+/* ------------------------------------------------------------ the start */
+
+static void launch_pending(co_manager_t *m);
+static void check_network(co_manager_t *m);
+
+static void cancel_read(co_manager_t *m, co_manager_slave_t *s)
+{
+    if (!s->reading) {
+        return;
+    }
+    s->reading = false;
+    co_boot_cancel(&s->boot);   /* the cancelled read's done() finds nothing running */
+    if (CO_CONFIG_CLASSIC && m->sdo) {
+        (void)co_sdo_client_cancel(m->sdo, &s->req.sdo, 0);
+    } else if (CO_CONFIG_FD && m->usdo) {
+        (void)co_usdo_client_cancel(m->usdo, &s->req.usdo, 0);
+    }
+}
+
+static void stop_slave(co_manager_t *m, co_manager_slave_t *s)
+{
+    co_timer_cancel(co_line_timers(m->line), &s->retry);
+    if (co_boot_running(&s->boot)) {
+        cancel_read(m, s);
+        co_boot_cancel(&s->boot);
+        m->booting--;
+    }
+}
+
+static void start_slave(co_manager_t *m, co_manager_slave_t *s)
+{
+    s->started = false;
+    s->status = CO_MANAGER_SLAVE_PENDING;
+    if (m->guard) {
+        /* not guarded while it is reset and checked */
+        co_guard_master_unguard(m->guard, s->node_id);
+    }
+    co_timer_cancel(co_line_timers(m->line), &s->retry);
+    launch_pending(m);
+}
+
+static void launch_pending(co_manager_t *m)
+{
+    /* a process that ends inside co_boot_start comes back here: the outer
+     * loop goes on instead, so the nesting stays one level deep */
+    if (m->launching) {
+        return;
+    }
+    m->launching = true;
+    for (uint8_t i = 0; i < m->count && m->booting < m->parallel; i++) {
+        co_manager_slave_t *s = &m->slaves[i];
+        if (s->status != CO_MANAGER_SLAVE_PENDING) {
+            continue;
+        }
+        s->status = CO_MANAGER_SLAVE_BOOTING;
+        m->booting++;
+        if (!co_boot_start(&s->boot, &s->expect)) {
+            /* cannot happen for a pending slave (its process is not running);
+             * kept so a slot is never lost */
+            m->booting--;
+            s->status = CO_MANAGER_SLAVE_FAILED;
+        }
+    }
+    m->launching = false;
+}
+
+static void on_retry(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    (void)timer;
+    (void)now_us;
+    co_manager_slave_t *s = user;
+    if (s->status == CO_MANAGER_SLAVE_WAITING) {
+        start_slave(s->owner, s);
+    }
+}
+
+static void start_node(co_manager_t *m, co_manager_slave_t *s)
+{
+    if (s->started || (m->startup & CO_MANAGER_STARTUP_APP_STARTS_SLAVES)) {
+        return;
+    }
+    s->started = true;
+    if (s->error == CO_BOOT_ERR_L) {
+        return;   /* operational already */
+    }
+    (void)send_nmt(m, CO_NMT_CMD_START, s->node_id);
+    emit_simple(m, CO_MANAGER_EV_SLAVE_STARTED, s, 0, CO_NMT_CMD_START);
+}
+
+static void slave_booted(co_manager_t *m, co_manager_slave_t *s)
+{
+    s->status = CO_MANAGER_SLAVE_BOOTED;
+    /* error control: heartbeat consumption runs from 0x1016 by itself; a
+     * slave without a heartbeat time but with a guard time is guarded */
+    uint16_t guard_ms = (uint16_t)(s->expect.assignment >> 16);
+    if (m->guard && s->expect.heartbeat_ms == 0 && guard_ms != 0) {
+        uint8_t factor = (uint8_t)(s->expect.assignment >> 8);
+        (void)co_guard_master_guard(m->guard, s->node_id, guard_ms, factor);
+    }
+    emit_simple(m, CO_MANAGER_EV_SLAVE_BOOTED, s, s->error, 0);
+    if (m->phase == CO_MANAGER_RUNNING) {
+        start_node(m, s);   /* late, or back after an error */
+    } else if (!s->mandatory && !(m->startup & CO_MANAGER_STARTUP_START_ALL)) {
+        start_node(m, s);   /* optional: as soon as it is ready */
+    }
+    check_network(m);
+}
+
+static void slave_failed(co_manager_t *m, co_manager_slave_t *s)
+{
+    s->status = CO_MANAGER_SLAVE_FAILED;
+    emit_simple(m, CO_MANAGER_EV_SLAVE_FAILED, s, s->error, 0);
+    if (s->mandatory && (m->phase == CO_MANAGER_BOOTING || m->phase == CO_MANAGER_READY)) {
+        m->phase = CO_MANAGER_HALTED;
+        emit_simple(m, CO_MANAGER_EV_HALTED, s, s->error, 0);
+    }
+}
+
+static void boot_ended(co_manager_t *m, co_manager_slave_t *s, co_boot_error_t error)
+{
+    m->booting--;
+    s->error = (uint8_t)error;
+    if (error == CO_BOOT_OK || error == CO_BOOT_ERR_L) {
+        slave_booted(m, s);
+    } else if (error == CO_BOOT_ERR_B &&
+               !(s->mandatory && m->boot_time_ms != 0 &&
+                 co_line_now(m->line) - m->started_us >= (uint64_t)m->boot_time_ms * 1000u)) {
+        /* silent: ask again later (a mandatory slave until the boot time is over) */
+        s->status = CO_MANAGER_SLAVE_WAITING;
+        co_timer_start(co_line_timers(m->line), &s->retry,
+                       co_line_now(m->line) + (uint64_t)m->retry_ms * 1000u);
+    } else {
+        slave_failed(m, s);
+    }
+    launch_pending(m);
+}
+
+static void access_report(co_boot_t *boot, const co_boot_report_t *report, void *user)
+{
+    co_manager_t *m = user;
+    co_manager_slave_t *s = slave_of_boot(boot);
+    co_manager_report_t r;
+    memset(&r, 0, sizeof r);
+    r.event = CO_MANAGER_EV_BOOT;
+    r.node_id = s->node_id;
+    r.mandatory = s->mandatory;
+    r.boot = *report;
+    emit(m, &r);
+    switch ((co_boot_event_t)report->event) {
+    case CO_BOOT_EV_UPDATE_SOFTWARE:
+        if (m->hooks & CO_MANAGER_HOOK_SOFTWARE) {
+            emit_simple(m, CO_MANAGER_EV_UPDATE_SOFTWARE, s, 0, 0);
+        } else {
+            (void)co_boot_continue_software(boot, false);   /* nobody to update it */
+        }
+        return;
+    case CO_BOOT_EV_UPDATE_CONFIG:
+        if (m->hooks & CO_MANAGER_HOOK_CONFIG) {
+            emit_simple(m, CO_MANAGER_EV_UPDATE_CONFIG, s, 0, 0);
+        } else {
+            (void)co_boot_continue_config(boot, true);   /* nothing to configure */
+        }
+        return;
+    case CO_BOOT_EV_DONE:
+        boot_ended(m, s, (co_boot_error_t)report->error);
+        return;
+    case CO_BOOT_EV_STARTED:
+    case CO_BOOT_EV_CHECKED:
+        return;
+    }
+}
+
+/* Every mandatory slave booted: on to operational. */
+static void go_operational(co_manager_t *m)
+{
+    m->phase = CO_MANAGER_RUNNING;
+    if (!(m->startup & CO_MANAGER_STARTUP_APP_OPERATIONAL)) {
+        co_nmt_apply(m->local, CO_NMT_CMD_START);
+    }
+    if (!(m->startup & CO_MANAGER_STARTUP_APP_STARTS_SLAVES)) {
+        if (m->startup & CO_MANAGER_STARTUP_START_ALL) {
+            (void)send_nmt(m, CO_NMT_CMD_START, 0);
+            for (uint8_t i = 0; i < m->count; i++) {
+                if (m->slaves[i].status == CO_MANAGER_SLAVE_BOOTED) {
+                    m->slaves[i].started = true;
+                }
+            }
+            emit_simple(m, CO_MANAGER_EV_SLAVE_STARTED, NULL, 0, CO_NMT_CMD_START);
+        } else {
+            for (uint8_t i = 0; i < m->count; i++) {
+                if (m->slaves[i].status == CO_MANAGER_SLAVE_BOOTED) {
+                    start_node(m, &m->slaves[i]);
+                }
+            }
+        }
+    }
+    emit_simple(m, CO_MANAGER_EV_NETWORK_STARTED, NULL, 0, 0);
+}
+
+static void check_network(co_manager_t *m)
+{
+    if (m->phase != CO_MANAGER_BOOTING) {
+        return;
+    }
+    for (uint8_t i = 0; i < m->count; i++) {
+        if (m->slaves[i].mandatory && m->slaves[i].status != CO_MANAGER_SLAVE_BOOTED) {
+            return;
+        }
+    }
+    m->phase = CO_MANAGER_READY;
+    if (m->hooks & CO_MANAGER_HOOK_OPERATIONAL) {
+        emit_simple(m, CO_MANAGER_EV_READY_OPERATIONAL, NULL, 0, 0);
+    } else {
+        go_operational(m);
+    }
+}
+
+/* ------------------------------------------------------------ API */
+
+uint8_t co_manager_slaves_in(const co_od_t *od, uint8_t own_node_id)
+{
+    uint8_t n = 0;
+    for (uint8_t id = 1; od && id <= 127; id++) {
+        if (id != own_node_id && (od_u32(od, 0x1F81, id) & CO_BOOT_ASSIGN_SLAVE)) {
+            n++;
+        }
+    }
+    return n;
+}
+
+bool co_manager_init(co_manager_t *m, co_line_t *line, co_od_t *od, co_nmt_t *local,
+                     co_sdo_client_t *sdo, co_usdo_client_t *usdo, co_guard_master_t *guard,
+                     const co_manager_config_t *config)
+{
+    if (!m || !line || !od || !local || !config || (!config->slaves && config->capacity)) {
+        return false;
+    }
+    memset(m, 0, sizeof *m);
+    m->line = line;
+    m->od = od;
+    m->local = local;
+    m->sdo = sdo;
+    m->usdo = usdo;
+    m->guard = guard;
+    m->slaves = config->slaves;
+    m->capacity = config->capacity;
+    m->hooks = config->hooks;
+    m->retry_ms = config->retry_ms ? config->retry_ms : (uint32_t)CO_MANAGER_DEFAULT_RETRY_MS;
+    m->on_event = config->on_event;
+    m->user = config->user;
+    m->access = (co_boot_access_t){.upload = access_upload, .nmt = access_nmt,
+                                   .guard_request = access_guard, .report = access_report,
+                                   .user = m};
+    uint8_t sessions = sdo ? sdo->channel_count : usdo ? usdo->session_count : 0;
+    m->parallel = config->parallel ? config->parallel : sessions;
+    if (m->parallel == 0) {
+        m->parallel = 1;
+    }
+    return true;
+}
+
+void co_manager_stop(co_manager_t *m)
+{
+    if (!m || !m->line) {
+        return;
+    }
+    for (uint8_t i = 0; i < m->count; i++) {
+        stop_slave(m, &m->slaves[i]);
+    }
+    m->booting = 0;
+}
+
+void co_manager_deinit(co_manager_t *m)
+{
+    co_manager_stop(m);
+    if (m) {
+        m->line = NULL;
+    }
+}
+
+/* The 0x1016 consumer time the manager has for node_id (0: none). */
+static uint16_t heartbeat_time_of(const co_od_t *od, uint8_t node_id)
+{
+    for (uint8_t sub = 1; sub <= 127; sub++) {
+        uint32_t v;
+        if (!co_od_get_u32(od, 0x1016, sub, &v)) {
+            break;
+        }
+        if (((v >> 16) & 0xFFu) == node_id && (v & 0xFFFFu) != 0) {
+            return (uint16_t)v;
+        }
+    }
+    return 0;
+}
+
+co_manager_status_t co_manager_start(co_manager_t *m)
+{
+    if (!m || !m->line) {
+        return CO_MANAGER_NOT_MANAGER;
+    }
+    uint32_t startup = od_u32(m->od, 0x1F80, 0);
+    if (!(startup & CO_MANAGER_STARTUP_MANAGER)) {
+        return CO_MANAGER_NOT_MANAGER;
+    }
+    if (!m->sdo && !m->usdo) {
+        return CO_MANAGER_NO_CLIENT;
+    }
+    uint8_t own = co_line_node_id(m->line);
+    if (co_manager_slaves_in(m->od, own) > m->capacity) {
+        return CO_MANAGER_NO_ROOM;
+    }
+    co_manager_stop(m);
+    m->startup = startup;
+    m->boot_time_ms = od_u32(m->od, 0x1F89, 0);
+    m->started_us = co_line_now(m->line);
+    m->count = 0;
+    m->booting = 0;
+    memset(m->slot_of, 0, sizeof m->slot_of);
+    for (uint8_t id = 1; id <= 127; id++) {
+        uint32_t assignment = od_u32(m->od, 0x1F81, id);
+        if (id == own || !(assignment & CO_BOOT_ASSIGN_SLAVE)) {
+            continue;
+        }
+        co_manager_slave_t *s = &m->slaves[m->count];
+        memset(s, 0, sizeof *s);
+        s->owner = m;
+        s->node_id = id;
+        s->mandatory = (assignment & CO_BOOT_ASSIGN_MANDATORY) != 0;
+        s->expect = (co_boot_expect_t){
+            .assignment = assignment,
+            .device_type = od_u32(m->od, 0x1F84, id),
+            .vendor_id = od_u32(m->od, 0x1F85, id),
+            .product_code = od_u32(m->od, 0x1F86, id),
+            .revision = od_u32(m->od, 0x1F87, id),
+            .serial = od_u32(m->od, 0x1F88, id),
+            .config_date = od_u32(m->od, 0x1F26, id),
+            .config_time = od_u32(m->od, 0x1F27, id),
+            .software_id = od_u32(m->od, 0x1F55, id),
+            .heartbeat_ms = heartbeat_time_of(m->od, id),
+            /* CiA 1301: 0x1000 is an ARRAY on fd lines (logical device 1 checked) */
+            .device_type_sub = co_line_mode(m->line) == CO_MODE_FD ? 1u : 0u};
+        (void)co_boot_init(&s->boot, m->line, id, &m->access);
+        co_timer_init(&s->retry, on_retry, s);
+        s->status = CO_MANAGER_SLAVE_PENDING;
+        m->slot_of[id] = (uint8_t)(m->count + 1u);
+        m->count++;
+    }
+    m->phase = CO_MANAGER_BOOTING;
+    launch_pending(m);
+    check_network(m);   /* no mandatory slave: nothing to wait for */
+    return CO_MANAGER_OK;
+}
+
+void co_manager_ec_frame(co_manager_t *m, const co_frame_t *frame)
+{
+    if (!m || !m->line || !frame || (frame->flags & CO_FRAME_RTR) || frame->len < 1 ||
+        frame->id <= CO_NMT_EC_COB_ID_BASE || frame->id > CO_NMT_EC_COB_ID_BASE + 127u) {
+        return;
+    }
+    co_manager_slave_t *s = slave_of(m, (uint8_t)(frame->id - CO_NMT_EC_COB_ID_BASE));
+    if (!s) {
+        return;
+    }
+    if (co_boot_running(&s->boot)) {
+        co_boot_ec_frame(&s->boot, frame->data, frame->len);
+        return;
+    }
+    if (frame->data[0] != CO_NMT_INITIALISING || m->phase == CO_MANAGER_IDLE) {
+        return;
+    }
+    /* a boot-up outside a boot process: the slave (re)appeared, boot it */
+    if (s->status != CO_MANAGER_SLAVE_PENDING) {
+        start_slave(m, s);
+    }
+}
+
+void co_manager_ec_lost(co_manager_t *m, uint8_t node_id)
+{
+    if (!m || !m->line) {
+        return;
+    }
+    co_manager_slave_t *s = slave_of(m, node_id);
+    if (!s || s->status != CO_MANAGER_SLAVE_BOOTED) {
+        return;
+    }
+    if (s->mandatory && (m->startup & CO_MANAGER_STARTUP_STOP_ALL)) {
+        (void)send_nmt(m, CO_NMT_CMD_STOP, 0);
+        emit_simple(m, CO_MANAGER_EV_ERROR_CONTROL, s, 0, CO_NMT_CMD_STOP);
+        return;
+    }
+    if (s->mandatory && (m->startup & CO_MANAGER_STARTUP_RESET_ALL)) {
+        emit_simple(m, CO_MANAGER_EV_ERROR_CONTROL, s, 0, CO_NMT_CMD_RESET_NODE);
+        (void)send_nmt(m, CO_NMT_CMD_RESET_NODE, 0);
+        /* the manager reset itself too: the network boots again */
+        (void)co_manager_start(m);
+        return;
+    }
+    emit_simple(m, CO_MANAGER_EV_ERROR_CONTROL, s, 0, CO_NMT_CMD_RESET_NODE);
+    (void)send_nmt(m, CO_NMT_CMD_RESET_NODE, node_id);
+    start_slave(m, s);
+}
+
+bool co_manager_continue_software(co_manager_t *m, uint8_t node_id, bool done)
+{
+    co_manager_slave_t *s = m ? slave_of(m, node_id) : NULL;
+    return s && co_boot_continue_software(&s->boot, done);
+}
+
+bool co_manager_continue_config(co_manager_t *m, uint8_t node_id, bool done)
+{
+    co_manager_slave_t *s = m ? slave_of(m, node_id) : NULL;
+    return s && co_boot_continue_config(&s->boot, done);
+}
+
+bool co_manager_continue_operational(co_manager_t *m)
+{
+    if (!m || m->phase != CO_MANAGER_READY) {
+        return false;
+    }
+    go_operational(m);
+    return true;
+}
+
+co_manager_slave_status_t co_manager_slave_status(const co_manager_t *m, uint8_t node_id)
+{
+    if (!m || node_id < 1 || node_id > 127 || m->slot_of[node_id] == 0) {
+        return CO_MANAGER_SLAVE_NONE;
+    }
+    return (co_manager_slave_status_t)m->slaves[m->slot_of[node_id] - 1].status;
+}
+
+co_boot_error_t co_manager_slave_error(const co_manager_t *m, uint8_t node_id)
+{
+    if (!m || node_id < 1 || node_id > 127 || m->slot_of[node_id] == 0) {
+        return CO_BOOT_OK;
+    }
+    return (co_boot_error_t)m->slaves[m->slot_of[node_id] - 1].error;
+}

@@ -1,0 +1,307 @@
+"""CiA 302-2 network start-up from Python (`line.manager`): our local node 1,
+whose OD lists its slaves in 0x1F81, boots our slave nodes on an in-process
+bus (fd and classic), checked on the wire by a monitor line (identity read,
+NMT reset communication, NMT start), through the events, the hooks with their
+continue calls, the blocking and the awaitable wait; a wrong device type halts
+the start with error C. Against python-canopen's LocalNode as the slave on a
+python-can virtual bus (classic): the manager reads its identity over SDO and
+finds it operational by its heartbeat (keep-alive: error L, no reset)."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import os
+import time
+from typing import Dict
+
+import pytest
+from helpers import Recorder, scaled, virtual_bus
+
+import canopenfd
+from canopenfd import ConfigurationError
+from canopenfd.od import DataType, ODArray, ODVariable, demo_od
+from canopenfd.services import ManagerEvent, NetworkStartError
+from canopenfd.services.manager import ManagerPhase, SlaveStatus
+from canopenfd.services.store import MemoryStore
+
+MANAGER = 1
+_channels = itertools.count(1)
+
+
+@pytest.fixture(params=["classic", "fd"])
+def mode(request):
+    return request.param
+
+
+def manager_od(mode: str, startup: int, slaves: Dict[int, int],
+               device_types: Dict[int, int] = None, heartbeats: Dict[int, int] = None,
+               boot_time_ms: int = 0, vendors: Dict[int, int] = None,
+               serials: Dict[int, int] = None, software: Dict[int, int] = None):
+    """The demo OD plus the manager's objects: 0x1F80, 0x1F81/0x1F84/0x1F85/
+    0x1F88/0x1F55 for nodes 1..5, 0x1F89 and consumer heartbeat times
+    (0x1016:1.. = the nodes given)."""
+    od = demo_od(mode)
+    od.add_object(ODVariable("NMT startup", 0x1F80, 0, DataType.UNSIGNED32, "rw", startup))
+    for index, name, values in ((0x1F81, "Slave assignment", slaves),
+                                (0x1F84, "Device type identification", device_types or {}),
+                                (0x1F85, "Vendor identification", vendors or {}),
+                                (0x1F88, "Serial number", serials or {}),
+                                (0x1F55, "Expected software identification", software or {})):
+        array = ODArray(name, index)
+        array.add_member(ODVariable("Highest sub-index supported", index, 0,
+                                    DataType.UNSIGNED8, "ro", 5))
+        for node in range(1, 6):
+            array.add_member(ODVariable(f"{name} {node}", index, node, DataType.UNSIGNED32,
+                                        "rw", values.get(node, 0)))
+        od.add_object(array)
+    od.add_object(ODVariable("Boot time", 0x1F89, 0, DataType.UNSIGNED32, "rw", boot_time_ms))
+    for sub, (node, ms) in enumerate(sorted((heartbeats or {}).items()), start=1):
+        od[0x1016][sub].default = (node << 16) | ms
+    return od
+
+
+def software_od(mode: str, software_id: int):
+    """A slave's demo OD with its program software identification 0x1F56:01
+    (stored: a reset communication reloads it from the store)."""
+    od = demo_od(mode)
+    array = ODArray("Program software identification", 0x1F56)
+    array.add_member(ODVariable("Highest sub-index supported", 0x1F56, 0, DataType.UNSIGNED8,
+                                "ro", 1))
+    program = ODVariable("Program 1", 0x1F56, 1, DataType.UNSIGNED32, "rw", software_id)
+    program.store = True
+    array.add_member(program)
+    od.add_object(array)
+    return od
+
+
+class Rig:
+    """Manager node 1 and slave nodes on one in-process bus, a monitor of
+    every frame and the manager's events."""
+
+    def __init__(self, net, bus_name, mode, od, slaves=(2, 3), slave_heartbeat_ms=0,
+                 slave_od=None, slave_store=None):
+        self.mode = mode
+        self.frames = Recorder()
+        net.open_line(bus_name, mode=mode, monitor=True).on_frame(self.frames)
+        self.slaves = {}
+        for node in slaves:
+            line = net.open_line(bus_name, mode=mode)
+            self.slaves[node] = line.create_local_node(node, slave_heartbeat_ms,
+                                                       od=slave_od or demo_od(mode),
+                                                       store=slave_store)
+        self.line = net.open_line(bus_name, mode=mode)
+        self.node = self.line.create_local_node(MANAGER, od=od)
+        self.manager = self.line.manager
+        self.events = Recorder()
+        self.manager.add_callback(self.events)
+
+    def nmt_frames(self):
+        return [bytes(f.data) for f in self.frames.snapshot() if f.id == 0 and not f.rtr]
+
+
+def kinds(events):
+    return [(e.kind, e.node_id) for e in events]
+
+
+def test_network_starts_mandatory_and_optional_slaves(net, bus_name, mode):
+    rig = Rig(net, bus_name, mode, manager_od(mode, 0x01, {2: 0x0D, 3: 0x05}))
+    assert rig.manager.phase is None
+    rig.manager.start()
+    rig.manager.wait_started(scaled(5))
+    for node in (2, 3):
+        rig.slaves[node].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    assert rig.node.nmt.state == "OPERATIONAL"
+    assert rig.manager.phase == ManagerPhase.RUNNING
+    assert rig.manager.slave(2) == (SlaveStatus.BOOTED, "")
+    assert rig.manager.slave(4) == (SlaveStatus.NONE, "")
+    nmt = rig.nmt_frames()
+    assert bytes([0x82, 2]) in nmt and bytes([0x82, 3]) in nmt     # reset communication
+    assert nmt.index(bytes([0x82, 2])) < nmt.index(bytes([0x01, 2]))   # then the start
+    assert bytes([0x01, 0]) not in nmt                               # one per node
+    seen = kinds(rig.manager.events)
+    assert ("slave-booted", 2) in seen and ("slave-booted", 3) in seen
+    assert seen.index(("slave-booted", 2)) < seen.index(("network-started", 0))
+    # the device type read went out first, to each slave (classic: SDO 0x40 on
+    # 0x600 + node; fd: USDO on 0x600 + our node-id, byte 0 = the server)
+    if mode == "classic":
+        reads = [bytes(f.data[:4]) for f in rig.frames.snapshot() if f.id == 0x602]
+        assert reads[0] == bytes([0x40, 0x00, 0x10, 0x00])
+    else:
+        reads = [f for f in rig.frames.snapshot() if f.id == 0x600 + MANAGER]
+        assert {f.data[0] for f in reads} == {2, 3}
+    checked = [e for e in rig.manager.events if e.boot_event == "checked"]
+    assert {(e.node_id, e.od_index, e.od_sub) for e in checked} == \
+        {(2, 0x1000, 1 if mode == "fd" else 0), (3, 0x1000, 1 if mode == "fd" else 0)}
+    assert all(e.matched and e.got_length == 4 for e in checked)
+
+
+def test_start_all_with_one_command(net, bus_name):
+    rig = Rig(net, bus_name, "classic", manager_od("classic", 0x03, {2: 0x0D, 3: 0x0D}))
+    rig.manager.start()
+    rig.manager.wait_started(scaled(5))
+    rig.slaves[3].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    starts = [f for f in rig.nmt_frames() if f[0] == 0x01]
+    assert starts == [bytes([0x01, 0x00])]
+
+
+def test_wrong_device_type_halts_with_c(net, bus_name, mode):
+    od = manager_od(mode, 0x01, {2: 0x0D}, device_types={2: 0x00020192})
+    rig = Rig(net, bus_name, mode, od, slaves=(2,))
+    rig.manager.start()
+    with pytest.raises(NetworkStartError) as caught:
+        rig.manager.wait_started(scaled(5))
+    assert (caught.value.node_id, caught.value.error) == (2, "C")
+    assert "mandatory slave 2 failed with error 'C'" in str(caught.value)
+    assert rig.manager.phase == ManagerPhase.HALTED
+    assert rig.manager.slave(2)[1] == "C"
+    check = next(e for e in rig.manager.events if e.boot_event == "checked")
+    assert (check.expected, check.got, check.matched) == (0x00020192, 0, False)
+    assert "0x1000:0" in str(check) and "expected 0x00020192" in str(check)
+    assert rig.node.nmt.state == "PRE-OPERATIONAL"
+    assert bytes([0x82, 2]) not in rig.nmt_frames()     # never reset
+
+
+def test_hooks_answered_from_callbacks_and_awaited(net, bus_name):
+    rig = Rig(net, bus_name, "fd", manager_od("fd", 0x01, {2: 0x0D}), slaves=(2,))
+    answered = Recorder()
+
+    def answer(event: ManagerEvent) -> None:
+        if event.kind == "update-config":
+            rig.manager.continue_config(event.node_id)
+            answered(event.kind)
+        elif event.kind == "ready-operational":
+            rig.manager.continue_operational()
+            answered(event.kind)
+
+    rig.manager.add_callback(answer)
+
+    async def run() -> None:
+        rig.manager.start(config_hook=True, operational_hook=True)
+        await asyncio.wait_for(rig.manager.started(), scaled(5))
+
+    asyncio.run(run())
+    assert answered.snapshot() == ["update-config", "ready-operational"]
+    rig.slaves[2].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    with pytest.raises(canopenfd.CanopenFDError, match="does not wait"):
+        rig.manager.continue_operational()      # nothing waits for it any more
+
+
+def test_software_update_hook_then_checked_again(net, bus_name, mode):
+    """0x1F81:2 = 0x6D (check the software, update allowed): the slave's
+    0x1F56:01 = 0x0101 differs from 0x1F55:2 = 0x0102, the application is asked,
+    "updates" it and says done; the process checks the node again from its
+    device type on and boots it. Without the hook the manager answers
+    "failed": error I."""
+    od = manager_od(mode, 0x01, {2: 0x6D}, software={2: 0x0102})
+    rig = Rig(net, bus_name, mode, od, slaves=(2,), slave_od=software_od(mode, 0x0101),
+              slave_store=MemoryStore())
+
+    def update(event: ManagerEvent) -> None:
+        if event.kind == "update-software":
+            slave = rig.slaves[event.node_id]
+            slave[0x1F56, 1].raw = 0x0102              # the new program, kept across
+            slave.save_parameters()                    # the reset the manager sends
+            rig.manager.continue_software(event.node_id)
+
+    rig.manager.add_callback(update)
+    rig.manager.start(software_hook=True)
+    rig.manager.wait_started(scaled(5))
+    software = [(e.got, e.matched) for e in rig.manager.events
+                if e.boot_event == "checked" and e.od_index == 0x1F56]
+    assert software == [(0x0101, False), (0x0102, True)]
+    device_type_reads = [e for e in rig.manager.events
+                         if e.boot_event == "checked" and e.od_index == 0x1000]
+    assert len(device_type_reads) == 2                   # checked again after the update
+    assert rig.manager.slave(2) == (SlaveStatus.BOOTED, "")
+    # the same without the hook: nobody updates, I
+    rig.slaves[2][0x1F56, 1].raw = 0x0101
+    rig.slaves[2].save_parameters()
+    rig.manager.start()
+    with pytest.raises(NetworkStartError) as caught:
+        rig.manager.wait_started(scaled(5))
+    assert caught.value.error == "I"
+
+
+def test_wrong_use_is_refused(net, bus_name):
+    line = net.open_line(bus_name, mode="classic")
+    with pytest.raises(ConfigurationError, match="no local node"):
+        line.manager.start()
+    with pytest.raises(ConfigurationError, match="start"):
+        line.manager.wait_started(0.1)
+    line.create_local_node(MANAGER, od=manager_od("classic", 0x00, {2: 0x0D}))
+    with pytest.raises(canopenfd.CanopenFDError, match="0x1F80 bit 0 is clear"):
+        line.manager.start()
+    with pytest.raises(ConfigurationError, match="parallel"):
+        line.manager.start(parallel=200)
+    with pytest.raises(ConfigurationError):
+        line.manager.slave(0)
+
+
+def _their_od(canopen):
+    od = canopen.ObjectDictionary()
+    device_type = canopen.objectdictionary.ODVariable("Device type", 0x1000)
+    device_type.data_type = canopen.objectdictionary.UNSIGNED32
+    device_type.access_type = "ro"
+    device_type.default = 0x00020191
+    od.add_object(device_type)
+    identity = canopen.objectdictionary.ODRecord("Identity object", 0x1018)
+    for sub, value in enumerate((4, 0x0000ABCD, 0x1234, 0x10002, 0x5005)):
+        var = canopen.objectdictionary.ODVariable(f"sub{sub}", 0x1018, sub)
+        var.data_type = (canopen.objectdictionary.UNSIGNED8 if sub == 0 else
+                         canopen.objectdictionary.UNSIGNED32)
+        var.access_type = "ro"
+        var.default = value
+        identity.add_member(var)
+    od.add_object(identity)
+    heartbeat = canopen.objectdictionary.ODVariable("Producer heartbeat time", 0x1017)
+    heartbeat.data_type = canopen.objectdictionary.UNSIGNED16
+    heartbeat.access_type = "rw"
+    heartbeat.default = 50
+    od.add_object(heartbeat)
+    return od
+
+
+def test_python_canopen_slave_kept_alive(net):
+    """python-canopen's LocalNode 5, operational with 50 ms heartbeats: our
+    manager (keep-alive, 0x1F81:5 = 0x1D, heartbeat consumer 300 ms) checks
+    its device type, vendor-ID and serial number over SDO (python-canopen's
+    server answers; product and revision are not expected, so not read),
+    then sees it operational: L, no reset, no start."""
+    canopen = pytest.importorskip("canopen")
+    channel = f"manager-{os.getpid()}-{next(_channels)}"
+    peer = canopen.Network()
+    peer.connect(interface="virtual", channel=channel)
+    theirs = canopen.LocalNode(5, _their_od(canopen))
+    peer.add_node(theirs)
+    try:
+        theirs.nmt.state = "OPERATIONAL"
+        theirs.nmt.start_heartbeat(50)
+        od = manager_od("classic", 0x01, {5: 0x1D}, device_types={5: 0x00020191},
+                        heartbeats={5: 300}, vendors={5: 0x0000ABCD}, serials={5: 0x5005})
+        frames = Recorder()
+        line = net.open_line(bus=virtual_bus(channel), mode="classic")
+        line.create_local_node(MANAGER, od=od)
+        watch = net.open_line(bus=virtual_bus(channel), mode="classic", monitor=True)
+        watch.on_frame(frames)
+        time.sleep(scaled(0.1))
+        line.manager.start()
+        line.manager.wait_started(scaled(5))
+        assert line.manager.slave(5)[1] == "L"
+        checked = [e for e in line.manager.events if e.boot_event == "checked"]
+        assert [(e.od_index, e.od_sub, e.got, e.matched) for e in checked] == [
+            (0x1000, 0, 0x00020191, True), (0x1018, 1, 0x0000ABCD, True),
+            (0x1018, 4, 0x5005, True)]
+        assert theirs.nmt.state == "OPERATIONAL"
+        assert not [f for f in frames.snapshot() if f.id == 0]     # no NMT at all
+        reads = [bytes(f.data) for f in frames.snapshot() if f.id == 0x605]
+        assert reads == [bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
+                         bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0]),
+                         bytes([0x40, 0x18, 0x10, 0x04, 0, 0, 0, 0])]
+        answers = [bytes(f.data) for f in frames.snapshot() if f.id == 0x585]
+        assert answers == [bytes([0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x02, 0x00]),
+                           bytes([0x43, 0x18, 0x10, 0x01, 0xCD, 0xAB, 0x00, 0x00]),
+                           bytes([0x43, 0x18, 0x10, 0x04, 0x05, 0x50, 0x00, 0x00])]
+    finally:
+        theirs.nmt.stop_heartbeat()
+        peer.disconnect()
