@@ -15,6 +15,7 @@ from ..frame import Frame
 from ..line import Line
 from ..od.demo import PROCESS_DATA
 from ..network import Network
+from . import demo_manager
 from .common import EXIT_FAILED, EXIT_OK, Printer, UsageError, rate_text
 
 
@@ -25,6 +26,10 @@ def add_parsers(subparsers: Any) -> None:
                         "process-data parts (default 3)")
     p.add_argument("--classic", action="store_true",
                    help="classic CAN bus instead (SDO, 8-byte PDOs, classic EMCY)")
+    p.add_argument("--manager", action="store_true",
+                   help="instead: a network manager bringing up three devices (LSS fast scan "
+                        "of a factory-fresh one, a re-configuration from a DCF, CiA 302-2 "
+                        "start-up)")
     p.set_defaults(func=cmd_demo)
 
 
@@ -280,6 +285,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     each way; SDO and 64 KiB on classic lines), then PDOs, SYNC and EMCY."""
     from ..od import demo_od
 
+    if args.manager:
+        return demo_manager.run(args.classic, Printer().line)
     mode = "classic" if args.classic else "fd"
     if args.duration <= 0:
         raise UsageError(f"--duration must be > 0 s, got {args.duration:g}")
