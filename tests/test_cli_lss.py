@@ -74,3 +74,34 @@ def test_scan_inquire_set_id(net, bus_name, capsys):
 def test_usage_errors_name_the_problem(net, bus_name, capsys, argv, message):
     status, _, err = run(net, bus_name, capsys, *argv)
     assert status == 2 and message in err
+
+
+def test_device_command_runs_a_factory_fresh_node(net, bus_name, capsys):
+    """`canopenfd device --node-id 255 --serial N`: silent until a fast scan
+    gives it a node-id, then it says so and runs with it."""
+    import threading
+    runner = threading.Thread(target=main, args=(
+        ["device", "--channel", bus_name, "--classic", "--node-id", "255", "--serial", "0x55",
+         "--duration", str(scaled(3))],), kwargs={"network": net})
+    runner.start()
+    line = net.open_line(bus_name, mode="classic")
+    line.lss.timeout_ms = 50
+    deadline = time.monotonic() + scaled(2)
+    found = []
+    while not found and time.monotonic() < deadline:   # until the device runs
+        found = line.lss.fast_scan([30])
+    runner.join(scaled(10))
+    assert [d.serial for d in found] == [0x55] and found[0].node_id == 30
+    captured = capsys.readouterr()
+    assert "node 255 (factory-fresh)" in captured.err and "error" not in captured.err
+    assert "node 30: node-id given by LSS (was 255)" in captured.out
+    assert "node 30: INITIALISING -> PRE-OPERATIONAL" in captured.out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (("--node-id", "255", "--od", "builtin:classic", "--serial", "x"), "is not a number"),
+    (("--node-id", "300",), "node-id 300 outside 1..127"),
+])
+def test_device_lss_usage_errors(net, bus_name, capsys, argv, message):
+    status = main(["device", "--channel", bus_name, "--classic", *argv], network=net)
+    assert status == 2 and message in capsys.readouterr().err

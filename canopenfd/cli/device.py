@@ -24,7 +24,12 @@ def add_parsers(subparsers: Any) -> None:
     p = subparsers.add_parser("device", help="run a local node until interrupted")
     add_line_options(p)
     p.add_argument("--node-id", type=int, required=True, metavar="N",
-                   help="the node's node-id 1..127")
+                   help="the node's node-id 1..127, or 255: factory-fresh, only its LSS "
+                        "slave answers until an LSS master gives it a node-id (the "
+                        "dictionary needs 0x1018:04; see --serial)")
+    p.add_argument("--serial", metavar="N",
+                   help="serial number 0x1018:04 of the LSS address (decimal or 0x hex), "
+                        "replacing the dictionary's; devices on one bus need different ones")
     p.add_argument("--od", metavar="FILE",
                    help="object dictionary to serve: an EDS, DCF, XDD or XDC file, or "
                         "builtin:fd / builtin:classic (default: the built-in demo dictionary "
@@ -92,6 +97,25 @@ def _device_od(spec: Optional[str], mode: str, node_id: int) -> Any:
         raise UsageError(f"--od {exc}") from None
 
 
+def _set_serial(od: ObjectDictionary, text: Optional[str], unconfigured: bool) -> None:
+    """--serial: 0x1018:04 of the dictionary (an unconfigured node needs it)."""
+    serial = od.get_variable(0x1018, 4)
+    if text is not None:
+        try:
+            value = int(text, 0)
+        except ValueError:
+            raise UsageError(f"--serial {text!r} is not a number (decimal or 0x hex)") from None
+        if serial is None:
+            raise UsageError("--serial: the dictionary has no 0x1018:04 (serial number)")
+        try:
+            serial.value = value
+        except CanopenFDError as exc:
+            raise UsageError(f"--serial {text}: {exc}") from None
+    if unconfigured and serial is None:
+        raise UsageError("--node-id 255 (factory-fresh, LSS only) needs a dictionary with the "
+                         "serial number 0x1018:04")
+
+
 def _check_store_path(path: Optional[str]) -> None:
     """--store FILE: its directory must exist (the file is created at the first save)."""
     if path is None:
@@ -129,11 +153,13 @@ def _device_domains(args: argparse.Namespace, od: Any, mode: str) -> Dict[Tuple[
 # ------------------------------------------------------------------ command
 def cmd_device(args: argparse.Namespace) -> int:
     mode = "classic" if args.classic else "fd"
-    node_id = node_id_arg(args.node_id, "--node-id")
+    unconfigured = args.node_id == 255
+    node_id = args.node_id if unconfigured else node_id_arg(args.node_id, "--node-id")
     if args.heartbeat is not None:
         ms_arg(args.heartbeat, "--heartbeat", "device")
     _check_store_path(args.store)
     od = _device_od(args.od, mode, node_id)
+    _set_serial(od, args.serial, unconfigured)
     # An explicit --heartbeat replaces 0x1017's start value (0 = off), so resets
     # come back to it; a value saved in --store is overwritten once after boot
     # (later resets load the saved one, as 0x1010 promises). Without it the
@@ -153,17 +179,21 @@ def cmd_device(args: argparse.Namespace) -> int:
         heartbeat = args.heartbeat if args.heartbeat is not None and not has_1017 else 0
         node = line.create_local_node(node_id, heartbeat_ms=heartbeat, od=od,
                                       store=args.store, boot=False)
+        # node.node_id: LSS may give a factory-fresh node its id meanwhile
         node.on_state_change(lambda old, new: printer.line(
-            f"node {node_id}: {old.label} -> {new.label}"))
-        node.on_reset(lambda kind: printer.line(f"node {node_id}: {kind.label}"))
-        node.on_veto(lambda: printer.line(f"node {node_id}: start refused"))
+            f"node {node.node_id}: {old.label} -> {new.label}"))
+        node.on_reset(lambda kind: printer.line(f"node {node.node_id}: {kind.label}"))
+        node.on_veto(lambda: printer.line(f"node {node.node_id}: start refused"))
+        node.lss.on_configured(lambda new_id: printer.line(
+            f"node {new_id}: node-id given by LSS (was 255)"))
         node.on_store_problem(lambda status, skipped: printer.line(
             f"node {node_id}: saved parameters in {args.store} are {status}; "
             "running on defaults"))
         for (index, sub), capacity in domains.items():
             node.serve_domain((index, sub), capacity)
         node.boot()
-        if args.heartbeat is not None and has_1017 and node.heartbeat_ms != args.heartbeat:
+        if args.heartbeat is not None and has_1017 and not unconfigured and \
+                node.heartbeat_ms != args.heartbeat:
             node.heartbeat_ms = args.heartbeat   # a saved 0x1017 loaded at boot: override it
         source = args.od or f"builtin:{mode}"
         store = f", parameters in {args.store}" if args.store else ""
@@ -175,9 +205,14 @@ def cmd_device(args: argparse.Namespace) -> int:
             print(f"node {node_id}: {var.where} {var.qualname} is a DOMAIN without memory: "
                   f"the network's reads and writes are refused (give it some with --domain "
                   f"0x{var.index:04X}:{var.subindex:02X}=SIZE)", file=sys.stderr)
-        print(f"node {node_id} running on {args.channel} ({line.mode}), heartbeat "
-              f"{node.heartbeat_ms} ms, object dictionary {source}{store}; Ctrl-C to stop",
-              file=sys.stderr)
+        if unconfigured:
+            print(f"node 255 (factory-fresh) on {args.channel} ({line.mode}) waits for an LSS "
+                  f"master to give it a node-id, object dictionary {source}{store}; Ctrl-C "
+                  "to stop", file=sys.stderr)
+        else:
+            print(f"node {node_id} running on {args.channel} ({line.mode}), heartbeat "
+                  f"{node.heartbeat_ms} ms, object dictionary {source}{store}; Ctrl-C to "
+                  "stop", file=sys.stderr)
         try:
             wait_until_done(done, printer, args.duration)
         except KeyboardInterrupt:

@@ -696,11 +696,13 @@ static void lss_configured(co_timer_t *timer, uint64_t now_us, void *user)
         return;                          /* co_stack_failed_part says which part */
     }
     s->unconfigured = false;
-    if (s->boot_requested) {
-        co_node_boot(&s->node);
-    }
+    /* told before the boot-up, so the application knows the new node-id by the
+     * time the node's first state change reaches it */
     if (s->lss_app && s->lss_app->reset_communication) {
         s->lss_app->reset_communication(&s->lss_slave, id, s->lss_user);
+    }
+    if (s->boot_requested) {
+        co_node_boot(&s->node);
     }
 }
 
