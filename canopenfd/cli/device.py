@@ -80,7 +80,7 @@ def parse_domain(text: str, od: ObjectDictionary) -> Tuple[int, int, int]:
     return index, sub, capacity
 
 
-def _device_od(spec: Optional[str], mode: str, node_id: int) -> Any:
+def _device_od(spec: Optional[str], mode: str, node_id: Optional[int]) -> Any:
     """The ObjectDictionary `device --od` serves: the built-in demo one for the
     line's mode by default, builtin:fd / builtin:classic, or an EDS/DCF/XDD/XDC
     file (a file that cannot be read is a usage error naming file and line)."""
@@ -158,7 +158,8 @@ def cmd_device(args: argparse.Namespace) -> int:
     if args.heartbeat is not None:
         ms_arg(args.heartbeat, "--heartbeat", "device")
     _check_store_path(args.store)
-    od = _device_od(args.od, mode, node_id)
+    # a factory-fresh node's $NODEID values follow the node-id LSS gives it
+    od = _device_od(args.od, mode, None if unconfigured else node_id)
     _set_serial(od, args.serial, unconfigured)
     # An explicit --heartbeat replaces 0x1017's start value (0 = off), so resets
     # come back to it; a value saved in --store is overwritten once after boot
