@@ -32,17 +32,19 @@ FRESH_ID = 4
 NEW_CONFIG = [(0x1017, 0, (200).to_bytes(2, "little"))]
 
 
-def _array(od: ObjectDictionary, index: int, name: str, values: Dict[int, int]) -> None:
+def add_node_array(od: ObjectDictionary, index: int, name: str, values: Dict[int, int],
+                   highest: int = FRESH_ID) -> None:
+    """An ARRAY of UNSIGNED32 with one sub-index per node-id 1..highest."""
     array = ODArray(name, index)
     array.add_member(ODVariable("Highest sub-index supported", index, 0, DataType.UNSIGNED8,
-                                "ro", FRESH_ID))
-    for node in range(1, FRESH_ID + 1):
+                                "ro", highest))
+    for node in range(1, highest + 1):
         array.add_member(ODVariable(f"{name} {node}", index, node, DataType.UNSIGNED32, "rw",
                                     values.get(node, 0)))
     od.add_object(array)
 
 
-def _stamp(od: ObjectDictionary, stamp: Tuple[int, int]) -> None:
+def add_stamp(od: ObjectDictionary, stamp: Tuple[int, int]) -> None:
     """0x1020 verify configuration: date (days), time (ms)."""
     array = ODArray("Verify configuration", 0x1020)
     array.add_member(ODVariable("Highest sub-index supported", 0x1020, 0, DataType.UNSIGNED8,
@@ -60,7 +62,7 @@ def device_od(mode: str, serial: int, stamp: Tuple[int, int]) -> ObjectDictionar
         identity = od.get_variable(0x1018, sub)
         assert identity is not None   # the demo dictionary has 0x1018:01..04
         identity.default = value
-    _stamp(od, stamp)
+    add_stamp(od, stamp)
     return od
 
 
@@ -71,10 +73,10 @@ def manager_od(mode: str) -> ObjectDictionary:
     od = demo_od(mode)
     od.add_object(ODVariable("NMT startup", 0x1F80, 0, DataType.UNSIGNED32, "rw", 0x01))
     slaves = {node: 0x0D for node in (2, 3, FRESH_ID)}
-    _array(od, 0x1F81, "Slave assignment", slaves)
-    _array(od, 0x1F85, "Vendor identification", {node: VENDOR for node in slaves})
-    _array(od, 0x1F26, "Expected configuration date", {2: DATE, 3: DATE})
-    _array(od, 0x1F27, "Expected configuration time", {2: TIME, 3: TIME})
+    add_node_array(od, 0x1F81, "Slave assignment", slaves)
+    add_node_array(od, 0x1F85, "Vendor identification", {node: VENDOR for node in slaves})
+    add_node_array(od, 0x1F26, "Expected configuration date", {2: DATE, 3: DATE})
+    add_node_array(od, 0x1F27, "Expected configuration time", {2: TIME, 3: TIME})
     return od
 
 
