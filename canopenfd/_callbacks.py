@@ -7,6 +7,7 @@ event delivery.
 
 from __future__ import annotations
 
+import asyncio
 import collections
 import logging
 import threading
@@ -134,6 +135,31 @@ class Waiter:
                 if remaining is not None and remaining <= 0:
                     raise TimeoutError(f"{what}: {describe_timeout()} after {timeout:g} s")
                 self.cond.wait(remaining)
+
+
+def loop_waker(collect: Callable[[], T]) -> "Tuple[asyncio.Future[T], Callable[[], None]]":
+    """For an `await` of something that ends on another thread: a future of
+    the running loop, and wake(), callable from any thread once it ended,
+    which settles the future in the loop with collect()'s value or exception
+    (nothing happens when the loop closed meanwhile: nobody awaits any more)."""
+    loop = asyncio.get_running_loop()
+    future: "asyncio.Future[T]" = loop.create_future()
+
+    def settle() -> None:
+        if future.done():
+            return
+        try:
+            future.set_result(collect())
+        except BaseException as exc:  # noqa: BLE001 - handed to the awaiting task
+            future.set_exception(exc)
+
+    def wake() -> None:
+        try:
+            loop.call_soon_threadsafe(settle)
+        except RuntimeError:
+            pass
+
+    return future, wake
 
 
 def chain(calls: List[Callable[[], None]]) -> Callable[[], None]:

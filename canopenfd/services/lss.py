@@ -12,7 +12,6 @@ blocks until it ends (or is awaited with the `a...` form).
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import threading
 from typing import (Any, Callable, Dict, Generator, Generic, List, NamedTuple, Optional,
@@ -21,7 +20,7 @@ from typing import (Any, Callable, Dict, Generator, Generic, List, NamedTuple, O
 from .._binding.constants import EventKind, LssRequest, LssStatus
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import CallbackList, chain
+from .._callbacks import CallbackList, chain, loop_waker
 from ..errors import CanopenFDError, ConfigurationError
 
 __all__ = ["LssDevice", "LssError", "LssMaster", "LssSlave"]
@@ -90,28 +89,12 @@ class _Request(Generic[T]):
         return self._value()
 
     def __await__(self) -> Generator[Any, None, T]:
-        loop = asyncio.get_running_loop()
-        future = loop.create_future()
-
-        def settle() -> None:
-            if future.done():
-                return
-            try:
-                future.set_result(self._value())
-            except BaseException as exc:  # noqa: BLE001 - handed to the awaiting task
-                future.set_exception(exc)
-
-        def wake() -> None:
-            try:
-                loop.call_soon_threadsafe(settle)
-            except RuntimeError:
-                pass   # the loop closed meanwhile
-
+        future, wake = loop_waker(self._value)
         with self._context.cond:
             if self.outcome is None:
                 self._wakers.append(wake)
                 return future.__await__()
-        settle()
+        wake()   # ended already
         return future.__await__()
 
 

@@ -7,7 +7,6 @@ runs in the C runtime: no Python per frame. The per-node views
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import math
 import os
@@ -20,6 +19,7 @@ from .._binding.constants import EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._binding.transfers import CBuffer, TransferRequest, memory_source
+from .._callbacks import loop_waker
 from ..errors import (ABORT_TEXT, AbortError, CanopenFDError, ClosedError, ConfigurationError,
                       TransferAbortError)
 from ..od.datatypes import DataType
@@ -135,23 +135,7 @@ class Transfer:
     wait = result
 
     def __await__(self) -> Generator[object, None, Result]:
-        loop = asyncio.get_running_loop()
-        future = loop.create_future()
-
-        def settle() -> None:
-            if future.done():
-                return
-            try:
-                future.set_result(self._collect())
-            except BaseException as exc:  # noqa: BLE001 - handed to the awaiting task
-                future.set_exception(exc)
-
-        def wake_loop() -> None:
-            try:
-                loop.call_soon_threadsafe(settle)
-            except RuntimeError:
-                pass   # the loop closed meanwhile: nobody awaits any more
-
+        future, wake_loop = loop_waker(self._collect)
         # Transfers start without a done event (a caller blocking in C hears
         # the end directly); an awaiting task needs it, so ask now.
         if self._engine.notify_end(self._handle):
