@@ -90,8 +90,9 @@ class Line:
         #: The network manager: CiA 302-2 start-up run by the local node
         #: (canopenfd.services.manager) and the CiA 302-3 configuration
         #: manager, `manager.configure(node, dcf)` (canopenfd.services.config).
-        self.manager = NetworkManager(context,
-                                      ConfigManager(context, f"line {self.channel!r}"))
+        self.manager = NetworkManager(
+            context, ConfigManager(context, f"line {self.channel!r}"),
+            lambda: self.local_node.od if self.local_node is not None else None)
         self._comm = CallbackList(f"line {self.channel!r} comm event")
         self._frames = CallbackList(f"line {self.channel!r} frame")
         self._comm_events: List[CommEvent] = []

@@ -305,3 +305,50 @@ def test_python_canopen_slave_kept_alive(net):
     finally:
         theirs.nmt.stop_heartbeat()
         peer.disconnect()
+
+
+# ------------------------------------------------------------------ configurations
+def configured_rig(net, bus_name, mode, slaves_mandatory=0x0D, concise_in_od=None):
+    """Manager 1 expecting stamp (DATE, TIME) on slaves 2 and 3 (both outdated:
+    their 0x1020 is (1, 1)); concise_in_od: {node: bytes} in its 0x1F22."""
+    from canopenfd.cli.demo_manager import DATE, TIME, add_node_array, add_stamp
+    from canopenfd.od import ODArray
+    slave_od = demo_od(mode)
+    add_stamp(slave_od, (1, 1))
+    od = manager_od(mode, 0x01, {2: slaves_mandatory, 3: slaves_mandatory})
+    add_node_array(od, 0x1F26, "Expected configuration date", {2: DATE, 3: DATE}, highest=5)
+    add_node_array(od, 0x1F27, "Expected configuration time", {2: TIME, 3: TIME}, highest=5)
+    if concise_in_od:
+        array = ODArray("Concise DCF", 0x1F22)
+        array.add_member(ODVariable("Highest sub-index supported", 0x1F22, 0,
+                                    DataType.UNSIGNED8, "ro", 5))
+        for node in range(1, 6):
+            array.add_member(ODVariable(f"Concise DCF {node}", 0x1F22, node, DataType.DOMAIN,
+                                        "rw", concise_in_od.get(node, b"")))
+        od.add_object(array)
+    return Rig(net, bus_name, mode, od, slave_od=slave_od), (DATE, TIME)
+
+
+def test_start_up_writes_the_configurations_it_was_given(net, bus_name, mode):
+    """start(configurations=...) and 0x1F22: the manager writes each outdated
+    slave's concise DCF itself and stamps 0x1020 with 0x1F26/0x1F27."""
+    from canopenfd.od.concise import build_concise
+    rig, stamp = configured_rig(net, bus_name, mode, concise_in_od={
+        2: build_concise([(0x1017, 0, (300).to_bytes(2, "little"))])})
+    rig.manager.start(configurations={3: build_concise([(0x1017, 0, (400).to_bytes(2, "little"))])})
+    rig.manager.wait_started(scaled(10))
+    assert rig.slaves[2][0x1017].raw == 300 and rig.slaves[3][0x1017].raw == 400
+    for node in (2, 3):
+        assert (rig.slaves[node][0x1020][1].raw, rig.slaves[node][0x1020][2].raw) == stamp
+    assert "update-config" in [e.kind for e in rig.events.snapshot()]
+
+
+def test_a_refused_configuration_ends_the_boot_with_j(net, bus_name, mode):
+    from canopenfd.od.concise import build_concise
+    from canopenfd.services.manager import NetworkStartError
+    rig, _ = configured_rig(net, bus_name, mode)
+    rig.manager.start(configurations={2: build_concise([(0x3000, 1, b"\x01")]),
+                                      3: build_concise([(0x1017, 0, b"\x10\x00")])})
+    with pytest.raises(NetworkStartError, match="slave 2 failed with error 'J'"):
+        rig.manager.wait_started(scaled(10))
+    assert rig.slaves[2][0x1020][1].raw == 1      # not stamped

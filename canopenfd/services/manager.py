@@ -20,7 +20,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import struct
-from typing import Callable, List, NamedTuple, Optional, Tuple
+import threading
+from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
 from .._binding.constants import (BootError, BootEvent, BootStep, EventKind, ManagerEventCode,
                                   ManagerPhase, NmtCommand, SlaveStatus)
@@ -28,7 +29,8 @@ from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList, chain
 from .._checks import check_node_id
-from ..errors import ConfigurationError
+from ..errors import CanopenFDError, ConfigurationError
+from ..od import ObjectDictionary
 from .config import ConfigManager, Configuration, DcfSource, Stamp
 
 __all__ = ["ManagerEvent", "ManagerPhase", "NetworkManager", "NetworkStartError",
@@ -127,9 +129,15 @@ class NetworkManager:
     The local node needs an object dictionary with 0x1F80 bit 0 set and its
     slaves in 0x1F81 (sub-index = node-id)."""
 
-    def __init__(self, context: LineContext, configurator: ConfigManager) -> None:
+    def __init__(self, context: LineContext, configurator: ConfigManager,
+                 local_od: Callable[[], Optional[ObjectDictionary]]) -> None:
         self._context = context
         self._configurator = configurator
+        self._local_od = local_od
+        # start(): the slaves configured here (node -> DCF) and whether the
+        # application answers the configuration hook of the others
+        self._dcfs: Dict[int, DcfSource] = {}
+        self._app_configures = False
         self._where = f"network manager of {context.where}"
         self._callbacks = CallbackList(self._where)
         self._events: List[ManagerEvent] = []
@@ -150,12 +158,20 @@ class NetworkManager:
                                             timeout_ms=timeout_ms)
 
     def start(self, *, software_hook: bool = False, config_hook: bool = False,
-              operational_hook: bool = False, parallel: int = 0, retry_ms: int = 0) -> None:
+              operational_hook: bool = False, parallel: int = 0, retry_ms: int = 0,
+              configurations: Optional[Mapping[int, DcfSource]] = None) -> None:
         """(Re)start the network boot-up. A hook set here makes the manager wait
         for the matching continue_*() call; without it the manager answers
         itself (software update: failed, configuration: done, operational: go).
         parallel: boot processes at once (0: the client's channels); retry_ms:
-        a silent slave is asked again after (0: 1 s)."""
+        a silent slave is asked again after (0: 1 s).
+
+        configurations: {node: concise DCF bytes or a DCF / XDC / concise file}
+        written by the manager itself when the start-up finds that node's
+        configuration outdated (0x1020 against 0x1F26/0x1F27, which are
+        written as its stamp); a concise DCF in the local OD's 0x1F22:node
+        (a DOMAIN's default) counts too. A refused entry ends the node's boot
+        with error J. The hook (config_hook) then comes only for the others."""
         where = f"start() of the {self._where}"
         if self._context.local_node_id is None:
             raise ConfigurationError(f"{where}: the line has no local node; create one with "
@@ -164,11 +180,18 @@ class NetworkManager:
             if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= top:
                 raise ConfigurationError(f"{where}: {name} must be an int 0..{top}, got "
                                          f"{value!r}")
-        hooks = ((_HOOK_SOFTWARE if software_hook else 0) | (_HOOK_CONFIG if config_hook else 0)
+        dcfs = self._concise_in_od()
+        dcfs.update(configurations or {})
+        for node in dcfs:
+            check_node_id(node, f"{where}: configurations")
+        hooks = ((_HOOK_SOFTWARE if software_hook else 0)
+                 | (_HOOK_CONFIG if config_hook or dcfs else 0)
                  | (_HOOK_OPERATIONAL if operational_hook else 0))
         with self._context.cond:
             self._outcome = None
             self._events.clear()
+            self._dcfs = dcfs
+            self._app_configures = config_hook
         self._context.runtime.manager_start(self._context.index, hooks, parallel, retry_ms,
                                             where)
         self._running = True
@@ -277,6 +300,55 @@ class NetworkManager:
             raise NetworkStartError(halted.node_id, halted.error)
 
     # ---------------------------------------------------------------- events
+    # ---------------------------------------------------------------- configurations
+    def _concise_in_od(self) -> Dict[int, DcfSource]:
+        """{node: concise DCF} of the local OD's 0x1F22 (non-empty DOMAIN defaults)."""
+        od = self._local_od()
+        found: Dict[int, DcfSource] = {}
+        for node in range(1, 128):
+            entry = od.get_variable(0x1F22, node) if od is not None else None
+            value = entry.default if entry is not None else None
+            if isinstance(value, (bytes, bytearray)) and value:
+                found[node] = bytes(value)
+        return found
+
+    def _stamp_of(self, node: int) -> Stamp:
+        """(0x1F26:node, 0x1F27:node) of the local OD when both are set, else False."""
+        od = self._local_od()
+        values = []
+        for index in (0x1F26, 0x1F27):
+            entry = od.get_variable(index, node) if od is not None else None
+            value = None if entry is None else \
+                entry.value if entry.value is not None else entry.default
+            values.append(value)
+        date, time = values
+        if isinstance(date, int) and isinstance(time, int) and date and time:
+            return (date, time)
+        return False
+
+    def _configure_in_start_up(self, node: int, dcf: Optional[DcfSource]) -> None:
+        """Answer the configuration hook of node: write dcf (none: nothing to
+        write), then continue, on a thread of its own (the dispatcher must
+        not wait for the transfers' ends)."""
+        def run() -> None:
+            done = True
+            if dcf is not None:
+                try:
+                    result = self.configure(node, dcf, self._stamp_of(node)).result()
+                    done = result.ok
+                    if not done:
+                        log.warning("%s: %s", self._where, result)
+                except CanopenFDError as exc:
+                    log.warning("%s: configuring node %d: %s", self._where, node, exc)
+                    done = False
+            try:
+                self.continue_config(node, done)
+            except CanopenFDError as exc:   # closed or stopped meanwhile
+                log.debug("%s: %s", self._where, exc)
+
+        threading.Thread(target=run, name=f"canopenfd configure node {node}",
+                         daemon=True).start()
+
     def _event(self, event: Event) -> Deferred:
         """CO_EV_MANAGER (under the line's condition): record, then callbacks."""
         report = _event_of(event)
@@ -284,6 +356,10 @@ class NetworkManager:
             return None
         self._events.append(report)
         calls: List[Callable[[], None]] = []
+        if report.kind == "update-config" and (report.node_id in self._dcfs
+                                               or not self._app_configures):
+            dcf = self._dcfs.get(report.node_id)
+            calls.append(lambda: self._configure_in_start_up(report.node_id, dcf))
         if report.kind in ("network-started", "halted") and self._outcome is None:
             self._outcome = (report.kind == "network-started",
                              report if report.kind == "halted" else None)
