@@ -131,8 +131,11 @@ def test_lss_texts_of_the_frames_our_master_sends(net, bus_name):
     line = net.open_line(bus_name, mode="classic")
     line.lss.switch_global("configuration")
     line.lss.switch_global("waiting")
-    texts = frames.wait_for(lambda c: [decode(f) for f in c if f.id == 0x7E5][:2] or None, 5,
-                            "two LSS requests")
+    def two_requests(calls):
+        texts = [decode(f) for f in calls if f.id == 0x7E5]
+        return texts[:2] if len(texts) >= 2 else None
+
+    texts = frames.wait_for(two_requests, 5, "two LSS requests")
     assert texts == ["LSS switch global configuration", "LSS switch global waiting"]
 
 
