@@ -352,3 +352,40 @@ def test_a_refused_configuration_ends_the_boot_with_j(net, bus_name, mode):
     with pytest.raises(NetworkStartError, match="slave 2 failed with error 'J'"):
         rig.manager.wait_started(scaled(10))
     assert rig.slaves[2][0x1020][1].raw == 1      # not stamped
+
+
+# ------------------------------------------------------------------ 0x1F82 request NMT
+def test_request_nmt_object_commands_slaves(net, bus_name, mode):
+    """A tool writes the manager's 0x1F82:n over SDO/USDO: the manager sends
+    that NMT command (bytes checked on the bus); 0x80 = all nodes; a node
+    outside the network list or an unknown state is refused with 0x06090030;
+    the entry reads as the slave's last state heard."""
+    from canopenfd import AbortError
+    od = manager_od(mode, 0x01, {2: 0x05, 3: 0x05})
+    array = ODArray("Request NMT", 0x1F82)
+    array.add_member(ODVariable("Highest sub-index supported", 0x1F82, 0, DataType.UNSIGNED8,
+                                "ro", 0x80))
+    for sub in (*range(1, 6), 0x80):
+        array.add_member(ODVariable(f"Request NMT {sub}", 0x1F82, sub, DataType.UNSIGNED8,
+                                    "rw", 0))
+    od.add_object(array)
+    rig = Rig(net, bus_name, mode, od, slave_heartbeat_ms=50)
+    rig.manager.start()
+    rig.manager.wait_started(scaled(10))
+    tool = net.open_line(bus_name, mode=mode).add_node(MANAGER, od=od)
+    mark = len(rig.nmt_frames())
+    tool.write("Request NMT.Request NMT 3", 4)              # stop node 3
+    rig.slaves[3].nmt.wait_for_state("STOPPED", timeout=scaled(2))
+    tool.write("Request NMT.Request NMT 128", 127)          # all nodes pre-operational
+    rig.slaves[2].nmt.wait_for_state("PRE-OPERATIONAL", timeout=scaled(2))
+    assert rig.nmt_frames()[mark:] == [bytes([0x02, 3]), bytes([0x80, 0])]
+    with pytest.raises(AbortError) as refused:
+        tool.write("Request NMT.Request NMT 4", 5)          # not in the network list
+    assert refused.value.code == 0x06090030
+    with pytest.raises(AbortError) as refused:
+        tool.write("Request NMT.Request NMT 2", 9)          # no such state
+    assert refused.value.code == 0x06090030
+    deadline = time.monotonic() + scaled(2)
+    while tool.read("Request NMT.Request NMT 3") != 0x7F and time.monotonic() < deadline:
+        time.sleep(0.02)                                    # its heartbeat says pre-op
+    assert tool.read("Request NMT.Request NMT 3") == 0x7F

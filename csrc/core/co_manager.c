@@ -55,6 +55,68 @@ static bool send_nmt(co_manager_t *m, co_nmt_command_t command, uint8_t node_id)
     return co_nmt_master_send(m->line, m->local, command, node_id, self);
 }
 
+/* ------------------------------------------------------------ 0x1F82 request NMT */
+
+enum { OD_REQUEST_NMT = 0x1F82, REQUEST_ALL_NODES = 0x80 };
+
+/* The NMT command a 0x1F82 value asks for (CiA 302-2: the state wanted). */
+static bool request_command(uint8_t value, co_nmt_command_t *out)
+{
+    switch (value) {
+    case 4: *out = CO_NMT_CMD_STOP; return true;
+    case 5: *out = CO_NMT_CMD_START; return true;
+    case 6: *out = CO_NMT_CMD_RESET_NODE; return true;
+    case 7: *out = CO_NMT_CMD_RESET_COMMUNICATION; return true;
+    case 127: *out = CO_NMT_CMD_PRE_OPERATIONAL; return true;
+    default: return false;
+    }
+}
+
+/* A network write of 0x1F82:n: a state the manager knows a command for, to a
+ * node of the network list (0x1F81:n bit 0) or to all (sub 0x80). */
+static uint32_t request_check(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                              const uint8_t *value, uint32_t length, void *user)
+{
+    (void)xfer;
+    (void)user;
+    uint8_t sub = co_od_entry_sub(e);
+    co_nmt_command_t command;
+    if (sub == 0 || length != 1) {
+        return CO_ABORT_NONE;          /* the OD's own checks say the rest */
+    }
+    if (!request_command(value[0], &command) ||
+        (sub != REQUEST_ALL_NODES && !(od_u32(od, 0x1F81, sub) & CO_BOOT_ASSIGN_SLAVE))) {
+        return CO_ABORT_INVALID_VALUE;
+    }
+    return CO_ABORT_NONE;
+}
+
+static void request_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin,
+                            void *user)
+{
+    uint8_t sub = co_od_entry_sub(e);
+    uint8_t value;
+    co_nmt_command_t command;
+    if (origin != CO_ORIGIN_NETWORK || sub == 0 || !co_od_get_u8(od, OD_REQUEST_NMT, sub, &value) ||
+        !request_command(value, &command)) {
+        return;                        /* the manager's own state updates come here too */
+    }
+    co_manager_t *m = user;
+    (void)send_nmt(m, command, sub == REQUEST_ALL_NODES ? 0 : sub);
+}
+
+static const co_od_handler_t request_handler = {.check_write = request_check,
+                                                 .after_write = request_written};
+
+/* 0x1F82:n reads as the last state the manager heard of slave n. */
+static void request_show_state(co_manager_t *m, uint8_t node_id, uint8_t state)
+{
+    if (m->request_nmt) {
+        uint8_t value = state == CO_NMT_INITIALISING ? (uint8_t)CO_NMT_PRE_OPERATIONAL : state;
+        (void)co_od_put(m->od, OD_REQUEST_NMT, node_id, &value, 1);
+    }
+}
+
 /* ------------------------------------------------------------ the access */
 
 static void read_done(co_manager_slave_t *s, uint32_t abort)
@@ -377,6 +439,10 @@ bool co_manager_init(co_manager_t *m, co_line_t *line, co_od_t *od, co_nmt_t *lo
     m->access = (co_boot_access_t){.upload = access_upload, .nmt = access_nmt,
                                    .guard_request = access_guard, .report = access_report,
                                    .user = m};
+    if (co_od_has_index(od, OD_REQUEST_NMT)) {
+        m->request_nmt = co_od_subscribe(od, OD_REQUEST_NMT, 1, OD_REQUEST_NMT,
+                                         REQUEST_ALL_NODES, &request_handler, m);
+    }
     uint8_t sessions = sdo ? sdo->channel_count : usdo ? usdo->session_count : 0;
     m->parallel = config->parallel ? config->parallel : sessions;
     if (m->parallel == 0) {
@@ -400,6 +466,10 @@ void co_manager_deinit(co_manager_t *m)
 {
     co_manager_stop(m);
     if (m) {
+        if (m->request_nmt) {
+            co_od_unsubscribe(m->od, &request_handler, m);
+            m->request_nmt = false;
+        }
         m->line = NULL;
     }
 }
@@ -487,6 +557,7 @@ void co_manager_ec_frame(co_manager_t *m, const co_frame_t *frame)
     if (!s) {
         return;
     }
+    request_show_state(m, s->node_id, (uint8_t)(frame->data[0] & 0x7Fu));
     if (co_boot_running(&s->boot)) {
         co_boot_ec_frame(&s->boot, frame->data, frame->len);
         return;

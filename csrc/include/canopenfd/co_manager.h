@@ -20,6 +20,11 @@
  *   0x1016     heartbeat consumer times: a slave with one is watched by
  *              heartbeat, else with a guard time (0x1F81 bits 16..31) by
  *              node guarding (classic lines)
+ *   0x1F82:n   request NMT (when the OD has it): a network write of 4 stop,
+ *              5 start, 6 reset node, 7 reset communication or 127
+ *              pre-operational sends that NMT command to slave n of the list
+ *              (sub 0x80: to all nodes); other values or nodes: 0x06090030.
+ *              It reads as the last state the manager heard of slave n.
  *
  * co_manager_start runs a boot process (co_boot) for every slave of the
  * list, at most `parallel` at once, over the stack's SDO client (classic
@@ -170,6 +175,7 @@ struct co_manager {
     uint64_t started_us;
     co_manager_event_fn on_event;
     void *user;
+    bool request_nmt;                /* 0x1F82 (request NMT) hooked in the OD */
 };
 
 /* Slaves in the OD's network list (0x1F81:n bit 0, n = 1..127 but the
