@@ -117,6 +117,13 @@ static void tell_entry(co_config_t *cfg, uint16_t index, uint8_t sub, uint32_t a
     }
 }
 
+/* Upload the node's stamp 0x1020:sub (date, then time): 0 or the refusal. */
+static uint32_t read_stamp(co_config_t *cfg, uint8_t sub)
+{
+    cfg->state = sub == STAMP_DATE_SUB ? CO_CONFIG_READ_DATE : CO_CONFIG_READ_TIME;
+    return transfer(cfg, true, STAMP_INDEX, sub, NULL, 0);
+}
+
 /* Write the stamp 0x1020:sub, or end when its start is refused. */
 static void write_stamp(co_config_t *cfg, uint8_t sub)
 {
@@ -188,9 +195,7 @@ static void transfer_done(co_config_t *cfg, uint32_t abort, bool from_node, uint
                          false, 0);
             finish(cfg, CO_CONFIG_RESULT_TIMEOUT);
         } else if (equal && date) {
-            uint32_t refused;
-            cfg->state = CO_CONFIG_READ_TIME;
-            refused = transfer(cfg, true, STAMP_INDEX, STAMP_TIME_SUB, NULL, 0);
+            uint32_t refused = read_stamp(cfg, STAMP_TIME_SUB);
             if (refused != 0) {
                 note_failure(cfg, STAMP_INDEX, STAMP_TIME_SUB, refused, false, 0);
                 finish(cfg, CO_CONFIG_RESULT_FAILED);
@@ -283,9 +288,8 @@ co_config_start_status_t co_config_start(co_config_t *cfg, const co_config_reque
     cfg->result.node = req->node;
     cfg->cancelling = false;
     (void)co_concise_iter_init(&cfg->it, req->dcf, req->dcf_length);
-    if (req->check_stamp) {
-        cfg->state = CO_CONFIG_READ_DATE;
-        refused = transfer(cfg, true, STAMP_INDEX, STAMP_DATE_SUB, NULL, 0);
+    if (req->check_stamp && !req->force) {
+        refused = read_stamp(cfg, STAMP_DATE_SUB);
         if (refused != 0) {
             cfg->state = CO_CONFIG_IDLE;
             cfg->result.abort = refused;
@@ -293,7 +297,8 @@ co_config_start_status_t co_config_start(co_config_t *cfg, const co_config_reque
         }
         return CO_CONFIG_START_OK;
     }
-    /* No stamp to compare: the first entry must start now, or nothing runs. */
+    /* No stamp to compare (or forced): the first entry must start now, or
+     * nothing runs. */
     {
         co_concise_iter_t probe = cfg->it;
         co_concise_entry_t first;

@@ -342,6 +342,11 @@ co_guard_monitor_t co_guard_master_monitor(const co_guard_master_t *master, uint
     return n ? n->monitor : CO_GUARD_MONITOR_OFF;
 }
 
+bool co_guard_master_guards(const co_guard_master_t *master, uint8_t node_id)
+{
+    return master && node_of(master, node_id) != NULL;
+}
+
 co_nmt_state_t co_guard_master_state(const co_guard_master_t *master, uint8_t node_id)
 {
     const co_guard_node_t *n = node_of(master, node_id);

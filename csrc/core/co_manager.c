@@ -78,11 +78,14 @@ static uint32_t request_check(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry
                               const uint8_t *value, uint32_t length, void *user)
 {
     (void)xfer;
-    (void)user;
+    const co_manager_t *m = user;
     uint8_t sub = co_od_entry_sub(e);
     co_nmt_command_t command;
     if (sub == 0 || length != 1) {
         return CO_ABORT_NONE;          /* the OD's own checks say the rest */
+    }
+    if (m->passive) {
+        return CO_ABORT_DATA_LOCAL;    /* another node is the active master */
     }
     if (!request_command(value[0], &command) ||
         (sub != REQUEST_ALL_NODES && !(od_u32(od, 0x1F81, sub) & CO_BOOT_ASSIGN_SLAVE))) {
@@ -111,9 +114,292 @@ static const co_od_handler_t request_handler = {.check_write = request_check,
 /* 0x1F82:n reads as the last state the manager heard of slave n. */
 static void request_show_state(co_manager_t *m, uint8_t node_id, uint8_t state)
 {
-    if (m->request_nmt) {
-        uint8_t value = state == CO_NMT_INITIALISING ? (uint8_t)CO_NMT_PRE_OPERATIONAL : state;
+    uint8_t value = state == CO_NMT_INITIALISING ? (uint8_t)CO_NMT_PRE_OPERATIONAL : state;
+    uint8_t shown;
+    /* heartbeats come every few ms: the OD (and its handlers) only hears of changes */
+    if (m->request_nmt && co_od_get_u8(m->od, OD_REQUEST_NMT, node_id, &shown) &&
+        shown != value) {
         (void)co_od_put(m->od, OD_REQUEST_NMT, node_id, &value, 1);
+    }
+}
+
+
+static bool in_network_list(const co_od_t *od, uint8_t node_id)
+{
+    return (od_u32(od, 0x1F81, node_id) & CO_BOOT_ASSIGN_SLAVE) != 0;
+}
+
+/* ------------------------------------------------------------ 0x1F83 request node guarding */
+
+enum { OD_REQUEST_GUARDING = 0x1F83 };
+
+/* The guard time and life time factor 0x1F81:n gives node n (0: none). */
+static uint16_t guard_time_of(const co_od_t *od, uint8_t node_id, uint8_t *factor)
+{
+    uint32_t assignment = od_u32(od, 0x1F81, node_id);
+    *factor = (uint8_t)(assignment >> 8);
+    return (uint16_t)(assignment >> 16);
+}
+
+static uint32_t guarding_check(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                               const uint8_t *value, uint32_t length, void *user)
+{
+    (void)xfer;
+    const co_manager_t *m = user;
+    uint8_t sub = co_od_entry_sub(e);
+    uint8_t factor;
+    if (sub == 0 || length != 1) {
+        return CO_ABORT_NONE;          /* the OD's own checks say the rest */
+    }
+    if (co_line_mode(m->line) != CO_MODE_CLASSIC || !m->guard) {
+        return CO_ABORT_UNSUPPORTED_ACCESS;   /* fd: no remote frames, no guarding */
+    }
+    if (m->passive) {
+        return CO_ABORT_DATA_LOCAL;
+    }
+    if (value[0] > 1 || (sub != REQUEST_ALL_NODES && !in_network_list(od, sub))) {
+        return CO_ABORT_INVALID_VALUE;
+    }
+    if (value[0] == 1 && sub != REQUEST_ALL_NODES && guard_time_of(od, sub, &factor) == 0) {
+        return CO_ABORT_DATA_STATE;    /* 0x1F81:n gives it no guard time */
+    }
+    return CO_ABORT_NONE;
+}
+
+static void guard_node(co_manager_t *m, uint8_t node_id, bool on)
+{
+    uint8_t factor;
+    uint16_t guard_ms = guard_time_of(m->od, node_id, &factor);
+    if (!on) {
+        co_guard_master_unguard(m->guard, node_id);
+    } else if (guard_ms != 0) {
+        (void)co_guard_master_guard(m->guard, node_id, guard_ms, factor);
+    }
+}
+
+static void guarding_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin,
+                             void *user)
+{
+    co_manager_t *m = user;
+    uint8_t sub = co_od_entry_sub(e);
+    uint8_t value;
+    if (origin != CO_ORIGIN_NETWORK || sub == 0 || !m->guard ||
+        !co_od_get_u8(od, OD_REQUEST_GUARDING, sub, &value)) {
+        return;
+    }
+    if (sub != REQUEST_ALL_NODES) {
+        guard_node(m, sub, value == 1);
+        return;
+    }
+    for (uint8_t id = 1; id <= 127; id++) {
+        if (id != co_line_node_id(m->line) && in_network_list(od, id)) {
+            guard_node(m, id, value == 1);
+        }
+    }
+}
+
+/* A read shows whether the node is guarded now (the manager guards and
+ * unguards its slaves itself too). */
+static uint32_t guarding_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                              void *user)
+{
+    (void)xfer;
+    const co_manager_t *m = user;
+    uint8_t sub = co_od_entry_sub(e);
+    uint8_t now = 0;
+    uint8_t shown;
+    if (sub == 0) {
+        return CO_ABORT_NONE;
+    }
+    if (sub == REQUEST_ALL_NODES) {
+        /* all: 1 when every slave of the list is guarded */
+        now = 1;
+        for (uint8_t id = 1; id <= 127; id++) {
+            if (id != co_line_node_id(m->line) && in_network_list(od, id) &&
+                !co_guard_master_guards(m->guard, id)) {
+                now = 0;
+            }
+        }
+    } else {
+        now = co_guard_master_guards(m->guard, sub) ? 1u : 0u;
+    }
+    if (co_od_get_u8(od, OD_REQUEST_GUARDING, sub, &shown) && shown != now) {
+        (void)co_od_put(od, OD_REQUEST_GUARDING, sub, &now, 1);
+    }
+    return CO_ABORT_NONE;
+}
+
+static const co_od_handler_t guarding_handler = {.before_read = guarding_read,
+                                                  .check_write = guarding_check,
+                                                  .after_write = guarding_written};
+
+/* ------------------------------------------------------------ 0x1F25 configuration request */
+
+enum { OD_CONFIG_REQUEST = 0x1F25, OD_CONCISE_DCF = 0x1F22 };
+
+static bool config_asked(const co_manager_t *m, uint8_t node_id)
+{
+    return (m->config_pending[node_id / 8] & (1u << (node_id % 8))) != 0 ||
+           m->config_node == node_id;
+}
+
+static bool has_concise(const co_od_t *od, uint8_t node_id)
+{
+    return co_od_find(od, OD_CONCISE_DCF, node_id) != NULL;
+}
+
+static uint32_t config_check(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
+                             const uint8_t *value, uint32_t length, void *user)
+{
+    (void)xfer;
+    const co_manager_t *m = user;
+    uint8_t sub = co_od_entry_sub(e);
+    if (sub == 0 || length != 4) {
+        return CO_ABORT_NONE;          /* the OD's own checks say the rest */
+    }
+    if (m->passive) {
+        return CO_ABORT_DATA_LOCAL;
+    }
+    uint32_t signature = (uint32_t)value[0] | (uint32_t)value[1] << 8 |
+                         (uint32_t)value[2] << 16 | (uint32_t)value[3] << 24;
+    if (signature != CO_MANAGER_CONFIG_SIGNATURE) {
+        return CO_ABORT_DATA_STORE;    /* as CiA 301 answers a wrong save/load signature */
+    }
+    if (sub == REQUEST_ALL_NODES) {
+        return co_od_has_index(od, OD_CONCISE_DCF) ? CO_ABORT_NONE : CO_ABORT_NO_DATA;
+    }
+    if (!in_network_list(od, sub)) {
+        return CO_ABORT_INVALID_VALUE;
+    }
+    if (!has_concise(od, sub)) {
+        return CO_ABORT_NO_DATA;
+    }
+    return config_asked(m, sub) ? CO_ABORT_DATA_STATE : CO_ABORT_NONE;
+}
+
+static void config_next(co_manager_t *m);
+
+static void config_report(co_manager_t *m, uint8_t node_id, bool ok, uint16_t index, uint8_t sub,
+                          uint32_t abort)
+{
+    co_manager_report_t r;
+    memset(&r, 0, sizeof r);
+    r.event = CO_MANAGER_EV_CONFIGURED;
+    r.node_id = node_id;
+    co_manager_slave_t *s = slave_of(m, node_id);
+    r.mandatory = s ? s->mandatory : false;
+    r.error = ok ? (uint8_t)CO_BOOT_OK : (uint8_t)CO_BOOT_ERR_J;
+    r.boot.node_id = node_id;
+    r.boot.index = index;
+    r.boot.sub = sub;
+    r.boot.abort = abort;
+    emit(m, &r);
+}
+
+static void config_done(co_config_t *cfg, const co_config_result_t *result, void *user)
+{
+    (void)cfg;
+    co_manager_t *m = user;
+    uint8_t node_id = m->config_node;
+    m->config_node = 0;
+    bool ok = result->outcome == CO_CONFIG_RESULT_OK;
+    config_report(m, node_id, ok, result->index, result->sub, result->abort);
+    config_next(m);
+}
+
+/* Copy 0x1F22:n (a DOMAIN: read through the OD's handlers) into the DCF
+ * buffer: 0 or the abort code. */
+static uint32_t load_concise(co_manager_t *m, uint8_t node_id, uint32_t *length)
+{
+    co_od_xfer_t xfer;
+    uint8_t scratch[4];   /* domains stream through their handler: no copy kept */
+    co_od_xfer_init(&xfer, scratch, sizeof scratch);
+    uint32_t abort = co_od_read_begin(m->od, &xfer, OD_CONCISE_DCF, node_id);
+    *length = 0;
+    while (abort == 0) {
+        uint32_t n = 0;
+        bool last = false;
+        if (*length == m->dcf_capacity) {
+            abort = CO_ABORT_OUT_OF_MEMORY;
+            break;
+        }
+        abort = co_od_read_chunk(&xfer, m->dcf + *length, m->dcf_capacity - *length, &n, &last);
+        *length += n;
+        if (last) {
+            break;
+        }
+    }
+    if (abort == CO_OD_SPLIT) {
+        abort = CO_ABORT_DATA_STATE;   /* an application that answers later: not here */
+    }
+    co_od_xfer_abort(&xfer, abort);
+    return abort;
+}
+
+/* Start the next asked-for configuration unless one runs. */
+static void config_next(co_manager_t *m)
+{
+    while (m->config_node == 0 && !m->passive) {
+        uint8_t node_id = 0;
+        for (uint8_t id = 1; id <= 127 && node_id == 0; id++) {
+            if (m->config_pending[id / 8] & (1u << (id % 8))) {
+                node_id = id;
+            }
+        }
+        if (node_id == 0) {
+            return;
+        }
+        m->config_pending[node_id / 8] &= (uint8_t)~(1u << (node_id % 8));
+        uint32_t length = 0;
+        uint32_t abort = load_concise(m, node_id, &length);
+        if (abort != 0 || length == 0) {
+            config_report(m, node_id, false, OD_CONCISE_DCF, node_id,
+                          abort ? abort : CO_ABORT_NO_DATA);
+            continue;
+        }
+        uint32_t date = od_u32(m->od, 0x1F26, node_id);
+        uint32_t time = od_u32(m->od, 0x1F27, node_id);
+        co_config_request_t req = {.node = node_id, .dcf = m->dcf, .dcf_length = length,
+                                   .check_stamp = date != 0 && time != 0, .force = true,
+                                   .date = date, .time = time, .done = config_done,
+                                   .user = m};
+        m->config_node = node_id;
+        co_config_start_status_t started = co_config_start(&m->config, &req);
+        if (started != CO_CONFIG_START_OK) {
+            m->config_node = 0;
+            config_report(m, node_id, false, OD_CONCISE_DCF, node_id,
+                          started == CO_CONFIG_START_REFUSED ? m->config.result.abort
+                          : started == CO_CONFIG_START_BAD_DCF ? CO_ABORT_INVALID_VALUE
+                                                                : CO_ABORT_NO_DATA);
+        }
+    }
+}
+
+static void config_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin,
+                           void *user)
+{
+    co_manager_t *m = user;
+    uint8_t sub = co_od_entry_sub(e);
+    if (origin != CO_ORIGIN_NETWORK || sub == 0) {
+        return;
+    }
+    for (uint8_t id = 1; id <= 127; id++) {
+        if ((sub == REQUEST_ALL_NODES || id == sub) && id != co_line_node_id(m->line) &&
+            in_network_list(od, id) && has_concise(od, id) && !config_asked(m, id)) {
+            m->config_pending[id / 8] |= (uint8_t)(1u << (id % 8));
+        }
+    }
+    config_next(m);
+}
+
+static const co_od_handler_t config_handler = {.check_write = config_check,
+                                                .after_write = config_written};
+
+static void config_stop(co_manager_t *m)
+{
+    memset(m->config_pending, 0, sizeof m->config_pending);
+    if (m->config_node != 0) {
+        (void)co_config_cancel(&m->config);   /* its done() reports the node */
     }
 }
 
@@ -443,6 +729,21 @@ bool co_manager_init(co_manager_t *m, co_line_t *line, co_od_t *od, co_nmt_t *lo
         m->request_nmt = co_od_subscribe(od, OD_REQUEST_NMT, 1, OD_REQUEST_NMT,
                                          REQUEST_ALL_NODES, &request_handler, m);
     }
+    if (co_od_has_index(od, OD_REQUEST_GUARDING)) {
+        m->request_guard = co_od_subscribe(od, OD_REQUEST_GUARDING, 1, OD_REQUEST_GUARDING,
+                                           REQUEST_ALL_NODES, &guarding_handler, m);
+    }
+    if (CO_CONFIG_CLASSIC && sdo) {
+        co_config_init_sdo(&m->config, sdo);
+    } else if (CO_CONFIG_FD && usdo) {
+        co_config_init_usdo(&m->config, usdo);
+    }
+    m->dcf = config->dcf_buffer;
+    m->dcf_capacity = config->dcf_buffer ? config->dcf_capacity : 0;
+    if (m->dcf_capacity && (sdo || usdo) && co_od_has_index(od, OD_CONFIG_REQUEST)) {
+        m->request_config = co_od_subscribe(od, OD_CONFIG_REQUEST, 1, OD_CONFIG_REQUEST,
+                                            REQUEST_ALL_NODES, &config_handler, m);
+    }
     uint8_t sessions = sdo ? sdo->channel_count : usdo ? usdo->session_count : 0;
     m->parallel = config->parallel ? config->parallel : sessions;
     if (m->parallel == 0) {
@@ -451,26 +752,68 @@ bool co_manager_init(co_manager_t *m, co_line_t *line, co_od_t *od, co_nmt_t *lo
     return true;
 }
 
-void co_manager_stop(co_manager_t *m)
+static void stop_all(co_manager_t *m)
 {
-    if (!m || !m->line) {
-        return;
-    }
     for (uint8_t i = 0; i < m->count; i++) {
         stop_slave(m, &m->slaves[i]);
     }
     m->booting = 0;
 }
 
+void co_manager_stop(co_manager_t *m)
+{
+    if (!m || !m->line) {
+        return;
+    }
+    m->wanted = false;
+    stop_all(m);
+}
+
 void co_manager_deinit(co_manager_t *m)
 {
     co_manager_stop(m);
-    if (m) {
+    if (m && m->line) {
+        config_stop(m);
         if (m->request_nmt) {
             co_od_unsubscribe(m->od, &request_handler, m);
             m->request_nmt = false;
         }
+        if (m->request_guard) {
+            co_od_unsubscribe(m->od, &guarding_handler, m);
+            m->request_guard = false;
+        }
+        if (m->request_config) {
+            co_od_unsubscribe(m->od, &config_handler, m);
+            m->request_config = false;
+        }
         m->line = NULL;
+    }
+}
+
+void co_manager_set_active(co_manager_t *m, bool active)
+{
+    if (!m || !m->line) {
+        return;
+    }
+    if (!active) {
+        if (m->passive) {
+            return;
+        }
+        /* another master runs the network now: hands off the slaves */
+        m->passive = true;
+        stop_all(m);
+        config_stop(m);
+        m->phase = CO_MANAGER_IDLE;
+        emit_simple(m, CO_MANAGER_EV_PASSIVE, NULL, 0, 0);
+        return;
+    }
+    bool was_passive = m->passive;
+    m->passive = false;
+    if (was_passive) {
+        emit_simple(m, CO_MANAGER_EV_ACTIVE, NULL, 0, 0);
+    }
+    if (m->wanted && (was_passive || m->phase == CO_MANAGER_IDLE)) {
+        (void)co_manager_start(m);   /* boots every slave: they were reset */
     }
 }
 
@@ -505,7 +848,12 @@ co_manager_status_t co_manager_start(co_manager_t *m)
     if (co_manager_slaves_in(m->od, own) > m->capacity) {
         return CO_MANAGER_NO_ROOM;
     }
-    co_manager_stop(m);
+    stop_all(m);
+    m->wanted = true;
+    if (m->passive) {
+        m->phase = CO_MANAGER_IDLE;   /* runs once this node is the active master */
+        return CO_MANAGER_OK;
+    }
     m->startup = startup;
     m->boot_time_ms = od_u32(m->od, 0x1F89, 0);
     m->started_us = co_line_now(m->line);
@@ -558,6 +906,9 @@ void co_manager_ec_frame(co_manager_t *m, const co_frame_t *frame)
         return;
     }
     request_show_state(m, s->node_id, (uint8_t)(frame->data[0] & 0x7Fu));
+    if (m->passive) {
+        return;   /* another master boots the slaves */
+    }
     if (co_boot_running(&s->boot)) {
         co_boot_ec_frame(&s->boot, frame->data, frame->len);
         return;
@@ -577,7 +928,7 @@ void co_manager_ec_lost(co_manager_t *m, uint8_t node_id)
         return;
     }
     co_manager_slave_t *s = slave_of(m, node_id);
-    if (!s || s->status != CO_MANAGER_SLAVE_BOOTED) {
+    if (!s || s->status != CO_MANAGER_SLAVE_BOOTED || m->passive) {
         return;
     }
     if (s->mandatory && (m->startup & CO_MANAGER_STARTUP_STOP_ALL)) {

@@ -995,6 +995,10 @@ static void on_flyma(co_flyma_t *flyma, co_flyma_event_t event, co_flyma_state_t
     co_stack_t *s = user;
     if (event == CO_FLYMA_EV_STATE) {
         flyma_watch(s, state == CO_FLYMA_SLAVE ? master : 0);
+        if (s->has_manager) {
+            /* only the active master manages the network */
+            co_manager_set_active(&s->manager, state == CO_FLYMA_MASTER);
+        }
     }
     if (s->flyma_ind) {
         s->flyma_ind(flyma, event, state, master, priority, s->flyma_user);
@@ -1045,6 +1049,9 @@ void co_stack_flyma_deinit(co_stack_t *stack)
     flyma_watch(stack, 0);
     co_flyma_deinit(&stack->flyma);
     stack->has_flyma = false;
+    if (stack->has_manager) {
+        co_manager_set_active(&stack->manager, true);   /* no other master to defer to */
+    }
 }
 
 /* ---------------------------------------------------------------- the manager */
@@ -1065,12 +1072,23 @@ static uint8_t manager_slaves(co_stack_t *s)
     return n ? n : 1u;
 }
 
+/* Room for a 0x1F22 DCF when the OD serves 0x1F25 (0: none taken). */
+static uint32_t manager_dcf_room(const co_stack_t *s, uint32_t asked)
+{
+    if (!co_od_has_index(s->od, 0x1F25)) {
+        return 0;
+    }
+    return asked ? asked : (uint32_t)CO_MANAGER_DCF_BUFFER;
+}
+
 size_t co_stack_manager_need(co_stack_t *stack)
 {
     if (!stack || !stack->has_node || !stack->od) {
         return 0;
     }
-    return CO_STACK_BLOCK(sizeof(co_manager_slave_t) * manager_slaves(stack));
+    uint32_t dcf = manager_dcf_room(stack, 0);
+    return CO_STACK_BLOCK(sizeof(co_manager_slave_t) * manager_slaves(stack)) +
+           (dcf ? CO_STACK_BLOCK(dcf) : 0u);
 }
 
 co_stack_status_t co_stack_manager_init(co_stack_t *stack,
@@ -1093,10 +1111,17 @@ co_stack_status_t co_stack_manager_init(co_stack_t *stack,
     if (!slaves) {
         return fail(s, CO_STACK_PART_MANAGER, CO_STACK_ERR_NO_MEMORY);
     }
+    uint32_t dcf_room = manager_dcf_room(s, config->dcf_capacity);
+    uint8_t *dcf = dcf_room ? take(s, OWNER_MANAGER, dcf_room) : NULL;
+    if (dcf_room && !dcf) {
+        give_back(s, OWNER_MANAGER);
+        return fail(s, CO_STACK_PART_MANAGER, CO_STACK_ERR_NO_MEMORY);
+    }
     co_manager_config_t c = {.slaves = slaves, .capacity = capacity,
                              .parallel = config->parallel, .hooks = config->hooks,
                              .retry_ms = config->retry_ms, .on_event = config->on_event,
-                             .user = config->user};
+                             .user = config->user, .dcf_buffer = dcf,
+                             .dcf_capacity = dcf_room};
     if (!co_manager_init(&s->manager, s->line, s->od, &s->node.nmt,
                          s->has_sdo_client ? &s->sdo_client : NULL,
                          s->has_usdo_client ? &s->usdo_client : NULL,
@@ -1106,6 +1131,10 @@ co_stack_status_t co_stack_manager_init(co_stack_t *stack,
     }
     s->has_manager = true;
     co_hb_consumer_set_filter(&s->hb_consumer, manager_ec_filter, s);
+    if (s->has_flyma) {
+        /* a flying master decides whether this node manages the network */
+        co_manager_set_active(&s->manager, co_flyma_state(&s->flyma) == CO_FLYMA_MASTER);
+    }
     return CO_STACK_OK;
 }
 

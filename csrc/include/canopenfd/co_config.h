@@ -8,7 +8,7 @@
  *
  * A configuration:
  *   1. with expected date and time (the values a manager keeps in 0x1F26 /
- *      0x1F27 for the node): upload the node's 0x1020:01 and 0x1020:02; when
+ *      0x1F27 for the node) and not `force`: upload the node's 0x1020:01 and 0x1020:02; when
  *      both equal the expected values the node is configured already, the
  *      result is SKIPPED and nothing is written. A node that cannot answer
  *      (timeout) ends the configuration with TIMEOUT; any other refusal (the
@@ -82,6 +82,8 @@ typedef struct co_config_request {
     uint32_t date;                  /* expected 0x1020:01 (0x1F26:node) */
     uint32_t time;                  /* expected 0x1020:02 (0x1F27:node) */
     bool continue_on_error;         /* write the rest after a refused entry */
+    bool force;                     /* with check_stamp: write without comparing 0x1020
+                                       first (a configuration request), stamp at the end */
     uint32_t timeout_ms;            /* per frame; 0 = the client's default */
     co_config_entry_fn entry;       /* optional */
     co_config_done_fn done;         /* required */

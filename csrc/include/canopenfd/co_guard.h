@@ -169,6 +169,8 @@ void co_guard_master_unguard(co_guard_master_t *master, uint8_t node_id);
 void co_guard_master_expect_state(co_guard_master_t *master, uint8_t node_id,
                                   co_nmt_state_t state);
 co_guard_monitor_t co_guard_master_monitor(const co_guard_master_t *master, uint8_t node_id);
+/* Whether node_id is in the guard table (guarded from guard() to unguard()). */
+bool co_guard_master_guards(const co_guard_master_t *master, uint8_t node_id);
 co_nmt_state_t co_guard_master_state(const co_guard_master_t *master, uint8_t node_id);
 /* Frame hand-over (co_rx_other_fn): takes the data frames of guarded nodes
  * on 0x700 + node-id, except a boot-up (0x00), which it notes (the node's

@@ -25,6 +25,23 @@
  *              pre-operational sends that NMT command to slave n of the list
  *              (sub 0x80: to all nodes); other values or nodes: 0x06090030.
  *              It reads as the last state the manager heard of slave n.
+ *   0x1F83:n   request node guarding (classic lines): a network write of 1
+ *              guards slave n with its 0x1F81:n guard time and factor, 0
+ *              stops (sub 0x80: every slave of the list); it reads 1 while
+ *              n is guarded. Fd lines refuse writes with 0x06010000 (no
+ *              remote frames, so no guarding); a node outside the list or
+ *              another value 0x06090030, no guard time 0x08000022.
+ *   0x1F25:n   configuration request (CiA 302-3): a network write of "conf"
+ *              (0x666E6F63) downloads the concise DCF of 0x1F22:n to slave n
+ *              (sub 0x80: every slave with a 0x1F22 entry), one node after
+ *              the other, stamping 0x1020 from 0x1F26/0x1F27 when both are
+ *              set; CO_MANAGER_EV_CONFIGURED per node. Another value:
+ *              0x08000020; no 0x1F22 entry: 0x08000024; that node's
+ *              configuration still pending or running: 0x08000022.
+ *
+ * While another node is the active master (flying master, see
+ * co_manager_set_active) the manager sends nothing: no NMT, no boot,
+ * and 0x1F82/0x1F83/0x1F25 writes are refused with 0x08000021.
  *
  * co_manager_start runs a boot process (co_boot) for every slave of the
  * list, at most `parallel` at once, over the stack's SDO client (classic
@@ -46,6 +63,7 @@
 #define CO_MANAGER_H
 
 #include "canopenfd/co_boot.h"
+#include "canopenfd/co_config.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
 #include "canopenfd/co_od.h"
@@ -54,7 +72,9 @@
 
 enum {
     CO_MANAGER_DEFAULT_RETRY_MS = 1000,   /* a silent slave is asked again after this */
-    CO_MANAGER_READ_BUFFER = 8            /* bytes kept of one read (checked values: 4) */
+    CO_MANAGER_READ_BUFFER = 8,           /* bytes kept of one read (checked values: 4) */
+    CO_MANAGER_DCF_BUFFER = 1024,         /* default room for one 0x1F22 concise DCF */
+    CO_MANAGER_CONFIG_SIGNATURE = 0x666E6F63   /* "conf" written to 0x1F25 */
 };
 
 /* 0x1F80 bits. */
@@ -103,8 +123,15 @@ typedef enum co_manager_event {
     CO_MANAGER_EV_NETWORK_STARTED = 7,   /* every mandatory slave booted, start done */
     CO_MANAGER_EV_HALTED = 8,            /* a mandatory slave failed (node, error) */
     CO_MANAGER_EV_SLAVE_STARTED = 9,     /* NMT start sent to node (0: all) */
-    CO_MANAGER_EV_ERROR_CONTROL = 10     /* a booted slave's heartbeat / guarding was
+    CO_MANAGER_EV_ERROR_CONTROL = 10,    /* a booted slave's heartbeat / guarding was
                                             lost (reaction in `command`) */
+    CO_MANAGER_EV_CONFIGURED = 11,       /* a 0x1F25 configuration request of node
+                                            ended: error 0 or J (boot.index/sub/abort:
+                                            the first failure) */
+    CO_MANAGER_EV_ACTIVE = 12,           /* the flying master made this node the
+                                            active master: the start-up runs */
+    CO_MANAGER_EV_PASSIVE = 13           /* another node is (or may become) the active
+                                            master: the manager stopped, sends nothing */
 } co_manager_event_t;
 
 typedef struct co_manager_report {
@@ -150,6 +177,8 @@ typedef struct co_manager_config {
     uint32_t retry_ms;               /* 0 = CO_MANAGER_DEFAULT_RETRY_MS */
     co_manager_event_fn on_event;    /* may be NULL */
     void *user;
+    uint8_t *dcf_buffer;             /* caller storage for one 0x1F22 DCF (0x1F25), */
+    uint32_t dcf_capacity;           /* NULL / 0: 0x1F25 is not served */
 } co_manager_config_t;
 
 struct co_manager {
@@ -176,6 +205,16 @@ struct co_manager {
     co_manager_event_fn on_event;
     void *user;
     bool request_nmt;                /* 0x1F82 (request NMT) hooked in the OD */
+    bool request_guard;              /* 0x1F83 (request node guarding) hooked */
+    bool request_config;             /* 0x1F25 (configuration request) hooked */
+    bool wanted;                     /* started, not stopped by the application */
+    bool passive;                    /* another node is the active master */
+    /* 0x1F25: one configuration at a time over the client */
+    co_config_t config;
+    uint8_t *dcf;
+    uint32_t dcf_capacity;
+    uint8_t config_pending[16];      /* bit per node-id asked for */
+    uint8_t config_node;             /* node being configured, 0 = none */
 };
 
 /* Slaves in the OD's network list (0x1F81:n bit 0, n = 1..127 but the
@@ -198,10 +237,21 @@ typedef enum co_manager_status {
 } co_manager_status_t;
 
 /* Read the OD and boot the network (again: every running process is
- * stopped first). */
+ * stopped first). While passive (another active master) the start waits
+ * until co_manager_set_active(m, true). */
 co_manager_status_t co_manager_start(co_manager_t *m);
 /* Stop every boot process and retry (the slaves stay as they are). */
 void co_manager_stop(co_manager_t *m);
+/* The flying master's decision (co_stack calls it on each of its state
+ * changes): active = this node is the active master: EV_ACTIVE, and a
+ * started manager runs its start-up from the beginning (boots the slaves);
+ * not active: every boot process and configuration stops, phase IDLE,
+ * EV_PASSIVE once, and nothing is sent until it is active again. */
+void co_manager_set_active(co_manager_t *m, bool active);
+static inline bool co_manager_passive(const co_manager_t *m)
+{
+    return m->passive;
+}
 
 /* Input from the stack: a data frame on 0x700 + node (peeked, never taken),
  * and a heartbeat / guarding loss of a node. */

@@ -210,6 +210,8 @@ typedef struct co_stack_manager_config {
     uint32_t retry_ms;           /* 0 = CO_MANAGER_DEFAULT_RETRY_MS */
     co_manager_event_fn on_event;   /* may be NULL */
     void *user;
+    uint32_t dcf_capacity;       /* OD with 0x1F25: room for one 0x1F22 concise DCF,
+                                    0 = CO_MANAGER_DCF_BUFFER */
 } co_stack_manager_config_t;
 
 /* A block the stack holds (what it gives back at deinit). */
