@@ -1034,6 +1034,9 @@ co_stack_status_t co_stack_flyma_init(co_stack_t *stack, const co_stack_flyma_co
     s->flyma_watch_ms = config->master_heartbeat_ms;
     s->flyma_watched = 0;
     co_node_attach_flyma(&s->node, &s->flyma);
+    if (s->has_manager) {
+        co_manager_set_active(&s->manager, false);   /* until the negotiation says */
+    }
     if (co_node_state(&s->node) != CO_NMT_INITIALISING) {
         co_flyma_boot(&s->flyma);   /* the node runs already */
     }
