@@ -393,3 +393,153 @@ def test_request_nmt_object_commands_slaves(net, bus_name, mode):
     while tool.read("Request NMT.Request NMT 3") != 0x7F and time.monotonic() < deadline:
         time.sleep(0.02)                                    # its heartbeat says pre-op
     assert tool.read("Request NMT.Request NMT 3") == 0x7F
+
+
+def request_objects(od, highest: int = 5, dcf_room: int = 64) -> None:
+    """0x1F82 request NMT, 0x1F83 request node guarding (UNSIGNED8), 0x1F25
+    configuration request (UNSIGNED32) for nodes 1..highest and 0x80, and
+    0x1F22 concise DCFs (DOMAINs of dcf_room bytes) for nodes 1..3."""
+    for index, name, kind in ((0x1F82, "Request NMT", DataType.UNSIGNED8),
+                              (0x1F83, "Request node guarding", DataType.UNSIGNED8),
+                              (0x1F25, "Configuration request", DataType.UNSIGNED32)):
+        array = ODArray(name, index)
+        array.add_member(ODVariable("Highest sub-index supported", index, 0,
+                                    DataType.UNSIGNED8, "ro", 0x80))
+        for sub in (*range(1, highest + 1), 0x80):
+            array.add_member(ODVariable(f"{name} {sub}", index, sub, kind, "rw", 0))
+        od.add_object(array)
+    array = ODArray("Concise DCF", 0x1F22)
+    array.add_member(ODVariable("Highest sub-index supported", 0x1F22, 0, DataType.UNSIGNED8,
+                                "ro", 3))
+    for sub in range(1, 4):
+        array.add_member(ODVariable(f"Concise DCF {sub}", 0x1F22, sub, DataType.DOMAIN, "rw",
+                                    b"", max_length=dcf_room))
+    od.add_object(array)
+
+
+CONF = 0x666E6F63   # "conf"
+
+
+def test_python_canopen_tool_writes_request_nmt(net):
+    """python-canopen's SDO client (a real tool, classic, python-can virtual
+    bus) writes our manager's 0x1F82:2: the NMT stop for node 2 goes on the
+    wire; written with two bytes instead of one, the CiA 301 abort
+    0x06070012 (length too high) comes back on 0x581, and no NMT."""
+    canopen = pytest.importorskip("canopen")
+    channel = f"manager-1f82-{os.getpid()}-{next(_channels)}"
+    od = manager_od("classic", 0x01, {2: 0x05})
+    request_objects(od)
+    frames = Recorder()
+    watch = net.open_line(bus=virtual_bus(channel), mode="classic", monitor=True)
+    watch.on_frame(frames)
+    slave = net.open_line(bus=virtual_bus(channel), mode="classic").create_local_node(
+        2, 50, od=demo_od("classic"))
+    line = net.open_line(bus=virtual_bus(channel), mode="classic")
+    line.create_local_node(MANAGER, od=od)
+    line.manager.start()
+    line.manager.wait_started(scaled(5))
+    slave.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    tool = canopen.Network()
+    tool.connect(interface="virtual", channel=channel)
+    try:
+        manager = canopen.RemoteNode(MANAGER, canopen.ObjectDictionary())
+        tool.add_node(manager)
+        manager.sdo.RESPONSE_TIMEOUT = scaled(1)
+        manager.sdo.download(0x1F82, 2, b"\x04")                  # stop node 2
+        slave.nmt.wait_for_state("STOPPED", timeout=scaled(2))
+        frames.wait_for(lambda calls: any(f.id == 0 and bytes(f.data) == b"\x02\x02"
+                                          for f in calls), 5, "NMT stop node 2")
+        before = [bytes(f.data) for f in frames.snapshot() if f.id == 0]
+        with pytest.raises(canopen.SdoAbortedError) as refused:
+            manager.sdo.download(0x1F82, 2, b"\x05\x00")         # U8 written as 2 bytes
+        assert refused.value.code == 0x06070012
+        abort = bytes([0x80, 0x82, 0x1F, 0x02, 0x12, 0x00, 0x07, 0x06])
+        frames.wait_for(lambda calls: any(f.id == 0x581 and bytes(f.data) == abort
+                                          for f in calls), 5, "the abort frame")
+        assert [bytes(f.data) for f in frames.snapshot() if f.id == 0] == before
+        assert slave.nmt.state.label == "STOPPED"
+    finally:
+        tool.disconnect()
+
+
+def test_request_node_guarding_object(net, bus_name, mode):
+    """A tool writes 0x1F83:2 = 1: the manager guards node 2 (its 0x1F81 guard
+    time 100 ms): remote frames on 0x702 on the wire, the entry reads 1; 0
+    stops them. On fd lines (no remote frames) the write is refused with
+    0x06010000."""
+    from canopenfd import AbortError
+    od = manager_od(mode, 0x01, {2: (100 << 16) | (3 << 8) | 0x05, 3: 0x05})
+    request_objects(od)
+    rig = Rig(net, bus_name, mode, od, slaves=(2,))
+    rig.manager.start()
+    rig.manager.wait_started(scaled(10))
+    tool = net.open_line(bus_name, mode=mode).add_node(MANAGER, od=od)
+    if mode == "fd":
+        with pytest.raises(AbortError) as refused:
+            tool.write("Request node guarding.Request node guarding 2", 1)
+        assert refused.value.code == 0x06010000
+        return
+    # the start-up guards node 2 itself (a guard time, no heartbeat)
+    assert tool.read("Request node guarding.Request node guarding 2") == 1
+    tool.write("Request node guarding.Request node guarding 2", 0)
+    assert tool.read("Request node guarding.Request node guarding 2") == 0
+    time.sleep(scaled(0.05))     # a request on its way is still carried
+    sent = sum(1 for f in rig.frames.snapshot() if f.id == 0x702 and f.rtr)
+    time.sleep(scaled(0.35))     # > 3 guard times: none more
+    assert sum(1 for f in rig.frames.snapshot() if f.id == 0x702 and f.rtr) <= sent + 1
+    tool.write("Request node guarding.Request node guarding 2", 1)
+    rig.frames.wait_for(lambda calls: sum(1 for f in calls if f.id == 0x702 and f.rtr)
+                        >= sent + 3, 5, "three more guarding requests to node 2")
+    assert tool.read("Request node guarding.Request node guarding 2") == 1
+    answers = [f for f in rig.frames.snapshot() if f.id == 0x702 and not f.rtr]
+    assert answers and all(len(f.data) == 1 for f in answers)   # node 2 answers each
+    with pytest.raises(AbortError) as refused:
+        tool.write("Request node guarding.Request node guarding 3", 1)   # no guard time
+    assert refused.value.code == 0x08000022
+    with pytest.raises(AbortError) as refused:
+        tool.write("Request node guarding.Request node guarding 4", 1)   # not a slave
+    assert refused.value.code == 0x06090030
+
+
+def test_configuration_request_object(net, bus_name, mode):
+    """CiA 302-3 configuration request: a tool downloads a concise DCF into the
+    manager's 0x1F22:2, then writes "conf" to 0x1F25:2: the manager downloads
+    it to node 2 (the SDO/USDO request carrying 0x1017 = 250 on the wire)
+    and stamps 0x1020 from 0x1F26/0x1F27; event 'configured'. A wrong
+    signature is refused with 0x08000020, a node without a slave entry with
+    0x06090030."""
+    from canopenfd import AbortError
+    from canopenfd.cli.demo_manager import DATE, TIME, add_node_array, add_stamp
+    from canopenfd.od.concise import build_concise
+    slave_od = demo_od(mode)
+    add_stamp(slave_od, (1, 1))
+    od = manager_od(mode, 0x01, {2: 0x05})
+    add_node_array(od, 0x1F26, "Expected configuration date", {2: DATE}, highest=5)
+    add_node_array(od, 0x1F27, "Expected configuration time", {2: TIME}, highest=5)
+    request_objects(od)
+    rig = Rig(net, bus_name, mode, od, slaves=(2,), slave_od=slave_od)
+    rig.manager.start()
+    rig.manager.wait_started(scaled(10))
+    tool = net.open_line(bus_name, mode=mode).add_node(MANAGER, od=od)
+    tool.write("Concise DCF.Concise DCF 2", build_concise([(0x1017, 0, (250).to_bytes(2, "little"))]))
+    with pytest.raises(AbortError) as refused:
+        tool.write("Configuration request.Configuration request 2", 0x65766173)   # "save"
+    assert refused.value.code == 0x08000020
+    with pytest.raises(AbortError) as refused:
+        tool.write("Configuration request.Configuration request 3", CONF)
+    assert refused.value.code == 0x06090030
+    tool.write("Configuration request.Configuration request 2", CONF)
+    done = rig.events.wait_for(lambda calls: [e for e in calls if e.kind == "configured"], 5,
+                               "the configuration request's end")
+    assert done[0].node_id == 2 and done[0].error == ""
+    assert rig.slaves[2][0x1017].raw == 250
+    assert (rig.slaves[2][0x1020][1].raw, rig.slaves[2][0x1020][2].raw) == (DATE, TIME)
+    if mode == "classic":
+        requests = [bytes(f.data) for f in rig.frames.snapshot() if f.id == 0x602]
+        assert bytes([0x2B, 0x17, 0x10, 0x00, 0xFA, 0x00, 0, 0]) in requests
+    else:
+        # USDO expedited download from client node 1 (CAN-ID 0x601) to node 2:
+        # 0 dest, 1 cs 0x01, 2 session, 3 sub, 4-5 index, 6 type, 7 N, 8.. data
+        usdo = [bytes(f.data) for f in rig.frames.snapshot() if f.id == 0x601 and
+                bytes(f.data)[:2] == b"\x02\x01" and bytes(f.data)[3:6] == b"\x00\x17\x10"]
+        assert [(d[7], d[8:10]) for d in usdo] == [(2, b"\xfa\x00")]

@@ -406,6 +406,9 @@ class ManagerEventCode(enum.IntEnum):
     HALTED = 8
     SLAVE_STARTED = 9
     ERROR_CONTROL = 10
+    CONFIGURED = 11
+    ACTIVE = 12
+    PASSIVE = 13
 
 
 class ManagerPhase(enum.IntEnum):

@@ -66,7 +66,12 @@ class ManagerEvent(NamedTuple):
 
     kind: 'boot' (a boot process report, see boot_event), 'slave-booted',
     'slave-failed', 'update-software', 'update-config', 'ready-operational',
-    'network-started', 'halted', 'slave-started', 'error-control'.
+    'network-started', 'halted', 'slave-started', 'error-control',
+    'configured' (a 0x1F25 configuration request of node_id ended: error ''
+    or 'J' with the first refused entry in od_index, od_sub and abort),
+    'active' (the flying master made this node the active master: the
+    start-up runs again), 'passive' (another node is, or may become, the
+    active master: this manager stopped and sends nothing).
     error: '' or the CiA 302-2 letter 'A'..'O'. For kind 'boot': boot_event
     ('started', 'checked', 'update-software', 'update-config', 'done'), step,
     and for 'checked' the entry read (index, sub), whether it matched, the
@@ -96,6 +101,9 @@ class ManagerEvent(NamedTuple):
             verdict = "ok" if self.matched else "differs"
             return (f"{where}: 0x{self.od_index:04X}:{self.od_sub:02X} expected "
                     f"0x{self.expected:08X}, {value}: {verdict}")
+        if self.kind == "configured" and self.error:
+            return (f"{where}: configuration request failed at 0x{self.od_index:04X}:"
+                    f"{self.od_sub:02X} (abort 0x{self.abort:08X})")
         if self.kind == "boot":
             text = f"{where}: boot {self.boot_event}"
             return text + (f" with error {self.error}" if self.error else "")
@@ -111,10 +119,10 @@ def _event_of(event: Event) -> Optional[ManagerEvent]:
     mandatory = bool((event.a >> 16) & 1)
     command_code = (event.a >> 24) & 0xFF
     command = NmtCommand(command_code) if command_code else None
-    if code != ManagerEventCode.BOOT:
+    if code not in (ManagerEventCode.BOOT, ManagerEventCode.CONFIGURED):
         return ManagerEvent(_name(code), event.node, error, mandatory, command)
     boot_event = _name(BootEvent(event.b & 0xFF)) if event.b & 0xFF else ""
-    step = _name(BootStep((event.b >> 8) & 0xFF))
+    step = _name(BootStep((event.b >> 8) & 0xFF)) if code == ManagerEventCode.BOOT else ""
     details = event.data if len(event.data) >= 16 else bytes(16)
     index, _state, got_length, expected, got, abort = struct.unpack_from("<HBBIII", details)
     return ManagerEvent(_name(code), event.node, error, mandatory, command,
@@ -360,6 +368,8 @@ class NetworkManager:
                                                or not self._app_configures):
             dcf = self._dcfs.get(report.node_id)
             calls.append(lambda: self._configure_in_start_up(report.node_id, dcf))
+        if report.kind == "active":
+            self._outcome = None   # the flying master's new start-up: wait for it
         if report.kind in ("network-started", "halted") and self._outcome is None:
             self._outcome = (report.kind == "network-started",
                              report if report.kind == "halted" else None)

@@ -25,7 +25,8 @@ static void on_manager_event(co_manager_t *m, const co_manager_report_t *r, void
     uint32_t bb = 0;
     co_frame_t detail;
     memset(&detail, 0, sizeof detail);
-    if (r->event == CO_MANAGER_EV_BOOT) {
+    /* a boot report, and a configuration request's failure, carry the entry */
+    if (r->event == CO_MANAGER_EV_BOOT || r->event == CO_MANAGER_EV_CONFIGURED) {
         bb = (uint32_t)b->event | (uint32_t)b->step << 8 | (uint32_t)b->sub << 16 |
              (uint32_t)(b->matched ? 1 : 0) << 24;
         detail.len = 16;
