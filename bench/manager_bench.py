@@ -37,7 +37,8 @@ def frame_bits_s(fd: bool, length: int) -> float:
 
 def run(slaves: int, entries: int, mode: str) -> None:
     import canopenfd
-    from canopenfd.cli.demo_manager import DATE, TIME, add_node_array, add_stamp
+    from canopenfd.cli.demo_manager import DATE, TIME
+    from canopenfd.od import add_node_array, add_stamp
     from canopenfd.od import DataType, ODVariable, demo_od
     from canopenfd.od.concise import build_concise
 

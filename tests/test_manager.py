@@ -311,7 +311,8 @@ def test_python_canopen_slave_kept_alive(net):
 def configured_rig(net, bus_name, mode, slaves_mandatory=0x0D, concise_in_od=None):
     """Manager 1 expecting stamp (DATE, TIME) on slaves 2 and 3 (both outdated:
     their 0x1020 is (1, 1)); concise_in_od: {node: bytes} in its 0x1F22."""
-    from canopenfd.cli.demo_manager import DATE, TIME, add_node_array, add_stamp
+    from canopenfd.cli.demo_manager import DATE, TIME
+    from canopenfd.od import add_node_array, add_stamp
     from canopenfd.od import ODArray
     slave_od = demo_od(mode)
     add_stamp(slave_od, (1, 1))
@@ -509,7 +510,8 @@ def test_configuration_request_object(net, bus_name, mode):
     signature is refused with 0x08000020, a node without a slave entry with
     0x06090030."""
     from canopenfd import AbortError
-    from canopenfd.cli.demo_manager import DATE, TIME, add_node_array, add_stamp
+    from canopenfd.cli.demo_manager import DATE, TIME
+    from canopenfd.od import add_node_array, add_stamp
     from canopenfd.od.concise import build_concise
     slave_od = demo_od(mode)
     add_stamp(slave_od, (1, 1))

@@ -13,7 +13,7 @@ from typing import Any, Callable, Dict, Tuple
 
 from ..line import Line
 from ..network import Network
-from ..od import DataType, ODArray, ODVariable, ObjectDictionary, demo_od
+from ..od import DataType, ODVariable, ObjectDictionary, add_node_array, add_stamp, demo_od
 from ..od.concise import build_concise
 from ..services.manager import ManagerEvent
 from .common import EXIT_FAILED, EXIT_OK
@@ -30,30 +30,6 @@ DEVICES: Dict[int, Tuple[str, int, Tuple[int, int]]] = {
 FRESH_ID = 4
 #: what the outdated device gets: heartbeat 200 ms (0x1017)
 NEW_CONFIG = [(0x1017, 0, (200).to_bytes(2, "little"))]
-
-
-def add_node_array(od: ObjectDictionary, index: int, name: str, values: Dict[int, int],
-                   highest: int = FRESH_ID) -> None:
-    """An ARRAY of UNSIGNED32 with one sub-index per node-id 1..highest."""
-    array = ODArray(name, index)
-    array.add_member(ODVariable("Highest sub-index supported", index, 0, DataType.UNSIGNED8,
-                                "ro", highest))
-    for node in range(1, highest + 1):
-        array.add_member(ODVariable(f"{name} {node}", index, node, DataType.UNSIGNED32, "rw",
-                                    values.get(node, 0)))
-    od.add_object(array)
-
-
-def add_stamp(od: ObjectDictionary, stamp: Tuple[int, int]) -> None:
-    """0x1020 verify configuration: date (days), time (ms)."""
-    array = ODArray("Verify configuration", 0x1020)
-    array.add_member(ODVariable("Highest sub-index supported", 0x1020, 0, DataType.UNSIGNED8,
-                                "ro", 2))
-    for sub, (name, value) in enumerate((("Configuration date", stamp[0]),
-                                         ("Configuration time", stamp[1])), start=1):
-        variable = ODVariable(name, 0x1020, sub, DataType.UNSIGNED32, "rw", value)
-        array.add_member(variable)
-    od.add_object(array)
 
 
 def device_od(mode: str, serial: int, stamp: Tuple[int, int]) -> ObjectDictionary:
@@ -73,10 +49,13 @@ def manager_od(mode: str) -> ObjectDictionary:
     od = demo_od(mode)
     od.add_object(ODVariable("NMT startup", 0x1F80, 0, DataType.UNSIGNED32, "rw", 0x01))
     slaves = {node: 0x0D for node in (2, 3, FRESH_ID)}
-    add_node_array(od, 0x1F81, "Slave assignment", slaves)
-    add_node_array(od, 0x1F85, "Vendor identification", {node: VENDOR for node in slaves})
-    add_node_array(od, 0x1F26, "Expected configuration date", {2: DATE, 3: DATE})
-    add_node_array(od, 0x1F27, "Expected configuration time", {2: TIME, 3: TIME})
+    add_node_array(od, 0x1F81, "Slave assignment", slaves, highest=FRESH_ID)
+    add_node_array(od, 0x1F85, "Vendor identification", {node: VENDOR for node in slaves},
+                   highest=FRESH_ID)
+    add_node_array(od, 0x1F26, "Expected configuration date", {2: DATE, 3: DATE},
+                   highest=FRESH_ID)
+    add_node_array(od, 0x1F27, "Expected configuration time", {2: TIME, 3: TIME},
+                   highest=FRESH_ID)
     return od
 
 

@@ -271,7 +271,9 @@ int co_rt_config_entries(co_rt_t *rt, int line, int handle, co_rt_config_entry_t
     return status;
 }
 
-int co_rt_config_cancel(co_rt_t *rt, int line, int handle)
+/* Cancel (release: and free) the configuration `handle` of a line: one
+ * prologue for both. A released slot's cancel posts no event. */
+static int cancel_or_release(co_rt_t *rt, int line, int handle, bool release)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
     if (!l) {
@@ -283,35 +285,24 @@ int co_rt_config_cancel(co_rt_t *rt, int line, int handle)
     if (s) {
         if (s->running) {
             co_line_set_time(&l->line, co_rt_now_us());
+            s->owner->closing = release;   /* released: nobody waits for its event */
             (void)co_config_cancel(&s->cfg);
+            s->owner->closing = false;
+        }
+        if (release) {
+            slot_clear(s);
         }
         status = CO_RT_OK;
     }
-    rt_kick(rt);
-    rt_mutex_unlock(&rt->lock);
-    return status;
+    return rt_kick_unlock(rt, status);
+}
+
+int co_rt_config_cancel(co_rt_t *rt, int line, int handle)
+{
+    return cancel_or_release(rt, line, handle, false);
 }
 
 int co_rt_config_release(co_rt_t *rt, int line, int handle)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    rt_mutex_lock(&rt->lock);
-    int status = CO_RT_ERR_STATE;
-    rt_config_slot_t *s = slot_of(rt, l, handle);
-    if (s) {
-        if (s->running) {
-            co_line_set_time(&l->line, co_rt_now_us());
-            s->owner->closing = true;    /* released: nobody waits for its event */
-            (void)co_config_cancel(&s->cfg);
-            s->owner->closing = false;
-        }
-        slot_clear(s);
-        status = CO_RT_OK;
-    }
-    rt_kick(rt);
-    rt_mutex_unlock(&rt->lock);
-    return status;
+    return cancel_or_release(rt, line, handle, true);
 }
