@@ -20,7 +20,7 @@ from helpers import Recorder, scaled, virtual_bus
 
 import canopenfd
 from canopenfd import ConfigurationError
-from canopenfd.od import DataType, ODArray, ODVariable, demo_od
+from canopenfd.od import DataType, ODArray, ODVariable, add_manager_requests, demo_od
 from canopenfd.services import ManagerEvent, NetworkStartError
 from canopenfd.services.manager import ManagerPhase, SlaveStatus
 from canopenfd.services.store import MemoryStore
@@ -396,28 +396,6 @@ def test_request_nmt_object_commands_slaves(net, bus_name, mode):
     assert tool.read("Request NMT.Request NMT 3") == 0x7F
 
 
-def request_objects(od, highest: int = 5, dcf_room: int = 64) -> None:
-    """0x1F82 request NMT, 0x1F83 request node guarding (UNSIGNED8), 0x1F25
-    configuration request (UNSIGNED32) for nodes 1..highest and 0x80, and
-    0x1F22 concise DCFs (DOMAINs of dcf_room bytes) for nodes 1..3."""
-    for index, name, kind in ((0x1F82, "Request NMT", DataType.UNSIGNED8),
-                              (0x1F83, "Request node guarding", DataType.UNSIGNED8),
-                              (0x1F25, "Configuration request", DataType.UNSIGNED32)):
-        array = ODArray(name, index)
-        array.add_member(ODVariable("Highest sub-index supported", index, 0,
-                                    DataType.UNSIGNED8, "ro", 0x80))
-        for sub in (*range(1, highest + 1), 0x80):
-            array.add_member(ODVariable(f"{name} {sub}", index, sub, kind, "rw", 0))
-        od.add_object(array)
-    array = ODArray("Concise DCF", 0x1F22)
-    array.add_member(ODVariable("Highest sub-index supported", 0x1F22, 0, DataType.UNSIGNED8,
-                                "ro", 3))
-    for sub in range(1, 4):
-        array.add_member(ODVariable(f"Concise DCF {sub}", 0x1F22, sub, DataType.DOMAIN, "rw",
-                                    b"", max_length=dcf_room))
-    od.add_object(array)
-
-
 CONF = 0x666E6F63   # "conf"
 
 
@@ -429,7 +407,7 @@ def test_python_canopen_tool_writes_request_nmt(net):
     canopen = pytest.importorskip("canopen")
     channel = f"manager-1f82-{os.getpid()}-{next(_channels)}"
     od = manager_od("classic", 0x01, {2: 0x05})
-    request_objects(od)
+    add_manager_requests(od, 5, dcf_nodes=3, dcf_room=64)
     frames = Recorder()
     watch = net.open_line(bus=virtual_bus(channel), mode="classic", monitor=True)
     watch.on_frame(frames)
@@ -470,7 +448,7 @@ def test_request_node_guarding_object(net, bus_name, mode):
     0x06010000."""
     from canopenfd import AbortError
     od = manager_od(mode, 0x01, {2: (100 << 16) | (3 << 8) | 0x05, 3: 0x05})
-    request_objects(od)
+    add_manager_requests(od, 5, dcf_nodes=3, dcf_room=64)
     rig = Rig(net, bus_name, mode, od, slaves=(2,))
     rig.manager.start()
     rig.manager.wait_started(scaled(10))
@@ -518,7 +496,7 @@ def test_configuration_request_object(net, bus_name, mode):
     od = manager_od(mode, 0x01, {2: 0x05})
     add_node_array(od, 0x1F26, "Expected configuration date", {2: DATE}, highest=5)
     add_node_array(od, 0x1F27, "Expected configuration time", {2: TIME}, highest=5)
-    request_objects(od)
+    add_manager_requests(od, 5, dcf_nodes=3, dcf_room=64)
     rig = Rig(net, bus_name, mode, od, slaves=(2,), slave_od=slave_od)
     rig.manager.start()
     rig.manager.wait_started(scaled(10))

@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 from typing import Optional
 
-from .builders import add_node_array, add_stamp
+from .builders import add_manager_requests, add_node_array, add_stamp
 from .datatypes import DataType, TimeDifference, TimeOfDay, decode, encode
 from .demo import demo_od
 from .eds import eds_from_text, export_dcf, export_eds, import_eds
@@ -35,7 +35,7 @@ __all__ = [
     "ObjectDictionary", "ODVariable", "ODRecord", "ODArray", "ObjectType", "format_index",
     "Problem", "OdError", "OdValueError", "OdFileError",
     "import_od", "import_eds", "import_xdd", "export_eds", "export_dcf", "demo_od",
-    "MAX_FILE_SIZE", "add_node_array", "add_stamp",
+    "MAX_FILE_SIZE", "add_node_array", "add_stamp", "add_manager_requests",
 ]
 
 
