@@ -340,6 +340,66 @@ static void test_request_nmt_wrong_length_aborts(void **state)
     fx_free(fx);
 }
 
+/* 0x1F82:n mirrors the slave's state, but the OD hears of it only when it
+ * changes: its after_write handlers see two changes, not every heartbeat. */
+static unsigned mirror_writes;
+
+static void count_mirror(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin, void *user)
+{
+    (void)od;
+    (void)user;
+    if (origin == CO_ORIGIN_LOCAL && co_od_entry_sub(e) == 2) {
+        mirror_writes++;
+    }
+}
+
+static const co_od_handler_t mirror_counter = {.after_write = count_mirror};
+
+static void test_request_nmt_mirror_written_on_change(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    const uint32_t assign[6] = {0, 0, 0x05};
+    station_t *m = fx_manager(fx, 1, CO_MANAGER_STARTUP_MANAGER, assign, NULL);
+    mirror_writes = 0;
+    assert_true(co_od_subscribe(&m->od.od, 0x1F82, 1, 0x1F82, 5, &mirror_counter, NULL));
+    assert_int_equal(co_stack_boot(&m->stack), CO_STACK_OK);
+    station_t *s2 = fx_slave(fx, 2, 20);   /* a heartbeat every 20 ms */
+    tu_run_until(&fx->tb, 10 * TU_MS);
+    sync_clocks(fx);
+    assert_int_equal(co_manager_start(manager_of(m)), CO_MANAGER_OK);
+    tu_run_until(&fx->tb, 1000 * TU_MS);
+    assert_int_equal(co_node_state(co_stack_node(&s2->stack)), CO_NMT_OPERATIONAL);
+    assert_true(tu_log_count_id(&fx->tb, 0x702) > 40);   /* the heartbeats heard */
+    uint8_t shown = 0;
+    assert_true(co_od_get_u8(&m->od.od, 0x1F82, 2, &shown));
+    assert_int_equal(shown, CO_NMT_OPERATIONAL);
+    assert_int_equal(mirror_writes, 2);   /* pre-operational (127), then operational (5) */
+    fx_free(fx);
+}
+
+/* co_stack_manager_need counts the 0x1F25 DCF buffer when the OD has 0x1F25. */
+static void test_memory_need_counts_the_dcf_buffer(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    const uint32_t assign[6] = {0, 0, 0x05, 0x05};
+    manager_od(fx, &fx->st[0].od, 1, CO_MANAGER_STARTUP_MANAGER, assign, NULL);
+    station_t *st = station(fx, 1);
+    co_stack_client_config_t cc = {.sessions = 2, .node_id = 1};
+    assert_int_equal(co_stack_client_init(&st->stack, &cc), CO_STACK_OK);
+    size_t need = co_stack_manager_need(&st->stack);
+    assert_int_equal(need, CO_STACK_BLOCK(2 * sizeof(co_manager_slave_t)) +
+                               CO_STACK_BLOCK(CO_MANAGER_DCF_BUFFER));
+    size_t before = st->arena.used;
+    co_stack_manager_config_t mc = {0};
+    assert_int_equal(co_stack_manager_init(&st->stack, &mc), CO_STACK_OK);
+    assert_int_equal(st->arena.used - before, need);
+    co_stack_manager_deinit(&st->stack);
+    assert_int_equal(st->arena.used, before);
+    fx_free(fx);
+}
+
 /* ------------------------------------------------------------ 0x1F83 */
 
 static void test_request_guarding_starts_and_stops_remote_frames(void **state)
@@ -598,6 +658,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_request_nmt_wrong_length_aborts),
+        cmocka_unit_test(test_request_nmt_mirror_written_on_change),
+        cmocka_unit_test(test_memory_need_counts_the_dcf_buffer),
         cmocka_unit_test(test_request_guarding_starts_and_stops_remote_frames),
         cmocka_unit_test(test_request_guarding_refused_on_fd),
         cmocka_unit_test(test_config_request_downloads_the_concise_dcf),
