@@ -55,6 +55,12 @@ static bool send_nmt(co_manager_t *m, co_nmt_command_t command, uint8_t node_id)
     return co_nmt_master_send(m->line, m->local, command, node_id, self);
 }
 
+/* Node n is a slave of the network list (0x1F81:n bit 0). */
+static bool in_network_list(const co_od_t *od, uint8_t node_id)
+{
+    return (od_u32(od, 0x1F81, node_id) & CO_BOOT_ASSIGN_SLAVE) != 0;
+}
+
 /* ------------------------------------------------------------ 0x1F82 request NMT */
 
 enum { OD_REQUEST_NMT = 0x1F82, REQUEST_ALL_NODES = 0x80 };
@@ -88,7 +94,7 @@ static uint32_t request_check(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry
         return CO_ABORT_DATA_LOCAL;    /* another node is the active master */
     }
     if (!request_command(value[0], &command) ||
-        (sub != REQUEST_ALL_NODES && !(od_u32(od, 0x1F81, sub) & CO_BOOT_ASSIGN_SLAVE))) {
+        (sub != REQUEST_ALL_NODES && !in_network_list(od, sub))) {
         return CO_ABORT_INVALID_VALUE;
     }
     return CO_ABORT_NONE;
@@ -121,12 +127,6 @@ static void request_show_state(co_manager_t *m, uint8_t node_id, uint8_t state)
         shown != value) {
         (void)co_od_put(m->od, OD_REQUEST_NMT, node_id, &value, 1);
     }
-}
-
-
-static bool in_network_list(const co_od_t *od, uint8_t node_id)
-{
-    return (od_u32(od, 0x1F81, node_id) & CO_BOOT_ASSIGN_SLAVE) != 0;
 }
 
 /* ------------------------------------------------------------ 0x1F83 request node guarding */
@@ -212,14 +212,16 @@ static uint32_t guarding_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry
         return CO_ABORT_NONE;
     }
     if (sub == REQUEST_ALL_NODES) {
-        /* all: 1 when every slave of the list is guarded */
-        now = 1;
+        /* all: 1 when the list has slaves and every one is guarded */
+        bool every = true;
+        bool any = false;
         for (uint8_t id = 1; id <= 127; id++) {
-            if (id != co_line_node_id(m->line) && in_network_list(od, id) &&
-                !co_guard_master_guards(m->guard, id)) {
-                now = 0;
+            if (id != co_line_node_id(m->line) && in_network_list(od, id)) {
+                any = true;
+                every = every && co_guard_master_guards(m->guard, id);
             }
         }
+        now = any && every ? 1u : 0u;
     } else {
         now = co_guard_master_guards(m->guard, sub) ? 1u : 0u;
     }
@@ -695,7 +697,7 @@ uint8_t co_manager_slaves_in(const co_od_t *od, uint8_t own_node_id)
 {
     uint8_t n = 0;
     for (uint8_t id = 1; od && id <= 127; id++) {
-        if (id != own_node_id && (od_u32(od, 0x1F81, id) & CO_BOOT_ASSIGN_SLAVE)) {
+        if (id != own_node_id && in_network_list(od, id)) {
             n++;
         }
     }
