@@ -523,3 +523,28 @@ def test_configuration_request_object(net, bus_name, mode):
         usdo = [bytes(f.data) for f in rig.frames.snapshot() if f.id == 0x601 and
                 bytes(f.data)[:2] == b"\x02\x01" and bytes(f.data)[3:6] == b"\x00\x17\x10"]
         assert [(d[7], d[8:10]) for d in usdo] == [(2, b"\xfa\x00")]
+
+
+def test_configuration_request_takes_a_dcf_as_large_as_its_domain(net, bus_name):
+    """The runtime gives the manager room for the largest 0x1F22 domain: a
+    concise DCF of 170 entries (1534 bytes, more than the core's 1024-byte
+    default) is downloaded whole, entry by entry."""
+    from canopenfd.od.concise import build_concise
+    od = manager_od("classic", 0x01, {2: 0x05})
+    add_manager_requests(od, 5, dcf_nodes=2, dcf_room=2048)
+    rig = Rig(net, bus_name, "classic", od, slaves=(2,))
+    rig.manager.start()
+    rig.manager.wait_started(scaled(10))
+    entries = [(0x1017, 0, (100 + i).to_bytes(2, "little")) for i in range(170)]
+    dcf = build_concise(entries)
+    assert len(dcf) > 1024
+    tool = net.open_line(bus_name, mode="classic").add_node(MANAGER, od=od)
+    tool.write("Concise DCF.Concise DCF 2", dcf)
+    tool.write("Configuration request.Configuration request 2", CONF)
+    done = rig.events.wait_for(lambda calls: [e for e in calls if e.kind == "configured"], 10,
+                               "the configuration request's end")
+    assert done[0].error == "", str(done[0])
+    assert rig.slaves[2][0x1017].raw == 269
+    rig.frames.wait_for(lambda calls: sum(1 for f in calls if f.id == 0x602 and
+                                          bytes(f.data)[:4] == b"\x2b\x17\x10\x00") == 170,
+                        5, "170 downloads of 0x1017 to node 2")

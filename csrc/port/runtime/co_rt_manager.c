@@ -52,6 +52,19 @@ static co_manager_t *manager_of(co_rt_t *rt, rt_line_t *l)
     return m;
 }
 
+/* Room for the largest 0x1F22 concise DCF the node keeps in memory (the
+ * manager copies one at a time for 0x1F25); 0 = the stack's default. */
+static uint32_t concise_dcf_room(const rt_line_t *l)
+{
+    uint32_t room = 0;
+    for (uint8_t i = 0; i < l->domain_count; i++) {
+        if (l->domains[i].key >> 8 == 0x1F22 && l->domains[i].capacity > room) {
+            room = l->domains[i].capacity;
+        }
+    }
+    return room;
+}
+
 int co_rt_manager_start(co_rt_t *rt, int line, int hooks, int parallel, int retry_ms)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
@@ -77,7 +90,8 @@ int co_rt_manager_start(co_rt_t *rt, int line, int hooks, int parallel, int retr
         co_stack_manager_config_t config = {.parallel = (uint8_t)parallel,
                                             .hooks = (uint8_t)hooks,
                                             .retry_ms = (uint32_t)retry_ms,
-                                            .on_event = on_manager_event, .user = l};
+                                            .on_event = on_manager_event, .user = l,
+                                            .dcf_capacity = concise_dcf_room(l)};
         co_stack_status_t s = co_stack_manager_init(&l->stack, &config);
         if (s == CO_STACK_ERR_OD) {
             rt_set_error(rt, "line %d: node %d is no network manager: 0x1F80 bit 0 is clear "
