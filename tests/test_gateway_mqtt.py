@@ -15,6 +15,7 @@ from canopenfd import Network
 from canopenfd.errors import ConfigurationError
 from canopenfd.od import demo_od
 from helpers import Recorder, scaled
+from test_examples import run_example
 
 from mqtt_broker import MOSQUITTO, Broker, Subscriber
 
@@ -255,3 +256,11 @@ def test_wrong_configuration_is_refused() -> None:
             MqttBridge({1: line}, value_qos=3)
         with pytest.raises(ConnectionError, match="127.0.0.1:1"):
             MqttBridge({1: line}, "127.0.0.1", 1).start(timeout=0.5)
+
+
+def test_the_example_runs(broker: Broker) -> None:
+    done = run_example("mqtt_gateway.py", "--broker", "127.0.0.1", "--port", str(broker.port))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == [
+        "state: OPERATIONAL", "value: 4711", "emcy code: 0x4210",
+        "read heartbeat time: {'id': 1, 'ok': True, 'value': 100}"], done.stdout
