@@ -38,7 +38,7 @@ def next_message(topic_end: str, payload: str = "") -> mqtt.MQTTMessage:
     """The next message on a topic ending so (with that payload, if given)."""
     while True:
         message = arrived.get(timeout=10)
-        if message.topic.endswith(topic_end) and payload in message.payload.decode():
+        if message.topic.endswith(topic_end) and payload in ("", message.payload.decode()):
             return message
 
 
