@@ -222,8 +222,12 @@ class MqttBridge:
         prefix = f"{net}/{node_id}"
         state_qos = self.event_qos
 
+        state_lock = threading.Lock()   # the last state published is the node's state
+
         def state(new: Any) -> None:
-            self.publish(f"{prefix}/state", getattr(new, "name", str(new)), state_qos, True)
+            with state_lock:
+                self.publish(f"{prefix}/state", getattr(new, "name", str(new)), state_qos,
+                             True)
 
         def lost() -> None:
             self.publish(f"{prefix}/state", "LOST", state_qos, True)
@@ -238,6 +242,9 @@ class MqttBridge:
         node.on_heartbeat_lost(lost)
         node.on_bootup(bootup)
         node.emcy.add_callback(emcy)
+        with state_lock:     # a state heard before the watch began: told at once
+            if node.state.name != "UNKNOWN":
+                self.publish(f"{prefix}/state", node.state.name, state_qos, True)
         if pdos is not None:
             self._watch_pdos(node, prefix, pdos)
         return node
