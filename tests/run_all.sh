@@ -25,10 +25,11 @@ say() { printf '\n=== %s ===\n' "$*"; }
 # ---------------------------------------------------------------- 1. setup
 # gcc-arm-none-eabi + libnewlib-arm-none-eabi: the core's Cortex-M cross build (tests/c);
 # gcc-mingw-w64-x86-64: the Windows compile check of the extension's sources (tests/c);
-# libclang-rt-14-dev: clang's libFuzzer and sanitizer runtimes (tests/fuzz).
+# libclang-rt-14-dev: clang's libFuzzer and sanitizer runtimes (tests/fuzz);
+# mosquitto: the real MQTT broker the MQTT gateway tests run on loopback.
 debian_packages=(libcmocka-dev clang python3-dev python3-venv iproute2
                  gcc-arm-none-eabi libnewlib-arm-none-eabi gcc-mingw-w64-x86-64
-                 libclang-rt-14-dev)
+                 libclang-rt-14-dev mosquitto)
 have_vcan=0
 if bash tests/vm/have_vcan.sh; then have_vcan=1; else
     debian_packages+=(qemu-system-x86 linux-image-amd64 busybox-static)

@@ -45,7 +45,8 @@ EXPECTED = {
 #: examples that need a SocketCAN interface (tested on vcan below)
 NEEDS_VCAN = {"two_processes.py"}
 #: examples whose test lives with their feature's tests
-TESTED_ELSEWHERE = {"master_drives_rpdo.py": "tests/test_master_rpdo.py"}
+TESTED_ELSEWHERE = {"master_drives_rpdo.py": "tests/test_master_rpdo.py",
+                    "mqtt_gateway.py": "tests/test_gateway_mqtt.py"}
 
 
 def run_example(name: str, *args: str) -> subprocess.CompletedProcess:

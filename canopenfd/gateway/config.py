@@ -1,0 +1,252 @@
+"""A gateway's configuration file (INI, read with line numbers): its lines
+with their network-ids, the nodes it watches, and its host endpoints.
+
+    [gateway]
+    name = plant-gw                 ; the topic level / label of this gateway
+
+    [line 1]                        ; network-id 1
+    channel = can0                  ; SocketCAN interface, or mem:NAME
+    mode = fd                       ; fd | classic
+    node_id = 1                     ; optional: the gateway's own node on this line
+    od = gateway.eds                ; its dictionary (default: the demo dictionary)
+    heartbeat_ms = 100
+
+    [node 1.5]                      ; node 5 on network 1
+    od = drive.eds                  ; names and types of its entries
+    heartbeat_timeout_ms = 300      ; 0: no heartbeat supervision
+    pdos = od                       ; publish its TPDO values: od | node | none
+
+    [mqtt]
+    broker = localhost
+    port = 1883
+    value_qos = 0
+    event_qos = 1
+
+Every problem is reported with the file and line (`GatewayConfigError`).
+Relative file names (od=) are taken from the configuration file's folder.
+"""
+
+from __future__ import annotations
+
+import pathlib
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Set, Tuple, Union
+
+from ..errors import ConfigurationError
+from ..od.errors import OdFileError
+from ..od.ini import IniFile, Key, Section, parse_ini
+
+_MODES = ("fd", "classic")
+_PDO_SOURCES = ("od", "node", "none")
+
+
+class GatewayConfigError(ConfigurationError):
+    """A gateway configuration that cannot be used: `path`, `line`, problem."""
+
+    def __init__(self, problem: str, path: str, line: Optional[int] = None) -> None:
+        self.path = path
+        self.line = line
+        self.problem = problem
+        super().__init__(f"{path}{':' + str(line) if line else ''}: {problem}")
+
+
+@dataclass
+class LineConfig:
+    net: int
+    channel: str
+    mode: str = "fd"
+    node_id: Optional[int] = None
+    od: Optional[str] = None
+    heartbeat_ms: int = 0
+
+
+@dataclass
+class NodeConfig:
+    net: int
+    node_id: int
+    od: Optional[str] = None
+    heartbeat_timeout_ms: int = 0
+    pdos: str = "od"
+
+
+@dataclass
+class MqttConfig:
+    broker: str = "localhost"
+    port: int = 1883
+    value_qos: int = 0
+    event_qos: int = 1
+    username: Optional[str] = None
+    password: Optional[str] = None
+
+
+@dataclass
+class GatewayConfig:
+    name: str = "gateway"
+    lines: List[LineConfig] = field(default_factory=list)
+    nodes: List[NodeConfig] = field(default_factory=list)
+    mqtt: Optional[MqttConfig] = None
+    path: str = "<config>"
+
+
+class _Reader:
+    """Typed values out of one section, errors with file and line."""
+
+    def __init__(self, section: Section, path: str, folder: pathlib.Path) -> None:
+        self.section = section
+        self.path = path
+        self.folder = folder
+        self.used: Set[str] = set()
+
+    def error(self, problem: str, key: Optional[Key] = None) -> GatewayConfigError:
+        line = key.line if key is not None else self.section.line
+        return GatewayConfigError(f"[{self.section.name}] {problem}", self.path, line)
+
+    def _key(self, name: str) -> Optional[Key]:
+        self.used.add(name)
+        return self.section.get(name)
+
+    def text(self, name: str, default: Optional[str] = None) -> Optional[str]:
+        key = self._key(name)
+        if key is None:
+            return default
+        if not key.value:
+            raise self.error(f"{name} is empty", key)
+        return key.value
+
+    def number(self, name: str, default: Optional[int], low: int, high: int) -> Optional[int]:
+        key = self._key(name)
+        if key is None:
+            return default
+        try:
+            value = int(key.value, 0)
+        except ValueError:
+            raise self.error(f"{name} = {key.value!r} is not a number", key) from None
+        if not low <= value <= high:
+            raise self.error(f"{name} = {value} is not {low}..{high}", key)
+        return value
+
+    def choice(self, name: str, default: str, choices: Tuple[str, ...]) -> str:
+        key = self._key(name)
+        if key is None:
+            return default
+        if key.value.lower() not in choices:
+            raise self.error(f"{name} = {key.value!r}: expected one of {', '.join(choices)}",
+                             key)
+        return key.value.lower()
+
+    def path_value(self, name: str) -> Optional[str]:
+        value = self.text(name)
+        if value is None:
+            return None
+        path = pathlib.Path(value)
+        return str(path if path.is_absolute() else self.folder / path)
+
+    def finish(self) -> None:
+        for lower, key in self.section.keys.items():
+            if lower not in self.used:
+                raise self.error(f"unknown key {key.name!r}", key)
+
+
+def load_config(source: Union[str, pathlib.Path]) -> GatewayConfig:
+    """Read a gateway configuration file (see the module text for its keys)."""
+    path = str(source)
+    try:
+        data = pathlib.Path(path).read_bytes()
+    except OSError as exc:
+        raise GatewayConfigError(f"cannot read it: {exc.strerror or exc}", path) from None
+    return parse_config(data, path)
+
+
+def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConfig:
+    try:
+        ini = parse_ini(data, path, strict=True)
+    except OdFileError as exc:
+        problem = exc.problem.replace("an EDS/DCF file", "a gateway configuration")
+        raise GatewayConfigError(problem.replace("EDS/DCF", "INI"), path, exc.line) from None
+    _refuse_repeats(ini, path)
+    folder = pathlib.Path(path).resolve().parent
+    config = GatewayConfig(path=path)
+    nets: Dict[int, LineConfig] = {}
+    for section in ini.sections.values():
+        reader = _Reader(section, path, folder)
+        kind, _, tail = section.name.strip().lower().partition(" ")
+        tail = tail.strip()
+        if kind == "gateway" and not tail:
+            config.name = reader.text("name", config.name) or config.name
+            if "/" in config.name or "+" in config.name or "#" in config.name:
+                raise reader.error(f"name {config.name!r} may not hold '/', '+' or '#'")
+        elif kind == "line":
+            net = _number(tail, 1, 127, reader, "network-id")
+            if net in nets:
+                raise reader.error(f"network {net} is configured twice")
+            channel = reader.text("channel")
+            if channel is None:
+                raise reader.error("channel is missing (e.g. channel = can0)")
+            nets[net] = LineConfig(
+                net, channel, reader.choice("mode", "fd", _MODES),
+                reader.number("node_id", None, 1, 127), reader.path_value("od"),
+                reader.number("heartbeat_ms", 0, 0, 65535) or 0)
+        elif kind == "node":
+            net_text, dot, node_text = tail.partition(".")
+            if not dot:
+                raise reader.error("a node section is [node NET.NODE], e.g. [node 1.5]")
+            config.nodes.append(NodeConfig(
+                _number(net_text, 1, 127, reader, "network-id"),
+                _number(node_text, 1, 127, reader, "node-id"),
+                reader.path_value("od"),
+                reader.number("heartbeat_timeout_ms", 0, 0, 65535) or 0,
+                reader.choice("pdos", "od", _PDO_SOURCES)))
+        elif kind == "mqtt" and not tail:
+            config.mqtt = MqttConfig(
+                reader.text("broker", "localhost") or "localhost",
+                reader.number("port", 1883, 1, 65535) or 1883,
+                reader.number("value_qos", 0, 0, 2) or 0,
+                _or(reader.number("event_qos", 1, 0, 2), 1),
+                reader.text("username"), reader.text("password"))
+        else:
+            raise reader.error("unknown section (expected [gateway], [line NET], "
+                               "[node NET.NODE] or [mqtt])")
+        reader.finish()
+    if not nets:
+        raise GatewayConfigError("no [line NET] section: a gateway needs a line", path)
+    config.lines = [nets[net] for net in sorted(nets)]
+    for node in config.nodes:
+        line = nets.get(node.net)
+        if line is None:
+            raise GatewayConfigError(f"[node {node.net}.{node.node_id}]: no [line {node.net}]",
+                                     path, _section_line(ini, f"node {node.net}.{node.node_id}"))
+        if line.node_id == node.node_id:
+            raise GatewayConfigError(
+                f"[node {node.net}.{node.node_id}]: node-id {node.node_id} is the gateway's "
+                f"own node on line {node.net}", path,
+                _section_line(ini, f"node {node.net}.{node.node_id}"))
+    return config
+
+
+def _or(value: Optional[int], default: int) -> int:
+    return default if value is None else value
+
+
+def _number(text: str, low: int, high: int, reader: _Reader, what: str) -> int:
+    try:
+        value = int(text.strip(), 0)
+    except ValueError:
+        raise reader.error(f"{what} {text.strip()!r} is not a number") from None
+    if not low <= value <= high:
+        raise reader.error(f"{what} {value} is not {low}..{high}")
+    return value
+
+
+def _refuse_repeats(ini: IniFile, path: str) -> None:
+    # the INI reader merges repeated sections and keys with a warning; in a
+    # gateway's configuration a repeat is a mistake
+    if ini.warnings:
+        line, _, text = ini.warnings[0]
+        raise GatewayConfigError(text, path, line)
+
+
+def _section_line(ini: IniFile, name: str) -> Optional[int]:
+    for section in ini.sections.values():
+        if " ".join(section.name.lower().split()) == name:
+            return section.line
+    return None

@@ -1,0 +1,112 @@
+"""The Gateway: lines with their network-ids, the nodes it watches and its
+host endpoints, composed from a configuration (issue 16, part 6)."""
+
+from __future__ import annotations
+
+import logging
+import pathlib
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+from ..errors import ConfigurationError
+from ..line import Line
+from ..network import Network
+from ..node import RemoteNode
+from ..od import demo_od
+from .config import GatewayConfig, load_config
+
+log = logging.getLogger(__name__)
+
+
+class Gateway:
+    """Opens the configured lines (on `network`, or a Network of its own),
+    creates the gateway's own nodes, watches the configured nodes and starts
+    the endpoints (MQTT). `start()` / `close()`, or `with Gateway(...)`."""
+
+    def __init__(self, config: Union[GatewayConfig, str, pathlib.Path], *,
+                 network: Optional[Network] = None) -> None:
+        self.config = config if isinstance(config, GatewayConfig) else load_config(config)
+        self._own_network = network is None
+        self.network = network if network is not None else Network()
+        self.lines: Dict[int, Line] = {}
+        self.nodes: Dict[Tuple[int, int], RemoteNode] = {}
+        self.mqtt: Optional[Any] = None
+        self._started = False
+
+    @property
+    def name(self) -> str:
+        return self.config.name
+
+    def start(self) -> "Gateway":
+        if self._started:
+            raise ConfigurationError(f"gateway {self.name}: started already")
+        self._started = True
+        try:
+            self._open_lines()
+            self._start_endpoints()
+            self._watch_nodes()
+        except BaseException:
+            self.close()
+            raise
+        log.info("%s", self.status())
+        return self
+
+    def _open_lines(self) -> None:
+        for cfg in self.config.lines:
+            line = self.network.open_line(cfg.channel, mode=cfg.mode)
+            self.lines[cfg.net] = line
+            if cfg.node_id is not None:
+                od: Any = cfg.od if cfg.od is not None else demo_od(cfg.mode)
+                line.create_local_node(cfg.node_id, od=od, heartbeat_ms=cfg.heartbeat_ms)
+
+    def _start_endpoints(self) -> None:
+        if self.config.mqtt is not None:
+            from .mqtt import MqttBridge   # paho-mqtt is an optional extra
+            m = self.config.mqtt
+            self.mqtt = MqttBridge(self.lines, m.broker, m.port, gateway=self.name,
+                                   value_qos=m.value_qos, event_qos=m.event_qos,
+                                   username=m.username, password=m.password).start()
+
+    def _watch_nodes(self) -> None:
+        for cfg in self.config.nodes:
+            line = self.lines[cfg.net]
+            pdos = None if cfg.pdos == "none" else cfg.pdos
+            if self.mqtt is not None:
+                node = self.mqtt.watch(cfg.net, cfg.node_id, cfg.od,
+                                       pdos=pdos if cfg.od is not None else None,
+                                       heartbeat_timeout_ms=cfg.heartbeat_timeout_ms)
+            else:
+                node = line.add_node(cfg.node_id, od=cfg.od,
+                                     heartbeat_timeout_ms=cfg.heartbeat_timeout_ms)
+            self.nodes[(cfg.net, cfg.node_id)] = node
+
+    def status(self) -> str:
+        """One line: each network's line and its nodes' states, each endpoint."""
+        parts: List[str] = []
+        for net, line in sorted(self.lines.items()):
+            states: Dict[str, int] = {}
+            for (node_net, _), node in self.nodes.items():
+                if node_net == net:
+                    label = node.state.name
+                    states[label] = states.get(label, 0) + 1
+            seen = ", ".join(f"{count} {state}" for state, count in sorted(states.items()))
+            parts.append(f"net {net} {line.channel} {line.mode}"
+                         f"{': ' + seen if seen else ''}")
+        if self.mqtt is not None:
+            stats = self.mqtt.stats
+            parts.append(f"mqtt {'connected' if self.mqtt.connected else 'reconnecting'} "
+                         f"(published {stats['published']}, dropped {stats['dropped']}, "
+                         f"commands {stats['commands']})")
+        return f"gateway {self.name}: " + "; ".join(parts)
+
+    def close(self) -> None:
+        if self.mqtt is not None:
+            self.mqtt.close()
+            self.mqtt = None
+        if self._own_network:
+            self.network.close()
+
+    def __enter__(self) -> "Gateway":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

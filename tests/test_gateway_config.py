@@ -1,0 +1,136 @@
+"""The gateway's configuration file and the Gateway it builds: every mistake
+named with file and line; a configured gateway opens its lines, watches its
+nodes and publishes them to MQTT."""
+
+from __future__ import annotations
+
+import pathlib
+import textwrap
+
+import pytest
+
+from canopenfd import Network
+from canopenfd.gateway.config import GatewayConfigError, load_config, parse_config
+from canopenfd.gateway.gateway import Gateway
+from canopenfd.od import demo_od
+
+GOOD = textwrap.dedent("""\
+    [gateway]
+    name = plant-gw
+
+    [line 1]            ; the fd line
+    channel = mem:gwcfg-1
+    mode = fd
+    node_id = 1
+    heartbeat_ms = 100
+
+    [line 2]
+    channel = mem:gwcfg-2
+    mode = classic
+
+    [node 2.9]
+    heartbeat_timeout_ms = 300
+    pdos = none
+
+    [node 1.5]
+    od = drive.eds
+    """)
+
+
+def test_a_good_file_is_read(tmp_path: pathlib.Path) -> None:
+    path = tmp_path / "gw.ini"
+    path.write_text(GOOD, encoding="utf-8")
+    config = load_config(path)
+    assert config.name == "plant-gw"
+    assert [(c.net, c.channel, c.mode, c.node_id, c.heartbeat_ms) for c in config.lines] == [
+        (1, "mem:gwcfg-1", "fd", 1, 100), (2, "mem:gwcfg-2", "classic", None, 0)]
+    assert [(n.net, n.node_id, n.heartbeat_timeout_ms, n.pdos) for n in config.nodes] == [
+        (2, 9, 300, "none"), (1, 5, 0, "od")]
+    assert config.nodes[1].od == str(tmp_path.resolve() / "drive.eds")   # beside the file
+    assert config.mqtt is None
+
+
+@pytest.mark.parametrize("text, line, problem", [
+    ("[line 1]\nchannel = can0\nmdoe = fd\n", 3, "unknown key 'mdoe'"),
+    ("[line 1]\nchannel = can0\nmode = fdx\n", 3, "expected one of fd, classic"),
+    ("[line 1]\nchannel = can0\nnode_id = 200\n", 3, "node_id = 200 is not 1..127"),
+    ("[line 1]\nchannel = can0\nnode_id = five\n", 3, "not a number"),
+    ("[line 1]\nmode = fd\n", 1, "channel is missing"),
+    ("[line 0]\nchannel = can0\n", 1, "network-id 0 is not 1..127"),
+    ("[line 1]\nchannel = can0\n[line 1]\nchannel = can1\n", 3, "appears again"),
+    ("[line 1]\nchannel = can0\nchannel = can1\n", 3, "duplicate key"),
+    ("[line 1]\nchannel = can0\n[node 2.5]\n", 3, "no [line 2]"),
+    ("[line 1]\nchannel = can0\nnode_id = 5\n[node 1.5]\n", 4, "gateway's own node"),
+    ("[line 1]\nchannel = can0\n[node 5]\n", 3, "[node NET.NODE]"),
+    ("[line 1]\nchannel = can0\n[bridge]\n", 3, "unknown section"),
+    ("[gateway]\nname = a/b\n[line 1]\nchannel = can0\n", 1, "may not hold"),
+    ("[gateway]\nname = gw\n", None, "no [line NET] section"),
+    ("[line 1]\nchannel = can0\n[mqtt]\nport = 70000\n", 4, "port = 70000 is not 1..65535"),
+    ("channel = can0\n", 1, "before the first [section]"),
+    ("[line 1\n", 1, "bad section header"),
+    ("", None, "empty"),
+])
+def test_mistakes_name_file_and_line(text: str, line: int, problem: str) -> None:
+    with pytest.raises(GatewayConfigError) as caught:
+        parse_config(text, "site/gw.ini")
+    assert caught.value.path == "site/gw.ini"
+    assert caught.value.line == line, str(caught.value)
+    assert problem in str(caught.value)
+    assert str(caught.value).startswith("site/gw.ini" + (f":{line}" if line else ""))
+
+
+def test_an_unreadable_file_is_named(tmp_path: pathlib.Path) -> None:
+    with pytest.raises(GatewayConfigError, match="missing.ini: cannot read it"):
+        load_config(tmp_path / "missing.ini")
+
+
+def test_the_gateway_opens_lines_and_watches_nodes() -> None:
+    config = parse_config(GOOD.replace("[node 1.5]\nod = drive.eds\n", ""), "gw.ini")
+    with Network() as net:
+        device = net.open_line("mem:gwcfg-2", mode="classic").create_local_node(
+            9, od=demo_od("classic"), heartbeat_ms=50)
+        with Gateway(config, network=net) as gateway:
+            assert sorted(gateway.lines) == [1, 2]
+            assert gateway.lines[1].mode == "fd" and gateway.lines[2].mode == "classic"
+            assert gateway.lines[1].local_node is not None
+            assert gateway.lines[1].local_node.node_id == 1
+            node = gateway.nodes[(2, 9)]
+            node.nmt.wait_for_heartbeat(timeout=5)
+            assert node.read("0x1017:0") == (50).to_bytes(2, "little")
+            assert gateway.status() == ("gateway plant-gw: net 1 mem:gwcfg-1 fd; "
+                                        "net 2 mem:gwcfg-2 classic: 1 PRE_OPERATIONAL")
+        assert device.nmt.state == "PRE_OPERATIONAL"
+
+
+def test_the_gateway_publishes_to_mqtt(tmp_path: pathlib.Path) -> None:
+    from mqtt_broker import MOSQUITTO, Broker, Subscriber
+    if MOSQUITTO is None:
+        pytest.skip("mosquitto is not installed")
+    broker = Broker(tmp_path)
+    try:
+        config = parse_config(textwrap.dedent(f"""\
+            [gateway]
+            name = cfg-gw
+            [line 3]
+            channel = mem:gwcfg-mqtt
+            [node 3.5]
+            heartbeat_timeout_ms = 300
+            pdos = none
+            [mqtt]
+            broker = 127.0.0.1
+            port = {broker.port}
+            """), "gw.ini")
+        sub = Subscriber(broker.port, ["canopen/cfg-gw/#"])
+        with Network() as net:
+            net.open_line("mem:gwcfg-mqtt").create_local_node(5, od=demo_od("fd"),
+                                                               heartbeat_ms=50)
+            with Gateway(config, network=net) as gateway:
+                state = sub.wait("canopen/cfg-gw/3/5/state")[-1]
+                assert state.text == "PRE_OPERATIONAL"
+                assert gateway.status().endswith("mqtt connected (published "
+                                                 f"{gateway.mqtt.stats['published']}, "
+                                                 "dropped 0, commands 0)")
+        assert sub.wait("canopen/cfg-gw/status", 2)[-1].text == "offline"
+        sub.close()
+    finally:
+        broker.stop()
