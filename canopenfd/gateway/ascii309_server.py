@@ -32,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import logging
+import socket
 import threading
 from typing import Any, Deque, Dict, List, Mapping, Optional, Set, Tuple, Union
 
@@ -41,7 +42,7 @@ from ..line import Line
 from ..services.emcy import Emcy
 from ..services.lss import LssError
 from ..services.nmt import HeartbeatEvent, NmtState
-from ..transfer.client import Transfer, uploaded_bytes
+from ..transfer.client import uploaded_bytes
 from . import ascii309 as proto
 
 __all__ = ["AsciiGateway", "BackgroundGateway", "Session"]
@@ -77,7 +78,6 @@ class Session:
         self.requests = 0
         self.events_dropped = 0
         self.closed = False
-        self.transfer: Optional[Transfer] = None   # the one in flight (cancelled on reset)
 
     def __repr__(self) -> str:
         return f"<Session {self.peer}>"
@@ -264,9 +264,16 @@ class AsciiGateway:
     async def _serve(self, session: Session, reader: asyncio.StreamReader) -> None:
         writer = session.writer
         writer.transport.set_write_buffer_limits(high=self.max_output)
+        sock = writer.get_extra_info("socket")
+        if sock is not None:
+            # the kernel's share of the client's unread output is bounded too
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, self.max_output)
+            except OSError:
+                pass
         self.sessions.add(session)
         self.stats["clients"] += 1
-        lines: "asyncio.Queue[Optional[bytes]]" = asyncio.Queue(QUEUE_DEPTH)
+        lines: "asyncio.Queue[Optional[Tuple[bool, bytes]]]" = asyncio.Queue(QUEUE_DEPTH)
         worker = asyncio.ensure_future(self._work(session, lines))
         reset = False
         try:
@@ -286,25 +293,25 @@ class AsciiGateway:
                 pass
 
     async def _read(self, session: Session, reader: asyncio.StreamReader,
-                    lines: "asyncio.Queue[Optional[bytes]]") -> bool:
+                    lines: "asyncio.Queue[Optional[Tuple[bool, bytes]]]") -> bool:
         """Lines into the queue until end of input (False) or a reset (True)."""
         while not session.closed:
             try:
                 line = await reader.readuntil(b"\n")
             except asyncio.IncompleteReadError as exc:
                 if exc.partial.strip():
-                    await lines.put(exc.partial)   # a last line without its LF
+                    await lines.put((False, exc.partial))   # a last line without its LF
                 return False
             except asyncio.LimitOverrunError as exc:
                 self.stats["lines_too_long"] += 1
                 head = await reader.readexactly(exc.consumed)
                 if not await self._skip_line(reader):
                     return False
-                await lines.put(b"\0too long" + head[:32])
+                await lines.put((True, head[:32]))
                 continue
             except (ConnectionError, OSError):
                 return True
-            await lines.put(line)
+            await lines.put((False, line))
         return True
 
     async def _skip_line(self, reader: asyncio.StreamReader) -> bool:
@@ -318,34 +325,27 @@ class AsciiGateway:
             except (asyncio.IncompleteReadError, ConnectionError, OSError):
                 return False
 
-    async def _work(self, session: Session, lines: "asyncio.Queue[Optional[bytes]]") -> None:
-        try:
-            while True:
-                line = await lines.get()
-                if line is None:
-                    return
-                if line.startswith(b"\0too long"):
-                    seq = proto.leading_seq(line[len(b"\0too long"):])
-                    answer = proto.format_error(seq, proto.SYNTAX_ERROR,
-                                                f"line longer than {self.max_line} bytes")
-                    self.stats["errors"] += 1
-                else:
-                    session.requests += 1
-                    self.stats["requests"] += 1
-                    answer = await self.execute(session, line)
-                    if answer is None:
-                        continue
-                if not await self._send(session, answer):
-                    return
-        except asyncio.CancelledError:
-            transfer = session.transfer
-            if transfer is not None and not transfer.done():
-                self.stats["cancelled_transfers"] += 1
-                try:
-                    transfer.cancel()
-                except CanopenFDError:
-                    pass
-            raise
+    async def _work(self, session: Session,
+                    lines: "asyncio.Queue[Optional[Tuple[bool, bytes]]]") -> None:
+        while True:
+            item = await lines.get()
+            if item is None:
+                return
+            too_long, line = item
+            answer: Optional[str]
+            if too_long:
+                seq = proto.leading_seq(line)
+                answer = proto.format_error(seq, proto.SYNTAX_ERROR,
+                                            f"line longer than {self.max_line} bytes")
+                self.stats["errors"] += 1
+            else:
+                session.requests += 1
+                self.stats["requests"] += 1
+                answer = await self.execute(session, line)
+                if answer is None:
+                    continue
+            if not await self._send(session, answer):
+                return
 
     async def _send(self, session: Session, answer: str) -> bool:
         writer = session.writer
@@ -405,17 +405,17 @@ class AsciiGateway:
             text = {"": proto.HELP, "datatype": proto.HELP_DATATYPE,
                     "lss": proto.HELP_LSS}[request.topic]
             return text.replace("\n", "\r\n") + "\r\n" + proto.format_ok(seq)
-        found = self._net(session, request)
-        if isinstance(found, str):
-            self.stats["errors"] += 1
-            return found
-        net, line = found
         if command == "set_network":
             if request.args[0] not in self.networks:
                 self.stats["errors"] += 1
                 return proto.format_error(seq, proto.UNSUPPORTED_NET, f"net {request.args[0]}")
             session.net = request.args[0]
             return proto.format_ok(seq)
+        found = self._net(session, request)
+        if isinstance(found, str):
+            self.stats["errors"] += 1
+            return found
+        net, line = found
         if command == "set_node":
             session.node = request.args[0]
             return proto.format_ok(seq)
@@ -467,11 +467,16 @@ class AsciiGateway:
                 if fd and request.kind is not None and request.kind.name != "hex":
                     options["data_type"] = int(request.kind.data_type)
                 transfer = client.start_download(node, index, sub, request.value, **options)
-            session.transfer = transfer
             try:
                 result = await transfer
-            finally:
-                session.transfer = None
+            except asyncio.CancelledError:
+                # the client went away (or the server closes): abort on the bus too
+                self.stats["cancelled_transfers"] += 1
+                try:
+                    transfer.cancel()
+                except CanopenFDError:
+                    pass
+                raise
         except AbortError as exc:
             self.stats["errors"] += 1
             return proto.format_abort(seq, exc.code)
@@ -495,7 +500,7 @@ class AsciiGateway:
         if node is not None:
             for sub in range(1, 5):
                 try:
-                    value = node[(0x1018, sub)].raw   # type: ignore[union-attr]
+                    value = node[(0x1018, sub)].raw
                 except (CanopenFDError, KeyError, AttributeError):
                     break
                 identity[sub - 1] = int(value) if isinstance(value, int) else 0
