@@ -381,6 +381,10 @@ class AsciiGateway:
             # a request the stack refused (closed network, a busy LSS master...)
             self.stats["errors"] += 1
             return proto.format_error(request.seq, proto.INTERNAL_STATE, str(exc)[:200])
+        except Exception:  # noqa: BLE001 - a bug must cost one answer, not the session
+            log.exception("ASCII gateway: request %r of %s failed", raw[:80], session.peer)
+            self.stats["errors"] += 1
+            return proto.format_error(request.seq, proto.INTERNAL_STATE, "internal error")
 
     def _net(self, session: Session, request: proto.Request) -> Union[Tuple[int, Line], str]:
         net = request.net if request.net is not None else session.net
