@@ -203,6 +203,13 @@ def test_sdo_bytes_on_the_bus(rig):
         assert client.ask("[4] 5 r 0x2009 0 vs") == '[4] "canopenfd"'
         block = [bytes(f.data) for f in frames.snapshot()[before:] if f.id == 0x605]
         assert block[0][0] & 0xE0 == 0xA0 and block[0][1:4] == bytes([0x09, 0x20, 0x00])
+        before = len(frames.snapshot())
+        assert client.ask("[5] 5 w 0x1017 0 u16 7") == "[5] OK"
+        block = [bytes(f.data) for f in frames.snapshot()[before:] if f.id == 0x605]
+        # block download initiate (ccs 6, size indicated), then one segment of 2 bytes
+        assert block[0] == bytes([0xC6, 0x17, 0x10, 0x00, 2, 0, 0, 0])
+        assert block[1][:3] == bytes([0x81, 0x07, 0x00])
+        assert client.ask("[6] 5 r 0x1017 0 u16") == "[6] 7"
     else:
         requests = frames.wait_for(
             lambda c: [f for f in c if f.id == 0x600 + 127][:2] if len(
