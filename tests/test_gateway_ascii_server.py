@@ -439,22 +439,26 @@ def test_lss_commands(net, bus_name):
 
 def test_lss_allnodes_gives_node_ids(net, bus_name):
     """lss_allnodes: a fast scan finds an unconfigured device, gives it the
-    start node-id and reports it; the device then boots with it."""
+    start node-id, has it store the node-id and reports it; the device then
+    boots with it."""
     identity = (0x1A2, 0xBEEF01, 0x20003, 0x80000042)
     od = demo_od("classic")
     for sub, value in enumerate(identity, start=1):
         od[0x1018][sub].default = value
-    net.open_line(bus_name, mode="classic").create_local_node(255, od=od)
+    device = net.open_line(bus_name, mode="classic").create_local_node(255, od=od)
+    stored = Recorder()
+    device.lss.on_store(stored)
     line = net.open_line(bus_name, mode="classic")
     server = AsciiGateway({1: line}).start_in_thread()
     try:
         client = Client(server.port)
-        client.send("[1] lss_allnodes 20 10 0")
+        client.send("[1] lss_allnodes 20 10 1")
         assert client.answer() == "# Node-ID 10 assigned to: 0x000001A2 0x00BEEF01 " \
                                   "0x00020003 0x80000042"
         assert client.answer() == "# Found 1 nodes, search finished."
         assert client.answer() == "[1] OK"
         client.wait_event("1 10 BOOT_UP")
+        assert stored.snapshot() == [10]                    # store asked for: stored
         assert client.ask("[2] 10 r 0x1018 4 x32") == "[2] 0x80000042"
         client.close()
     finally:

@@ -61,7 +61,7 @@ PROTOCOL_VERSION = (3, 0)
 GATEWAY_CLASS = 3
 _LSS_ERRORS = {"lss_set_node": proto.LSS_NODE_ID_NOT_SUPPORTED,
                "lss_conf_bitrate": proto.LSS_BIT_RATE_NOT_SUPPORTED,
-               "lss_store": proto.LSS_STORE_FAILED}
+               "lss_store": proto.LSS_STORE_FAILED, "lss_allnodes": proto.LSS_STORE_FAILED}
 
 
 class Session:
