@@ -120,6 +120,7 @@ def format_answer(seq: int, value: str) -> str:
 def format_error(seq: int, code: int, detail: str = "") -> str:
     """`[seq] ERROR: 101 #Syntax error` (detail: appended after a colon)."""
     text = ERROR_TEXT.get(code, "-")
+    detail = " ".join(detail.split())      # one line, whatever the detail held
     return f"[{seq}] ERROR: {code} #{text}{': ' + detail if detail else ''}"
 
 
