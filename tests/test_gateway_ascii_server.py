@@ -502,3 +502,31 @@ def test_cli_gateway_until_sigterm(bus_name):
             process.communicate()
     assert process.returncode == 0, err
     assert "gateway stopped: 1 clients, 2 requests, 1 errors" in out
+
+
+def test_client_limit_and_arguments(net, bus_name):
+    """A client past max_clients is told why (600) and closed; wrong
+    construction arguments raise naming the problem."""
+    line = net.open_line(bus_name)
+    server = AsciiGateway({1: line}, max_clients=1).start_in_thread()
+    try:
+        first = Client(server.port)
+        assert first.ask("[1] set node 5") == "[1] OK"
+        second = Client(server.port)
+        assert second.line() == "[0] ERROR: 600 #Running out of memory: 1 clients already"
+        with pytest.raises(EOFError):
+            second.line()
+        second.close()
+        assert first.ask("[2] info version").startswith("[2] 0 0 0.0 0 3 3.0 ")
+        first.close()
+    finally:
+        server.close()
+    from canopenfd import CanopenFDError
+    with pytest.raises(CanopenFDError, match="net id 0 is not 1..127"):
+        AsciiGateway({0: line})
+    with pytest.raises(CanopenFDError, match="net 1 is 'x', not a Line"):
+        AsciiGateway({1: "x"})  # type: ignore[dict-item]
+    with pytest.raises(CanopenFDError, match="no networks"):
+        AsciiGateway({})
+    with pytest.raises(CanopenFDError, match="sdo_timeout_ms 0 outside 1..65535"):
+        AsciiGateway({1: line}, sdo_timeout_ms=0)
