@@ -190,25 +190,27 @@ def test_sdo_bytes_on_the_bus(rig):
     assert client.ask("[1] 5 w 0x1017 0 u16 1000") == "[1] OK"
     assert client.ask("[2] 5 r 0x1017 0 u16") == "[2] 1000"
     if mode == "classic":
-        sent = [bytes(f.data) for f in frames.wait_for(
-            lambda c: [f for f in c if f.id == 0x605][:2] if len(
-                [f for f in c if f.id == 0x605]) >= 2 else None, 5, "two SDO requests")]
+        def sdo_frames(can_id, ready):
+            """The data of every frame on can_id, once ready(list) holds (the
+            monitor delivers them asynchronously)."""
+            return frames.wait_for(lambda c: (lambda got: got if ready(got) else None)(
+                [bytes(f.data) for f in c if f.id == can_id]), 5, f"frames on 0x{can_id:X}")
+        sent = sdo_frames(0x605, lambda got: len(got) >= 2)
         assert sent[0] == bytes([0x2B, 0x17, 0x10, 0x00, 0xE8, 0x03, 0x00, 0x00])
         assert sent[1] == bytes([0x40, 0x17, 0x10, 0x00, 0x00, 0x00, 0x00, 0x00])
-        answers = [bytes(f.data) for f in frames.snapshot() if f.id == 0x585]
+        answers = sdo_frames(0x585, lambda got: len(got) >= 2)
         assert answers[:2] == [bytes([0x60, 0x17, 0x10, 0x00, 0, 0, 0, 0]),
                                bytes([0x4B, 0x17, 0x10, 0x00, 0xE8, 0x03, 0, 0])]
-        before = len(frames.snapshot())
         assert client.ask("[3] set sdo_block 1") == "[3] OK"
         assert client.ask("[4] 5 r 0x2009 0 vs") == '[4] "canopenfd"'
-        block = [bytes(f.data) for f in frames.snapshot()[before:] if f.id == 0x605]
-        assert block[0][0] & 0xE0 == 0xA0 and block[0][1:4] == bytes([0x09, 0x20, 0x00])
-        before = len(frames.snapshot())
+        block = sdo_frames(0x605, lambda got: len(got) >= 3)[2]
+        assert block[0] & 0xE0 == 0xA0 and block[1:4] == bytes([0x09, 0x20, 0x00])
         assert client.ask("[5] 5 w 0x1017 0 u16 7") == "[5] OK"
-        block = [bytes(f.data) for f in frames.snapshot()[before:] if f.id == 0x605]
         # block download initiate (ccs 6, size indicated), then one segment of 2 bytes
-        assert block[0] == bytes([0xC6, 0x17, 0x10, 0x00, 2, 0, 0, 0])
-        assert block[1][:3] == bytes([0x81, 0x07, 0x00])
+        initiate = bytes([0xC6, 0x17, 0x10, 0x00, 2, 0, 0, 0])
+        sent = sdo_frames(0x605, lambda got: initiate in got and got.index(initiate) + 1 <
+                          len(got))
+        assert sent[sent.index(initiate) + 1][:3] == bytes([0x81, 0x07, 0x00])
         assert client.ask("[6] 5 r 0x1017 0 u16") == "[6] 7"
     else:
         requests = frames.wait_for(

@@ -352,6 +352,8 @@ class AsciiGateway:
         if writer.transport.is_closing():
             return False
         writer.write(answer.encode("ascii", "replace") + b"\r\n")
+        if writer.transport.get_write_buffer_size() == 0:
+            return True      # the kernel took it all: no wait (wait_for costs a task)
         try:
             await asyncio.wait_for(writer.drain(), self.write_timeout)
         except asyncio.TimeoutError:
