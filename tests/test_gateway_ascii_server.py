@@ -532,3 +532,22 @@ def test_client_limit_and_arguments(net, bus_name):
         AsciiGateway({})
     with pytest.raises(CanopenFDError, match="sdo_timeout_ms 0 outside 1..65535"):
         AsciiGateway({1: line}, sdo_timeout_ms=0)
+
+
+@pytest.mark.parametrize("command, status, error, code", [
+    ("lss_set_node", "REFUSED", 1, 502),
+    ("lss_conf_bitrate", "REFUSED", 1, 503),
+    ("lss_store", "REFUSED", 1, 504),
+    ("lss_allnodes", "REFUSED", 1, 504),
+    ("lss_store", "REFUSED", 2, 505),
+    ("lss_set_node", "REFUSED", 0xFF, 501),
+    ("lss_get_node", "TIMEOUT", 0, 103),
+    ("lss_allnodes", "DUPLICATE", 0, 102),
+])
+def test_lss_failures_as_cia_309_3_codes(command, status, error, code):
+    """The LSS master's outcomes the device-driven tests cannot all provoke
+    (media error, manufacturer-specific refusal, duplicate address)."""
+    from canopenfd._binding.constants import LssStatus
+    from canopenfd.gateway.ascii309_server import lss_error_code
+    from canopenfd.services.lss import LssError
+    assert lss_error_code(command, LssError("x", LssStatus[status], error)) == code

@@ -45,7 +45,7 @@ from ..services.nmt import HeartbeatEvent, NmtState
 from ..transfer.client import uploaded_bytes
 from . import ascii309 as proto
 
-__all__ = ["AsciiGateway", "BackgroundGateway", "Session"]
+__all__ = ["AsciiGateway", "BackgroundGateway", "Session", "lss_error_code"]
 
 log = logging.getLogger(__name__)
 
@@ -548,7 +548,7 @@ class AsciiGateway:
                 return await self._lss_allnodes(seq, line, args)
         except LssError as exc:
             self.stats["errors"] += 1
-            return proto.format_error(seq, _lss_error(command, exc), str(exc)[:200])
+            return proto.format_error(seq, lss_error_code(command, exc), str(exc)[:200])
         return proto.format_ok(seq)
 
     async def _lss_allnodes(self, seq: int, line: Line, args: Tuple[int, ...]) -> str:
@@ -586,7 +586,7 @@ class AsciiGateway:
         return "\r\n".join(lines + [proto.format_ok(seq)])
 
 
-def _lss_error(command: str, exc: LssError) -> int:
+def lss_error_code(command: str, exc: LssError) -> int:
     """The CiA 309-3 code of an LSS failure."""
     name = exc.status.name
     if name == "TIMEOUT":
