@@ -23,8 +23,8 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("--net", type=int, default=1, metavar="N",
                    help="the network id hosts give this line (1..127, default 1)")
     p.add_argument("--node-id", type=int, metavar="N",
-                   help="run a local node with this id on the line (its heartbeat and "
-                        "NMT state; the gateway's SDO/USDO client uses it as its id)")
+                   help="run a local node with this id on the line (boot-up, NMT state; "
+                        "on fd lines the gateway's USDO client uses it as its id, else 127)")
     p.add_argument("--duration", type=float, metavar="SECONDS",
                    help="stop after SECONDS (default: until SIGINT/SIGTERM)")
     # ---- CiA 309-3 ASCII over TCP
