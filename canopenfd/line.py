@@ -26,7 +26,7 @@ from .services.config import ConfigManager
 from .services.emcy import Emcy, LineEmcy
 from .services.lss import UNCONFIGURED, LssMaster
 from .services.manager import NetworkManager
-from .services.nmt import NmtMaster, NmtState, remote_state_of
+from .services.nmt import HeartbeatEvent, NmtMaster, NmtState, NodeEvents, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.sleep import SleepService
 from .services.sync import SyncService
@@ -84,6 +84,7 @@ class Line:
         #: Sleep and wake-up, master or device (see canopenfd.services.sleep).
         self.sleep = SleepService(context)
         self._emcy = LineEmcy(context)
+        self._node_events = NodeEvents(context)
         # USDO on fd lines, SDO on classic lines (C sets it up at the first transfer)
         self._client: TransferClient = \
             UsdoClient(context) if self.mode == "fd" else SdoClient(context)
@@ -351,6 +352,21 @@ class Line:
         nodes whose `node.emcy` was used, of the local node's 0x1028 entries,
         and of `nodes` (node-ids this call starts consuming)."""
         return self._emcy.add_callback(callback, nodes)
+
+    def remove_emcy_callback(self, callback: Callable[[Emcy], None]) -> None:
+        """Stop calling a callback on_emcy registered."""
+        self._emcy.remove_callback(callback)
+
+    def on_node_event(self, callback: Callable[[int, HeartbeatEvent, NmtState], None]
+                      ) -> Callable[[int, HeartbeatEvent, NmtState], None]:
+        """callback(node_id, HeartbeatEvent, NmtState) for every node heard on
+        this line, watched or not: BOOTUP, STATE_CHANGED, and STARTED / LOST
+        for nodes with a heartbeat timeout (add_node)."""
+        return self._node_events.add(callback)
+
+    def remove_node_event_callback(self, callback: Callable[[int, HeartbeatEvent, NmtState],
+                                                            None]) -> None:
+        self._node_events.remove(callback)
 
     def on_frame(self, callback: Callable[[Frame], None]) -> Callable[[Frame], None]:
         """callback(Frame) for every frame on the line, ours included (tx=True).

@@ -129,6 +129,12 @@ class LineContext(Protocol):
     def unsubscribe(self, kind: EventKind, node: Optional[int] = None) -> None:
         ...
 
+    def observe(self, kind: EventKind, handler: EventHandler) -> None:
+        """Every event of `kind` (whichever node it names) also goes to handler,
+        after the one subscribe() gave it: a line-wide view (a gateway hearing
+        every node's boot-up) that leaves the per-node handlers in place."""
+        ...
+
     def on_close(self, hook: Callable[[], None]) -> None:
         """hook() once the network closed (the runtime stopped): for what waits
         on events that will never come now."""
@@ -151,6 +157,8 @@ class _LineShare:
         self.waiter = Waiter(self.cond, closed, on_dispatcher)
         self.pdo_watches = PdoWatches(runtime, index, self.cond, closed)
         self.handlers: Dict[_HandlerKey, EventHandler] = {}
+        #: {kind: handlers that see every event of that kind} (observe)
+        self.observers: Dict[int, List[EventHandler]] = {}
         self.close_hooks: List[Callable[[], None]] = []
         self.local_node_id: Optional[int] = None
         #: {listener: values merged away before it saw them} (fell_behind)
@@ -180,6 +188,7 @@ class RuntimeLineContext:
         self.waiter = self._line.waiter
         self.pdo_watches = self._line.pdo_watches
         self._subscribed: List[_HandlerKey] = []
+        self._observed: List[Tuple[int, EventHandler]] = []
         self._close_hooks: List[Callable[[], None]] = []
         if share is None:
             self.subscribe(EventKind.PDO_FRAME, self.pdo_watches.event)
@@ -221,6 +230,11 @@ class RuntimeLineContext:
             self._line.handlers[key] = handler
             self._subscribed.append(key)
 
+    def observe(self, kind: EventKind, handler: EventHandler) -> None:
+        with self.cond:
+            self._line.observers.setdefault(int(kind), []).append(handler)
+            self._observed.append((int(kind), handler))
+
     def unsubscribe(self, kind: EventKind, node: Optional[int] = None) -> None:
         key = (int(kind), node)
         with self.cond:
@@ -248,6 +262,11 @@ class RuntimeLineContext:
             for key in self._subscribed:
                 self._line.handlers.pop(key, None)
             self._subscribed = []
+            for kind, handler in self._observed:
+                observers = self._line.observers.get(kind, [])
+                if handler in observers:
+                    observers.remove(handler)
+            self._observed = []
             for hook in self._close_hooks:
                 if hook in self._line.close_hooks:
                     self._line.close_hooks.remove(hook)
@@ -256,14 +275,21 @@ class RuntimeLineContext:
     def dispatch(self, event: Event) -> None:
         """One runtime event of this line (dispatcher thread)."""
         run: Deferred = None
+        later: List[Callable[[], None]] = []
         handlers = self._line.handlers
         with self.cond:
             handler = handlers.get((event.kind, event.node)) or handlers.get((event.kind, None))
             if handler is not None:
                 run = handler(event)
+            for observer in self._line.observers.get(event.kind, ()):
+                seen = observer(event)
+                if seen is not None:
+                    later.append(seen)
             self.cond.notify_all()
         if run is not None:
             run()
+        for call in later:
+            call()
 
     def wake(self) -> None:
         """Wake every blocking call of the line and run the close hooks (the

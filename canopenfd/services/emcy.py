@@ -391,6 +391,10 @@ class LineEmcy:
             self._nodes.add(node_id)
         return self._callbacks.add(callback)
 
+    def remove_callback(self, callback: Callable[[Emcy], None]) -> None:
+        """Undo add_callback (the nodes it asked for stay consumed)."""
+        self._callbacks.remove(callback)
+
     def add_consumer(self, node_id: int, record: Callable[[Emcy], Callable[[], None]]) -> None:
         """A remote node's consumer: gets its node's EMCYs once `consume` ran."""
         with self._context.cond:

@@ -25,7 +25,7 @@ from .._checks import check_ms
 from ..errors import ConfigurationError
 
 __all__ = ["NmtState", "NmtCommand", "NmtMaster", "LocalNmt", "RemoteNmt", "NmtSlave",
-           "HeartbeatMonitor", "parse_node_target", "state_of", "remote_state_of"]
+           "HeartbeatMonitor", "HeartbeatEvent", "NodeEvents", "parse_node_target", "state_of", "remote_state_of"]
 
 StateLike = Union[NmtState, str, int]
 
@@ -415,6 +415,34 @@ class HeartbeatMonitor:
         if changed is not None:
             calls.append(changed)
         return chain(calls)
+
+
+class NodeEvents:
+    """Every node's boot-up, NMT state changes and heartbeat loss/start on a
+    line, watched with add_node or not (`line.on_node_event`): what a gateway
+    reports to its hosts. Periodic heartbeats (TICK) are not told."""
+
+    def __init__(self, context: LineContext) -> None:
+        self._callbacks = CallbackList(f"{context.where} node event")
+        context.observe(EventKind.HEARTBEAT, self._event)
+
+    def add(self, callback: Callable[[int, HeartbeatEvent, NmtState], None]
+            ) -> Callable[[int, HeartbeatEvent, NmtState], None]:
+        return self._callbacks.add(callback)
+
+    def remove(self, callback: Callable[[int, HeartbeatEvent, NmtState], None]) -> None:
+        self._callbacks.remove(callback)
+
+    def _event(self, event: Event) -> Deferred:
+        """CO_EV_HEARTBEAT of any node: a = co_hb_event_t, b = the state."""
+        if not self._callbacks or event.a == HeartbeatEvent.TICK:
+            return None
+        try:
+            kind = HeartbeatEvent(event.a)
+        except ValueError:
+            return None
+        node_id, state = event.node, remote_state_of(event.b)
+        return lambda: self._callbacks.fire(node_id, kind, state)
 
 
 class LocalNmt:
