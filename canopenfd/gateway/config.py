@@ -16,6 +16,11 @@ with their network-ids, the nodes it watches, and its host endpoints.
     heartbeat_timeout_ms = 300      ; 0: no heartbeat supervision
     pdos = od                       ; publish its TPDO values: od | node | none
 
+    [ascii]                         ; CiA 309-3 ASCII over TCP
+    tcp = 5000                      ; port (0: any free one)
+    host = 127.0.0.1                ; 0.0.0.0: every interface (no authentication!)
+    sdo_timeout_ms = 500
+
     [mqtt]
     broker = localhost
     port = 1883
@@ -70,6 +75,13 @@ class NodeConfig:
 
 
 @dataclass
+class AsciiConfig:
+    port: int
+    host: str = "127.0.0.1"
+    sdo_timeout_ms: int = 500
+
+
+@dataclass
 class MqttConfig:
     broker: str = "localhost"
     port: int = 1883
@@ -84,6 +96,7 @@ class GatewayConfig:
     name: str = "gateway"
     lines: List[LineConfig] = field(default_factory=list)
     nodes: List[NodeConfig] = field(default_factory=list)
+    ascii: Optional[AsciiConfig] = None
     mqtt: Optional[MqttConfig] = None
     path: str = "<config>"
 
@@ -196,6 +209,12 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
                 reader.path_value("od"),
                 reader.number("heartbeat_timeout_ms", 0, 0, 65535) or 0,
                 reader.choice("pdos", "od", _PDO_SOURCES)))
+        elif kind == "ascii" and not tail:
+            port = reader.number("tcp", None, 0, 65535)
+            if port is None:
+                raise reader.error("tcp is missing (the TCP port, e.g. tcp = 5000)")
+            config.ascii = AsciiConfig(port, reader.text("host", "127.0.0.1") or "127.0.0.1",
+                                       _or(reader.number("sdo_timeout_ms", 500, 1, 65535), 500))
         elif kind == "mqtt" and not tail:
             config.mqtt = MqttConfig(
                 reader.text("broker", "localhost") or "localhost",
@@ -205,7 +224,7 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
                 reader.text("username"), reader.text("password"))
         else:
             raise reader.error("unknown section (expected [gateway], [line NET], "
-                               "[node NET.NODE] or [mqtt])")
+                               "[node NET.NODE], [ascii] or [mqtt])")
         reader.finish()
     if not nets:
         raise GatewayConfigError("no [line NET] section: a gateway needs a line", path)

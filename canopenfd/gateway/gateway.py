@@ -12,6 +12,7 @@ from ..line import Line
 from ..network import Network
 from ..node import RemoteNode
 from ..od import demo_od
+from .ascii309_server import AsciiGateway, BackgroundGateway
 from .config import GatewayConfig, load_config
 
 log = logging.getLogger(__name__)
@@ -20,15 +21,22 @@ log = logging.getLogger(__name__)
 class Gateway:
     """Opens the configured lines (on `network`, or a Network of its own),
     creates the gateway's own nodes, watches the configured nodes and starts
-    the endpoints (MQTT). `start()` / `close()`, or `with Gateway(...)`."""
+    the endpoints (CiA 309-3 ASCII over TCP, MQTT). `start()` / `close()`, or
+    `with Gateway(...)`."""
 
     def __init__(self, config: Union[GatewayConfig, str, pathlib.Path], *,
-                 network: Optional[Network] = None) -> None:
+                 network: Optional[Network] = None,
+                 lines: Optional[Dict[int, Line]] = None) -> None:
+        """lines: lines opened by the caller ({net_id: Line}, e.g. on a python-can
+        bus), served instead of the configuration's [line] sections."""
         self.config = config if isinstance(config, GatewayConfig) else load_config(config)
-        self._own_network = network is None
-        self.network = network if network is not None else Network()
+        self._own_network = network is None and lines is None
+        self.network = network
+        self._given_lines = dict(lines) if lines is not None else None
         self.lines: Dict[int, Line] = {}
         self.nodes: Dict[Tuple[int, int], RemoteNode] = {}
+        self.ascii: Optional[AsciiGateway] = None
+        self._ascii_thread: Optional[BackgroundGateway] = None
         self.mqtt: Optional[Any] = None
         self._started = False
 
@@ -51,6 +59,11 @@ class Gateway:
         return self
 
     def _open_lines(self) -> None:
+        if self._given_lines is not None:
+            self.lines = dict(self._given_lines)
+            return
+        if self.network is None:
+            self.network = Network()
         for cfg in self.config.lines:
             line = self.network.open_line(cfg.channel, mode=cfg.mode)
             self.lines[cfg.net] = line
@@ -59,6 +72,10 @@ class Gateway:
                 line.create_local_node(cfg.node_id, od=od, heartbeat_ms=cfg.heartbeat_ms)
 
     def _start_endpoints(self) -> None:
+        if self.config.ascii is not None:
+            a = self.config.ascii
+            self.ascii = AsciiGateway(self.lines, sdo_timeout_ms=a.sdo_timeout_ms)
+            self._ascii_thread = self.ascii.start_in_thread(a.host, a.port)
         if self.config.mqtt is not None:
             from .mqtt import MqttBridge   # paho-mqtt is an optional extra
             m = self.config.mqtt
@@ -91,6 +108,11 @@ class Gateway:
             seen = ", ".join(f"{count} {state}" for state, count in sorted(states.items()))
             parts.append(f"net {net} {line.channel} {line.mode}"
                          f"{': ' + seen if seen else ''}")
+        if self.ascii is not None and self.config.ascii is not None:
+            stats = self.ascii.stats
+            parts.append(f"ascii {self.config.ascii.host}:{self.ascii.port} "
+                         f"({stats.get('clients', 0)} clients, {stats.get('requests', 0)} "
+                         f"requests, {stats.get('errors', 0)} errors)")
         if self.mqtt is not None:
             stats = self.mqtt.stats
             parts.append(f"mqtt {'connected' if self.mqtt.connected else 'reconnecting'} "
@@ -99,10 +121,13 @@ class Gateway:
         return f"gateway {self.name}: " + "; ".join(parts)
 
     def close(self) -> None:
+        if self._ascii_thread is not None:
+            self._ascii_thread.close()
+            self._ascii_thread = None
         if self.mqtt is not None:
             self.mqtt.close()
             self.mqtt = None
-        if self._own_network:
+        if self._own_network and self.network is not None:
             self.network.close()
 
     def __enter__(self) -> "Gateway":
