@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Dict, FrozenSet, List, Optional, Tuple, Union
 
 from ..errors import ConfigurationError
 
@@ -140,17 +140,22 @@ class FrameDecoder:
     """Bytes in, frames out. Bounded: it keeps at most one frame in progress
     (header + max_payload + checksum) plus what one feed() brought.
 
-    A start byte is one with reserved bits 6..7 clear and a network 1..15.
-    After a bad frame (CRC, length) the search resumes at the byte after its
-    start byte, so a frame hidden in the bad one's bytes is still found. A
-    frame in progress for longer than `idle_timeout` seconds without its next
-    byte is counted truncated and dropped the same way (`expire(now)`, which
-    feed() runs too)."""
+    A start byte is one with reserved bits 6..7 clear and a network 1..15
+    (of `nets`, when given: the networks the reader serves, so that fewer
+    stray bytes look like a start). After a bad frame (CRC, length) the
+    search resumes at the byte after its start byte, so a frame hidden in the
+    bad one's bytes is still found. A frame in progress for longer than
+    `idle_timeout` seconds without its next byte is counted truncated and
+    dropped the same way (`expire(now)`, which feed() runs too): a false
+    start claiming more bytes than come holds the search at most that long.
+    Frames without checksum are refused (counted `no_checksum`) unless
+    require_checksum=False: without a CRC nothing tells a frame from noise."""
 
     crc: CrcVariant = CrcVariant.SEED
     max_payload: int = SEED_MAX_PAYLOAD
-    require_checksum: bool = False
+    require_checksum: bool = True
     idle_timeout: float = 0.5
+    nets: Optional[FrozenSet[int]] = None
     stats: DecoderStats = field(default_factory=DecoderStats)
     _buffer: bytearray = field(default_factory=bytearray)
     _last_byte_at: float = 0.0
@@ -189,16 +194,20 @@ class FrameDecoder:
             self._buffer += data
         return frames + self._scan()
 
+    def _is_start(self, byte: int) -> bool:
+        if byte & START_RESERVED or not byte & START_NET_MASK:
+            return False
+        return self.nets is None or (byte & START_NET_MASK) in self.nets
+
     def _scan(self) -> List[Frame]:
         frames: List[Frame] = []
         buf = self._buffer
         while buf:
             start = buf[0]
-            if start & START_RESERVED or not start & START_NET_MASK:
+            if not self._is_start(start):
                 # not a start byte: skip to the next candidate
                 skip = 1
-                while skip < len(buf) and (buf[skip] & START_RESERVED
-                                           or not buf[skip] & START_NET_MASK):
+                while skip < len(buf) and not self._is_start(buf[skip]):
                     skip += 1
                 self.stats.garbage_bytes += skip
                 del buf[:skip]

@@ -237,8 +237,10 @@ class RemoteAccessConnection:
     def __init__(self, server: "RemoteAccessServer", stream: ByteStream) -> None:
         self.server = server
         self.stream = stream
+        # only the served networks' start bytes count: fewer false starts in noise
         self.decoder = ra.FrameDecoder(crc=server.crc, max_payload=server.max_payload,
-                                       idle_timeout=server.idle_timeout)
+                                       idle_timeout=server.idle_timeout,
+                                       nets=frozenset(server.served))
         #: unknown letters, bad command lengths, remote commands refused busy,
         #: indications dropped for a slow host
         self.unknown_command = 0
@@ -333,10 +335,7 @@ class RemoteAccessConnection:
                 self.send_payload(frame.net, bytes((command.letter,))
                                   + int(command.error).to_bytes(2, "little"))
             return
-        if served is None:
-            self._respond(frame.net, self.server.refusal(command,
-                                                         int(ra.RaError.NODE_NOT_AVAILABLE)))
-            return
+        assert served is not None      # the decoder passes served networks only
         if isinstance(command, (ra.LocalRead, ra.LocalWrite)):
             self._respond(frame.net, self.server.local(served, command))
             return
