@@ -151,7 +151,8 @@ class _Served:
                                                       bytes((int(hw) & 0xFF,))))
 
     def _emcy(self, emcy: Emcy) -> None:
-        status = ra.NodeStatus.EMCY_OVER if emcy.code == 0 else ra.NodeStatus.EMCY_NEW
+        # classic: the error reset (code 0); fd: the EMCY of a removed error
+        status = ra.NodeStatus.EMCY_OVER if emcy.removed else ra.NodeStatus.EMCY_NEW
         self.manager.report(emcy.node, status)
 
     # ------------------------------------------------------------ the gateway's entries
@@ -375,13 +376,15 @@ class RemoteAccessServer:
 
     crc: 'seed' or 'xmodem' (see remote_access.CrcVariant); max_payload: the
     longest payload accepted and sent (the seed's 35; longer read answers are
-    refused RX_TOO_SMALL); remote_timeout: seconds a remote command may take;
+    refused RX_TOO_SMALL); sdo_timeout: the SDO/USDO client's per-frame
+    timeout (s) for remote commands; remote_timeout: seconds one may take;
     control / heartbeat_ms: the minimal manager's start values ([5F01h,04h],
     [5F01h,08h]); known: {net: {node: OD or EDS path}} the manager reads PDO
     configurations of (PDO_RECEIVE_ALL)."""
 
     def __init__(self, networks: Mapping[int, Line], *, crc: Union[str, ra.CrcVariant] = "seed",
-                 max_payload: int = ra.SEED_MAX_PAYLOAD, remote_timeout: float = 5.0,
+                 max_payload: int = ra.SEED_MAX_PAYLOAD, sdo_timeout: float = 1.0,
+                 remote_timeout: float = 30.0,
                  idle_timeout: float = 0.5, control: int = 0, heartbeat_ms: int = 1000,
                  known: Optional[Mapping[int, Mapping[int, object]]] = None,
                  indication_queue: int = INDICATION_QUEUE) -> None:
@@ -390,6 +393,7 @@ class RemoteAccessServer:
         self.crc = ra.parse_crc(crc)
         ra.FrameDecoder(max_payload=max_payload)    # checks the value
         self.max_payload = max_payload
+        self.sdo_timeout = sdo_timeout
         self.remote_timeout = remote_timeout
         self.idle_timeout = idle_timeout
         self.indication_queue = indication_queue
@@ -554,12 +558,13 @@ class RemoteAccessServer:
         client: Union[UsdoClient, SdoClient] = line.usdo if line.mode == "fd" else line.sdo
         try:
             if isinstance(command, ra.RemoteRead):
-                transfer = client.start_upload(command.node, command.index, command.sub)
+                transfer = client.start_upload(command.node, command.index, command.sub,
+                                               timeout=self.sdo_timeout)
                 result = transfer.result(self.remote_timeout)
                 assert isinstance(result, bytes)
                 return self._read_answer(command, result)
             transfer = client.start_download(command.node, command.index, command.sub,
-                                             command.data)
+                                             command.data, timeout=self.sdo_timeout)
             transfer.result(self.remote_timeout)
             return self.refusal(command, 0)
         except AbortError as exc:
