@@ -252,7 +252,9 @@ class RemoteAccessConnection:
         self._out: "queue.Queue[Optional[bytes]]" = queue.Queue()
         self._queued_indications = 0
         self._count_lock = threading.Lock()
-        self._remote: "queue.Queue[Optional[Tuple[int, ra.Command]]]" = queue.Queue(maxsize=1)
+        # one remote command at a time: the next one while it runs is refused BUSY
+        self._remote: "queue.Queue[Optional[Tuple[int, ra.Command]]]" = queue.Queue()
+        self._remote_running = False
         self._threads = [
             threading.Thread(target=self._read_loop, daemon=True, name=f"ra read {stream.name}"),
             threading.Thread(target=self._write_loop, daemon=True, name=f"ra write {stream.name}"),
@@ -340,11 +342,13 @@ class RemoteAccessConnection:
         if isinstance(command, (ra.LocalRead, ra.LocalWrite)):
             self._respond(frame.net, self.server.local(served, command))
             return
-        try:
-            self._remote.put_nowait((frame.net, command))
-        except queue.Full:
+        with self._count_lock:
+            busy, self._remote_running = self._remote_running, True
+        if busy:
             self.busy += 1
             self._respond(frame.net, self.server.refusal(command, int(ra.RaError.BUSY)))
+            return
+        self._remote.put((frame.net, command))
 
     def _remote_loop(self) -> None:
         while True:
@@ -354,17 +358,17 @@ class RemoteAccessConnection:
             net, command = item
             served = self.server.served.get(net)
             assert served is not None and isinstance(command, (ra.RemoteRead, ra.RemoteWrite))
-            self._respond(net, self.server.remote(served, command))
+            response = self.server.remote(served, command)
+            with self._count_lock:
+                self._remote_running = False
+            self._respond(net, response)
 
     def close(self) -> None:
         if self.closed.is_set():
             return
         self.closed.set()
         self._out.put(None)
-        try:
-            self._remote.put_nowait(None)
-        except queue.Full:
-            pass
+        self._remote.put(None)
         self.stream.close()
         self.server.forget(self)
 
