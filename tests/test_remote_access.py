@@ -364,8 +364,8 @@ def test_pdo_receive_all_scans_known_nodes(net: canopenfd.Network, bus_name: str
         w.bus.wait_for(lambda calls: any(f.id == 0x185 for f in calls), what="TPDO 1")
         host.indications.wait_value(b"D\x05\x06\x20\x00\x34\x12")
         # [5F01h,0Ah]: scan again on request
-        assert host.ask(b"W\x01\x5f\x0a\x05") == b"W\x01\x5f\x0a\x00\x00"
         start = len(host.indications)
+        assert host.ask(b"W\x01\x5f\x0a\x05") == b"W\x01\x5f\x0a\x00\x00"
         host.indications.wait_value(b"D\x05\x04\x5f\x05\xa0", start=start)
     finally:
         w.host.close()

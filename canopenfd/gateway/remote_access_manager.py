@@ -19,10 +19,11 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+from functools import partial
 from typing import Callable, Dict, Mapping, Optional, Set
 
 from ..errors import CanopenFDError
-from ..line import Line
+from ..line import Line, ODLike
 from ..node import RemoteNode
 from ..services.nmt import NmtState
 from ..services.pdo import PdoMap
@@ -48,7 +49,7 @@ class MinimalManager:
     """The automation of one line; `indicate(NewData)` reaches the hosts."""
 
     def __init__(self, line: Line, indicate: Callable[[ra.NewData], None], *,
-                 heartbeat_ms: int = 1000, known: Optional[Mapping[int, object]] = None) -> None:
+                 heartbeat_ms: int = 1000, known: Optional[Mapping[int, ODLike]] = None) -> None:
         self.line = line
         self._indicate = indicate
         self._lock = threading.Lock()
@@ -76,11 +77,10 @@ class MinimalManager:
             od = self._known.get(node_id)
             node = line.add_node(node_id, od=od) if od is not None else line.add_node(node_id)
             self._nodes[node_id] = node
-            node.on_bootup(lambda n=node_id: self._bootup(n))
-            node.on_state_change(lambda state, n=node_id: self._state(n, state))
-            node.on_heartbeat_lost(lambda n=node_id: self._lost(n))
-            node.on_heartbeat_started(
-                lambda n=node_id: self.report(n, ra.NodeStatus.HB_ACTIVE))
+            node.on_bootup(partial(self._bootup, node_id))
+            node.on_state_change(partial(self._state, node_id))
+            node.on_heartbeat_lost(partial(self._lost, node_id))
+            node.on_heartbeat_started(partial(self.report, node_id, ra.NodeStatus.HB_ACTIVE))
         self._thread = threading.Thread(target=self._scan_loop, daemon=True,
                                         name=f"ra manager {line.channel}")
         self._thread.start()
@@ -209,7 +209,7 @@ class MinimalManager:
                 continue
             if id(pdo_map) not in self._heard_pdos:
                 self._heard_pdos.add(id(pdo_map))
-                pdo_map.add_callback(lambda pm, n=node_id: self._pdo_received(n, pm))
+                pdo_map.add_callback(partial(self._pdo_received, node_id))
         self.report(node_id, ra.NodeStatus.SCAN_COMPLETE)
 
     def _pdo_received(self, node_id: int, pdo_map: PdoMap) -> None:

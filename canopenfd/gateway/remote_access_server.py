@@ -23,11 +23,12 @@ import logging
 import queue
 import threading
 import time
+from functools import partial
 from typing import Dict, List, Mapping, Optional, Tuple, Union
 
 from .. import __version__
 from ..errors import AbortError, CanopenFDError, ConfigurationError
-from ..line import Line
+from ..line import Line, ODLike
 from ..node import LocalNode
 from ..services.emcy import Emcy
 from ..services.nmt import NmtState
@@ -390,7 +391,7 @@ class RemoteAccessServer:
                  max_payload: int = ra.SEED_MAX_PAYLOAD, sdo_timeout: float = 1.0,
                  remote_timeout: float = 30.0,
                  idle_timeout: float = 0.5, control: int = 0, heartbeat_ms: int = 1000,
-                 known: Optional[Mapping[int, Mapping[int, object]]] = None,
+                 known: Optional[Mapping[int, Mapping[int, ODLike]]] = None,
                  indication_queue: int = INDICATION_QUEUE) -> None:
         if not networks:
             raise ConfigurationError("RemoteAccessServer: no network to serve (give {1: line})")
@@ -410,7 +411,7 @@ class RemoteAccessServer:
         known = known or {}
         for net, line in networks.items():
             ra.check_net(net, "RemoteAccessServer")
-            manager = MinimalManager(line, lambda msg, n=net: self.indicate(n, msg),
+            manager = MinimalManager(line, partial(self.indicate, net),
                                      heartbeat_ms=heartbeat_ms, known=known.get(net, {}))
             self.served[net] = _Served(self, net, line, manager)
         for served in self.served.values():
