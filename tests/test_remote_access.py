@@ -320,6 +320,9 @@ def test_keep_op_starts_a_booting_node(world: World) -> None:
     host, bus = world.host, world.bus
     assert host.ask(b"W\x01\x5f\x04\x01\x00\x00\x00") == b"W\x01\x5f\x04\x00\x00"
     world.gw.wait_for_state("OPERATIONAL", timeout=scaled(2))     # the gateway starts itself
+    bus.wait_for(lambda calls: b"\x01\x00" in nmt_frames(bus), what="start of all nodes")
+    world.line[DEV].wait_for_state("OPERATIONAL", timeout=scaled(2))  # as the gateway saw it
+    world.dev.apply("PRE_OPERATIONAL")          # falls back: started again, by node-id
     bus.wait_for(lambda calls: b"\x01\x05" in nmt_frames(bus), what="start of node 5")
     late = world.net.open_line(world.line.channel).create_local_node(7, heartbeat_ms=50)
     bus.wait_for(lambda calls: b"\x01\x07" in nmt_frames(bus), what="start of booted node 7")

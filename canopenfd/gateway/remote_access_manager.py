@@ -1,8 +1,9 @@
 """The minimal manager of seed 001 (CANopenIA-MGR) on one line: every node's
 state as [5F04h,n] reports it, and the automation [5F01h,04h] switches on:
 
-- KEEP_OP: the local node and every node that boots or falls back to
-  pre-operational/stopped is started (NMT start);
+- KEEP_OP: when switched on, the local node and all nodes are started (NMT
+  start to all); later, every node that boots or falls back to
+  pre-operational/stopped is started (NMT start to it);
 - HB_RECEIVE_ALL: every node is monitored with the default heartbeat time
   ([5F01h,08h]); a node whose heartbeat is lost is sent an NMT reset node;
 - PDO_RECEIVE_ALL: a known node (one given an OD) is scanned when it boots:
@@ -133,12 +134,12 @@ class MinimalManager:
             node.heartbeat_timeout_ms = ms
 
     def _start_all(self) -> None:
+        """KEEP_OP switched on: the local node and every node (NMT start to all:
+        nodes that booted before the gateway listened are not known by id)."""
         local = self.line.local_node
         if local is not None and local.state != NmtState.OPERATIONAL:
             local.apply("START")
-        for node_id, state in self.line.states.items():
-            if node_id in self._nodes and state in (NmtState.PRE_OPERATIONAL, NmtState.STOPPED):
-                self.line.nmt.start(node_id)
+        self.line.nmt.start(0)
 
     # ------------------------------------------------------------ states ([5F04h,n])
     def status(self, node_id: int) -> int:
