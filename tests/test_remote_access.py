@@ -456,3 +456,28 @@ def test_server_refuses_wrong_setup(net: canopenfd.Network, bus_name: str) -> No
         RemoteAccessServer({16: line})
     with pytest.raises(ConfigurationError, match="unknown CRC variant"):
         RemoteAccessServer({1: line}, crc="crc32")
+
+
+def test_heartbeat_receive_all_leaves_the_applications_monitoring(
+        net: canopenfd.Network, bus_name: str) -> None:
+    line = net.open_line(bus_name)
+    od = demo_od("fd")
+    od[0x1016][1].value = DEV << 16 | 700          # the gateway node's own 0x1016 entry
+    line.create_local_node(GW, od=od)
+    watched = line.add_node(9, heartbeat_timeout_ms=900)   # the application's own watch
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    with RemoteAccessServer({1: line}) as server:
+        server.serve(FdStream(master, "pty master"))
+        host = Host(slave)
+        try:
+            assert host.ask(b"W\x01\x5f\x04\x02\x00\x00\x00") == b"W\x01\x5f\x04\x00\x00"
+            assert line[11].heartbeat_timeout_ms == 1000         # the manager's default
+            assert watched.heartbeat_timeout_ms == 900           # left alone
+            assert host.ask(b"W\x01\x5f\x04\x00\x00\x00\x00") == b"W\x01\x5f\x04\x00\x00"
+            assert line[11].heartbeat_timeout_ms == 0
+            assert watched.heartbeat_timeout_ms == 900
+            assert server.stats["internal_errors"] == 0
+        finally:
+            host.close()

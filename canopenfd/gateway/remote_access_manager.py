@@ -59,6 +59,7 @@ class MinimalManager:
         self._known = dict(known or {})
         self._status: Dict[int, int] = {}
         self._nodes: Dict[int, RemoteNode] = {}
+        self._own_timeouts: Dict[int, int] = {}   # the application's, left alone
         self._heard_pdos: Set[int] = set()    # id() of PdoMaps with our callback
         self._scans: "queue.Queue[Optional[int]]" = queue.Queue()
         self._thread: Optional[threading.Thread] = None
@@ -78,6 +79,7 @@ class MinimalManager:
             od = self._known.get(node_id)
             node = line.add_node(node_id, od=od) if od is not None else line.add_node(node_id)
             self._nodes[node_id] = node
+            self._own_timeouts[node_id] = node.heartbeat_timeout_ms
             node.on_bootup(partial(self._bootup, node_id))
             node.on_state_change(partial(self._state, node_id))
             node.on_heartbeat_lost(partial(self._lost, node_id))
@@ -129,9 +131,17 @@ class MinimalManager:
             return bool(self.control & bit)
 
     def _apply_heartbeat(self) -> None:
-        ms = self.heartbeat_ms if self._on(ra.ManagerControl.HB_RECEIVE_ALL) else 0
-        for node in self._nodes.values():
-            node.heartbeat_timeout_ms = ms
+        """Monitor every node the application does not monitor itself (its own
+        timeouts, kept from the start, come back when the bit is cleared)."""
+        on = self._on(ra.ManagerControl.HB_RECEIVE_ALL)
+        for node_id, node in self._nodes.items():
+            own = self._own_timeouts.get(node_id, 0)
+            if own:
+                continue
+            try:
+                node.heartbeat_timeout_ms = self.heartbeat_ms if on else 0
+            except CanopenFDError as exc:    # e.g. the local node's 0x1016 monitors it
+                log.info("remote access manager: node %d: %s", node_id, exc)
 
     def _start_all(self) -> None:
         """KEEP_OP switched on: the local node and every node (NMT start to all:

@@ -249,6 +249,7 @@ class RemoteAccessConnection:
         self.invalid_length = 0
         self.busy = 0
         self.indications_dropped = 0
+        self.internal_errors = 0
         self.closed = threading.Event()
         self._out: "queue.Queue[Optional[bytes]]" = queue.Queue()
         self._queued_indications = 0
@@ -272,7 +273,8 @@ class RemoteAccessConnection:
     def stats(self) -> Dict[str, int]:
         stats = self.decoder.stats.as_dict()
         stats.update(unknown_command=self.unknown_command, invalid_length=self.invalid_length,
-                     busy=self.busy, indications_dropped=self.indications_dropped)
+                     busy=self.busy, indications_dropped=self.indications_dropped,
+                     internal_errors=self.internal_errors)
         return stats
 
     # ------------------------------------------------------------ output
@@ -314,7 +316,11 @@ class RemoteAccessConnection:
                 now = time.monotonic()
                 frames = self.decoder.feed(data, now) if data else self.decoder.expire(now)
                 for frame in frames:
-                    self._handle(frame)
+                    try:
+                        self._handle(frame)
+                    except Exception:   # a fault of ours never ends the host's connection
+                        log.exception("remote access %s: frame %r", self.stream.name, frame)
+                        self.internal_errors += 1
         finally:
             self.decoder.close()
             self.close()
@@ -359,7 +365,12 @@ class RemoteAccessConnection:
             net, command = item
             served = self.server.served.get(net)
             assert served is not None and isinstance(command, (ra.RemoteRead, ra.RemoteWrite))
-            response = self.server.remote(served, command)
+            try:
+                response = self.server.remote(served, command)
+            except Exception:   # answered, and the next remote command is taken
+                log.exception("remote access %s: %r", self.stream.name, command)
+                self.internal_errors += 1
+                response = self.server.refusal(command, int(ra.RaError.MISC))
             with self._count_lock:
                 self._remote_running = False
             self._respond(net, response)
