@@ -481,3 +481,28 @@ def test_heartbeat_receive_all_leaves_the_applications_monitoring(
             assert server.stats["internal_errors"] == 0
         finally:
             host.close()
+
+
+def test_node_view_typed_by_the_od(world: World) -> None:
+    port = world.server.serve_tcp(0)
+    with RemoteAccessClient.connect("127.0.0.1", port) as client:
+        drive = client.node(DEV, od=demo_od("fd", pdos=1))
+        drive.write("Demo UNSIGNED16", 1234)                      # typed, by name
+        assert world.dev[0x2006].raw == 1234
+        world.dev[0x2008].raw = 2.5
+        assert drive.read("Demo REAL32") == 2.5
+        assert drive.read((0x2006, 0)) == 1234
+        drive.start()
+        world.bus.wait_for(lambda calls: b"\x01\x05" in nmt_frames(world.bus),
+                           what="NMT start 5")
+        world.dev.wait_for_state("OPERATIONAL", timeout=scaled(2))
+        bare = client.node(DEV)                                   # no OD: bytes
+        assert bare.read(0x2006) == b"\xd2\x04"
+        with pytest.raises(ConfigurationError, match="without an OD entry the value must be "
+                                                     "bytes, got int"):
+            bare.write(0x2006, 5)
+        with pytest.raises(ConfigurationError, match="node-id must be 1..127"):
+            client.node(0)
+        own = client.node(GW, od=demo_od("fd"))                  # the gateway's own OD
+        own.write("Producer heartbeat time", 250)
+        assert world.gw[0x1017].raw == 250

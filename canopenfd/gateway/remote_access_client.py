@@ -4,7 +4,9 @@ over a serial line or TCP as the local API drives a line: read and write the
 gateway's local OD and any node's OD, NMT, states, and indications.
 
     with RemoteAccessClient.open_serial("/dev/ttyUSB0") as gw:
-        gw.write_remote(5, 0x1017, 0, (100).to_bytes(2, "little"))
+        drive = gw.node(5, od="drive.eds")          # typed by the node's OD
+        drive.write("Producer heartbeat time", 100)
+        drive.start()
         gw.on_data(lambda net, d: print(d.node, hex(d.index), d.sub, d.data.hex()))
 
 Calls block until the response (one command at a time, as the protocol
@@ -19,7 +21,12 @@ import time
 from typing import Callable, Dict, List, Optional, Union
 
 from ..errors import CanopenFDError, ConfigurationError
+from ..od import ObjectDictionary, import_od
+from ..od.datatypes import Value
+from ..od.fileio import Source
 from ..services.nmt import NmtCommand
+from ..transfer.client import Key
+from ..transfer.remote import resolve
 from . import remote_access as ra
 from .remote_access_stream import ByteStream, connect_tcp, open_serial
 
@@ -250,3 +257,74 @@ class RemoteAccessClient:
         communication)."""
         value = ra.RESET_HARD if hard else ra.RESET_SOFT
         self.write_local(ra.CONTROL_INDEX, 1, bytes((value,)), net=net)
+
+    # ------------------------------------------------------------ node views
+    def node(self, node_id: int, od: Union[ObjectDictionary, Source, None] = None, *,
+             net: Optional[int] = None) -> "RemoteAccessNode":
+        """A node behind the gateway as `line.add_node` gives it: `read(key)` /
+        `write(key, value)` typed by its OD (an ObjectDictionary or an
+        EDS/DCF/XDD file), NMT and its state. The gateway's own node-id
+        reaches the gateway's local OD."""
+        where = f"RemoteAccessClient.node({node_id!r})"
+        if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
+            raise ConfigurationError(f"{where}: node-id must be 1..127")
+        if od is not None and not isinstance(od, ObjectDictionary):
+            od = import_od(od, node_id=node_id)
+        return RemoteAccessNode(self, node_id, od, self.net if net is None else
+                                ra.check_net(net, where))
+
+
+class RemoteAccessNode:
+    """One node reached through a remote-access gateway (RemoteAccessClient.node)."""
+
+    def __init__(self, client: RemoteAccessClient, node_id: int,
+                 od: Optional[ObjectDictionary], net: int) -> None:
+        self.client = client
+        self.node_id = node_id
+        self.object_dictionary = od
+        self.net = net
+
+    def __repr__(self) -> str:
+        return f"<RemoteAccessNode {self.node_id} net {self.net} via {self.client.stream.name}>"
+
+    def _where(self, verb: str, key: Key) -> str:
+        return f"node {self.node_id} {verb}({key!r})"
+
+    def read(self, key: Key) -> Union[Value, bytes]:
+        """The entry's value: typed when the OD knows it, else its bytes."""
+        index, sub, variable = resolve(key, self.object_dictionary, self._where("read", key))
+        data = self.client.read_remote(self.node_id, index, sub, net=self.net)
+        return variable.decode_raw(data) if variable is not None else data
+
+    def write(self, key: Key, value: Union[Value, bytes]) -> None:
+        """Write an entry: typed by the OD when it knows the entry, else bytes."""
+        where = self._where("write", key)
+        index, sub, variable = resolve(key, self.object_dictionary, where)
+        if variable is not None:
+            data = variable.encode_raw(value)
+        elif isinstance(value, (bytes, bytearray, memoryview)):
+            data = bytes(value)
+        else:
+            raise ConfigurationError(f"{where}: without an OD entry the value must be bytes, "
+                                     f"got {type(value).__name__} (give od=...)")
+        self.client.write_remote(self.node_id, index, sub, data, net=self.net)
+
+    @property
+    def state(self) -> int:
+        """[5F04h,n]: the last state or event the gateway knows (NodeStatus code)."""
+        return self.client.node_state(self.node_id, net=self.net)
+
+    def start(self) -> None:
+        self.client.nmt("start", self.node_id, net=self.net)
+
+    def stop(self) -> None:
+        self.client.nmt("stop", self.node_id, net=self.net)
+
+    def pre_operational(self) -> None:
+        self.client.nmt("preop", self.node_id, net=self.net)
+
+    def reset_node(self) -> None:
+        self.client.nmt("reset-node", self.node_id, net=self.net)
+
+    def reset_communication(self) -> None:
+        self.client.nmt("reset-comm", self.node_id, net=self.net)
