@@ -506,3 +506,42 @@ def test_node_view_typed_by_the_od(world: World) -> None:
         own = client.node(GW, od=demo_od("fd"))                  # the gateway's own OD
         own.write("Producer heartbeat time", 250)
         assert world.gw[0x1017].raw == 250
+
+
+def test_tcp_hosts_garbage_disconnects_and_several_at_once(world: World) -> None:
+    import random
+    import socket as socketlib
+
+    port = world.server.serve_tcp(0)
+    # 1 MB of noise without a start byte of network 1, then a good frame: served
+    rng = random.Random(3)
+    noise = bytes(b for b in rng.randbytes(1 << 20) if b not in (0x11, 0x31))
+    raw = socketlib.create_connection(("127.0.0.1", port))
+    raw.sendall(noise + frame(b"R\x17\x10\x00"))
+    raw.settimeout(scaled(10))
+    answer = frame(b"R\x17\x10\x00\x00\x00\x00\x00")
+    got = b""
+    while len(got) < len(answer):
+        got += raw.recv(64)
+    assert got == answer
+    # a host that disconnects while its remote command runs (node 9 is silent)
+    raw.sendall(frame(b"U\x09\x00\x10\x00"))
+    raw.close()
+    # two hosts at once: each gets its own answers, both get the indications
+    with RemoteAccessClient.connect("127.0.0.1", port) as one, \
+            RemoteAccessClient.connect("127.0.0.1", port) as two:
+        seen_one, seen_two = Recorder(), Recorder()
+        one.on_data(lambda net, d: seen_one(d))
+        two.on_data(lambda net, d: seen_two(d))
+        for value in range(1000, 1020):
+            one.write_local(0x2006, 0, value.to_bytes(2, "little"))
+            assert two.read_local(0x2006) == value.to_bytes(2, "little")
+        world.line.nmt.start(DEV)
+        wanted = ra.NewData(DEV, ra.NODE_STATE_INDEX, DEV, bytes((ra.NodeStatus.OPERATIONAL,)))
+        seen_one.wait_value(wanted)
+        seen_two.wait_value(wanted)
+        assert one.stats["unexpected"] == 0 and two.stats["unexpected"] == 0
+    stats = world.server.stats
+    # the noise's 0x01 / 0x21 bytes look like starts of network 1 without a checksum
+    assert stats["garbage_bytes"] > 1_000_000 and stats["no_checksum"] > 1000
+    assert stats["internal_errors"] == 0
