@@ -543,5 +543,5 @@ def test_tcp_hosts_garbage_disconnects_and_several_at_once(world: World) -> None
         assert one.stats["unexpected"] == 0 and two.stats["unexpected"] == 0
     stats = world.server.stats
     # the noise's 0x01 / 0x21 bytes look like starts of network 1 without a checksum
-    assert stats["garbage_bytes"] > 1_000_000 and stats["no_checksum"] > 1000
+    assert stats["garbage_bytes"] > 1_000_000 and stats["no_checksum"] > 100
     assert stats["internal_errors"] == 0
