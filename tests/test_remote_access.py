@@ -309,6 +309,8 @@ def test_slow_host_drops_indications_counts_them(net: canopenfd.Network, bus_nam
         for value in range(2000):
             w.server.indicate(1, ra.NewData(0, 0x2000, 0, bytes(20)))
         assert w.server.stats["indications_dropped"] > 0
+        w.server.indicate(1, ra.NewData(0, 0x2000, 0, bytes(31)))   # 36 > 35 bytes
+        assert w.server.stats["indications_too_long"] == 1
     finally:
         w.host.close()
         w.server.close()

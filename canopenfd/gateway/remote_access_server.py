@@ -417,7 +417,7 @@ class RemoteAccessServer:
         self._connections: List[RemoteAccessConnection] = []
         self._listeners: List[TcpListener] = []
         self._closed = False
-        self._ended: Dict[str, int] = {}     # counters of connections that ended
+        self._totals: Dict[str, int] = {}    # the server's counters and those of ended connections
         self.served: Dict[int, _Served] = {}
         known = known or {}
         for net, line in networks.items():
@@ -476,7 +476,7 @@ class RemoteAccessServer:
 
     def _finished_stats(self, connection: RemoteAccessConnection) -> None:
         for key, value in connection.stats.items():
-            self._ended[key] = self._ended.get(key, 0) + value
+            self._totals[key] = self._totals.get(key, 0) + value
 
     @property
     def connections(self) -> List[RemoteAccessConnection]:
@@ -487,7 +487,7 @@ class RemoteAccessServer:
     def stats(self) -> Dict[str, int]:
         """Counters of every connection, ended ones included."""
         with self._lock:
-            total = dict(self._ended)
+            total = dict(self._totals)
             for connection in self._connections:
                 for key, value in connection.stats.items():
                     total[key] = total.get(key, 0) + value
@@ -508,8 +508,14 @@ class RemoteAccessServer:
     # ------------------------------------------------------------ indications
     def indicate(self, net: int, indication: ra.NewData) -> None:
         """Send indication D to every connected host (dropped for a host whose
-        queue is full, counted); data beyond max_payload is cut off."""
-        payload = ra.encode_new_data(indication)[:self.max_payload]
+        queue is full, counted); one longer than max_payload is not sent
+        (counted `indications_too_long`: a cut value would be a wrong one)."""
+        payload = ra.encode_new_data(indication)
+        if len(payload) > self.max_payload:
+            with self._lock:
+                self._totals["indications_too_long"] = \
+                    self._totals.get("indications_too_long", 0) + 1
+            return
         for connection in self.connections:
             connection.send_payload(net, payload, indication=True)
 
