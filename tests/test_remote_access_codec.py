@@ -255,3 +255,44 @@ def test_crc_variant_names() -> None:
     assert ra.parse_crc("XMODEM") is ra.CrcVariant.XMODEM
     with pytest.raises(ConfigurationError, match="unknown CRC variant 'arc'"):
         ra.parse_crc("arc")
+
+
+try:
+    from hypothesis import given, settings, strategies as st
+except ImportError:        # pragma: no cover - hypothesis is in the test extra
+    given = None
+
+if given is not None:
+    _NOT_START = st.integers(0, 255).filter(lambda b: b & 0x0F != 1 or b & 0xC0)
+    _PAYLOAD = st.binary(min_size=1, max_size=ra.SEED_MAX_PAYLOAD)
+
+    @settings(max_examples=200, deadline=None)
+    @given(st.lists(st.tuples(st.lists(_NOT_START, max_size=12), _PAYLOAD), max_size=8),
+           st.integers(1, 9))
+    def test_every_frame_found_through_noise_in_any_chunking(parts, chunk) -> None:
+        """Good frames of network 1 separated by bytes that are no start byte of
+        it are all found, in order, however the stream is cut into reads."""
+        stream = b"".join(bytes(noise) + frame_by_hand(payload) for noise, payload in parts)
+        decoder = ra.FrameDecoder(nets=frozenset({1}))
+        found = []
+        for at in range(0, len(stream), chunk):
+            found += decoder.feed(stream[at:at + chunk])
+        assert [f.payload for f in found] == [payload for _, payload in parts]
+        assert decoder.pending == 0
+
+    @settings(max_examples=300, deadline=None)
+    @given(st.binary(max_size=300), _PAYLOAD)
+    def test_any_noise_then_idle_then_a_frame(noise, payload) -> None:
+        """Whatever came before, the next good frame is served once the false
+        starts in front of it have timed out (each idle timeout drops one); the
+        decoder never raises and stays bounded."""
+        decoder = ra.FrameDecoder(idle_timeout=0.5)
+        decoder.feed(noise, now=0.0)
+        assert decoder.pending <= 3 + ra.SEED_MAX_PAYLOAD + 2
+        found = decoder.feed(frame_by_hand(payload), now=1.0)
+        now = 1.0
+        while decoder.pending:
+            now += 1.0
+            found += decoder.expire(now)
+            assert now < 1000
+        assert ra.Frame(1, payload) in found
