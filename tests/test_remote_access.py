@@ -548,3 +548,27 @@ def test_tcp_hosts_garbage_disconnects_and_several_at_once(world: World) -> None
     # the noise's 0x01 / 0x21 bytes look like starts of network 1 without a checksum
     assert stats["garbage_bytes"] > 1_000_000 and stats["no_checksum"] > 100
     assert stats["internal_errors"] == 0
+
+
+def test_hardware_status_follows_the_line(net: canopenfd.Network, bus_name: str) -> None:
+    # a 2-frame tx queue: a burst fills it (tx busy) and overflows it (tx overrun)
+    line = net.open_line(bus_name, tx_queue=2)
+    line.create_local_node(GW, od=demo_od("fd"))
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    with RemoteAccessServer({1: line}) as server:
+        server.serve(FdStream(master, "pty master"))
+        host = Host(slave)
+        try:
+            assert host.ask(b"R\x00\x5f\x03") == b"R\x00\x5f\x03\x00\x00\x21"    # INIT | CANFD
+            for _ in range(3000):             # the runtime refuses (and logs) what overflows
+                line.send_frame(0x181, b"\x01")
+            # INIT | TX_OVERRUN | CANFD (| TX_BUSY while the queue is full)
+            host.indications.wait_for(
+                lambda calls: any(c[:5] == b"D\x01\x00\x5f\x03" and c[5] & 0x10 for c in calls),
+                what="hardware status with the tx overrun")
+            status = host.ask(b"R\x00\x5f\x03")
+            assert status[:6] == b"R\x00\x5f\x03\x00\x00" and status[6] & 0x31 == 0x31
+        finally:
+            host.close()

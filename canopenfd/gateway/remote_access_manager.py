@@ -36,7 +36,8 @@ log = logging.getLogger(__name__)
 NODE_COUNT = 127
 
 
-def _status_of(state: NmtState) -> int:
+def node_status_of(state: NmtState) -> int:
+    """An NMT state as [5F04h,n] / [5F00h,02h] write it."""
     if state == NmtState.OPERATIONAL:
         return ra.NodeStatus.OPERATIONAL
     if state == NmtState.STOPPED:
@@ -160,7 +161,7 @@ class MinimalManager:
         if status is not None:
             return status
         state = self.line.states.get(node_id)
-        return ra.NodeStatus.BOOT if state is None else _status_of(state)
+        return ra.NodeStatus.BOOT if state is None else node_status_of(state)
 
     def report(self, node_id: int, status: int) -> None:
         """Record a node's state or event and tell the hosts."""
@@ -178,7 +179,7 @@ class MinimalManager:
     def _state(self, node_id: int, state: NmtState) -> None:
         if state == NmtState.INITIALISING:
             return      # the boot-up reported it
-        self.report(node_id, _status_of(state))
+        self.report(node_id, node_status_of(state))
         if self._on(ra.ManagerControl.KEEP_OP) and state in (NmtState.PRE_OPERATIONAL,
                                                               NmtState.STOPPED):
             self.line.nmt.start(node_id)

@@ -26,7 +26,7 @@ import time
 from functools import partial
 from typing import Dict, List, Mapping, Optional, Tuple, Union
 
-from .. import __version__
+from .. import CommEvent, __version__
 from ..errors import AbortError, CanopenFDError, ConfigurationError
 from ..line import Line, ODLike
 from ..node import LocalNode
@@ -36,7 +36,7 @@ from ..services.served_od import LocalValue
 from ..transfer.sdo import SdoClient
 from ..transfer.usdo import UsdoClient
 from . import remote_access as ra
-from .remote_access_manager import MinimalManager
+from .remote_access_manager import MinimalManager, node_status_of
 from .remote_access_stream import ByteStream, TcpListener, open_serial
 
 log = logging.getLogger(__name__)
@@ -65,15 +65,16 @@ def error_for_abort(code: int) -> int:
     return int(_ABORT_BITS.get(code, ra.RaError.ABORTED))
 
 
-def node_status_of(state: NmtState) -> int:
-    """An NMT state as [5F04h,n] / [5F00h,02h] write it."""
-    if state == NmtState.OPERATIONAL:
-        return ra.NodeStatus.OPERATIONAL
-    if state == NmtState.STOPPED:
-        return ra.NodeStatus.STOPPED
-    if state == NmtState.PRE_OPERATIONAL:
-        return ra.NodeStatus.PREOP
-    return ra.NodeStatus.BOOT
+#: The hardware status bits a communication event sets, and those it clears.
+_HW_SET = {CommEvent.BUS_OFF: ra.HwStatus.BUS_OFF,
+           CommEvent.ERROR_PASSIVE: ra.HwStatus.ERROR_PASSIVE,
+           CommEvent.ERROR_WARNING: ra.HwStatus.CAN_ERROR,
+           CommEvent.RX_OVERFLOW: ra.HwStatus.RX_OVERRUN,
+           CommEvent.TX_OVERFLOW: ra.HwStatus.TX_OVERRUN,
+           CommEvent.TX_QUEUE_FULL: ra.HwStatus.TX_BUSY}
+_HW_CLEAR = {CommEvent.ERROR_ACTIVE: ra.HwStatus.ERROR_PASSIVE | ra.HwStatus.CAN_ERROR,
+             CommEvent.BUS_OFF_RECOVERED: ra.HwStatus.BUS_OFF,
+             CommEvent.TX_QUEUE_EMPTY: ra.HwStatus.TX_BUSY}
 
 
 def _firmware_word() -> int:
@@ -133,19 +134,14 @@ class _Served:
         self.server.indicate(self.net, ra.NewData(self.own_id, ra.STATUS_INDEX, 2,
                                                   bytes((node_status_of(new),))))
 
-    def _comm_event(self, event: int) -> None:
+    def _comm_event(self, event: CommEvent) -> None:
+        """[5F00h,03h] follows the line's communication events; overruns stay
+        set (the seed: "set if ... occurred")."""
         hw = self.hw
-        flags = {1: ra.HwStatus.BUS_OFF, 2: ra.HwStatus.ERROR_PASSIVE,
-                 4: ra.HwStatus.RX_OVERRUN, 5: ra.HwStatus.TX_OVERRUN,
-                 6: ra.HwStatus.TX_BUSY, 10: ra.HwStatus.CAN_ERROR}
-        if event in flags:
-            hw |= flags[event]
-        elif event == 3:          # error active again
-            hw &= ~(ra.HwStatus.ERROR_PASSIVE | ra.HwStatus.CAN_ERROR)
-        elif event == 11:         # bus-off recovered
-            hw &= ~ra.HwStatus.BUS_OFF
-        elif event == 7:          # tx queue empty
-            hw &= ~ra.HwStatus.TX_BUSY
+        if event in _HW_SET:
+            hw |= _HW_SET[event]
+        elif event in _HW_CLEAR:
+            hw &= ~_HW_CLEAR[event]
         if hw != self.hw:
             self.hw = hw
             self.server.indicate(self.net, ra.NewData(self.own_id, ra.STATUS_INDEX, 3,
