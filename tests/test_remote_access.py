@@ -572,3 +572,35 @@ def test_hardware_status_follows_the_line(net: canopenfd.Network, bus_name: str)
             assert status[:6] == b"R\x00\x5f\x03\x00\x00" and status[6] & 0x31 == 0x31
         finally:
             host.close()
+
+
+def test_two_networks_by_start_byte(net: canopenfd.Network, bus_name: str) -> None:
+    first = net.open_line(bus_name, mode="fd")
+    first.create_local_node(1, od=demo_od("fd"))
+    second = net.open_line(bus_name + "-b", mode="classic")
+    second.create_local_node(2, od=demo_od("classic"))
+    device = net.open_line(bus_name + "-b", mode="classic").create_local_node(
+        6, od=demo_od("classic"))
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    with RemoteAccessServer({1: first, 2: second}) as server:
+        server.serve(FdStream(master, "pty master"))
+        raw = FdStream(slave, "host")
+        try:
+            # network 2 (start byte 0x12): its own local node, answered on network 2
+            body = bytes((4,)) + b"R\x00\x5f\x01"
+            raw.write(b"\x12" + body + reference_crc(body).to_bytes(2, "little"))
+            answer = b""
+            deadline = time.monotonic() + scaled(5)
+            while len(answer) < 11 and time.monotonic() < deadline:
+                answer += raw.read(0.1)
+            reply = bytes((7,)) + b"R\x00\x5f\x01\x00\x00\x02"
+            assert answer == b"\x12" + reply + reference_crc(reply).to_bytes(2, "little")
+            with RemoteAccessClient(raw, net=2) as client:
+                device[0x1018][2].raw = 66
+                assert client.read_remote(6, 0x1018, 2) == (66).to_bytes(4, "little")  # SDO
+                assert client.own_node_id(net=1) == 1
+                assert client.hardware_status() == ra.HwStatus.INIT      # classic: no CANFD
+        finally:
+            raw.close()
