@@ -21,7 +21,7 @@ import logging
 import queue
 import threading
 from functools import partial
-from typing import Callable, Dict, Mapping, Optional, Set
+from typing import Callable, Dict, Mapping, Optional, Set, Tuple
 
 from ..errors import CanopenFDError
 from ..line import Line, ODLike
@@ -61,7 +61,7 @@ class MinimalManager:
         self._status: Dict[int, int] = {}
         self._nodes: Dict[int, RemoteNode] = {}
         self._own_timeouts: Dict[int, int] = {}   # the application's, left alone
-        self._heard_pdos: Set[int] = set()    # id() of PdoMaps with our callback
+        self._heard_pdos: Set[Tuple[int, int]] = set()   # (node, TPDO number) heard
         self._scans: "queue.Queue[Optional[int]]" = queue.Queue()
         self._thread: Optional[threading.Thread] = None
         #: scans that failed (transfer aborted, no OD)
@@ -215,12 +215,11 @@ class MinimalManager:
             self.scans_aborted += 1
             self.report(node_id, ra.NodeStatus.SCAN_ABORTED)
             return
-        for pdo_map in maps.values():
-            cob_id = pdo_map.cob_id
-            if cob_id is None or not pdo_map.enabled or not len(pdo_map):
+        for number, pdo_map in maps.items():
+            if pdo_map.cob_id is None or not pdo_map.enabled or not len(pdo_map):
                 continue
-            if id(pdo_map) not in self._heard_pdos:
-                self._heard_pdos.add(id(pdo_map))
+            if (node_id, number) not in self._heard_pdos:      # one callback per TPDO
+                self._heard_pdos.add((node_id, number))
                 pdo_map.add_callback(partial(self._pdo_received, node_id))
         self.report(node_id, ra.NodeStatus.SCAN_COMPLETE)
 

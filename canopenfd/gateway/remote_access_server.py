@@ -392,7 +392,10 @@ class RemoteAccessServer:
     timeout (s) for remote commands; remote_timeout: seconds one may take;
     control / heartbeat_ms: the minimal manager's start values ([5F01h,04h],
     [5F01h,08h]); known: {net: {node: OD or EDS path}} the manager reads PDO
-    configurations of (PDO_RECEIVE_ALL)."""
+    configurations of (PDO_RECEIVE_ALL).
+
+    Create the lines' local nodes first: the server watches every other
+    node-id of each line (line.add_node), and they stay watched after close()."""
 
     def __init__(self, networks: Mapping[int, Line], *, crc: Union[str, ra.CrcVariant] = "seed",
                  max_payload: int = ra.SEED_MAX_PAYLOAD, sdo_timeout: float = 1.0,
