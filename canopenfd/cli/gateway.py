@@ -39,24 +39,26 @@ def cmd_gateway(args: argparse.Namespace) -> int:
     node_id = None if args.node_id is None else node_id_arg(args.node_id, "--node-id")
     mode = "classic" if args.classic else "fd"
     done = threading.Event()
-    with command_line(args) as line:
-        if node_id is not None:
-            line.create_local_node(node_id, od=_gateway_od(args.od, mode, node_id))
-        printer = Printer()
-        stops: List[Callable[[], None]] = []
-        try:
-            stops.append(start_remote_access(args, line, printer))
-            previous = _on_sigterm(done)
+    # before the status line says we run: a SIGTERM from then on stops cleanly
+    previous = _on_sigterm(done)
+    try:
+        with command_line(args) as line:
+            if node_id is not None:
+                line.create_local_node(node_id, od=_gateway_od(args.od, mode, node_id))
+            printer = Printer()
+            stops: List[Callable[[], None]] = []
             try:
-                wait_until_done(done, printer, args.duration)
-            except KeyboardInterrupt:
-                pass
+                stops.append(start_remote_access(args, line, printer))
+                try:
+                    wait_until_done(done, printer, args.duration)
+                except KeyboardInterrupt:
+                    pass
             finally:
-                if previous is not None:
-                    signal.signal(signal.SIGTERM, previous)
-        finally:
-            for stop in reversed(stops):
-                stop()
+                for stop in reversed(stops):
+                    stop()
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return EXIT_OK
 
 
