@@ -409,6 +409,12 @@ def test_client_api_over_tcp(world: World) -> None:
         with pytest.raises(ConfigurationError, match="at most 35"):
             client.write_local(0x2000, 0, bytes(40))
         assert client.stats["bad_crc"] == 0 and client.stats["unexpected"] == 0
+        # a raising callback is logged and counted; the client goes on
+        client.on_data(lambda net, d: 1 / 0)
+        world.line.nmt.stop(DEV)
+        states.wait_value((1, DEV, ra.NodeStatus.STOPPED))
+        assert client.read_local(0x1017) == b"\x64\x00"
+        assert client.stats["callback_errors"] >= 1
 
 
 def test_serial_port_through_pyserial(net: canopenfd.Network, bus_name: str) -> None:

@@ -15,9 +15,11 @@ has no request tag); indications arrive on the client's reader thread.
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 import time
+from functools import partial
 from typing import Callable, Dict, List, Optional, Union
 
 from ..errors import CanopenFDError, ConfigurationError
@@ -29,6 +31,8 @@ from ..transfer.client import Key
 from ..transfer.remote import resolve
 from . import remote_access as ra
 from .remote_access_stream import ByteStream, connect_tcp, open_serial
+
+log = logging.getLogger(__name__)
 
 #: NMT commands by name, as `canopenfd nmt` spells them, and their specifier.
 NMT_NAMES = {"start": 0x01, "stop": 0x02, "preop": 0x80, "reset-node": 0x81,
@@ -66,6 +70,8 @@ class RemoteAccessClient:
         #: responses that matched no command in progress, and unreadable payloads
         self.unexpected = 0
         self.unreadable = 0
+        #: indication callbacks that raised (logged)
+        self.callback_errors = 0
         self._request_lock = threading.Lock()
         self._responses: "queue.Queue[ra.Response]" = queue.Queue()
         self._data_callbacks: List[Callable[[int, ra.NewData], None]] = []
@@ -103,7 +109,8 @@ class RemoteAccessClient:
     @property
     def stats(self) -> Dict[str, int]:
         stats = self.decoder.stats.as_dict()
-        stats.update(unexpected=self.unexpected, unreadable=self.unreadable)
+        stats.update(unexpected=self.unexpected, unreadable=self.unreadable,
+                     callback_errors=self.callback_errors)
         return stats
 
     # ------------------------------------------------------------ indications
@@ -140,11 +147,17 @@ class RemoteAccessClient:
         self.decoder.close()
 
     def _deliver(self, net: int, data: ra.NewData) -> None:
-        for callback in list(self._data_callbacks):
-            callback(net, data)
+        """Run the callbacks on the reader thread; one that raises is logged
+        (the reader must go on: responses come through it too)."""
+        calls: List[Callable[[], None]] = [partial(cb, net, data) for cb in self._data_callbacks]
         if data.index == ra.NODE_STATE_INDEX and data.data:
-            for state_callback in list(self._state_callbacks):
-                state_callback(net, data.sub, data.data[0])
+            calls += [partial(cb, net, data.sub, data.data[0]) for cb in self._state_callbacks]
+        for call in calls:
+            try:
+                call()
+            except Exception:
+                self.callback_errors += 1
+                log.exception("remote access client %s: indication callback", self.stream.name)
 
     # ------------------------------------------------------------ requests
     def _request(self, command: ra.Command, net: Optional[int], what: str) -> ra.Response:
