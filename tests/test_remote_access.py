@@ -610,3 +610,36 @@ def test_two_networks_by_start_byte(net: canopenfd.Network, bus_name: str) -> No
                 assert client.hardware_status() == ra.HwStatus.INIT      # classic: no CANFD
         finally:
             raw.close()
+
+
+def test_xmodem_checksums_as_esacademys_host_code(net: canopenfd.Network, bus_name: str) -> None:
+    """crc='xmodem': frames as ESAcademy's published host code builds them
+    (CRC-16/XMODEM over length and payload, low byte first)."""
+    line = net.open_line(bus_name)
+    line.create_local_node(GW, od=demo_od("fd"))
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    with RemoteAccessServer({1: line}, crc="xmodem") as server:
+        server.serve(FdStream(master, "pty master"))
+        raw = FdStream(slave, "host")
+        try:
+            body = bytes((4,)) + b"R\x00\x5f\x01"
+            raw.write(b"\x11" + body + reference_crc(body, 0x1021).to_bytes(2, "little"))
+            answer = b""
+            deadline = time.monotonic() + scaled(5)
+            while len(answer) < 11 and time.monotonic() < deadline:
+                answer += raw.read(0.1)
+            reply = bytes((7,)) + b"R\x00\x5f\x01\x00\x00\x01"
+            assert answer == b"\x11" + reply + reference_crc(reply, 0x1021).to_bytes(2, "little")
+            # a frame with the seed's CRC is a bad CRC here (and not answered)
+            raw.write(frame(b"R\x00\x5f\x01") + b"\x11" + body
+                      + reference_crc(body, 0x1021).to_bytes(2, "little"))
+            answer = b""
+            deadline = time.monotonic() + scaled(5)
+            while len(answer) < 11 and time.monotonic() < deadline:
+                answer += raw.read(0.1)
+            assert answer == b"\x11" + reply + reference_crc(reply, 0x1021).to_bytes(2, "little")
+            assert server.stats["bad_crc"] == 1
+        finally:
+            raw.close()

@@ -48,12 +48,19 @@ def test_gateway_tcp_in_process(net: canopenfd.Network, bus_name: str) -> None:
     status: List[int] = []
     runner = threading.Thread(target=lambda: status.append(main(
         ["gateway", "--channel", bus_name, "--node-id", "1", "--remote-access-tcp", str(port),
-         "--remote-access-manager", "0x1", "--duration", str(scaled(3))], network=net)))
+         "--remote-access-manager", "0x5", "--remote-access-node", "5=builtin:fd",
+         "--duration", str(scaled(3))], network=net)))
     runner.start()
     try:
         with connect_when_listening(port) as client:
             assert client.own_node_id() == 1
-            assert client.manager_control() & 0x1F == ra.ManagerControl.KEEP_OP
+            assert client.manager_control() & 0x1F == (ra.ManagerControl.KEEP_OP
+                                                       | ra.ManagerControl.PDO_RECEIVE_ALL)
+            # the known node was scanned (its TPDO configuration read by USDO)
+            deadline = time.monotonic() + scaled(5)
+            while client.node_state(5) != ra.NodeStatus.SCAN_COMPLETE:
+                assert time.monotonic() < deadline, hex(client.node_state(5))
+                time.sleep(0.05)
             device[0x1018][3].raw = 0x0102
             assert client.read_remote(5, 0x1018, 3) == b"\x02\x01\x00\x00"
             device.wait_for_state("OPERATIONAL", timeout=scaled(5))   # KEEP_OP started it
@@ -73,6 +80,10 @@ def test_gateway_needs_an_endpoint(net: canopenfd.Network, bus_name: str,
     assert main(["gateway", "--channel", bus_name, "--remote-access-tcp", "0",
                  "--remote-access-manager", "8"], network=net) == 2
     assert "manager control 0x00000008 refused (NOT_SUPPORTED)" in capsys.readouterr().err
+    assert main(["gateway", "--channel", bus_name, "--remote-access-tcp", "0",
+                 "--remote-access-node", "200=x.eds"], network=net) == 2
+    assert "--remote-access-node '200=x.eds': expected NODE=FILE with a node-id 1..127" in \
+        capsys.readouterr().err
 
 
 def test_gateway_process_on_a_serial_port_stops_on_sigterm() -> None:

@@ -112,6 +112,10 @@ def add_remote_access_options(p: argparse.ArgumentParser) -> None:
                             "nodes, 4 scan known nodes' PDOs (decimal or 0x hex; default 0)")
     group.add_argument("--remote-access-heartbeat", type=int, default=1000, metavar="MS",
                        help="heartbeat time the manager monitors nodes with (default 1000)")
+    group.add_argument("--remote-access-node", action="append", metavar="NODE=FILE",
+                       help="a known node and its object dictionary (EDS, DCF, XDD, XDC or "
+                            "builtin:fd / builtin:classic): the manager scans its PDOs "
+                            "(bit 4); repeatable")
 
 
 def remote_access_wanted(args: argparse.Namespace) -> bool:
@@ -132,10 +136,22 @@ def start_remote_access(args: argparse.Namespace, line: Line, printer: Printer
     if not 1 <= args.remote_access_max_payload <= 0xFFFF:
         raise UsageError(f"--remote-access-max-payload {args.remote_access_max_payload}: "
                          "expected 1..65535")
+    known = {}
+    for spec in args.remote_access_node or []:
+        node_text, sep, path = spec.partition("=")
+        try:
+            node = int(node_text, 0)
+        except ValueError:
+            node = -1
+        if not sep or not path or not 1 <= node <= 127:
+            raise UsageError(f"--remote-access-node {spec!r}: expected NODE=FILE with a "
+                             "node-id 1..127")
+        known[node] = _gateway_od(path, line.mode, node)
     try:
         server = RemoteAccessServer({1: line}, crc=args.remote_access_crc,
                                     max_payload=args.remote_access_max_payload,
-                                    control=control, heartbeat_ms=heartbeat)
+                                    control=control, heartbeat_ms=heartbeat,
+                                    known={1: known})
     except CanopenFDError as exc:
         raise UsageError(f"gateway: {exc}") from None
     where = []
