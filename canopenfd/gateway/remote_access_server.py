@@ -247,7 +247,8 @@ class RemoteAccessConnection:
         self.indications_dropped = 0
         self.internal_errors = 0
         self.closed = threading.Event()
-        self._out: "queue.Queue[Optional[bytes]]" = queue.Queue()
+        # (is an indication, frame); None ends the writer
+        self._out: "queue.Queue[Optional[Tuple[bool, bytes]]]" = queue.Queue()
         self._queued_indications = 0
         self._count_lock = threading.Lock()
         # one remote command at a time: the next one while it runs is refused BUSY
@@ -283,18 +284,17 @@ class RemoteAccessConnection:
                     self.indications_dropped += 1
                     return
                 self._queued_indications += 1
-        frame = ra.encode_frame(payload, net, crc=self.server.crc)
-        self._out.put(frame if not indication else b"I" + frame)
+        self._out.put((indication, ra.encode_frame(payload, net, crc=self.server.crc)))
 
     def _write_loop(self) -> None:
         while True:
             item = self._out.get()
             if item is None:
                 return
-            if item[:1] == b"I":
+            indication, frame = item
+            if indication:
                 with self._count_lock:
                     self._queued_indications -= 1
-            frame = item[1:] if item[:1] == b"I" else item
             try:
                 self.stream.write(frame)
             except EOFError:
