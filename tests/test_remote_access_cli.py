@@ -79,7 +79,8 @@ def test_gateway_needs_an_endpoint(net: canopenfd.Network, bus_name: str,
     assert "--remote-access-manager 'x': not a number" in capsys.readouterr().err
     assert main(["gateway", "--channel", bus_name, "--remote-access-tcp", "0",
                  "--remote-access-manager", "8"], network=net) == 2
-    assert "manager control 0x00000008 refused (NOT_SUPPORTED)" in capsys.readouterr().err
+    assert ("manager control 0x00000008 refused (NOT_SUPPORTED: bits 3 and 4 are not "
+            "served)") in capsys.readouterr().err
     assert main(["gateway", "--channel", bus_name, "--remote-access-tcp", "0",
                  "--remote-access-node", "200=x.eds"], network=net) == 2
     assert "--remote-access-node '200=x.eds': expected NODE=FILE with a node-id 1..127" in \

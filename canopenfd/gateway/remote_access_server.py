@@ -405,6 +405,13 @@ class RemoteAccessServer:
                  indication_queue: int = INDICATION_QUEUE) -> None:
         if not networks:
             raise ConfigurationError("RemoteAccessServer: no network to serve (give {1: line})")
+        unsupported = control & (ra.ManagerControl.PDO_TRANSMIT_ALL | ra.ManagerControl.USE_SCANNED)
+        if unsupported:
+            raise ConfigurationError(
+                f"RemoteAccessServer: manager control 0x{control:08X} refused "
+                f"({ra.error_text(ra.RaError.NOT_SUPPORTED)}: bits 3 and 4 are not served)")
+        for net in networks:
+            ra.check_net(net, "RemoteAccessServer")
         self.crc = ra.parse_crc(crc)
         ra.FrameDecoder(max_payload=max_payload)    # checks the value
         self.max_payload = max_payload
@@ -420,7 +427,6 @@ class RemoteAccessServer:
         self.served: Dict[int, _Served] = {}
         known = known or {}
         for net, line in networks.items():
-            ra.check_net(net, "RemoteAccessServer")
             manager = MinimalManager(line, partial(self.indicate, net),
                                      heartbeat_ms=heartbeat_ms, known=known.get(net, {}))
             self.served[net] = _Served(self, net, line, manager)
@@ -428,11 +434,7 @@ class RemoteAccessServer:
             served.hook()
             served.manager.start()
             if control:
-                error = served.manager.set_control(control)
-                if error:
-                    raise ConfigurationError(
-                        f"RemoteAccessServer: manager control 0x{control:08X} refused "
-                        f"({ra.error_text(error)})")
+                served.manager.set_control(control)    # checked above: taken
 
     def __enter__(self) -> "RemoteAccessServer":
         return self
