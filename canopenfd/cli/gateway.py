@@ -1,22 +1,27 @@
-"""`canopenfd gateway [CONFIG] [--tcp PORT] [--mqtt BROKER]`: serve lines to host
-programs until SIGINT/SIGTERM — CiA 309-3 ASCII requests over TCP, process data
-and commands through an MQTT broker (canopenfd.gateway). With CONFIG (an INI
+"""`canopenfd gateway [CONFIG] [--tcp PORT] [--mqtt BROKER] [--serial PATH]`: serve
+lines to host programs until SIGINT/SIGTERM — CiA 309-3 ASCII requests over TCP,
+process data and commands through an MQTT broker, the seed 001 remote-access
+protocol over a serial port or TCP (canopenfd.gateway). With CONFIG (an INI
 file, see canopenfd.gateway.config) the gateway has every line, node and
-endpoint the file names; without it, the one line of the line options."""
+endpoint the file names; without it, the one line of the line options. Each
+host protocol adds its options in its own block."""
 
 from __future__ import annotations
 
 import argparse
 import signal
+import sys
 import threading
 import time
-from typing import Any, List, Optional
+from typing import Any, Callable, Dict, List, Optional
 
 from ..gateway.config import (AsciiConfig, GatewayConfig, GatewayConfigError, MqttConfig,
                               load_config)
+from ..errors import CanopenFDError
 from ..gateway.gateway import Gateway
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, command_line, ms_arg,
-                     node_id_arg)
+from ..line import Line
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, builtin_od_kind,
+                     command_line, ms_arg, node_id_arg)
 
 
 def add_parsers(subparsers: Any) -> None:
@@ -28,7 +33,7 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("config", nargs="?", metavar="CONFIG",
                    help="gateway configuration (INI: [gateway], [line NET], "
                         "[node NET.NODE], [ascii], [mqtt]); --tcp/--mqtt add to it")
-    add_line_options(p)
+    add_line_options(p, channel_required=False)
     p.add_argument("--net", type=int, default=1, metavar="N",
                    help="without CONFIG: the network id hosts give the line (1..127, "
                         "default 1)")
@@ -36,6 +41,10 @@ def add_parsers(subparsers: Any) -> None:
                    help="without CONFIG: run a local node with this id on the line (boot-up, "
                         "NMT state; on fd lines the gateway's USDO client uses it as its id, "
                         "else 127)")
+    p.add_argument("--od", metavar="FILE",
+                   help="without CONFIG: the gateway node's object dictionary: an EDS, DCF, "
+                        "XDD or XDC file, or builtin:fd / builtin:classic (default: the "
+                        "built-in demo dictionary of the line's mode)")
     p.add_argument("--name", metavar="NAME",
                    help="the gateway's name (MQTT topic level; default: CONFIG's or "
                         "'gateway')")
@@ -58,6 +67,7 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("--mqtt", metavar="BROKER[:PORT]",
                    help="publish watched nodes to this MQTT broker and take commands from "
                         "it (needs paho-mqtt: pip install 'canopenfd[mqtt]')")
+    add_remote_access_options(p)
     p.set_defaults(func=cmd_gateway)
 
 
@@ -86,14 +96,20 @@ def _endpoints(args: argparse.Namespace, config: GatewayConfig) -> None:
         config.mqtt = _mqtt_arg(args.mqtt)
     if args.name is not None:
         config.name = args.name
-    if config.ascii is None and config.mqtt is None:
-        raise UsageError("gateway: no endpoint: give --tcp PORT, --mqtt BROKER or a CONFIG "
-                         "with [ascii] / [mqtt]")
+    if config.ascii is None and config.mqtt is None and not remote_access_wanted(args):
+        raise UsageError("gateway: no host endpoint given (--tcp PORT, --mqtt BROKER, "
+                         "--serial PATH or --remote-access-tcp PORT, or a CONFIG with "
+                         "[ascii] / [mqtt])")
 
 
 def cmd_gateway(args: argparse.Namespace) -> int:
     printer = Printer()
     if args.config is not None:
+        for option in ("channel", "interface", "node_id", "od"):
+            if getattr(args, option, None) is not None:
+                raise UsageError(f"gateway: --{option.replace('_', '-')} is for the one line "
+                                 "without CONFIG; the configuration's [line] sections name "
+                                 "the lines")
         try:
             config = load_config(args.config)
         except GatewayConfigError as exc:
@@ -101,16 +117,34 @@ def cmd_gateway(args: argparse.Namespace) -> int:
         _endpoints(args, config)
         _run(Gateway(config), args, printer)
         return EXIT_OK
+    if args.channel is None:
+        raise UsageError("gateway: give CONFIG or --channel (the line to serve)")
     if not 1 <= args.net <= 127:
         raise UsageError(f"--net {args.net}: a network id is 1..127")
     config = GatewayConfig()
     _endpoints(args, config)
     node_id = None if args.node_id is None else node_id_arg(args.node_id, "--node-id")
+    mode = "classic" if args.classic else "fd"
     with command_line(args) as line:
         if node_id is not None:
-            line.create_local_node(node_id)
+            line.create_local_node(node_id, od=_gateway_od(args.od, mode, node_id))
         _run(Gateway(config, lines={args.net: line}), args, printer)
     return EXIT_OK
+
+
+def _gateway_od(spec: Optional[str], mode: str, node_id: int) -> Any:
+    from ..od import OdFileError, demo_od, import_od
+
+    if spec is None:
+        return demo_od(mode)
+    kind = builtin_od_kind(spec)
+    if kind is not None:
+        return demo_od(kind)
+    try:
+        return import_od(spec, node_id=node_id)
+    except OdFileError as exc:
+        raise UsageError(f"--od {exc}") from None
+
 
 
 def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
@@ -128,6 +162,9 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
                                    for net, line in sorted(gateway.lines.items()))
                 printer.line(f"CiA 309-3 ASCII gateway on {ascii_config.host}:"
                              f"{gateway.ascii.port}, {served}")
+            stops: List[Callable[[], None]] = []
+            if remote_access_wanted(args):
+                stops.append(start_remote_access(args, gateway.lines, printer))
             printer.line(gateway.status())
             started = time.monotonic()
             while True:
@@ -144,6 +181,8 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
                     break
                 printer.line(gateway.status())
             final = gateway.status()
+            for stop_endpoint in reversed(stops):
+                stop_endpoint()
         printer.line(final.replace("gateway ", "gateway stopped: ", 1))
         if gateway.ascii is not None:
             stats = gateway.ascii.stats
@@ -152,3 +191,99 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
     finally:
         for signum, handler in previous:
             signal.signal(signum, handler)
+
+
+# ------------------------------------------------------------------ seed 001 remote access
+# (issue 16 part 4: the CANopenIA binary protocol over a serial port and TCP)
+
+def add_remote_access_options(p: argparse.ArgumentParser) -> None:
+    group = p.add_argument_group("remote access (seed 001 binary protocol; network 1 = "
+                                 "the line)")
+    group.add_argument("--serial", metavar="PATH",
+                       help="serve the remote-access protocol on this serial port (needs "
+                            "pyserial: pip install 'canopenfd[serial]')")
+    group.add_argument("--baud", type=int, default=115200, metavar="N",
+                       help="the serial port's bit rate (default 115200)")
+    group.add_argument("--remote-access-tcp", type=int, metavar="PORT",
+                       help="serve the remote-access protocol on TCP PORT (0: any free port, "
+                            "printed at start)")
+    group.add_argument("--remote-access-host", default="127.0.0.1", metavar="ADDRESS",
+                       help="the address --remote-access-tcp listens on (default 127.0.0.1; "
+                            "0.0.0.0 for every interface)")
+    group.add_argument("--remote-access-crc", choices=("seed", "xmodem"), default="seed",
+                       help="frame checksum: seed = x^16+x^15+x^2+1 as the manual writes "
+                            "(default), xmodem = what ESAcademy's host code computes")
+    group.add_argument("--remote-access-max-payload", type=int, default=35, metavar="BYTES",
+                       help="longest frame payload taken and sent (default 35, the seed's; "
+                            "raise it only when the host allows longer frames)")
+    group.add_argument("--remote-access-manager", default="0", metavar="BITS",
+                       help="minimal-manager automation at start, [5F01h,04h] bits: 1 keep "
+                            "nodes operational, 2 monitor every heartbeat and reset lost "
+                            "nodes, 4 scan known nodes' PDOs (decimal or 0x hex; default 0)")
+    group.add_argument("--remote-access-heartbeat", type=int, default=1000, metavar="MS",
+                       help="heartbeat time the manager monitors nodes with (default 1000)")
+    group.add_argument("--remote-access-node", action="append", metavar="NODE=FILE",
+                       help="a known node and its object dictionary (EDS, DCF, XDD, XDC or "
+                            "builtin:fd / builtin:classic): the manager scans its PDOs "
+                            "(bit 4); repeatable")
+
+
+def remote_access_wanted(args: argparse.Namespace) -> bool:
+    return args.serial is not None or args.remote_access_tcp is not None
+
+
+def start_remote_access(args: argparse.Namespace, lines: Dict[int, Line], printer: Printer
+                        ) -> Callable[[], None]:
+    """Start the remote-access server on the gateway's lines (the known nodes of
+    --remote-access-node are on the lowest network); the function that stops it."""
+    from ..gateway.remote_access_server import RemoteAccessServer
+
+    try:
+        control = int(args.remote_access_manager, 0)
+    except ValueError:
+        raise UsageError(f"--remote-access-manager {args.remote_access_manager!r}: not a "
+                         "number (like 3 or 0x7)") from None
+    heartbeat = ms_arg(args.remote_access_heartbeat, "--remote-access-heartbeat", "gateway")
+    if not 1 <= args.remote_access_max_payload <= 0xFFFF:
+        raise UsageError(f"--remote-access-max-payload {args.remote_access_max_payload}: "
+                         "expected 1..65535")
+    first = min(lines)
+    line = lines[first]
+    known = {}
+    for spec in args.remote_access_node or []:
+        node_text, sep, path = spec.partition("=")
+        try:
+            node = int(node_text, 0)
+        except ValueError:
+            node = -1
+        if not sep or not path or not 1 <= node <= 127:
+            raise UsageError(f"--remote-access-node {spec!r}: expected NODE=FILE with a "
+                             "node-id 1..127")
+        known[node] = _gateway_od(path, line.mode, node)
+    try:
+        server = RemoteAccessServer(lines, crc=args.remote_access_crc,
+                                    max_payload=args.remote_access_max_payload,
+                                    control=control, heartbeat_ms=heartbeat,
+                                    known={first: known})
+    except CanopenFDError as exc:
+        raise UsageError(f"gateway: {exc}") from None
+    where = []
+    try:
+        if args.serial is not None:
+            server.serve_serial(args.serial, args.baud)
+            where.append(f"serial {args.serial} ({args.baud} Bd)")
+        if args.remote_access_tcp is not None:
+            port = server.serve_tcp(args.remote_access_tcp, args.remote_access_host)
+            where.append(f"tcp {args.remote_access_host}:{port}")
+    except CanopenFDError:
+        server.close()
+        raise
+    print(f"gateway on {line.channel} ({line.mode}): remote access on {', '.join(where)}; "
+          "Ctrl-C or SIGTERM to stop", file=sys.stderr, flush=True)
+
+    def stop() -> None:
+        server.close()
+        stats = server.stats
+        printer.line("remote access: " + ", ".join(f"{key} {value}" for key, value
+                                                    in stats.items()))
+    return stop
