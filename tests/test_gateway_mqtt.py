@@ -212,7 +212,12 @@ def test_broker_restart_loses_no_qos1_event(broker: Broker) -> None:
             time.sleep(0.2)
             broker.start()
             assert bridge.wait_connected(scaled(15))
-            emcys = sub.wait(f"{BASE}/1/5/emcy", 4, timeout=20)
+            try:
+                emcys = sub.wait(f"{BASE}/1/5/emcy", 4, timeout=20)
+            except AssertionError:
+                print("STATS", bridge.stats)
+                print((broker.folder / "mosquitto.log").read_text())
+                raise
             codes = [m.json["code"] for m in emcys]
             assert codes[1:] == [0x5001, 0x5002, 0x5003]
             assert bridge.stats["disconnects"] >= 1 and bridge.stats["connects"] >= 2
