@@ -1692,9 +1692,20 @@ static void test_abort_unknown_command(void **state)
     mux(b, ID_S, 0x28, 43, 0x2002, 0);
     req(fx, C1, b, 3);
     expect_abort(fx, C1, 43, 0, 0, 0x13);
+    /* the bulk upload responses as requests */
+    mux(b, ID_S, 0x36, 44, 0x2002, 0);
+    req(fx, C1, b, 12);
+    expect_abort(fx, C1, 44, 0x2002, 0, 0x13);
+    mux(b, ID_S, 0x37, 45, 0x2002, 0);
+    req(fx, C1, b, 64);
+    expect_abort(fx, C1, 45, 0, 0, 0x13);
+    mux(b, ID_S, 0x38, 46, 0x2002, 0);
+    b[3] = 0;
+    req(fx, C1, b, 4);
+    expect_abort(fx, C1, 46, 0, 0, 0x13);
     expect_none(fx);
     assert_unchanged(fx);
-    assert_int_equal(fx->srv.stats.rx_unknown_command, sizeof cmds + 4);
+    assert_int_equal(fx->srv.stats.rx_unknown_command, sizeof cmds + 7);
 }
 
 static void test_abort_unknown_command_ends_open_transfer(void **state)
