@@ -725,20 +725,41 @@ static void on_bulk_upload_initiate(co_usdo_client_session_t *ses, const co_usdo
     ses->state = CO_USDO_CLIENT_UL_BULK;
     ses->counter = 0;
     ses->since_ack = 0;
+    ses->short_seen = false;
+    ses->taken = 0;
+    ses->acked = 0;
+}
+
+/* Whether the server's credit already covers the rest of a known size (in
+ * full 60-byte segments and one last one): then no acknowledgement is
+ * needed any more, and one sent would only cross the end. Not assumed once
+ * a short segment came (the rest may need more segments). */
+static bool credit_covers_rest(const co_usdo_client_session_t *ses)
+{
+    uint32_t credit = ses->acked + ses->client->bulk_window - ses->taken;
+    uint32_t rest;
+    if (ses->total == SIZE_UNKNOWN || ses->short_seen) {
+        return false;
+    }
+    rest = ses->total - ses->offset;
+    return (rest == 0 ? 1u : (rest + CO_USDO_SEGMENT_DATA - 1u) / CO_USDO_SEGMENT_DATA) <= credit;
 }
 
 /* 0x17 every half window (at least every segment for a window of 1): the
- * server may then send a window beyond the segment just taken. */
+ * server may then send a window beyond the segment just taken; none once
+ * its credit covers the rest of a known size. */
 static void bulk_upload_taken(co_usdo_client_session_t *ses, uint8_t counter)
 {
     co_usdo_client_t *c = ses->client;
     uint8_t every = (uint8_t)((c->bulk_window + 1u) / 2u);
     ses->since_ack++;
-    if (ses->since_ack >= every) {
+    ses->taken++;
+    if (ses->since_ack >= every && !credit_covers_rest(ses)) {
         co_usdo_msg_t m;
         session_msg(ses, ses->req->server, CO_USDO_CS_BULK_UPLOAD_ACK, &m);
         m.counter = counter;
         ses->since_ack = 0;
+        ses->acked = ses->taken;
         c->stats.acks_sent++;
         /* a lost or refused ack leaves the server waiting: both time out */
         (void)send_msg(c, &m);
@@ -757,6 +778,7 @@ static void on_upload_segment(co_usdo_client_session_t *ses, const co_usdo_msg_t
     uint8_t counter = m->counter;
     if (!last && co_usdo_short_segment(m)) {
         c->stats.rx_short_segment++;   /* a server with a smaller MTU: taken */
+        ses->short_seen = true;
     }
     uint32_t room = ses->total == SIZE_UNKNOWN ? SIZE_UNKNOWN - ses->offset
                                                : ses->total - ses->offset;

@@ -164,6 +164,9 @@ typedef struct co_usdo_client_session {
     uint8_t counter;                /* segment counter outstanding / next to send */
     uint8_t burst;                  /* bulk: segments per burst */
     uint8_t since_ack;              /* bulk upload: segments taken since our last 0x17 */
+    bool short_seen;                /* bulk upload: a segment of fewer than 60 bytes came */
+    uint32_t taken;                 /* bulk upload: segments taken */
+    uint32_t acked;                 /* bulk upload: segments our last 0x17 acknowledged */
     bool wait_space;                /* bulk: waits for the tx-space indication */
     bool bulk_rx;                   /* bulk upload: holds a window of the receive budget */
 } co_usdo_client_session_t;
