@@ -572,24 +572,25 @@ static uint8_t open_session(co_usdo_client_t *c, co_usdo_request_t *req, const u
 {
     co_usdo_client_session_t *ses = free_session(c);
     uint8_t code;
+    co_usdo_mode_t mode;
     if (ses == NULL) {
         return CO_USDO_ABORT_BUSY;
     }
-    ses->req = req;
-    ses->run++;
-    co_usdo_mode_t mode = req->upload ? co_usdo_client_choose_upload_mode(req->mode, req->size)
-                                      : co_usdo_client_choose_mode(req->mode, req->size);
+    mode = req->upload ? co_usdo_client_choose_upload_mode(req->mode, req->size)
+                       : co_usdo_client_choose_mode(req->mode, req->size);
     if (req->upload && mode == CO_USDO_MODE_BULK &&
         (req->server == CO_USDO_BROADCAST || !bulk_rx_fits(c))) {
         if (req->mode == CO_USDO_MODE_BULK) {
             c->stats.bulk_budget_full++;
-            return CO_USDO_ABORT_BUSY;   /* nothing taken yet */
+            return CO_USDO_ABORT_BUSY;   /* nothing taken: the session stays as it was */
         }
         if (req->server != CO_USDO_BROADCAST) {
             c->stats.bulk_budget_full++;
         }
         mode = CO_USDO_MODE_AUTO;   /* AUTO: a plain upload, the server picks */
     }
+    ses->req = req;
+    ses->run++;
     ses->mode = (uint8_t)mode;
     ses->offset = 0;
     ses->total = 0;

@@ -1896,6 +1896,20 @@ static void test_bulk_upload_receive_budget(void **state)
     assert_int_equal(fx->c.bulk_window, 64);
     client_restart(fx, 3);
     assert_int_equal(fx->c.bulk_window, 3);
+    /* a refused start is never reported, not even when the client ends */
+    client_restart(fx, 0);
+    for (i = 0; i < 3; i++) {
+        ul_req(fx, &t[i], X, (uint16_t)(0x3000 + i), 0, mem[i], 100);
+        t[i].r.mode = CO_USDO_MODE_BULK;
+    }
+    start_ok(fx, &t[0]);
+    start_ok(fx, &t[1]);
+    assert_int_equal(co_usdo_client_start(&fx->c, &t[2].r), 0x70);
+    client_restart(fx, 0);
+    assert_int_equal(t[0].done_calls, 1);
+    assert_int_equal(t[1].done_calls, 1);
+    assert_int_equal(t[2].done_calls, 0);
+    assert_int_equal(fx->c.bulk_rx, 0);
     assert_all_idle(fx);
 }
 
