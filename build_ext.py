@@ -42,6 +42,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_lss_master.h",
     "csrc/include/canopenfd/co_sdo_server.h",
     "csrc/include/canopenfd/co_usdo_server.h",
+    "csrc/include/canopenfd/co_usdo_client.h",
     "csrc/include/canopenfd/co_boot.h",
     "csrc/include/canopenfd/co_manager.h",
     "csrc/include/canopenfd/co_sleep.h",

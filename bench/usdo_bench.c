@@ -1,8 +1,8 @@
 /* USDO throughput: a server (csrc/core/co_usdo_server, an OD with an
  * UNSIGNED32 and a 1 MiB DOMAIN served by domain callbacks) on one fd line and
  * a client (csrc/core/co_usdo_client) on another, moving 4 B, 1 KiB, 64 KiB
- * and 1 MiB by expedited, segmented and bulk download and by expedited and
- * segmented upload,
+ * and 1 MiB by expedited, segmented and bulk download and by expedited,
+ * segmented and bulk upload (the bulk rows of both directions side by side),
  *   - over the in-process bus (co_membus: one loop processes both lines and
  *     transfers the frames), and
  *   - over SocketCAN (one co_socketcan socket per line on one interface, one
@@ -668,12 +668,15 @@ static const row_def_t rows[] = {
     {OP_DOWNLOAD, CO_USDO_MODE_SEGMENTED, 1024},
     {OP_DOWNLOAD, CO_USDO_MODE_BULK, 1024},
     {OP_UPLOAD, CO_USDO_MODE_SEGMENTED, 1024},
+    {OP_UPLOAD, CO_USDO_MODE_BULK, 1024},
     {OP_DOWNLOAD, CO_USDO_MODE_SEGMENTED, 65536},
     {OP_DOWNLOAD, CO_USDO_MODE_BULK, 65536},
     {OP_UPLOAD, CO_USDO_MODE_SEGMENTED, 65536},
+    {OP_UPLOAD, CO_USDO_MODE_BULK, 65536},
     {OP_DOWNLOAD, CO_USDO_MODE_SEGMENTED, 1u << 20},
     {OP_DOWNLOAD, CO_USDO_MODE_BULK, 1u << 20},
     {OP_UPLOAD, CO_USDO_MODE_SEGMENTED, 1u << 20},
+    {OP_UPLOAD, CO_USDO_MODE_BULK, 1u << 20},
 };
 #define ROWS (sizeof rows / sizeof rows[0])
 
@@ -707,6 +710,9 @@ static void make_request(rig_t *r, const row_def_t *d, co_usdo_request_t *req,
         buf->size = 0;
         buf->capacity = DOMAIN_CAP;
         req->sink = co_usdo_buffer_sink;
+        /* bulk rows ask for it; the others let the server pick */
+        req->mode = d->mode == CO_USDO_MODE_BULK ? (uint8_t)CO_USDO_MODE_BULK
+                                                 : (uint8_t)CO_USDO_MODE_AUTO;
     } else {
         buf->data = src_data;
         buf->size = d->size;
@@ -750,6 +756,8 @@ static void make_request(rig_t *r, const row_def_t *d, co_usdo_request_t *req,
     X("server rx_unknown_command", r->server.stats.rx_unknown_command)                \
     X("server rx_no_session", r->server.stats.rx_no_session)                          \
     X("server rx_stray_bulk", r->server.stats.rx_stray_bulk)                          \
+    X("server rx_stray_ack (bulk upload)", r->server.stats.rx_stray_ack)              \
+    X("client bulk upload receive budget full", r->client.stats.bulk_budget_full)     \
     X("server rx_bad_counter", r->server.stats.rx_bad_counter)                        \
     X("server rx_size_mismatch", r->server.stats.rx_size_mismatch)                    \
     X("server rx_client_abort", r->server.stats.rx_client_abort)                      \
@@ -884,6 +892,10 @@ static bool verified_transfer(rig_t *r, const row_def_t *d, uint64_t seed, row_r
     } else {
         const uint8_t *expect = d->size == 4 ? value : dom.data;
         expect_type = d->size == 4 ? (uint8_t)CO_TYPE_UNSIGNED32 : (uint8_t)CO_TYPE_DOMAIN;
+        if (d->mode == CO_USDO_MODE_BULK && req.result_mode != CO_USDO_MODE_BULK) {
+            printf("  ! upload: mode %s, asked bulk\n", mode_name(req.result_mode));
+            ok = false;
+        }
         if (buf.size != d->size || memcmp(sink_data, expect, d->size) != 0) {
             printf("  ! upload: %u bytes received that differ from the %u served\n",
                    (unsigned)buf.size, (unsigned)d->size);

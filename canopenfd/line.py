@@ -328,7 +328,8 @@ class Line:
     def service_stats(self) -> Dict[str, Union[int, Dict[str, int]]]:
         """Counters of the process-data and error services: {'pdo': {...},
         'emcy': {...}, 'emcy_consumer', 'sync', 'time', 'guard_slave',
-        'guard_master', 'sdo_server', 'usdo_server': {...}, 'pdo_watched': n};
+        'guard_master', 'sdo_server', 'usdo_server': {...}, 'usdo_client': {...},
+        'pdo_watched': n};
         every frame a service ignored is counted here by reason (zeros for
         services not running)."""
         return self._context.runtime.service_stats(self.index,

@@ -456,6 +456,31 @@ def test_classic_upload_mode_asks_for_block_or_normal(net, bus_name, cli, tmp_pa
 def test_upload_mode_is_refused_on_fd_lines(server, cli, tmp_path):
     status, _, err = cli("upload", "5", "0x2100", str(tmp_path / "x"), "--mode", "block")
     one_error(status, err, "--mode block", "--classic")
+    status, _, err = cli("upload", "5", "0x2100", str(tmp_path / "x"), "--classic", "--mode",
+                         "bulk")
+    one_error(status, err, "--mode bulk", "--mode block")
+
+
+def test_usdo_upload_mode_bulk_asks_the_server_to_stream(net, bus_name, cli, tmp_path):
+    """`upload --mode bulk` sends 0x16 (our bulk upload request, with the
+    client's window) and the summary names the bulk mode."""
+    node = net.open_line(bus_name, mode="fd").create_local_node(SERVER, od=demo_od("fd"),
+                                                               boot=False)
+    node.serve_domain(DOMAIN, 64 * KiB)
+    node.boot()
+    payload = os.urandom(30000)
+    node[DOMAIN].data = payload
+    requests = Recorder()
+    watcher = net.open_line(bus_name, mode="fd", monitor=True)
+    watcher.on_frame(lambda f: requests(f) if 0x601 <= f.id <= 0x67F else None)
+    target = tmp_path / "up.bin"
+    status, out, err = cli("upload", "5", "0x2100", str(target), "--mode", "bulk")
+    assert status == 0, err
+    assert re.fullmatch(f"uploaded {SUMMARY}: .*\n", out) and ", bulk)" in out, out
+    assert target.read_bytes() == payload
+    first = requests.wait_count(1)[0]
+    assert first.data[0] == SERVER and first.data[1] == 0x16 and first.data[3:6] == \
+        bytes([0, 0x00, 0x21])
 
 
 def test_device_names_a_domain_without_memory_and_the_option_that_fixes_it(

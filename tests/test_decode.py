@@ -190,6 +190,19 @@ SEG = bytes(range(60))
     (usdo(0x605, 3, 0x08, 7, 60, SEG), "USDO 5->3 sid 7 bulk last segment 60 B"),
     (usdo(0x605, 3, 0x08, 7, 1, 0xEE), "USDO 5->3 sid 7 bulk last segment 1 B"),
     (usdo(0x583, 5, 0x28, 7), "USDO 3->5 sid 7 bulk last segment response"),
+    # 0x16 / 0x36 / 0x37 / 0x38 / 0x17: bulk upload (our layout)
+    (usdo(0x605, 3, 0x16, 9, 0x00, 0x00, 0x21, 64, 0),
+     "USDO 5->3 sid 9 bulk upload request 0x2100:00 window 64"),
+    (usdo(0x605, 3, 0x16, 9, 0x00, 0x00, 0x21, 0, 0),
+     "USDO 5->3 sid 9 bulk upload request 0x2100:00 window 0 (invalid: 0)"),
+    (usdo(0x583, 5, 0x36, 9, 0x00, 0x00, 0x21, 0x0F, 0, (70000).to_bytes(4, "little")),
+     "USDO 3->5 sid 9 bulk upload initiate 0x2100:00 DOMAIN size 70000"),
+    (usdo(0x583, 5, 0x37, 9, 31, SEG), "USDO 3->5 sid 9 bulk upload segment #31 60 B"),
+    (usdo(0x605, 3, 0x17, 9, 31), "USDO 5->3 sid 9 bulk upload ack #31"),
+    (usdo(0x583, 5, 0x38, 9, 10, SEG[:10]), "USDO 3->5 sid 9 bulk upload last segment 10 B"),
+    # a segment shorter than 64 bytes (a sender with a smaller MTU): len - 4 data bytes
+    (usdo(0x583, 5, 0x33, 7, 3, SEG[:28]), "USDO 3->5 sid 7 upload segment #3 28 B (short)"),
+    (usdo(0x605, 3, 0x03, 7, 0, SEG[:44]), "USDO 5->3 sid 7 download segment #0 44 B (short)"),
     # 0x7F: aborts both ways, known and unknown codes
     (usdo(0x605, 3, 0x7F, 7, 0x01, 0x00, 0x20, 0x33),
      "USDO 5->3 sid 7 ABORT 0x2000:01 0x33 object does not exist"),
@@ -238,10 +251,12 @@ def test_usdo_frames(frame, text):
      "USDO 5->3 sid 7 download initiate 0x3000:00 malformed: 8 bytes, expected 12"),
     (usdo(0x605, 3, 0x06, 7, 0x00, 0x00, 0x30, pad=False),
      "USDO 5->3 sid 7 bulk download initiate 0x3000:00 malformed: 6 bytes, expected 12"),
-    (usdo(0x605, 3, 0x03, 7, 0, SEG[:44]),
-     "USDO 5->3 sid 7 download segment malformed: 48 bytes, expected 64"),
+    (usdo(0x605, 3, 0x03, 7, 0, pad=False),
+     "USDO 5->3 sid 7 download segment malformed: 4 bytes, expected 5 or more"),
     (usdo(0x605, 3, 0x07, 7, pad=False),
-     "USDO 5->3 sid 7 bulk segment malformed: 3 bytes, expected 64"),
+     "USDO 5->3 sid 7 bulk segment malformed: 3 bytes, expected 5 or more"),
+    (usdo(0x605, 3, 0x16, 7, 0x00, 0x00, 0x21, 4, pad=False),
+     "USDO 5->3 sid 7 bulk upload request 0x2100:00 malformed: 7 bytes, expected 8"),
     (usdo(0x605, 3, 0x04, 7, 61, SEG),
      "USDO 5->3 sid 7 download last segment malformed: n=61 > 60"),
     (usdo(0x605, 3, 0x08, 7, 200, SEG),
@@ -318,7 +333,7 @@ def test_usdo_python_can_message():
 _HEADER = Path(__file__).resolve().parents[1] / "csrc" / "include" / "canopenfd" / "co_usdo.h"
 _LAYOUT_NAMES = {"MUX": "mux", "EXPEDITED": "expedited", "INITIATE": "initiate",
                  "SEGMENT": "segment", "LAST": "last", "COUNTER": "counter", "END": "end",
-                 "ABORT": "abort", "BULK_ACCEPT": "bulk accept"}
+                 "ABORT": "abort", "BULK_ACCEPT": "bulk accept", "BULK_REQUEST": "bulk request"}
 
 
 def _c_enum(prefix):

@@ -44,8 +44,9 @@ from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, builtin
 
 #: download modes: 'bulk' on fd lines (USDO), 'block' on classic lines (SDO)
 MODES = ("auto", "expedited", "segmented", "bulk", "block")
-#: upload modes (SDO only): 'normal' is expedited or segmented, as the server picks
-UPLOAD_MODES = ("auto", "normal", "block")
+#: upload modes: 'bulk' on fd lines (USDO: the server streams), 'normal' (expedited or
+#: segmented, as the server picks) and 'block' on classic lines (SDO)
+UPLOAD_MODES = ("auto", "normal", "block", "bulk")
 
 DEFAULT_CLIENT_ID = 127
 DEFAULT_TIMEOUT_S = 1.0
@@ -141,9 +142,11 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("key", metavar="INDEX[:SUB]", help=key_help)
     p.add_argument("file", metavar="FILE", help="the file to write (replaced once complete)")
     p.add_argument("--mode", choices=list(UPLOAD_MODES), default="auto",
-                   help="SDO (--classic) only: block asks for a block upload (CRC, "
-                        "sub-blocks of 127 segments), normal for an expedited or segmented "
-                        "one as the server picks; default auto: normal (USDO picks by itself)")
+                   help="bulk (USDO): the server streams the data in the client's window; "
+                        "block (SDO, --classic): a block upload (CRC, sub-blocks of 127 "
+                        "segments); normal (SDO): expedited or segmented as the server picks; "
+                        "default auto: USDO bulk when --od gives the entry a size of 4 KiB "
+                        "or more, else as the server picks")
     p.add_argument("--progress", action="store_true",
                    help="show the progress (bytes, rate) on stderr even when it is no "
                         "terminal")
@@ -695,11 +698,19 @@ class _Failed(Exception):
 def cmd_upload(args: argparse.Namespace) -> int:
     node = parse_node(args.node, broadcast=False)
     _check_common(args, node)
-    if args.mode != "auto" and not args.classic:
+    if args.mode in ("normal", "block") and not args.classic:
         raise UsageError(f"--mode {args.mode} is for SDO uploads (--classic): a USDO server "
-                         "picks expedited or segmented by itself and USDO has no bulk upload")
+                         "picks expedited or segmented by itself (--mode bulk asks it to "
+                         "stream)")
+    if args.mode == "bulk" and args.classic:
+        raise UsageError("--mode bulk is for USDO uploads (without --classic): SDO's "
+                         "streaming upload is --mode block")
     od = _load_od(args.od, node)
     index, sub, variable = parse_key(args.key, od)
+    # USDO AUTO: the entry's size from the OD lets the client ask for bulk
+    size_hint = 0
+    if variable is not None and not args.classic and 0 < variable.storage_size < 0xFFFFFFFF:
+        size_hint = variable.storage_size
     bar = ProgressBar("upload", None) if _show_progress(args) else None
     try:
         with _output_file(args.file) as target, _client_line(args) as line:
@@ -710,7 +721,7 @@ def cmd_upload(args: argparse.Namespace) -> int:
                 mode = {"normal": "segmented"}.get(args.mode, args.mode)
                 transfer = _client(line).start_upload(node, index, sub, file=target,
                                                       timeout=args.timeout, progress=bar,
-                                                      mode=mode)
+                                                      mode=mode, size_hint=size_hint)
                 _wait(transfer)
             except AbortError as exc:
                 if bar is not None:

@@ -23,16 +23,20 @@ _USDO_SEGMENT_DATA = 60
 _MUX = "mux"                  # dest cs sid sub index(2)                 6
 _EXPEDITED = "expedited"      # mux type N data[N]                       8 + N
 _INITIATE = "initiate"        # mux type reserved size(4)                12
-_SEGMENT = "segment"          # dest cs sid counter data[60]             64
+_SEGMENT = "segment"          # dest cs sid counter data[60]             64 (5..63: len - 4)
 _LAST = "last"                # dest cs sid n data[n]                    4 + n
 _COUNTER = "counter"          # dest cs sid counter                      4
 _END = "end"                  # dest cs sid                              3
 _ABORT = "abort"              # mux code                                 7
 _BULK_ACCEPT = "bulk accept"  # mux pacing(2), 100 us units, 0 = none    8
+_BULK_REQUEST = "bulk request"  # mux window(1) reserved(1)              8
 
 _HEAD_LEN = {_MUX: 6, _EXPEDITED: 8, _INITIATE: 12, _SEGMENT: 64, _LAST: 4, _COUNTER: 4,
-             _END: 3, _ABORT: 7, _BULK_ACCEPT: 8}
-_HAS_MUX = (_MUX, _EXPEDITED, _INITIATE, _ABORT, _BULK_ACCEPT)
+             _END: 3, _ABORT: 7, _BULK_ACCEPT: 8, _BULK_REQUEST: 8}
+# A segment has no size field: 64 bytes carry 60, a shorter frame (a sender
+# with a smaller MTU, taken by our receivers) its length - 4, at least 1.
+_SEGMENT_MIN = 5
+_HAS_MUX = (_MUX, _EXPEDITED, _INITIATE, _ABORT, _BULK_ACCEPT, _BULK_REQUEST)
 
 #: Command specifier -> (text, layout), as co_usdo_cs_t / co_usdo_layout_of.
 #: Data-carrying frames are named after the data ("upload segment" is the
@@ -47,6 +51,9 @@ USDO_COMMANDS: Dict[int, Tuple[str, str]] = {
     0x08: ("bulk last segment", _LAST),
     0x11: ("upload request", _MUX),
     0x13: ("upload segment request", _COUNTER),
+    # bulk upload: our layout (docs/protocol-notes.md, "Bulk upload")
+    0x16: ("bulk upload request", _BULK_REQUEST),
+    0x17: ("bulk upload ack", _COUNTER),
     0x21: ("download expedited response", _MUX),
     0x22: ("download initiate response", _MUX),
     0x23: ("download segment response", _COUNTER),
@@ -57,6 +64,9 @@ USDO_COMMANDS: Dict[int, Tuple[str, str]] = {
     0x32: ("upload initiate", _INITIATE),
     0x33: ("upload segment", _SEGMENT),
     0x34: ("upload last segment", _LAST),
+    0x36: ("bulk upload initiate", _INITIATE),
+    0x37: ("bulk upload segment", _SEGMENT),
+    0x38: ("bulk upload last segment", _LAST),
     0x7F: ("ABORT", _ABORT),
 }
 
@@ -109,10 +119,10 @@ def usdo_text(can_id: int, data: bytes) -> str:
     def malformed(why: str) -> str:
         return f"{what} malformed: {why}"
 
-    need = _HEAD_LEN[layout]
+    need = _SEGMENT_MIN if layout == _SEGMENT else _HEAD_LEN[layout]
     if len(data) < need:
         return malformed(f"{len(data)} bytes, expected {need}"
-                         + (" or more" if layout in (_EXPEDITED, _LAST) else ""))
+                         + (" or more" if layout in (_EXPEDITED, _LAST, _SEGMENT) else ""))
     if layout == _EXPEDITED:
         n = data[7]
         if n > _USDO_EXPEDITED_MAX:
@@ -126,7 +136,8 @@ def usdo_text(can_id: int, data: bytes) -> str:
         shown = "0xFFFFFFFF (unknown)" if size == 0xFFFFFFFF else str(size)
         return f"{what} {usdo_type_name(data[6])} size {shown}"
     if layout == _SEGMENT:
-        return f"{what} #{data[3]} {_USDO_SEGMENT_DATA} B"
+        n = min(len(data) - 4, _USDO_SEGMENT_DATA)
+        return f"{what} #{data[3]} {n} B" + (" (short)" if n < _USDO_SEGMENT_DATA else "")
     if layout == _LAST:
         n = data[3]
         if n > _USDO_SEGMENT_DATA:
@@ -140,6 +151,8 @@ def usdo_text(can_id: int, data: bytes) -> str:
         return f"{what} {usdo_abort_text(data[6])}"
     if layout == _BULK_ACCEPT:
         return f"{what} {_pacing(data[6] | data[7] << 8)}"
+    if layout == _BULK_REQUEST:
+        return f"{what} window {data[6]}" + (" (invalid: 0)" if data[6] == 0 else "")
     return what  # _MUX, _END: nothing more
 
 

@@ -324,6 +324,8 @@ class TransferClient:
     GENERAL_ERROR = 0
     #: downloads carry the entry's data type (USDO does, SDO has no field for it)
     SENDS_DATA_TYPE = False
+    #: uploads through a node's OD take the entry's size as their size hint
+    HINTS_UPLOAD_SIZE = False
 
     def __init__(self, context: LineContext) -> None:
         self._context = context
@@ -352,9 +354,11 @@ class TransferClient:
                      mode: str = "auto") -> Transfer:
         """Start reading index:sub of node; returns at once. `file`: an open
         binary file the data streams into (else memory, at most max_size).
-        size_hint (SDO): the bytes expected, so AUTO can pick a block upload.
-        mode (SDO): 'auto', 'block' (a block upload whatever the size), or
-        'expedited' / 'segmented' (a normal upload: the server picks which)."""
+        size_hint: the bytes expected, so AUTO can pick a block upload (SDO)
+        or a bulk upload (USDO, from 4 KiB on; a server without bulk answers
+        0x13 and the upload goes on plainly). mode: 'auto', 'bulk' (USDO) /
+        'block' (SDO) whatever the size, or for SDO 'expedited' / 'segmented'
+        (a normal upload: the server picks which)."""
         return self._begin_upload(node, index, sub, timeout=timeout, max_size=max_size,
                                   file=file, progress=progress, size_hint=size_hint,
                                   mode=mode)

@@ -68,7 +68,7 @@ class RemoteAccess:
         return resolve(key, self._node.object_dictionary, f"node {self._node.node_id}")
 
     def start_upload(self, key: Key, **options: Any) -> Transfer:
-        index, sub, _ = self._key(key)
+        index, sub = self._upload_options(key, options)
         return self._client.start_upload(self._node.node_id, index, sub, **options)
 
     def start_download(self, key: Key, data: DownloadSource, **options: Any) -> Transfer:
@@ -77,7 +77,7 @@ class RemoteAccess:
 
     def upload(self, key: Key, subindex: Optional[int] = None, **options: Any) -> bytes:
         """The entry's bytes; `upload(0x1018, 1)` (python-canopen's order) works too."""
-        index, sub, _ = self._key(self._with_sub(key, subindex, "upload"))
+        index, sub = self._upload_options(self._with_sub(key, subindex, "upload"), options)
         return self._client.upload(self._node.node_id, index, sub, **options)
 
     def download(self, key: Key, data: Union[DownloadSource, int],
@@ -114,6 +114,17 @@ class RemoteAccess:
         """python-canopen's `node.sdo["Name"].raw`, `node.sdo[0x1018][1].raw`:
         the same as `node.od[key]` (needs the node's object dictionary)."""
         return RemoteObjects(self._node, self)[key]
+
+    def _upload_options(self, key: Key, options: Dict[str, Any]) -> Tuple[int, int]:
+        """index, sub of key; with the node's OD the entry's size (its largest,
+        for strings and domains) goes into options as the size hint, so AUTO
+        can pick a bulk upload for a big entry (USDO)."""
+        index, sub, variable = self._key(key)
+        if variable is not None and self._client.HINTS_UPLOAD_SIZE:
+            size = variable.storage_size
+            if 0 < size < 0xFFFFFFFF:
+                options.setdefault("size_hint", size)
+        return index, sub
 
     def _download_options(self, key: Key, options: Dict[str, Any]) -> Tuple[int, int]:
         """index, sub of key; with the node's OD the entry's data type goes into options."""

@@ -2,6 +2,7 @@
 
     line.usdo.upload(5, 0x1018, 1)                  -> bytes
     line.usdo.download(5, 0x2100, 0, firmware)      # bulk above 4 KiB
+    line.usdo.upload(5, 0x2100, 0, mode="bulk")     # the server streams (size_hint= for AUTO)
     remote = line.add_node(5, od="device.eds")
     remote.od["Producer heartbeat time"].raw = 100  # typed by the OD
     await remote.usdo.aupload("Identity object.Vendor-ID")
@@ -45,6 +46,11 @@ class UsdoClient(TransferClient):
 
     PROTOCOL = "USDO"
     MODES = ("auto", "expedited", "segmented", "bulk")
+    #: uploads: 'auto' (bulk from a size hint of 4 KiB on, else the server
+    #: picks expedited or segmented) or 'bulk' (the server streams in our
+    #: window; a server without bulk refuses it with 0x13)
+    UPLOAD_MODES = ("auto", "bulk")
+    HINTS_UPLOAD_SIZE = True
     # CO_USDO_ABORT_UNKNOWN (co_usdo_abort_t is outside the cdef; tests compare it)
     GENERAL_ERROR = 0x10
     SENDS_DATA_TYPE = True

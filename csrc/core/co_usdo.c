@@ -23,6 +23,7 @@ enum {
     P_SEG_DATA = 4,  /* SEGMENT, LAST data */
     P_CODE = 6,      /* ABORT */
     P_PACING = 6,    /* BULK_ACCEPT: 2 bytes, little-endian */
+    P_WINDOW = 6,    /* BULK_REQUEST: 1 byte, then 1 reserved byte (sent as 0) */
     HEAD_LEN = 3,    /* dest, cs, session */
     MUX_LEN = 6,
     EXP_HEAD_LEN = 8,
@@ -30,7 +31,8 @@ enum {
     SEG_HEAD_LEN = 4,
     SEGMENT_LEN = 64,
     ABORT_LEN = 7,
-    BULK_ACCEPT_LEN = 8
+    BULK_ACCEPT_LEN = 8,
+    BULK_REQUEST_LEN = 8
 };
 
 co_usdo_layout_t co_usdo_layout_of(uint8_t cs)
@@ -46,19 +48,25 @@ co_usdo_layout_t co_usdo_layout_of(uint8_t cs)
     case CO_USDO_CS_DOWNLOAD_INITIATE:
     case CO_USDO_CS_UPLOAD_INITIATE_RSP:
     case CO_USDO_CS_BULK_INITIATE:
+    case CO_USDO_CS_BULK_UPLOAD_INITIATE_RSP:
         return CO_USDO_LAYOUT_INITIATE;
     case CO_USDO_CS_DOWNLOAD_SEGMENT:
     case CO_USDO_CS_UPLOAD_SEGMENT_RSP:
     case CO_USDO_CS_BULK_SEGMENT:
+    case CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP:
         return CO_USDO_LAYOUT_SEGMENT;
     case CO_USDO_CS_DOWNLOAD_LAST:
     case CO_USDO_CS_UPLOAD_LAST_RSP:
     case CO_USDO_CS_BULK_LAST:
+    case CO_USDO_CS_BULK_UPLOAD_LAST_RSP:
         return CO_USDO_LAYOUT_LAST;
     case CO_USDO_CS_BULK_INITIATE_RSP:
         return CO_USDO_LAYOUT_BULK_ACCEPT;
+    case CO_USDO_CS_BULK_UPLOAD:
+        return CO_USDO_LAYOUT_BULK_REQUEST;
     case CO_USDO_CS_UPLOAD_SEGMENT:
     case CO_USDO_CS_DOWNLOAD_SEGMENT_RSP:
+    case CO_USDO_CS_BULK_UPLOAD_ACK:
         return CO_USDO_LAYOUT_COUNTER;
     case CO_USDO_CS_DOWNLOAD_LAST_RSP:
     case CO_USDO_CS_BULK_LAST_RSP:
@@ -74,7 +82,7 @@ bool co_usdo_layout_has_mux(co_usdo_layout_t layout)
 {
     return layout == CO_USDO_LAYOUT_MUX || layout == CO_USDO_LAYOUT_EXPEDITED ||
            layout == CO_USDO_LAYOUT_INITIATE || layout == CO_USDO_LAYOUT_ABORT ||
-           layout == CO_USDO_LAYOUT_BULK_ACCEPT;
+           layout == CO_USDO_LAYOUT_BULK_ACCEPT || layout == CO_USDO_LAYOUT_BULK_REQUEST;
 }
 
 /* ------------------------------------------------------------ helpers */
@@ -179,16 +187,19 @@ static size_t encode_segment(const co_usdo_msg_t *m, uint8_t *out)
     return SEGMENT_LEN;
 }
 
+/* No size field: the frame's length says how much data it carries. 64 bytes
+ * (what we send) give 60; a shorter frame from a sender with a smaller MTU
+ * gives len - 4 (at least 1), so padding up to an FD length would count as
+ * data there: the announced total catches it at the end. */
 static co_usdo_decode_result_t decode_segment(const uint8_t *in, size_t len, co_usdo_msg_t *m)
 {
-    if (len < SEGMENT_LEN) {
-        if (len > P_COUNTER) {
-            m->counter = in[P_COUNTER];
-        }
+    if (len > P_COUNTER) {
+        m->counter = in[P_COUNTER];
+    }
+    if (len < CO_USDO_SEGMENT_MIN) {
         return CO_USDO_DECODE_SHORT;
     }
-    m->counter = in[P_COUNTER];
-    m->length = CO_USDO_SEGMENT_DATA;
+    m->length = (uint8_t)(len < SEGMENT_LEN ? len - SEG_HEAD_LEN : CO_USDO_SEGMENT_DATA);
     m->data = in + P_SEG_DATA;
     return CO_USDO_DECODE_OK;
 }
@@ -282,6 +293,24 @@ static co_usdo_decode_result_t decode_bulk_accept(const uint8_t *in, size_t len,
     return CO_USDO_DECODE_OK;
 }
 
+static size_t encode_bulk_request(const co_usdo_msg_t *m, uint8_t *out)
+{
+    put_mux(out, m);
+    out[P_WINDOW] = m->window;
+    out[P_WINDOW + 1] = 0;
+    return BULK_REQUEST_LEN;
+}
+
+static co_usdo_decode_result_t decode_bulk_request(const uint8_t *in, size_t len,
+                                                   co_usdo_msg_t *m)
+{
+    if (len < BULK_REQUEST_LEN) {
+        return CO_USDO_DECODE_SHORT;
+    }
+    m->window = in[P_WINDOW];   /* the reserved byte after it is not looked at */
+    return CO_USDO_DECODE_OK;
+}
+
 /* ------------------------------------------------------------ dispatch */
 
 co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_msg_t *out)
@@ -328,6 +357,8 @@ co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_
         return decode_abort(data, len, out);
     case CO_USDO_LAYOUT_BULK_ACCEPT:
         return decode_bulk_accept(data, len, out);
+    case CO_USDO_LAYOUT_BULK_REQUEST:
+        return decode_bulk_request(data, len, out);
     default:
         return CO_USDO_DECODE_UNKNOWN_CS;
     }
@@ -367,6 +398,9 @@ size_t co_usdo_encode(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX])
         break;
     case CO_USDO_LAYOUT_BULK_ACCEPT:
         n = encode_bulk_accept(msg, out);
+        break;
+    case CO_USDO_LAYOUT_BULK_REQUEST:
+        n = encode_bulk_request(msg, out);
         break;
     default:
         n = 0;

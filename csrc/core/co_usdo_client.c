@@ -17,7 +17,13 @@
  *    abort, even after the server's last frame (0x31, 0x34): it then only
  *    tells the server the data was not taken (the server ignores it).
  *  - AUTO: a bulk initiate refused with 0x13 (the server has no bulk) is
- *    retried once as a segmented download with a fresh session-ID. */
+ *    retried once as a segmented download with a fresh session-ID; a bulk
+ *    upload request (0x16) refused with 0x13 once as a plain upload (0x11).
+ *  - Bulk upload (our layout, docs/protocol-notes.md): 0x16 carries our
+ *    window; we acknowledge (0x17, the counter of the last segment taken)
+ *    every half window, so the server never has more than a window of
+ *    segments in flight towards our receive queue.
+ *  - Segments shorter than 64 bytes (0x33, 0x37) are taken and counted. */
 #include "canopenfd/co_usdo_client.h"
 
 #include "co_bits.h"
@@ -153,12 +159,22 @@ static void stop_waiting(co_usdo_client_session_t *ses)
     }
 }
 
+/* A bulk upload gives its window back to the receive budget. */
+static void stop_bulk_rx(co_usdo_client_session_t *ses)
+{
+    if (ses->bulk_rx) {
+        ses->bulk_rx = false;
+        ses->client->bulk_rx--;
+    }
+}
+
 /* Free the session (timers, session-ID); the request stays untouched. */
 static void release(co_usdo_client_session_t *ses)
 {
     co_timer_cancel(timers_of(ses), &ses->timer);
     co_timer_cancel(timers_of(ses), &ses->pace);
     stop_waiting(ses);
+    stop_bulk_rx(ses);
     sid_mark(ses->client, ses->session_id, false);
     ses->state = CO_USDO_CLIENT_FREE;
     ses->req = NULL;
@@ -420,6 +436,21 @@ co_usdo_mode_t co_usdo_client_choose_mode(uint8_t mode, uint32_t size)
     return size < CO_USDO_CLIENT_BULK_THRESHOLD ? CO_USDO_MODE_SEGMENTED : CO_USDO_MODE_BULK;
 }
 
+co_usdo_mode_t co_usdo_client_choose_upload_mode(uint8_t mode, uint32_t size_hint)
+{
+    if (mode == CO_USDO_MODE_BULK ||
+        (mode == CO_USDO_MODE_AUTO && size_hint >= CO_USDO_CLIENT_BULK_THRESHOLD)) {
+        return CO_USDO_MODE_BULK;
+    }
+    return CO_USDO_MODE_AUTO;
+}
+
+/* Whether one more bulk upload's window fits in the receive budget. */
+static bool bulk_rx_fits(const co_usdo_client_t *c)
+{
+    return ((uint32_t)c->bulk_rx + 1u) * c->bulk_window <= c->bulk_budget;
+}
+
 /* The first frame of the transfer in `ses->mode` (`data`: an expedited
  * download's bytes, read before); 0 or why it did not go. */
 static uint8_t send_first(co_usdo_client_session_t *ses, const uint8_t *data)
@@ -427,7 +458,13 @@ static uint8_t send_first(co_usdo_client_session_t *ses, const uint8_t *data)
     co_usdo_request_t *req = ses->req;
     co_usdo_msg_t m;
     uint8_t type = req->type != 0 ? req->type : (uint8_t)TYPE_DOMAIN;
-    if (req->upload) {
+    if (req->upload && ses->mode == CO_USDO_MODE_BULK) {
+        session_msg(ses, req->server, CO_USDO_CS_BULK_UPLOAD, &m);
+        m.window = ses->client->bulk_window;
+        ses->state = CO_USDO_CLIENT_UL_BULK_INIT;
+        ses->bulk_rx = true;
+        ses->client->bulk_rx++;
+    } else if (req->upload) {
         session_msg(ses, req->server, CO_USDO_CS_UPLOAD, &m);
         ses->state = is_broadcast(ses) ? CO_USDO_CLIENT_BROADCAST : CO_USDO_CLIENT_UL_INIT;
     } else if (ses->mode == CO_USDO_MODE_EXPEDITED) {
@@ -454,17 +491,20 @@ static uint8_t send_first(co_usdo_client_session_t *ses, const uint8_t *data)
     return 0;
 }
 
-/* AUTO: the server has no bulk (0x13 to 0x06): once more, segmented, with a
- * fresh session-ID (a late frame of the refused attempt then meets none). */
-static void fall_back_to_segmented(co_usdo_client_session_t *ses)
+/* AUTO: the server has no bulk (0x13 to 0x06 / 0x16): once more, segmented
+ * (a download) or as a plain upload (0x11), with a fresh session-ID (a late
+ * frame of the refused attempt then meets none). */
+static void fall_back_from_bulk(co_usdo_client_session_t *ses)
 {
     co_usdo_client_t *c = ses->client;
+    co_usdo_mode_t mode = ses->req->upload ? CO_USDO_MODE_AUTO : CO_USDO_MODE_SEGMENTED;
     c->stats.bulk_fallback++;
+    stop_bulk_rx(ses);
     sid_mark(c, ses->session_id, false);
     ses->session_id = sid_next(c);
     ses->req->session_id = ses->session_id;
-    ses->mode = CO_USDO_MODE_SEGMENTED;
-    ses->req->result_mode = CO_USDO_MODE_SEGMENTED;
+    ses->mode = (uint8_t)mode;
+    ses->req->result_mode = (uint8_t)mode;
     ses->offset = 0;
     ses->counter = 0;
     ses->req->transferred = 0;
@@ -494,6 +534,10 @@ static uint8_t check_request(const co_usdo_client_t *c, const co_usdo_request_t 
         return CO_USDO_ABORT_UNKNOWN;
     }
     if (req->upload) {
+        if (req->mode > CO_USDO_MODE_BULK ||
+            (req->server == CO_USDO_BROADCAST && req->mode == CO_USDO_MODE_BULK)) {
+            return CO_USDO_ABORT_UNKNOWN;   /* a broadcast collects expedited answers */
+        }
         return (req->server != CO_USDO_BROADCAST && req->sink == NULL) ? CO_USDO_ABORT_UNKNOWN
                                                                         : 0;
     }
@@ -528,13 +572,26 @@ static uint8_t open_session(co_usdo_client_t *c, co_usdo_request_t *req, const u
 {
     co_usdo_client_session_t *ses = free_session(c);
     uint8_t code;
+    co_usdo_mode_t mode;
     if (ses == NULL) {
         return CO_USDO_ABORT_BUSY;
     }
+    mode = req->upload ? co_usdo_client_choose_upload_mode(req->mode, req->size)
+                       : co_usdo_client_choose_mode(req->mode, req->size);
+    if (req->upload && mode == CO_USDO_MODE_BULK &&
+        (req->server == CO_USDO_BROADCAST || !bulk_rx_fits(c))) {
+        if (req->mode == CO_USDO_MODE_BULK) {
+            c->stats.bulk_budget_full++;
+            return CO_USDO_ABORT_BUSY;   /* nothing taken: the session stays as it was */
+        }
+        if (req->server != CO_USDO_BROADCAST) {
+            c->stats.bulk_budget_full++;
+        }
+        mode = CO_USDO_MODE_AUTO;   /* AUTO: a plain upload, the server picks */
+    }
     ses->req = req;
     ses->run++;
-    co_usdo_mode_t mode = co_usdo_client_choose_mode(req->mode, req->size);
-    ses->mode = (uint8_t)(req->upload ? CO_USDO_MODE_AUTO : mode);
+    ses->mode = (uint8_t)mode;
     ses->offset = 0;
     ses->total = 0;
     ses->counter = 0;
@@ -542,6 +599,8 @@ static uint8_t open_session(co_usdo_client_t *c, co_usdo_request_t *req, const u
     ses->burst = 0;
     ses->next_at = 0;
     ses->wait_space = false;
+    ses->bulk_rx = false;
+    ses->since_ack = 0;
     memset(ses->answered, 0, sizeof ses->answered);
     ses->session_id = sid_next(c);
     req->abort = 0;
@@ -611,6 +670,11 @@ static bool expected(uint8_t state, uint8_t cs)
         return cs == CO_USDO_CS_BULK_INITIATE_RSP;
     case CO_USDO_CLIENT_BULK_LAST:
         return cs == CO_USDO_CS_BULK_LAST_RSP;
+    case CO_USDO_CLIENT_UL_BULK_INIT:   /* a server may answer a bulk request plainly */
+        return cs == CO_USDO_CS_BULK_UPLOAD_INITIATE_RSP ||
+               cs == CO_USDO_CS_UPLOAD_EXPEDITED_RSP || cs == CO_USDO_CS_UPLOAD_INITIATE_RSP;
+    case CO_USDO_CLIENT_UL_BULK:
+        return cs == CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP || cs == CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
     default:   /* BULK_SEND: only an abort */
         return false;
     }
@@ -651,11 +715,72 @@ static void on_upload_initiate(co_usdo_client_session_t *ses, const co_usdo_msg_
     send_upload_segment_request(ses);
 }
 
-/* 0x33 / 0x34: counter, size against the announcement, then the sink. */
+/* 0x36: announce the size; the server streams from now on. */
+static void on_bulk_upload_initiate(co_usdo_client_session_t *ses, const co_usdo_msg_t *m)
+{
+    ses->req->result_type = m->type;
+    ses->total = m->size;
+    if (!to_sink(ses, NULL, 0)) {
+        return;
+    }
+    ses->state = CO_USDO_CLIENT_UL_BULK;
+    ses->counter = 0;
+    ses->since_ack = 0;
+    ses->short_seen = false;
+    ses->taken = 0;
+    ses->acked = 0;
+}
+
+/* Whether the server's credit already covers the rest of a known size (in
+ * full 60-byte segments and one last one): then no acknowledgement is
+ * needed any more, and one sent would only cross the end. Not assumed once
+ * a short segment came (the rest may need more segments). */
+static bool credit_covers_rest(const co_usdo_client_session_t *ses)
+{
+    uint32_t credit = ses->acked + ses->client->bulk_window - ses->taken;
+    uint32_t rest;
+    if (ses->total == SIZE_UNKNOWN || ses->short_seen) {
+        return false;
+    }
+    rest = ses->total - ses->offset;
+    return (rest == 0 ? 1u : (rest + CO_USDO_SEGMENT_DATA - 1u) / CO_USDO_SEGMENT_DATA) <= credit;
+}
+
+/* 0x17 every half window (at least every segment for a window of 1): the
+ * server may then send a window beyond the segment just taken; none once
+ * its credit covers the rest of a known size. */
+static void bulk_upload_taken(co_usdo_client_session_t *ses, uint8_t counter)
+{
+    co_usdo_client_t *c = ses->client;
+    uint8_t every = (uint8_t)((c->bulk_window + 1u) / 2u);
+    ses->since_ack++;
+    ses->taken++;
+    if (ses->since_ack >= every && !credit_covers_rest(ses)) {
+        co_usdo_msg_t m;
+        session_msg(ses, ses->req->server, CO_USDO_CS_BULK_UPLOAD_ACK, &m);
+        m.counter = counter;
+        ses->since_ack = 0;
+        ses->acked = ses->taken;
+        c->stats.acks_sent++;
+        /* a lost or refused ack leaves the server waiting: both time out */
+        (void)send_msg(c, &m);
+    }
+}
+
+/* 0x33 / 0x34 (segmented) and 0x37 / 0x38 (bulk): counter, size against the
+ * announcement, then the sink; then ask for the next segment (segmented)
+ * or acknowledge now and then (bulk). */
 static void on_upload_segment(co_usdo_client_session_t *ses, const co_usdo_msg_t *m)
 {
     co_usdo_client_t *c = ses->client;
-    bool last = m->cs == CO_USDO_CS_UPLOAD_LAST_RSP;
+    bool bulk = m->cs == CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP ||
+                m->cs == CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
+    bool last = m->cs == CO_USDO_CS_UPLOAD_LAST_RSP || m->cs == CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
+    uint8_t counter = m->counter;
+    if (!last && co_usdo_short_segment(m)) {
+        c->stats.rx_short_segment++;   /* a server with a smaller MTU: taken */
+        ses->short_seen = true;
+    }
     uint32_t room = ses->total == SIZE_UNKNOWN ? SIZE_UNKNOWN - ses->offset
                                                : ses->total - ses->offset;
     if (!last && m->counter != ses->counter) {
@@ -675,11 +800,18 @@ static void on_upload_segment(co_usdo_client_session_t *ses, const co_usdo_msg_t
     ses->offset += m->length;
     ses->req->transferred = ses->offset;
     if (last) {
+        if (bulk) {
+            c->stats.bulk_uploads++;
+        }
         finish(ses, 0, false);
         return;
     }
     ses->counter = co_usdo_next_counter(ses->counter);
-    send_upload_segment_request(ses);
+    if (bulk) {
+        bulk_upload_taken(ses, counter);
+    } else {
+        send_upload_segment_request(ses);
+    }
 }
 
 /* An answer (or abort) of one server to a broadcast request: reported once
@@ -736,9 +868,9 @@ static void on_broadcast_answer(co_usdo_client_session_t *ses, uint8_t node,
 /* A server's abort. AUTO bulk refused as unknown: retry segmented. */
 static void on_server_abort(co_usdo_client_session_t *ses, uint8_t code)
 {
-    if (ses->state == CO_USDO_CLIENT_BULK_INIT && ses->req->mode == CO_USDO_MODE_AUTO &&
-        code == CO_USDO_ABORT_COMMAND) {
-        fall_back_to_segmented(ses);
+    if ((ses->state == CO_USDO_CLIENT_BULK_INIT || ses->state == CO_USDO_CLIENT_UL_BULK_INIT) &&
+        ses->req->mode == CO_USDO_MODE_AUTO && code == CO_USDO_ABORT_COMMAND) {
+        fall_back_from_bulk(ses);
         return;
     }
     finish(ses, code, true);
@@ -808,14 +940,22 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
         break;
     case CO_USDO_CS_UPLOAD_EXPEDITED_RSP:
         ses->req->result_mode = CO_USDO_MODE_EXPEDITED;   /* the server chose */
+        stop_bulk_rx(ses);
         on_upload_expedited(ses, &m);
         break;
     case CO_USDO_CS_UPLOAD_INITIATE_RSP:
         ses->req->result_mode = CO_USDO_MODE_SEGMENTED;
+        stop_bulk_rx(ses);
         on_upload_initiate(ses, &m);
+        break;
+    case CO_USDO_CS_BULK_UPLOAD_INITIATE_RSP:
+        ses->req->result_mode = CO_USDO_MODE_BULK;
+        on_bulk_upload_initiate(ses, &m);
         break;
     case CO_USDO_CS_UPLOAD_SEGMENT_RSP:
     case CO_USDO_CS_UPLOAD_LAST_RSP:
+    case CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP:
+    case CO_USDO_CS_BULK_UPLOAD_LAST_RSP:
         on_upload_segment(ses, &m);
         break;
     case CO_USDO_CS_DOWNLOAD_INITIATE_RSP:
@@ -870,6 +1010,18 @@ bool co_usdo_client_init(co_usdo_client_t *c, co_line_t *line, const co_usdo_cli
                     1000u;
     c->max_pacing = cfg->max_pacing != 0 ? cfg->max_pacing
                                          : (uint16_t)CO_USDO_CLIENT_DEFAULT_MAX_PACING;
+    /* bulk upload: a window of at most a quarter of the receive queue, all
+     * windows together at most half of it (the rest for other traffic) */
+    {
+        uint32_t rx = line->rx.capacity;
+        uint32_t window = cfg->bulk_window != 0 ? cfg->bulk_window
+                                                : (uint32_t)CO_USDO_CLIENT_DEFAULT_BULK_WINDOW;
+        if (window > rx / 4u) {
+            window = rx / 4u;
+        }
+        c->bulk_window = (uint8_t)(window != 0 ? window : 1u);
+        c->bulk_budget = rx / 2u > c->bulk_window ? rx / 2u : c->bulk_window;
+    }
     for (i = 0; i < cfg->session_count; i++) {
         co_usdo_client_session_t *ses = &cfg->sessions[i];
         memset(ses, 0, sizeof *ses);

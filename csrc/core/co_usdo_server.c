@@ -22,9 +22,18 @@
  *  - The data type byte of a download must be the entry's type or DOMAIN
  *    (0x0F, "raw bytes"), else 0x36 (checked after the entry, access and
  *    length checks of co_od_write_begin).
- *  - Uploads of 1..56 bytes are expedited; anything else (0 bytes, more than
- *    56, a domain of unknown size) is segmented. A domain of unknown size
- *    announces 0xFFFFFFFF as its size.
+ *  - Uploads of 0..56 bytes are expedited (an empty value: N = 0); anything
+ *    else (more than 56, a domain of unknown size) is segmented. A domain of
+ *    unknown size announces 0xFFFFFFFF as its size.
+ *  - A bulk upload (0x16, our layout) is answered 0x36 (type, size) and the
+ *    data streamed as 0x37 segments (counter as in segmented transfers) and
+ *    one 0x38; never more than the client's window beyond the segments it
+ *    acknowledged (0x17 names the counter of the last segment it took). An
+ *    acknowledgement naming no segment in flight: 0x14. Window 0: 0x11.
+ *    A 0x17 for no open transfer is ignored and counted (acknowledgements
+ *    may cross the last segment).
+ *  - Segments shorter than 64 bytes are taken (data = frame length - 4)
+ *    and counted: liberal in what we accept; we always send 64.
  *  - The size announced in a segmented or bulk download is checked on every
  *    segment and at the end: more or fewer bytes = 0x15.
  *  - A bulk download (0x06) is a segmented download whose segments (0x07)
@@ -42,7 +51,8 @@ enum answer {
     ANSWER_UPLOAD,                /* 0x31, or 0x32 and then segments */
     ANSWER_DOWNLOAD_EXPEDITED,    /* 0x21 */
     ANSWER_DOWNLOAD_LAST,         /* 0x24 */
-    ANSWER_BULK_LAST              /* 0x28 */
+    ANSWER_BULK_LAST,             /* 0x28 */
+    ANSWER_BULK_UPLOAD            /* 0x36 and then streamed segments */
 };
 
 /* ------------------------------------------------------------ sending */
@@ -108,7 +118,7 @@ static bool is_open(const co_usdo_session_t *ses)
 {
     return ses->state == CO_USDO_SESSION_ACTIVE || ses->state == CO_USDO_SESSION_DOWNLOAD ||
            ses->state == CO_USDO_SESSION_UPLOAD || ses->state == CO_USDO_SESSION_BULK ||
-           ses->state == CO_USDO_SESSION_PENDING;
+           ses->state == CO_USDO_SESSION_BULK_UPLOAD || ses->state == CO_USDO_SESSION_PENDING;
 }
 
 static co_usdo_session_t *find(co_usdo_server_t *s, uint8_t client, uint8_t session_id)
@@ -151,6 +161,8 @@ static void release(co_usdo_session_t *ses)
     co_timer_cancel(co_line_timers(ses->server->line), &ses->timer);
     ses->state = CO_USDO_SESSION_FREE;
     ses->answer = ANSWER_NONE;
+    ses->tx_wait = false;
+    ses->tx_resume = false;
 }
 
 /* Re-arm the idle timeout (every frame of the transfer). */
@@ -186,11 +198,19 @@ static void od_fail(co_usdo_session_t *ses, uint32_t abort)
     close_session(ses, co_usdo_abort_from_co(abort), true);
 }
 
+static void bulk_stream(co_usdo_session_t *ses);
+
 static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
 {
     co_usdo_session_t *ses = user;
     (void)timer;
     (void)now_us;
+    if (ses->tx_resume) {   /* not a timeout: the tx queue has room again */
+        ses->tx_resume = false;
+        touch(ses);
+        bulk_stream(ses);
+        return;
+    }
     ses->server->stats.timeouts++;
     close_session(ses, CO_USDO_ABORT_TIMEOUT, true);
 }
@@ -235,7 +255,7 @@ static void answer_upload(co_usdo_session_t *ses)
     m.index = ses->index;
     m.sub = ses->sub;
     m.type = ses->xfer.entry->type;
-    if (total != CO_OD_SIZE_UNKNOWN && total >= 1 && total <= CO_USDO_EXPEDITED_MAX) {
+    if (total != CO_OD_SIZE_UNKNOWN && total <= CO_USDO_EXPEDITED_MAX) {   /* N = 0 too */
         uint8_t data[CO_USDO_EXPEDITED_MAX];
         uint32_t n = 0;
         bool last = false;
@@ -260,6 +280,122 @@ static void answer_upload(co_usdo_session_t *ses)
     touch(ses);
 }
 
+/* ------------------------------------------------------------ bulk upload */
+
+/* Stream segments while the client's window and the tx queue have room:
+ * 0x37 with 60 bytes, 0x38 with the rest (a multiple of 60 ends with a full
+ * 0x38, as segmented uploads do). Out of window: wait for the client's 0x17
+ * (the idle timeout runs); out of tx room: wait for the tx-space
+ * indication. */
+static void bulk_stream(co_usdo_session_t *ses)
+{
+    co_usdo_server_t *s = ses->server;
+    while (ses->state == CO_USDO_SESSION_BULK_UPLOAD &&
+           ses->sent - ses->acked < ses->window) {
+        uint8_t data[CO_USDO_SEGMENT_DATA];
+        uint32_t n = 0;
+        bool last = false;
+        co_usdo_msg_t out;
+        uint32_t r;
+        if (co_line_tx_room(s->line) == 0) {
+            if (!ses->tx_wait) {
+                s->stats.tx_deferred++;
+            }
+            ses->tx_wait = true;
+            return;
+        }
+        r = fill(ses, data, CO_USDO_SEGMENT_DATA, &n, &last);
+        if (r != 0) {
+            od_fail(ses, r);
+            return;
+        }
+        memset(&out, 0, sizeof out);
+        out.dest = ses->client;
+        out.session = ses->session_id;
+        out.data = data;
+        if (last) {
+            out.cs = CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
+            out.length = (uint8_t)n;
+            send_msg(s, &out);
+            s->stats.uploads++;
+            s->stats.bulk_uploads++;
+            release(ses);
+            return;
+        }
+        out.cs = CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP;
+        out.counter = ses->counter;
+        out.length = CO_USDO_SEGMENT_DATA;
+        send_msg(s, &out);
+        ses->counter = co_usdo_next_counter(ses->counter);
+        ses->sent++;
+    }
+    ses->tx_wait = false;
+}
+
+/* 0x36 (type, size as 0x32) and the first window of segments. */
+static void answer_bulk_upload(co_usdo_session_t *ses)
+{
+    co_usdo_msg_t m;
+    session_msg(ses, CO_USDO_CS_BULK_UPLOAD_INITIATE_RSP, &m);
+    m.type = ses->xfer.entry->type;
+    m.size = ses->xfer.total;   /* CO_OD_SIZE_UNKNOWN = 0xFFFFFFFF: size not known */
+    send_msg(ses->server, &m);
+    ses->state = CO_USDO_SESSION_BULK_UPLOAD;
+    ses->counter = 0;
+    ses->sent = 0;
+    ses->acked = 0;
+    touch(ses);
+    bulk_stream(ses);
+}
+
+/* 0x17: the client took every segment up to the one with this counter.
+ * Segments in flight are acked+1..sent; the window (< 256) makes the
+ * counter name at most one of them. */
+static void on_bulk_ack(co_usdo_server_t *s, co_usdo_session_t *ses, const co_usdo_msg_t *m)
+{
+    uint32_t k;
+    if (ses == NULL) {
+        s->stats.rx_stray_ack++;
+        return;
+    }
+    if (ses->state != CO_USDO_SESSION_BULK_UPLOAD) {
+        s->stats.rx_unknown_command++;
+        close_session(ses, CO_USDO_ABORT_COMMAND, true);
+        return;
+    }
+    for (k = ses->acked + 1u; k <= ses->sent; k++) {
+        if ((uint8_t)(k - 1u) == m->counter) {
+            break;
+        }
+    }
+    if (k > ses->sent) {
+        s->stats.rx_bad_counter++;
+        close_session(ses, CO_USDO_ABORT_COUNTER, true);
+        return;
+    }
+    ses->acked = k;
+    touch(ses);
+    if (!ses->tx_wait) {
+        bulk_stream(ses);
+    }
+}
+
+/* The tx queue drained to half: bulk uploads that waited for room go on
+ * from their timer (i.e. from co_line_process, not the driver's context). */
+static void on_tx_space(co_line_t *line, void *user)
+{
+    co_usdo_server_t *s = user;
+    uint8_t i;
+    for (i = 0; i < s->session_count; i++) {
+        co_usdo_session_t *ses = &s->sessions[i];
+        if (ses->state == CO_USDO_SESSION_BULK_UPLOAD && ses->tx_wait) {
+            ses->tx_wait = false;
+            ses->tx_resume = true;
+            co_timer_start(co_line_timers(line), &ses->timer, co_line_now(line));
+        }
+    }
+}
+
 /* What a co_od call returned: wait (split), refuse, or answer. */
 static void after_od(co_usdo_session_t *ses, uint32_t r, uint8_t answer)
 {
@@ -276,6 +412,9 @@ static void after_od(co_usdo_session_t *ses, uint32_t r, uint8_t answer)
     switch (answer) {
     case ANSWER_UPLOAD:
         answer_upload(ses);
+        break;
+    case ANSWER_BULK_UPLOAD:
+        answer_bulk_upload(ses);
         break;
     case ANSWER_DOWNLOAD_EXPEDITED:
         send_simple(s, ses, CO_USDO_CS_DOWNLOAD_EXPEDITED_RSP, 0);
@@ -316,7 +455,7 @@ static uint32_t begin_download(co_usdo_server_t *s, co_usdo_session_t *ses, uint
     return r;
 }
 
-/* 0x01, 0x02, 0x06, 0x11: a new transfer. */
+/* 0x01, 0x02, 0x06, 0x11, 0x16: a new transfer. */
 static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t client,
                         const co_usdo_msg_t *m)
 {
@@ -324,6 +463,11 @@ static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t cli
     if (ses != NULL) {
         s->stats.restarts++;
         close_session(ses, CO_USDO_ABORT_UNKNOWN, false);
+    }
+    if (m->cs == CO_USDO_CS_BULK_UPLOAD && m->window == 0) {
+        s->stats.rx_bad_window++;   /* nothing could ever be sent */
+        send_abort(s, client, m->session, m->index, m->sub, CO_USDO_ABORT_PROTOCOL);
+        return;
     }
     ses = alloc(s);
     if (ses == NULL) {
@@ -345,6 +489,9 @@ static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t cli
     ses->counter = 0;
     ses->total = 0;
     ses->received = 0;
+    ses->window = m->window;
+    ses->tx_wait = false;
+    ses->tx_resume = false;
     touch(ses);
     switch (m->cs) {
     case CO_USDO_CS_DOWNLOAD_EXPEDITED:
@@ -373,9 +520,9 @@ static void on_initiate(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t cli
             send_simple(s, ses, CO_USDO_CS_DOWNLOAD_INITIATE_RSP, 0);
         }
         break;
-    default: /* CO_USDO_CS_UPLOAD */
+    default: /* CO_USDO_CS_UPLOAD, CO_USDO_CS_BULK_UPLOAD */
         r = co_od_read_begin(s->od, &ses->xfer, ses->index, ses->sub);
-        after_od(ses, r, ANSWER_UPLOAD);
+        after_od(ses, r, m->cs == CO_USDO_CS_BULK_UPLOAD ? ANSWER_BULK_UPLOAD : ANSWER_UPLOAD);
         break;
     }
 }
@@ -417,6 +564,9 @@ static void on_download_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uin
     }
     uint32_t room = ses->total - ses->received;   /* received <= total always */
     if (m->cs == CO_USDO_CS_DOWNLOAD_SEGMENT || m->cs == CO_USDO_CS_BULK_SEGMENT) {
+        if (co_usdo_short_segment(m)) {
+            s->stats.rx_short_segment++;   /* a sender with a smaller MTU: taken */
+        }
         if (m->counter != ses->counter) {
             s->stats.rx_bad_counter++;
             close_session(ses, CO_USDO_ABORT_COUNTER, true);
@@ -561,7 +711,11 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
     case CO_USDO_CS_DOWNLOAD_INITIATE:
     case CO_USDO_CS_BULK_INITIATE:
     case CO_USDO_CS_UPLOAD:
+    case CO_USDO_CS_BULK_UPLOAD:
         on_initiate(s, ses, client, &m);
+        break;
+    case CO_USDO_CS_BULK_UPLOAD_ACK:
+        on_bulk_ack(s, ses, &m);
         break;
     case CO_USDO_CS_DOWNLOAD_SEGMENT:
     case CO_USDO_CS_DOWNLOAD_LAST:
@@ -631,6 +785,10 @@ bool co_usdo_server_init(co_usdo_server_t *server, co_line_t *line, co_od_t *od,
                            server)) {
         return false;
     }
+    if (!co_line_tx_space_register(line, on_tx_space, server)) {
+        co_line_unsubscribe(line, on_frame, server);
+        return false;
+    }
     return true;
 }
 
@@ -638,6 +796,7 @@ void co_usdo_server_deinit(co_usdo_server_t *server)
 {
     uint8_t i;
     co_line_unsubscribe(server->line, on_frame, server);
+    co_line_tx_space_unregister(server->line, on_tx_space, server);
     for (i = 0; i < server->session_count; i++) {
         co_usdo_session_t *ses = &server->sessions[i];
         if (ses->state != CO_USDO_SESSION_FREE) {

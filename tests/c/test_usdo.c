@@ -47,6 +47,12 @@
 #define BULK_SEG 0x07
 #define BULK_LAST 0x08
 #define ABORT 0x7F
+/* Bulk upload: our layout (docs/protocol-notes.md, "Bulk upload") */
+#define BUL_REQ 0x16
+#define BUL_ACK 0x17
+#define BUL_INIT 0x36
+#define BUL_SEG 0x37
+#define BUL_LAST 0x38
 
 /* ------------------------------------------------------------- fixture */
 
@@ -627,6 +633,75 @@ static void bulk_write_ok(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index,
     expect_none(fx);
 }
 
+/* ---- bulk upload (0x16 / 0x17; answers 0x36, 0x37, 0x38) */
+
+static void send_bul_req(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index, uint8_t sub,
+                         uint8_t window)
+{
+    uint8_t b[8];
+    mux(b, ID_S, BUL_REQ, sid, index, sub);
+    b[6] = window;
+    b[7] = 0;
+    req(fx, client, b, 8);
+}
+
+static void send_bul_ack(fx_t *fx, uint8_t client, uint8_t sid, uint8_t counter)
+{
+    uint8_t b[4] = { ID_S, BUL_ACK, sid, counter };
+    req(fx, client, b, 4);
+}
+
+/* 0x36: as 0x32, mux, type, 0, size LE. */
+static void expect_bul_init(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index, uint8_t sub,
+                            uint8_t type, uint32_t size)
+{
+    uint8_t e[12];
+    mux(e, client, BUL_INIT, sid, index, sub);
+    e[6] = type;
+    e[7] = 0;
+    le_put32(e + 8, size);
+    expect(fx, e, 12);
+}
+
+/* Bulk upload of `total` bytes with window `window`: 0x36 announcing
+ * `size`, then at most `window` segments beyond those acknowledged (checked:
+ * nothing more arrives), acknowledged in full windows; every byte checked. */
+static void bulk_read_ok(fx_t *fx, uint8_t client, uint8_t sid, uint16_t index, uint8_t sub,
+                         uint8_t type, const uint8_t *data, uint32_t total, uint32_t size,
+                         uint8_t window)
+{
+    uint8_t e[64];
+    uint32_t off = 0, k = 0, acked = 0;
+    send_bul_req(fx, client, sid, index, sub, window);
+    expect_bul_init(fx, client, sid, index, sub, type, size);
+    for (;;) {
+        while (k < acked + window) {
+            e[0] = client;
+            e[2] = sid;
+            if (total - off > 60) {
+                e[1] = BUL_SEG;
+                e[3] = (uint8_t)k;
+                memcpy(e + 4, data + off, 60);
+                expect(fx, e, 64);
+                off += 60;
+                k++;
+            } else {
+                uint32_t n = total - off;
+                e[1] = BUL_LAST;
+                e[3] = (uint8_t)n;
+                if (n > 0)
+                    memcpy(e + 4, data + off, n);
+                expect(fx, e, 4 + n);
+                expect_none(fx);
+                return;
+            }
+        }
+        expect_none(fx);   /* the window is full: the server waits */
+        send_bul_ack(fx, client, sid, (uint8_t)(k - 1u));
+        acked = k;
+    }
+}
+
 static void fill_pattern(uint8_t *p, uint32_t n, uint8_t seed)
 {
     uint32_t i;
@@ -782,12 +857,13 @@ static void test_codec_layout_of_every_command(void **state)
         switch (cs) {
         case 0x11: case 0x21: case 0x22: want = CO_USDO_LAYOUT_MUX; break;
         case 0x01: case 0x31: want = CO_USDO_LAYOUT_EXPEDITED; break;
-        case 0x02: case 0x32: case 0x06: want = CO_USDO_LAYOUT_INITIATE; break;
-        case 0x03: case 0x33: case 0x07: want = CO_USDO_LAYOUT_SEGMENT; break;
-        case 0x04: case 0x34: case 0x08: want = CO_USDO_LAYOUT_LAST; break;
-        case 0x13: case 0x23: want = CO_USDO_LAYOUT_COUNTER; break;
+        case 0x02: case 0x32: case 0x06: case 0x36: want = CO_USDO_LAYOUT_INITIATE; break;
+        case 0x03: case 0x33: case 0x07: case 0x37: want = CO_USDO_LAYOUT_SEGMENT; break;
+        case 0x04: case 0x34: case 0x08: case 0x38: want = CO_USDO_LAYOUT_LAST; break;
+        case 0x13: case 0x23: case 0x17: want = CO_USDO_LAYOUT_COUNTER; break;
         case 0x24: case 0x28: want = CO_USDO_LAYOUT_END; break;
         case 0x26: want = CO_USDO_LAYOUT_BULK_ACCEPT; break;
+        case 0x16: want = CO_USDO_LAYOUT_BULK_REQUEST; break;
         case 0x7F: want = CO_USDO_LAYOUT_ABORT; break;
         default: break;
         }
@@ -891,7 +967,10 @@ static void test_codec_encode_refuses_what_does_not_fit(void **state)
     assert_int_equal(enc(0x81, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
     assert_int_equal(enc(0x91, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
     assert_int_equal(enc(0x86, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
-    assert_int_equal(enc(0x16, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    assert_int_equal(enc(0x18, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
+    /* bulk upload segments: exactly 60 bytes too (we never send a short one) */
+    assert_int_equal(enc(0x37, 1, 1, 0, 0, 0, 0, 0, data, 59, 0, out), 0);
+    assert_int_equal(enc(0x38, 1, 1, 0, 0, 0, 0, 0, data, 61, 0, out), 0);
     assert_int_equal(enc(0xFF, 1, 1, 0, 0, 0, 0, 0, NULL, 0, 0, out), 0);
     assert_memory_equal(out, zero, 64);
 }
@@ -919,12 +998,32 @@ static void test_codec_decode_refuses_bad_lengths_and_commands(void **state)
     b[3] = 60;
     assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_OK);
     assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_SHORT);
-    /* a segment must be 64 bytes */
+    /* a segment of fewer than 64 bytes carries the rest of the frame (a
+     * sender with a smaller MTU); it needs one data byte at least */
     b[1] = 0x03;
-    assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_SHORT);
-    /* bulk: a bulk segment must be 64 bytes, a bulk last n <= 60 */
+    b[3] = 9;
+    assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.length, 44);
+    assert_int_equal(m.counter, 9);
+    assert_true(co_usdo_short_segment(&m));
+    assert_int_equal(decode_exact(b, 5, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.length, 1);
+    assert_int_equal(decode_exact(b, 4, &m), CO_USDO_DECODE_SHORT);
+    assert_int_equal(m.counter, 9);
+    assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_OK);
+    assert_false(co_usdo_short_segment(&m));
+    /* bulk: the same for bulk segments (both directions), a bulk last n <= 60 */
     b[1] = 0x07;
-    assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_SHORT);
+    assert_int_equal(decode_exact(b, 48, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.length, 44);
+    assert_int_equal(decode_exact(b, 4, &m), CO_USDO_DECODE_SHORT);
+    b[1] = 0x37;
+    assert_int_equal(decode_exact(b, 20, &m), CO_USDO_DECODE_OK);
+    assert_int_equal(m.length, 16);
+    assert_int_equal(decode_exact(b, 4, &m), CO_USDO_DECODE_SHORT);
+    b[1] = 0x38;
+    b[3] = 61;
+    assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_BAD_LENGTH);
     b[1] = 0x08;
     b[3] = 61;
     assert_int_equal(decode_exact(b, 64, &m), CO_USDO_DECODE_BAD_LENGTH);
@@ -1069,6 +1168,11 @@ static void test_codec_bulk_frames(void **state)
     for (i = 0; i < 5; i++) {
         for (len = 0; len < frames[i].n; len++) {
             co_usdo_decode_result_t r = decode_exact(frames[i].b, len, &m);
+            if (i == 2 && len >= 5) {   /* a short segment: len - 4 data bytes */
+                assert_int_equal(r, CO_USDO_DECODE_OK);
+                assert_int_equal(m.length, len - 4);
+                continue;
+            }
             assert_int_equal(r, len < 3 ? CO_USDO_DECODE_EMPTY : CO_USDO_DECODE_SHORT);
             if (len >= 3)
                 assert_int_equal(m.cs, frames[i].b[1]);
@@ -1088,19 +1192,22 @@ static void test_codec_bulk_frames(void **state)
 static void test_codec_every_truncation_refused(void **state)
 {
     static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x06, 0x07, 0x08, 0x11,
-                                    0x13, 0x21, 0x22, 0x23, 0x24, 0x26, 0x28, 0x31,
-                                    0x32, 0x33, 0x34, 0x7F };
+                                    0x13, 0x16, 0x17, 0x21, 0x22, 0x23, 0x24, 0x26,
+                                    0x28, 0x31, 0x32, 0x33, 0x34, 0x36, 0x37, 0x38,
+                                    0x7F };
     uint8_t data[60], buf[64];
     size_t i, len;
     (void)state;
     fill_pattern(data, 60, 0x11);
     for (i = 0; i < sizeof cmds; i++) {
-        uint8_t dlen = (uint8_t)((cmds[i] & 0x0F) == 3 || cmds[i] == 0x07 ? 60 : 23);
+        bool segment = co_usdo_layout_of(cmds[i]) == CO_USDO_LAYOUT_SEGMENT;
+        uint8_t dlen = (uint8_t)(segment ? 60 : 23);
         size_t n = enc(cmds[i], 5, 1, 0x2004, 2, 9, 3, 1000, data, dlen, 0x33, buf);
         co_usdo_msg_t m;
         assert_true(n >= 3);
         assert_int_equal(decode_exact(buf, n, &m), CO_USDO_DECODE_OK);
-        for (len = 0; len < n; len++) {
+        /* a segment cut after 5+ bytes is a short segment, taken (other tests) */
+        for (len = 0; len < (segment ? 5u : n); len++) {
             co_usdo_decode_result_t r = decode_exact(buf, len, &m);
             assert_int_equal(r, len < 3 ? CO_USDO_DECODE_EMPTY : CO_USDO_DECODE_SHORT);
         }
@@ -1113,8 +1220,9 @@ static void test_codec_random_input(void **state)
 {
     uint64_t seed = 0xC0DEC0DE12345ull;
     static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x06, 0x07, 0x08, 0x11,
-                                    0x13, 0x21, 0x22, 0x23, 0x24, 0x26, 0x28, 0x31,
-                                    0x32, 0x33, 0x34, 0x7F };
+                                    0x13, 0x16, 0x17, 0x21, 0x22, 0x23, 0x24, 0x26,
+                                    0x28, 0x31, 0x32, 0x33, 0x34, 0x36, 0x37, 0x38,
+                                    0x7F };
     unsigned i, ok = 0;
     (void)state;
     for (i = 0; i < 200000; i++) {
@@ -1127,13 +1235,18 @@ static void test_codec_random_input(void **state)
             b[1] = cmds[tu_rand(&seed) % sizeof cmds];
         if (len > 7 && b[1] == 0x01 && (tu_rand(&seed) & 1))
             b[7] = (uint8_t)(tu_rand(&seed) % 60);
-        if (len > 3 && (b[1] == 0x04 || b[1] == 0x08) && (tu_rand(&seed) & 1))
+        if (len > 3 && (b[1] == 0x04 || b[1] == 0x08 || b[1] == 0x38) && (tu_rand(&seed) & 1))
             b[3] = (uint8_t)(tu_rand(&seed) % 64);
         if (decode_exact(b, len, &m) == CO_USDO_DECODE_OK) {
             size_t n = co_usdo_encode(&m, out);
             ok++;
+            if (co_usdo_layout_of(m.cs) == CO_USDO_LAYOUT_SEGMENT && co_usdo_short_segment(&m)) {
+                assert_int_equal(n, 0);   /* taken, but never sent that way */
+                assert_int_equal(m.length, len - 4);
+                continue;
+            }
             assert_true(n >= 3 && n <= len);
-            if (m.cs == 0x02 || m.cs == 0x32 || m.cs == 0x06) {
+            if (m.cs == 0x02 || m.cs == 0x32 || m.cs == 0x06 || m.cs == 0x36 || m.cs == 0x16) {
                 assert_int_equal(out[7], 0);
                 out[7] = b[7];
             }
@@ -1325,8 +1438,8 @@ static void test_expedited_empty_write(void **state)
     fx_t *fx = *state;
     exp_write_ok(fx, C1, 1, 0x2004, 0, VS, NULL, 0);
     assert_od_bytes(fx, 0x2004, 0, NULL, 0);
-    /* an empty value is uploaded segmented: size 0, then a last segment of 0 */
-    seg_read_ok(fx, C1, 2, 0x2004, 0, VS, NULL, 0, 0);
+    /* an empty value is uploaded expedited with N = 0 */
+    exp_read_ok(fx, C1, 2, 0x2004, 0, VS, NULL, 0);
 }
 
 static void test_broadcast_answered_individually(void **state)
@@ -1579,9 +1692,20 @@ static void test_abort_unknown_command(void **state)
     mux(b, ID_S, 0x28, 43, 0x2002, 0);
     req(fx, C1, b, 3);
     expect_abort(fx, C1, 43, 0, 0, 0x13);
+    /* the bulk upload responses as requests */
+    mux(b, ID_S, 0x36, 44, 0x2002, 0);
+    req(fx, C1, b, 12);
+    expect_abort(fx, C1, 44, 0x2002, 0, 0x13);
+    mux(b, ID_S, 0x37, 45, 0x2002, 0);
+    req(fx, C1, b, 64);
+    expect_abort(fx, C1, 45, 0, 0, 0x13);
+    mux(b, ID_S, 0x38, 46, 0x2002, 0);
+    b[3] = 0;
+    req(fx, C1, b, 4);
+    expect_abort(fx, C1, 46, 0, 0, 0x13);
     expect_none(fx);
     assert_unchanged(fx);
-    assert_int_equal(fx->srv.stats.rx_unknown_command, sizeof cmds + 4);
+    assert_int_equal(fx->srv.stats.rx_unknown_command, sizeof cmds + 7);
 }
 
 static void test_abort_unknown_command_ends_open_transfer(void **state)
@@ -1620,12 +1744,12 @@ static void test_abort_wrong_counter(void **state)
     expect_none(fx);
     assert_unchanged(fx);
     /* upload: counter 0, then 2 */
+    fill_pattern(data, 180, 7);
+    seg_write_ok(fx, C1, 4, 0x2005, 0, OS, data, 180);
     send_upload(fx, C1, ID_S, 3, 0x2005, 0);
     next_rsp(fx);
     send_ul_seg(fx, C1, 3, 1);
     expect_abort(fx, C1, 3, 0x2005, 0, 0x14);
-    fill_pattern(data, 180, 7);
-    seg_write_ok(fx, C1, 4, 0x2005, 0, OS, data, 180);
     send_upload(fx, C1, ID_S, 5, 0x2005, 0);
     next_rsp(fx);
     send_ul_seg(fx, C1, 5, 0);
@@ -1701,10 +1825,10 @@ static void test_abort_segment_without_session_or_of_wrong_kind(void **state)
     send_ul_seg(fx, C1, 9, 0);
     expect_abort(fx, C1, 9, 0x2004, 0, 0x13);
     /* a download segment on an upload */
-    send_upload(fx, C1, ID_S, 10, 0x2005, 0);
+    send_upload(fx, C1, ID_S, 10, 0x2009, 0);
     next_rsp(fx);
     send_dl_seg(fx, C1, 10, 0, data);
-    expect_abort(fx, C1, 10, 0x2005, 0, 0x13);
+    expect_abort(fx, C1, 10, 0x2009, 0, 0x13);
     expect_none(fx);
     assert_unchanged(fx);
     assert_int_equal(fx->srv.stats.rx_no_session, 4);
@@ -1735,14 +1859,14 @@ static void test_abort_malformed_frames(void **state)
     mux(b, ID_S, DL_INIT, 3, 0x2004, 0);
     req_raw(fx, 0x601, FDF, b, 8);
     expect_abort(fx, C1, 3, 0x2004, 0, 0x1E);
-    /* a segment shorter than 64 ends the open transfer */
+    /* a segment without a data byte ends the open transfer */
     send_dl_init(fx, C1, 4, 0x2004, 0, VS, 100);
     expect_mux(fx, C1, 0x22, 4, 0x2004, 0);
     b[0] = ID_S;
     b[1] = DL_SEG;
     b[2] = 4;
     b[3] = 0;
-    req_raw(fx, 0x601, FDF, b, 48);
+    req_raw(fx, 0x601, FDF, b, 4);
     expect_abort(fx, C1, 4, 0x2004, 0, 0x1E);
     /* a last segment claiming more than the frame holds */
     send_dl_init(fx, C1, 5, 0x2004, 0, VS, 100);
@@ -1875,10 +1999,10 @@ static void test_abort_timeout(void **state)
     assert_unchanged(fx);
     /* an upload waiting for its next segment request */
     t0 = fx->tb.now;
-    send_upload(fx, C2, ID_S, 2, 0x2005, 0);
+    send_upload(fx, C2, ID_S, 2, 0x2009, 0);
     next_rsp(fx);
     tu_run_until(&fx->tb, t0 + MS(1000));
-    expect_abort(fx, C2, 2, 0x2005, 0, 0x12);
+    expect_abort(fx, C2, 2, 0x2009, 0, 0x12);
     /* a domain writer is told of the timeout */
     send_dl_init(fx, C1, 3, 0x2009, 0, DOM, 200);
     expect_mux(fx, C1, 0x22, 3, 0x2009, 0);
@@ -2439,7 +2563,7 @@ static void test_bulk_stray_segment_ignored(void **state)
     expect_abort(fx, C1, 9, 0, 0, 0x21);
     /* a bulk segment too short for its layout is malformed, not stray */
     b[0] = ID_S;
-    req_raw(fx, 0x601, FDF, b, 48);
+    req_raw(fx, 0x601, FDF, b, 4);
     expect_abort(fx, C1, 9, 0, 0, 0x1E);
     expect_none(fx);
     assert_unchanged(fx);
@@ -2484,10 +2608,10 @@ static void test_bulk_wrong_kind(void **state)
     send_bulk_last(fx, C1, 4, data + 60, 40);
     expect_abort(fx, C1, 4, 0x2004, 0, 0x13);
     /* 0x07 in an upload, and 0x13 in a bulk download */
-    send_upload(fx, C2, ID_S, 5, 0x2005, 0);
+    send_upload(fx, C2, ID_S, 5, 0x200C, 0);
     next_rsp(fx);
     send_bulk_seg(fx, C2, 5, 0, data);
-    expect_abort(fx, C2, 5, 0x2005, 0, 0x13);
+    expect_abort(fx, C2, 5, 0x200C, 0, 0x13);
     send_bulk_init(fx, C2, 6, 0x2009, 0, DOM, 100);
     expect_bulk_accept(fx, C2, 6, 0x2009, 0, 0);
     send_ul_seg(fx, C2, 6, 0);
@@ -2513,14 +2637,14 @@ static void test_bulk_malformed_frames(void **state)
     mux(b, ID_S, BULK_INIT, 1, 0x2004, 0);
     req_raw(fx, 0x601, FDF, b, 8);
     expect_abort(fx, C1, 1, 0x2004, 0, 0x1E);
-    /* a bulk segment of 48 bytes ends the open transfer */
+    /* a bulk segment without data ends the open transfer */
     send_bulk_init(fx, C1, 2, 0x2004, 0, VS, 100);
     expect_bulk_accept(fx, C1, 2, 0x2004, 0, 0);
     b[0] = ID_S;
     b[1] = BULK_SEG;
     b[2] = 2;
     b[3] = 0;
-    req_raw(fx, 0x601, FDF, b, 48);
+    req_raw(fx, 0x601, FDF, b, 4);
     expect_abort(fx, C1, 2, 0x2004, 0, 0x1E);
     /* a bulk last segment claiming more than the frame holds, and n > 60 */
     send_bulk_init(fx, C1, 3, 0x2004, 0, VS, 100);
@@ -2754,6 +2878,263 @@ static void test_bulk_restart_and_client_abort(void **state)
     assert_int_equal(co_usdo_server_active(&fx->srv), 0);
 }
 
+/* ================================================= bulk upload */
+
+/* The exact frames: 0x36 with type and size, 0x37 segments with the counter,
+ * a 0x38 with the rest; never more than the window beyond the acknowledged
+ * segments; an acknowledgement of part of the window moves it that far. */
+static void test_bulk_upload_frames_and_window(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t e[64];
+    unsigned i;
+    fx->dom_len = 1000;   /* 16 segments of 60, then 40 */
+    bulk_read_ok(fx, C1, 1, 0x2009, 0, DOM, fx->domain, 1000, 1000, 4);
+    /* window 4, acknowledged two by two (as our client does: every half window) */
+    send_bul_req(fx, C2, 2, 0x2009, 0, 4);
+    expect_bul_init(fx, C2, 2, 0x2009, 0, DOM, 1000);
+    for (i = 0; i < 4; i++) {
+        e[0] = C2;
+        e[1] = BUL_SEG;
+        e[2] = 2;
+        e[3] = (uint8_t)i;
+        memcpy(e + 4, fx->domain + 60u * i, 60);
+        expect(fx, e, 64);
+    }
+    expect_none(fx);
+    send_bul_ack(fx, C2, 2, 1);   /* took 0 and 1: two more may come */
+    for (i = 4; i < 6; i++) {
+        e[3] = (uint8_t)i;
+        memcpy(e + 4, fx->domain + 60u * i, 60);
+        expect(fx, e, 64);
+    }
+    expect_none(fx);
+    send_bul_ack(fx, C2, 2, 1);   /* the same acknowledgement again: names nothing in flight */
+    expect_abort(fx, C2, 2, 0x2009, 0, 0x14);
+    expect_none(fx);
+    assert_int_equal(fx->srv.stats.bulk_uploads, 1);
+    assert_int_equal(fx->srv.stats.uploads, 1);
+    assert_int_equal(fx->srv.stats.rx_bad_counter, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* 100 KiB through a window of 255: 1707 segments, the counter wraps six
+ * times; an exact multiple of 60 ends with a full 0x38; values of other
+ * types; an empty value; a domain of unknown size. */
+static void test_bulk_upload_sizes_and_counter_wrap(void **state)
+{
+    fx_t *fx = *state;
+    static uint8_t data[1000];
+    fx->dom_len = DOM_CAP;
+    bulk_read_ok(fx, C1, 1, 0x2009, 0, DOM, fx->domain, DOM_CAP, DOM_CAP, 255);
+    fx->dom_len = 120;
+    bulk_read_ok(fx, C1, 2, 0x2009, 0, DOM, fx->domain, 120, 120, 2);
+    bulk_read_ok(fx, C1, 3, 0x2002, 0, U32, (const uint8_t *)"\x33\x33\x33\x33", 4, 4, 1);
+    fill_pattern(data, 1000, 3);
+    seg_write_ok(fx, C1, 4, 0x2005, 0, OS, data, 1000);
+    bulk_read_ok(fx, C2, 5, 0x2005, 0, OS, data, 1000, 1000, 7);
+    exp_write_ok(fx, C1, 6, 0x2004, 0, VS, NULL, 0);
+    bulk_read_ok(fx, C1, 7, 0x2004, 0, VS, NULL, 0, 0, 1);
+    fx->dom_len = 150;
+    bulk_read_ok(fx, C1, 8, 0x200C, 0, DOM, fx->domain, 150, 0xFFFFFFFFu, 3);
+    assert_int_equal(fx->srv.stats.bulk_uploads, 6);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* Refusals at the request: window 0 (0x11), the object dictionary's (no
+ * object, write-only), parallel access; a malformed request. */
+static void test_bulk_upload_refusals(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t b[8];
+    send_bul_req(fx, C1, 1, 0x2009, 0, 0);
+    expect_abort(fx, C1, 1, 0x2009, 0, 0x11);
+    send_bul_req(fx, C1, 2, 0x2999, 0, 8);
+    expect_abort(fx, C1, 2, 0x2999, 0, 0x33);
+    send_bul_req(fx, C1, 3, 0x2007, 0, 8);
+    expect_abort(fx, C1, 3, 0x2007, 0, 0x31);
+    /* a request of 7 bytes has no window */
+    mux(b, ID_S, BUL_REQ, 4, 0x2009, 0);
+    b[6] = 8;
+    req_raw(fx, 0x601, FDF, b, 7);
+    expect_abort(fx, C1, 4, 0x2009, 0, 0x1E);
+    /* parallel access and busy: sessions held by waiting bulk uploads */
+    fx->dom_len = 1000;
+    send_bul_req(fx, C1, 5, 0x2009, 0, 1);
+    expect_bul_init(fx, C1, 5, 0x2009, 0, DOM, 1000);
+    next_rsp(fx);
+    expect_none(fx);
+    send_bul_req(fx, C2, 6, 0x2009, 0, 1);
+    expect_abort(fx, C2, 6, 0x2009, 0, 0x20);
+    send_bul_req(fx, C2, 7, 0x2005, 0, 1);
+    expect_bul_init(fx, C2, 7, 0x2005, 0, OS, 0);
+    next_rsp(fx);   /* 0x38 n = 0: done, the session is free again */
+    send_upload(fx, C2, ID_S, 8, 0x2009, 0);
+    expect_abort(fx, C2, 8, 0x2009, 0, 0x20);
+    assert_int_equal(fx->srv.stats.rx_bad_window, 1);
+    assert_int_equal(fx->srv.stats.od_aborts, 2);
+    assert_int_equal(fx->srv.stats.rx_malformed, 1);
+    assert_int_equal(fx->srv.stats.parallel, 2);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 1);
+}
+
+/* Every way a bulk upload ends early: a lost acknowledgement (the server
+ * times out, 0x12 once), the client's abort (nothing more is sent, later
+ * acknowledgements are stray), a wrong acknowledgement counter (0x14), an
+ * acknowledgement on a segmented upload (0x13), a reader error. */
+static void test_bulk_upload_aborts(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t b[7];
+    uint64_t t0;
+    fx->dom_len = 1000;
+    /* waiting for an acknowledgement that never comes */
+    t0 = fx->tb.now;
+    send_bul_req(fx, C1, 1, 0x2009, 0, 2);
+    expect_bul_init(fx, C1, 1, 0x2009, 0, DOM, 1000);
+    next_rsp(fx);
+    next_rsp(fx);
+    expect_none(fx);
+    tu_run_until(&fx->tb, t0 + MS(999));
+    expect_none(fx);
+    tu_run_until(&fx->tb, t0 + MS(1000));
+    expect_abort(fx, C1, 1, 0x2009, 0, 0x12);
+    tu_run_until(&fx->tb, t0 + MS(3000));
+    expect_none(fx);
+    /* a late acknowledgement of that transfer: stray, ignored */
+    send_bul_ack(fx, C1, 1, 1);
+    expect_none(fx);
+    /* the client aborts in the middle */
+    send_bul_req(fx, C1, 2, 0x2009, 0, 3);
+    expect_bul_init(fx, C1, 2, 0x2009, 0, DOM, 1000);
+    next_rsp(fx);
+    next_rsp(fx);
+    next_rsp(fx);
+    mux(b, ID_S, ABORT, 2, 0x2009, 0);
+    b[6] = 0x16;
+    req(fx, C1, b, 7);
+    expect_none(fx);
+    send_bul_ack(fx, C1, 2, 2);
+    expect_none(fx);
+    /* an acknowledgement naming a segment not sent yet */
+    send_bul_req(fx, C1, 3, 0x2009, 0, 3);
+    expect_bul_init(fx, C1, 3, 0x2009, 0, DOM, 1000);
+    next_rsp(fx);
+    next_rsp(fx);
+    next_rsp(fx);
+    send_bul_ack(fx, C1, 3, 3);
+    expect_abort(fx, C1, 3, 0x2009, 0, 0x14);
+    /* an acknowledgement on a segmented upload */
+    send_upload(fx, C1, ID_S, 4, 0x2009, 0);
+    next_rsp(fx);
+    send_bul_ack(fx, C1, 4, 0);
+    expect_abort(fx, C1, 4, 0x2009, 0, 0x13);
+    /* the reader fails after the first window */
+    send_bul_req(fx, C1, 5, 0x2009, 0, 1);
+    expect_bul_init(fx, C1, 5, 0x2009, 0, DOM, 1000);
+    next_rsp(fx);
+    fx->dom_read_error = CO_ABORT_HARDWARE;
+    send_bul_ack(fx, C1, 5, 0);
+    expect_abort(fx, C1, 5, 0x2009, 0, 0x35);
+    expect_none(fx);
+    assert_int_equal(fx->srv.stats.timeouts, 1);
+    assert_int_equal(fx->srv.stats.rx_stray_ack, 2);
+    assert_int_equal(fx->srv.stats.rx_client_abort, 1);
+    assert_int_equal(fx->srv.stats.rx_bad_counter, 1);
+    assert_int_equal(fx->srv.stats.rx_unknown_command, 1);
+    assert_int_equal(fx->srv.stats.bulk_uploads, 0);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
+/* A window larger than the tx queue's room: the server stops at the room
+ * and goes on when the queue drained (tx-space indication); the frames stay
+ * in order and complete. */
+static void test_bulk_upload_waits_for_tx_room(void **state)
+{
+    fx_t *fx = *state;
+    fx->dom_len = 255u * 60u + 10u;
+    bulk_read_ok(fx, C1, 1, 0x2009, 0, DOM, fx->domain, fx->dom_len, fx->dom_len, 255);
+    assert_true(fx->srv.stats.tx_deferred >= 1);
+    assert_int_equal(fx->srv.stats.tx_failed, 0);
+    assert_int_equal(fx->srv.stats.bulk_uploads, 1);
+}
+
+/* A split before_read: the 0x36 and the stream start with the
+ * application's answer. */
+static void test_bulk_upload_split(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t e[12];
+    fx->split_read = true;
+    send_bul_req(fx, C1, 1, 0x200B, 0, 4);
+    expect_none(fx);
+    assert_non_null(fx->held);
+    assert_true(co_usdo_server_resume(&fx->srv, fx->held, 0));
+    tu_step(&fx->tb, fx->tb.now);
+    expect_bul_init(fx, C1, 1, 0x200B, 0, U32, 4);
+    e[0] = C1;
+    e[1] = BUL_LAST;
+    e[2] = 1;
+    e[3] = 4;
+    tu_le_put(e + 4, 0xB0B0B0B0u, 4);
+    expect(fx, e, 8);
+    expect_none(fx);
+    assert_int_equal(fx->srv.stats.bulk_uploads, 1);
+}
+
+/* ================================================= short segments */
+
+/* Segments shorter than 64 bytes (a sender with a smaller MTU) are taken:
+ * data = frame length - 4; counted; the size check still holds. */
+static void test_short_segments_accepted_and_counted(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t b[64];
+    static uint8_t data[200];
+    fill_pattern(data, sizeof data, 0x21);
+    /* segmented: 28 + 44 + 60, then the last 8 */
+    send_dl_init(fx, C1, 1, 0x2005, 0, OS, 140);
+    expect_mux(fx, C1, 0x22, 1, 0x2005, 0);
+    b[0] = ID_S;
+    b[1] = DL_SEG;
+    b[2] = 1;
+    b[3] = 0;
+    memcpy(b + 4, data, 28);
+    req(fx, C1, b, 32);
+    expect_seg_ack(fx, C1, 1, 0);
+    b[3] = 1;
+    memcpy(b + 4, data + 28, 44);
+    req(fx, C1, b, 48);
+    expect_seg_ack(fx, C1, 1, 1);
+    send_dl_seg(fx, C1, 1, 2, data + 72);
+    expect_seg_ack(fx, C1, 1, 2);
+    send_dl_last(fx, C1, 1, data + 132, 8);
+    expect_end_ack(fx, C1, 1);
+    assert_od_bytes(fx, 0x2005, 0, data, 140);
+    /* bulk: a 20-byte frame carries 16 */
+    send_bulk_init(fx, C1, 2, 0x2005, 0, OS, 76);
+    expect_bulk_accept(fx, C1, 2, 0x2005, 0, 0);
+    b[1] = BULK_SEG;
+    b[2] = 2;
+    b[3] = 0;
+    memcpy(b + 4, data + 50, 16);
+    req(fx, C1, b, 20);
+    expect_none(fx);
+    send_bulk_last(fx, C1, 2, data + 66, 60);
+    expect_bulk_end(fx, C1, 2);
+    assert_od_bytes(fx, 0x2005, 0, data + 50, 76);
+    /* padding taken as data shows in the size check: 0x15 */
+    send_dl_init(fx, C1, 3, 0x2005, 0, OS, 30);
+    expect_mux(fx, C1, 0x22, 3, 0x2005, 0);
+    b[1] = DL_SEG;
+    b[2] = 3;
+    b[3] = 0;
+    req(fx, C1, b, 48);
+    expect_abort(fx, C1, 3, 0x2005, 0, 0x15);
+    assert_int_equal(fx->srv.stats.rx_short_segment, 4);
+    assert_int_equal(fx->srv.stats.downloads, 2);
+}
+
 /* ================================================= garbage */
 
 static void test_random_garbage_never_wedges(void **state)
@@ -2761,7 +3142,7 @@ static void test_random_garbage_never_wedges(void **state)
     fx_t *fx = *state;
     static const uint8_t fd_lens[] = { 0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64 };
     static const uint8_t cmds[] = { 0x01, 0x02, 0x03, 0x04, 0x11, 0x13, 0x7F, 0x21, 0x05,
-                                    0x06, 0x07, 0x08, 0x26, 0xFF };
+                                    0x06, 0x07, 0x08, 0x26, 0xFF, 0x16, 0x17 };
     uint64_t seed = 0x6A7BA6E5EEDull;
     uint64_t now = fx->tb.now;
     unsigned i, responses = 0;
@@ -2821,7 +3202,8 @@ static void test_random_garbage_never_wedges(void **state)
             assert_true(g->data[1] == 0x21 || g->data[1] == 0x22 || g->data[1] == 0x23 ||
                         g->data[1] == 0x24 || g->data[1] == 0x31 || g->data[1] == 0x32 ||
                         g->data[1] == 0x33 || g->data[1] == 0x34 || g->data[1] == 0x26 ||
-                        g->data[1] == 0x28 || g->data[1] == 0x7F);
+                        g->data[1] == 0x28 || g->data[1] == 0x36 || g->data[1] == 0x37 ||
+                        g->data[1] == 0x38 || g->data[1] == 0x7F);
             assert_true(g->data[0] >= 1 && g->data[0] <= 127);
         }
         tu_log_clear(&fx->tb);
@@ -2863,6 +3245,14 @@ static void test_random_garbage_never_wedges(void **state)
 /* ================================================= runner */
 
 #define T(t) cmocka_unit_test_setup_teardown(t, setup, teardown)
+#define BULK_UPLOAD_TESTS \
+        T(test_bulk_upload_frames_and_window), \
+        T(test_bulk_upload_sizes_and_counter_wrap), \
+        T(test_bulk_upload_refusals), \
+        T(test_bulk_upload_aborts), \
+        T(test_bulk_upload_waits_for_tx_room), \
+        T(test_bulk_upload_split), \
+        T(test_short_segments_accepted_and_counted),
 
 int main(void)
 {
@@ -2922,6 +3312,7 @@ int main(void)
         T(test_bulk_busy),
         T(test_bulk_parallel_access),
         T(test_bulk_restart_and_client_abort),
+        BULK_UPLOAD_TESTS
         T(test_random_garbage_never_wedges),
     };
     return cmocka_run_group_tests_name("usdo", tests, NULL, NULL);

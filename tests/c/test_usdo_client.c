@@ -58,6 +58,12 @@
 #define UL_SEG_RSP 0x33
 #define UL_LAST_RSP 0x34
 #define ABORT 0x7F
+/* Bulk upload: our layout (docs/protocol-notes.md, "Bulk upload") */
+#define BUL_REQ 0x16
+#define BUL_ACK 0x17
+#define BUL_INIT_RSP 0x36
+#define BUL_SEG_RSP 0x37
+#define BUL_LAST_RSP 0x38
 
 typedef struct fx fx_t;
 
@@ -133,6 +139,11 @@ struct fx {
     uint8_t expect_counter;
     unsigned bulk_frames;
     bool saw_wrap;
+    /* bulk upload observer */
+    uint32_t ul_segs;              /* 0x37 / 0x38 seen from the server */
+    uint32_t ul_acked;             /* segments our 0x17s acknowledged */
+    uint32_t ul_acks;
+    uint32_t ul_max_in_flight;
     /* random test */
     bool random_running;
     uint64_t seed;
@@ -1505,6 +1516,533 @@ static void test_auto_bulk_falls_back_to_segmented(void **state)
     assert_all_idle(fx);
 }
 
+/* ================================================= bulk upload */
+
+static uint8_t fault_drop(fx_t *fx, const co_frame_t *f);
+static void fault_reset(fx_t *fx, uint8_t (*fn)(fx_t *, const co_frame_t *), uint8_t cs,
+                        unsigned nth);
+
+/* Drop the nth matching frame and every later one. */
+static uint8_t fault_drop_from(fx_t *fx, const co_frame_t *f)
+{
+    if (f->len > 1 && f->data[1] == fx->fault_cs && fx->fault_seen++ >= fx->fault_nth)
+        return 0;
+    return 1;
+}
+
+static void client_restart(fx_t *fx, uint8_t window)
+{
+    co_usdo_client_config_t cfg;
+    co_usdo_client_deinit(&fx->c);
+    memset(&cfg, 0, sizeof cfg);
+    cfg.sessions = fx->cses;
+    cfg.session_count = 40;
+    cfg.node_id = C;
+    cfg.bulk_window = window;
+    assert_true(co_usdo_client_init(&fx->c, fx->cl, &cfg));
+}
+
+static void expect_bul_req(fx_t *fx, uint8_t dest, uint8_t sid, uint16_t index, uint8_t sub,
+                           uint8_t window)
+{
+    uint8_t b[8];
+    mux(b, dest, BUL_REQ, sid, index, sub);
+    b[6] = window;
+    b[7] = 0;
+    expect_req(fx, b, 8);
+}
+
+static void inject_bul_seg(fx_t *fx, uint8_t node, uint8_t sid, uint8_t counter,
+                           const uint8_t *data, uint8_t len)
+{
+    uint8_t b[64] = { C, BUL_SEG_RSP, sid, counter };
+    memcpy(b + 4, data, len);
+    inject_raw(fx, node, FDF, b, (uint8_t)(4u + len));
+}
+
+static void inject_bul_last(fx_t *fx, uint8_t node, uint8_t sid, const uint8_t *data, uint8_t n)
+{
+    uint8_t b[64] = { C, BUL_LAST_RSP, sid, n };
+    if (n > 0)
+        memcpy(b + 4, data, n);
+    inject(fx, node, b, 4u + n);
+}
+
+/* Every frame of a bulk upload from server 5: its segments in order, our
+ * acknowledgements every half window naming the last segment taken, and
+ * never more than the window in flight. */
+static void observe_bulk_upload(fx_t *fx, const co_frame_t *f)
+{
+    if (f->id == 0x585u && f->len > 1 &&
+        (f->data[1] == BUL_SEG_RSP || f->data[1] == BUL_LAST_RSP)) {
+        uint32_t in_flight;
+        if (f->data[1] == BUL_SEG_RSP) {
+            assert_int_equal(f->len, 64);
+            assert_int_equal(f->data[3], (uint8_t)fx->ul_segs);
+        }
+        fx->ul_segs++;
+        in_flight = fx->ul_segs - fx->ul_acked;
+        if (in_flight > fx->ul_max_in_flight)
+            fx->ul_max_in_flight = in_flight;
+    } else if (f->id == REQ_ID && f->len > 1 && f->data[1] == BUL_ACK) {
+        assert_int_equal(f->len, 4);    /* 4 bytes: a valid FD length as it is */
+        fx->ul_acks++;
+        fx->ul_acked = fx->ul_acks * 32u;
+        assert_int_equal(f->data[3], (uint8_t)(fx->ul_acked - 1u));
+        assert_true(fx->ul_acked <= fx->ul_segs);
+    }
+}
+
+/* 1 MiB from the real server: every byte, the counter wraps, a window of
+ * 64 (a quarter of the 256-frame receive queue) never exceeded on the bus,
+ * no receive overflow anywhere. */
+static void test_bulk_upload_1mib_real_server(void **state)
+{
+    fx_t *fx = *state;
+    const uint32_t n = 1024u * 1024u + 7u;
+    uint8_t *mem = malloc(n);
+    treq_t t;
+    assert_non_null(mem);
+    fill_pattern(fx->srv[0]->dom, n, 23);
+    fx->srv[0]->dom_len = n;
+    ul_req(fx, &t, 5, 0x2009, 0, mem, n);
+    t.r.mode = CO_USDO_MODE_BULK;
+    fx->observe = observe_bulk_upload;
+    start_ok(fx, &t);
+    settle(fx);
+    fx->observe = NULL;
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.result_mode, CO_USDO_MODE_BULK);
+    assert_int_equal(t.r.transferred, n);
+    assert_int_equal(t.buf.size, n);
+    assert_memory_equal(mem, fx->srv[0]->dom, n);
+    assert_int_equal(t.announced, n);
+    assert_int_equal(fx->ul_segs, (n + 59) / 60);
+    /* every 32 segments, until the credit (a window beyond) covers the rest:
+     * none crosses the end */
+    {
+        uint32_t segs = (n + 59) / 60, k = 0;
+        while (32u * (k + 1u) + 32u < segs)
+            k++;
+        assert_int_equal(fx->ul_acks, k);
+    }
+    assert_int_equal(fx->srv[0]->s.stats.rx_stray_ack, 0);
+    assert_true(fx->ul_max_in_flight <= 64);
+    assert_int_equal(fx->c.stats.bulk_uploads, 1);
+    assert_int_equal(fx->c.stats.acks_sent, fx->ul_acks);
+    assert_int_equal(fx->srv[0]->s.stats.bulk_uploads, 1);
+    assert_int_equal(fx->cl->stats.rx_overflow, 0);
+    assert_int_equal(fx->srv[0]->line->stats.rx_overflow, 0);
+    assert_all_idle(fx);
+    free(mem);
+}
+
+/* Scripted server, window 4: the exact 0x16 and 0x17 bytes, acknowledgements
+ * every 2 segments naming the last one taken, 0x38 ends it. */
+static void test_bulk_upload_scripted_bytes(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    static uint8_t data[300], mem[400];
+    fill_pattern(data, sizeof data, 5);
+    client_restart(fx, 4);
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    expect_bul_req(fx, X, 1, 0x2009, 0, 4);
+    expect_no_req(fx);
+    inject_initiate(fx, X, BUL_INIT_RSP, 1, 0x2009, 0, DOM, 250);
+    expect_no_req(fx);
+    assert_int_equal(t.announced, 250);
+    inject_bul_seg(fx, X, 1, 0, data, 60);
+    expect_no_req(fx);
+    inject_bul_seg(fx, X, 1, 1, data + 60, 60);
+    expect_req_counter(fx, X, BUL_ACK, 1, 1);
+    inject_bul_seg(fx, X, 1, 2, data + 120, 60);
+    inject_bul_seg(fx, X, 1, 3, data + 180, 60);
+    /* no acknowledgement: the credit (segments 4 and 5) covers the 10 bytes left */
+    expect_no_req(fx);
+    inject_bul_last(fx, X, 1, data + 240, 10);
+    expect_no_req(fx);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.result_mode, CO_USDO_MODE_BULK);
+    assert_int_equal(t.r.result_type, DOM);
+    assert_int_equal(t.buf.size, 250);
+    assert_memory_equal(mem, data, 250);
+    /* an empty value: 0x36 size 0, 0x38 n = 0 */
+    ul_req(fx, &t, X, 0x2004, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    expect_bul_req(fx, X, 2, 0x2004, 0, 4);
+    inject_initiate(fx, X, BUL_INIT_RSP, 2, 0x2004, 0, 0x09, 0);
+    inject_bul_last(fx, X, 2, NULL, 0);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.buf.size, 0);
+    assert_int_equal(fx->c.stats.bulk_uploads, 2);
+    assert_all_idle(fx);
+}
+
+/* What the client does when a bulk upload goes wrong: a wrong counter
+ * (0x14), more data than announced (0x15), a wrong total at the end (0x15),
+ * the server silent (0x12), the server's abort; each abort frame checked. */
+static void test_bulk_upload_scripted_aborts(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    static uint8_t data[300], mem[400];
+    uint8_t sid;
+    fill_pattern(data, sizeof data, 6);
+    /* a lost segment: counter 1 first */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, BUL_INIT_RSP, sid, 0x2009, 0, DOM, 250);
+    log_reset(fx);
+    inject_bul_seg(fx, X, sid, 1, data, 60);
+    expect_req_abort(fx, X, sid, 0x2009, 0, 0x14);
+    assert_done(&t, 0x14, false);
+    /* more than announced */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, BUL_INIT_RSP, sid, 0x2009, 0, DOM, 50);
+    log_reset(fx);
+    inject_bul_seg(fx, X, sid, 0, data, 60);
+    expect_req_abort(fx, X, sid, 0x2009, 0, 0x15);
+    assert_done(&t, 0x15, false);
+    /* fewer at the end */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, BUL_INIT_RSP, sid, 0x2009, 0, DOM, 100);
+    inject_bul_seg(fx, X, sid, 0, data, 60);
+    log_reset(fx);
+    inject_bul_last(fx, X, sid, data + 60, 30);
+    expect_req_abort(fx, X, sid, 0x2009, 0, 0x15);
+    assert_done(&t, 0x15, false);
+    /* the server goes silent after its first segment */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    t.r.timeout_ms = 200;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, BUL_INIT_RSP, sid, 0x2009, 0, DOM, 250);
+    inject_bul_seg(fx, X, sid, 0, data, 60);
+    log_reset(fx);
+    run_ms(fx, 199);
+    expect_no_req(fx);
+    run_ms(fx, 1);
+    expect_req_abort(fx, X, sid, 0x2009, 0, 0x12);
+    assert_done(&t, 0x12, false);
+    /* the server aborts in the middle */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, BUL_INIT_RSP, sid, 0x2009, 0, DOM, 250);
+    inject_bul_seg(fx, X, sid, 0, data, 60);
+    log_reset(fx);
+    inject_abort(fx, X, sid, 0x2009, 0, 0x35);
+    expect_no_req(fx);
+    assert_done(&t, 0x35, true);
+    /* a later segment of it meets no session */
+    inject_bul_seg(fx, X, sid, 1, data, 60);
+    expect_no_req(fx);
+    assert_int_equal(fx->c.stats.rx_bad_counter, 1);
+    assert_int_equal(fx->c.stats.rx_size_mismatch, 2);
+    assert_int_equal(fx->c.stats.timeouts, 1);
+    assert_int_equal(fx->c.stats.rx_no_session, 1);
+    assert_int_equal(fx->c.bulk_rx, 0);
+    assert_all_idle(fx);
+}
+
+/* AUTO picks bulk for a size hint of 4 KiB and more; a server without bulk
+ * (0x13) gets the plain 0x11 with a fresh session-ID; forced BULK does not
+ * fall back; a server may answer 0x16 with 0x31 or 0x32. */
+static void test_bulk_upload_auto_and_fallback(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    static uint8_t data[200], mem[5000];
+    uint8_t sid;
+    fill_pattern(data, sizeof data, 7);
+    assert_int_equal(co_usdo_client_choose_upload_mode(CO_USDO_MODE_AUTO, 4095),
+                     CO_USDO_MODE_AUTO);
+    assert_int_equal(co_usdo_client_choose_upload_mode(CO_USDO_MODE_AUTO, 4096),
+                     CO_USDO_MODE_BULK);
+    assert_int_equal(co_usdo_client_choose_upload_mode(CO_USDO_MODE_AUTO, 0), CO_USDO_MODE_AUTO);
+    assert_int_equal(co_usdo_client_choose_upload_mode(CO_USDO_MODE_BULK, 0), CO_USDO_MODE_BULK);
+    /* a small hint: plain */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.size = 100;
+    start_ok(fx, &t);
+    settle(fx);
+    expect_req_mux(fx, X, UL, t.r.session_id, 0x2009, 0);
+    assert_true(co_usdo_client_cancel(&fx->c, &t.r, 0));
+    settle(fx);
+    log_reset(fx);
+    /* a big one: bulk, refused 0x13, then 0x11 */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.size = 5000;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    expect_bul_req(fx, X, sid, 0x2009, 0, 64);
+    inject_abort(fx, X, sid, 0x2009, 0, 0x13);
+    assert_int_equal(t.done_calls, 0);
+    assert_int_equal(fx->c.stats.bulk_fallback, 1);
+    assert_int_equal(t.r.session_id, (uint8_t)(sid + 1u));
+    expect_req_mux(fx, X, UL, (uint8_t)(sid + 1u), 0x2009, 0);
+    inject_initiate(fx, X, UL_INIT_RSP, (uint8_t)(sid + 1u), 0x2009, 0, DOM, 70);
+    expect_req_counter(fx, X, UL_SEG, (uint8_t)(sid + 1u), 0);
+    inject_segment(fx, X, (uint8_t)(sid + 1u), 0, data);
+    inject_last(fx, X, (uint8_t)(sid + 1u), data + 60, 10);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.result_mode, CO_USDO_MODE_SEGMENTED);
+    assert_memory_equal(mem, data, 70);
+    /* forced bulk: 0x13 ends it */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    inject_abort(fx, X, t.r.session_id, 0x2009, 0, 0x13);
+    assert_done(&t, 0x13, true);
+    assert_int_equal(fx->c.stats.bulk_fallback, 1);
+    /* the server answers the bulk request plainly: expedited, then segmented */
+    log_reset(fx);
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    {
+        uint8_t b[16];
+        mux(b, C, UL_EXP_RSP, sid, 0x2009, 0);
+        b[6] = DOM;
+        b[7] = 3;
+        memcpy(b + 8, data, 3);
+        inject(fx, X, b, 11);
+    }
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.result_mode, CO_USDO_MODE_EXPEDITED);
+    assert_int_equal(t.buf.size, 3);
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    log_reset(fx);
+    inject_initiate(fx, X, UL_INIT_RSP, sid, 0x2009, 0, DOM, 10);
+    expect_req_counter(fx, X, UL_SEG, sid, 0);
+    inject_last(fx, X, sid, data, 10);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.result_mode, CO_USDO_MODE_SEGMENTED);
+    /* a broadcast bulk upload is refused */
+    ul_req(fx, &t, 0, 0x2009, 0, NULL, 0);
+    t.r.mode = CO_USDO_MODE_BULK;
+    assert_int_equal(co_usdo_client_start(&fx->c, &t.r), 0x10);
+    assert_int_equal(fx->c.bulk_rx, 0);
+    assert_all_idle(fx);
+}
+
+/* The receive budget: windows of 64 in a 256-frame queue, at most two bulk
+ * uploads at once (half the queue); a third AUTO one goes plain, a third
+ * forced one is refused 0x70 until one ends. */
+static void test_bulk_upload_receive_budget(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t[4];
+    static uint8_t mem[4][100];
+    int i;
+    assert_int_equal(fx->c.bulk_window, 64);
+    assert_int_equal(fx->c.bulk_budget, 128);
+    for (i = 0; i < 2; i++) {
+        ul_req(fx, &t[i], X, (uint16_t)(0x3000 + i), 0, mem[i], 100);
+        t[i].r.mode = CO_USDO_MODE_BULK;
+        start_ok(fx, &t[i]);
+    }
+    ul_req(fx, &t[2], X, 0x3002, 0, mem[2], 100);
+    t[2].r.mode = CO_USDO_MODE_BULK;
+    assert_int_equal(co_usdo_client_start(&fx->c, &t[2].r), 0x70);
+    ul_req(fx, &t[3], X, 0x3003, 0, mem[3], 100);
+    t[3].r.size = 10000;
+    start_ok(fx, &t[3]);
+    settle(fx);
+    expect_bul_req(fx, X, t[0].r.session_id, 0x3000, 0, 64);
+    expect_bul_req(fx, X, t[1].r.session_id, 0x3001, 0, 64);
+    expect_req_mux(fx, X, UL, t[3].r.session_id, 0x3003, 0);
+    assert_int_equal(fx->c.stats.bulk_budget_full, 2);
+    /* one ends (the server answered plainly): room for the next */
+    inject_initiate(fx, X, UL_INIT_RSP, t[0].r.session_id, 0x3000, 0, OS, 0);
+    inject_last(fx, X, t[0].r.session_id, NULL, 0);
+    assert_done(&t[0], 0, false);
+    start_ok(fx, &t[2]);
+    assert_int_equal(fx->c.bulk_rx, 2);
+    for (i = 1; i < 4; i++)
+        assert_true(co_usdo_client_cancel(&fx->c, &t[i].r, 0));
+    assert_int_equal(fx->c.bulk_rx, 0);
+    /* the window follows the receive queue: a window of 200 asked, 64 given */
+    client_restart(fx, 200);
+    assert_int_equal(fx->c.bulk_window, 64);
+    client_restart(fx, 3);
+    assert_int_equal(fx->c.bulk_window, 3);
+    /* a refused start is never reported, not even when the client ends */
+    client_restart(fx, 0);
+    for (i = 0; i < 3; i++) {
+        ul_req(fx, &t[i], X, (uint16_t)(0x3000 + i), 0, mem[i], 100);
+        t[i].r.mode = CO_USDO_MODE_BULK;
+    }
+    start_ok(fx, &t[0]);
+    start_ok(fx, &t[1]);
+    assert_int_equal(co_usdo_client_start(&fx->c, &t[2].r), 0x70);
+    client_restart(fx, 0);
+    assert_int_equal(t[0].done_calls, 1);
+    assert_int_equal(t[1].done_calls, 1);
+    assert_int_equal(t[2].done_calls, 0);
+    assert_int_equal(fx->c.bulk_rx, 0);
+    assert_all_idle(fx);
+}
+
+/* Lost frames with the real server: a lost segment is a counter error
+ * (0x14 to the server, which stops); one lost acknowledgement is made good
+ * by the next (they are cumulative); when every acknowledgement from the
+ * second on is lost, both wait: the client times out and aborts. */
+static void test_bulk_upload_faults_real_server(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    uint8_t *mem = malloc(20000);
+    assert_non_null(mem);
+    fill_pattern(fx->srv[0]->dom, 20000, 31);
+    fx->srv[0]->dom_len = 20000;
+    fault_reset(fx, fault_drop, BUL_SEG_RSP, 40);
+    ul_req(fx, &t, 5, 0x2009, 0, mem, 20000);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    assert_done(&t, 0x14, false);
+    assert_int_equal(t.r.transferred, 40u * 60u);
+    assert_int_equal(fx->srv[0]->s.stats.rx_client_abort, 1);
+    assert_all_idle(fx);
+    /* the second acknowledgement is lost: the third one covers it */
+    fault_reset(fx, fault_drop, BUL_ACK, 1);
+    ul_req(fx, &t, 5, 0x2009, 0, mem, 20000);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    assert_done(&t, 0, false);
+    assert_memory_equal(mem, fx->srv[0]->dom, 20000);
+    /* every acknowledgement from the second on is lost */
+    fault_reset(fx, fault_drop_from, BUL_ACK, 1);
+    ul_req(fx, &t, 5, 0x2009, 0, mem, 20000);
+    t.r.mode = CO_USDO_MODE_BULK;
+    t.r.timeout_ms = 300;
+    start_ok(fx, &t);
+    settle(fx);
+    assert_int_equal(t.done_calls, 0);
+    run_ms(fx, 300);
+    assert_done(&t, 0x12, false);
+    assert_int_equal(t.r.transferred, 96u * 60u);   /* the window beyond the first ack */
+    assert_int_equal(fx->srv[0]->s.stats.rx_client_abort, 2);
+    assert_all_idle(fx);
+    fx->fault = NULL;
+    /* and then a complete one */
+    ul_req(fx, &t, 5, 0x2009, 0, mem, 20000);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    assert_done(&t, 0, false);
+    assert_memory_equal(mem, fx->srv[0]->dom, 20000);
+    free(mem);
+}
+
+/* ================================================= receiving leniently */
+
+/* An empty value: expedited with N = 0 (what our server sends) and
+ * segmented with size 0 (what others may send) are both taken. Segments
+ * shorter than 64 bytes (a smaller MTU) are taken and counted. */
+static void test_empty_values_and_short_segments(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    static uint8_t data[200], mem[300];
+    uint8_t b[8];
+    uint8_t sid;
+    fill_pattern(data, sizeof data, 8);
+    ul_req(fx, &t, X, 0x2004, 0, mem, sizeof mem);
+    start_ok(fx, &t);
+    settle(fx);
+    mux(b, C, UL_EXP_RSP, t.r.session_id, 0x2004, 0);
+    b[6] = 0x09;
+    b[7] = 0;
+    inject(fx, X, b, 8);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.announced, 0);
+    assert_int_equal(t.buf.size, 0);
+    assert_int_equal(t.r.result_mode, CO_USDO_MODE_EXPEDITED);
+    ul_req(fx, &t, X, 0x2004, 0, mem, sizeof mem);
+    start_ok(fx, &t);
+    settle(fx);
+    inject_initiate(fx, X, UL_INIT_RSP, t.r.session_id, 0x2004, 0, 0x09, 0);
+    inject_last(fx, X, t.r.session_id, NULL, 0);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.buf.size, 0);
+    /* segmented: 28 + 44 + the last 8 */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, UL_INIT_RSP, sid, 0x2009, 0, DOM, 80);
+    {
+        uint8_t f[64] = { C, UL_SEG_RSP, sid, 0 };
+        memcpy(f + 4, data, 28);
+        inject_raw(fx, X, FDF, f, 32);
+        f[3] = 1;
+        memcpy(f + 4, data + 28, 44);
+        inject_raw(fx, X, FDF, f, 48);
+    }
+    log_reset(fx);
+    inject_last(fx, X, sid, data + 72, 8);
+    assert_done(&t, 0, false);
+    assert_memory_equal(mem, data, 80);
+    /* bulk: a 20-byte segment carries 16 */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    t.r.mode = CO_USDO_MODE_BULK;
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, BUL_INIT_RSP, sid, 0x2009, 0, DOM, 26);
+    inject_bul_seg(fx, X, sid, 0, data, 16);
+    inject_bul_last(fx, X, sid, data + 16, 10);
+    assert_done(&t, 0, false);
+    assert_memory_equal(mem, data, 26);
+    assert_int_equal(fx->c.stats.rx_short_segment, 3);
+    /* a segment without data is malformed: 0x1E */
+    ul_req(fx, &t, X, 0x2009, 0, mem, sizeof mem);
+    start_ok(fx, &t);
+    settle(fx);
+    sid = t.r.session_id;
+    inject_initiate(fx, X, UL_INIT_RSP, sid, 0x2009, 0, DOM, 80);
+    log_reset(fx);
+    {
+        uint8_t f[4] = { C, UL_SEG_RSP, sid, 0 };
+        inject_raw(fx, X, FDF, f, 4);
+    }
+    expect_req_abort(fx, X, sid, 0x2009, 0, 0x1E);
+    assert_done(&t, 0x1E, false);
+    assert_all_idle(fx);
+}
+
 /* ================================================= broadcast */
 
 static void test_broadcast_upload_three_servers(void **state)
@@ -2620,6 +3158,13 @@ int main(void)
         B(test_auto_mode_choice),
         T(test_mode_override),
         B(test_auto_bulk_falls_back_to_segmented),
+        T(test_bulk_upload_1mib_real_server),
+        B(test_bulk_upload_scripted_bytes),
+        B(test_bulk_upload_scripted_aborts),
+        B(test_bulk_upload_auto_and_fallback),
+        B(test_bulk_upload_receive_budget),
+        T(test_bulk_upload_faults_real_server),
+        B(test_empty_values_and_short_segments),
         T(test_broadcast_upload_three_servers),
         T(test_broadcast_download_three_servers),
         B(test_broadcast_scripted_answers),

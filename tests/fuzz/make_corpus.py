@@ -157,6 +157,22 @@ def server_seeds(h, classic):
         seeds["raw-upload"] = S().frame(0x609, [0x05, 0x11, 0x02, 0x01, 0x18, 0x10]).time(1) \
             .frame(0x609, [0x05, 0x11, 0x03, 0x00, 0x00, 0x21]).time(1)
         seeds["broadcast"] = S().start("devtype", True, flag8=True).time(1100)
+        # bulk upload (0x16 / 0x17 requests; 0x36 / 0x37 / 0x38 answers), our layout
+        seeds["bulk-upload"] = S().start("octet1024", False, mode=2, size=1000).time(20) \
+            .start("octet1024", True, mode=3, slot=1).time(50)
+        seeds["bulk-upload-auto-hint"] = S().start("domain", True, mode=0, size=5000).time(80)
+        seeds["bulk-upload-lossy"] = S().start("domain", True, mode=3).bus(mask=0x24).time(400)
+        seeds["raw-bulk-upload"] = (
+            S().frame(0x609, [0x05, 0x16, 0x04, 0x00, 0x00, 0x21, 0x04, 0x00]).time(1)
+            .frame(0x609, [0x05, 0x17, 0x04, 0x01]).time(1)
+            .frame(0x609, [0x05, 0x17, 0x04, 0x09]).time(1)
+            .frame(0x609, [0x05, 0x16, 0x05, 0x00, 0x00, 0x21, 0x00, 0x00]).time(1)
+            .frame(0x609, [0x05, 0x17, 0x33, 0x00]).time(1))
+        seeds["raw-short-segments"] = (
+            S().frame(0x609, [0x05, 0x02, 0x06, 0x00, 0x00, 0x21, 0x0F, 0, 100, 0, 0, 0]).time(1)
+            .frame(0x609, [0x05, 0x03, 0x06, 0x00] + list(range(28))).time(1)
+            .frame(0x609, [0x05, 0x03, 0x06, 0x01] + list(range(44))).time(1)
+            .frame(0x609, [0x05, 0x04, 0x06, 28] + list(range(28))).time(1))
     return seeds
 
 
@@ -166,6 +182,16 @@ def client_seeds(h, classic):
     answer = 0x585
     seeds["forged-answers"] = (S().start("octet1024", True, mode=2).frame(answer, [9, 0x31, 1, 0, 0x01, 0x21, 4, 0, 1, 2, 3, 4] if not classic else [0x43, 0x01, 0x21, 0, 1, 2, 3, 4])
                                .time(1).frame(answer, [0x80, 0, 0, 0, 0, 0, 4, 5] if classic else [9, 0x7F, 1, 0x12]).time(400))
+    if not classic:
+        # a bulk upload answered by hand: 0x36, a short 0x37, 0x38; an empty 0x31 (N = 0)
+        seeds["forged-bulk-upload"] = (
+            S().start("octet1024", True, mode=3)
+            .frame(answer, [9, 0x36, 1, 0, 0x00, 0x21, 0x0A, 0, 70, 0, 0, 0]).time(1)
+            .frame(answer, [9, 0x37, 1, 0] + list(range(28))).time(1)
+            .frame(answer, [9, 0x37, 1, 1] + list(range(60))).time(1)
+            .frame(answer, [9, 0x38, 1, 0]).time(400))
+        seeds["forged-empty-expedited"] = (
+            S().start("vs", True).frame(answer, [9, 0x31, 1, 0, 0x00, 0x21, 0x09, 0]).time(5))
     seeds["timeout"] = S().start("id", True, other=True, timeout=10).time(200).start(
         "u8", False, mode=1, size=1, other=True).time(1000)
     seeds["cancel"] = S().start("octet1024", False, mode=2, size=1000).time(1).act(

@@ -23,6 +23,7 @@
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
 #include "canopenfd/co_usdo_server.h"
+#include "canopenfd/co_usdo_client.h"
 
 /* cffi:begin */
 typedef struct co_rt co_rt_t;
@@ -507,7 +508,8 @@ int co_rt_flyma_act(co_rt_t *rt, int line, int action);
 /* The state (idle when not started), the active master and the counters. */
 int co_rt_flyma_state(co_rt_t *rt, int line, co_rt_flyma_state_t *out);
 /* The counters of the line's process-data, error and SDO/USDO server
- * services (zeros for services the line does not run). */
+ * services and of its USDO client (zeros for services the line does not
+ * run). */
 typedef struct co_rt_service_stats {
     co_pdo_stats_t pdo;
     co_emcy_stats_t emcy;             /* the local node's producer */
@@ -519,6 +521,7 @@ typedef struct co_rt_service_stats {
     uint32_t pdo_watched;             /* frames seen on the PDO CAN-IDs watched now */
     co_sdo_server_stats_t sdo_server;   /* the local node's server (classic lines) */
     co_usdo_server_stats_t usdo_server; /* the local node's server (fd lines) */
+    co_usdo_client_stats_t usdo_client; /* the line's USDO client (fd lines, once used) */
 } co_rt_service_stats_t;
 int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out);
 /* Node guarding of a remote node on a classic line (guard_ms = 0: stop). */

@@ -21,6 +21,7 @@ enum {
     CO_USDO_BROADCAST = 0,           /* byte 0 of a request to every server */
     CO_USDO_EXPEDITED_MAX = 56,      /* data bytes of an expedited frame (64 - 8) */
     CO_USDO_SEGMENT_DATA = 60,       /* data bytes of a segment frame (64 - 4) */
+    CO_USDO_SEGMENT_MIN = 5,         /* shortest segment accepted: 4 header bytes + 1 */
     CO_USDO_FRAME_MAX = 64
 };
 
@@ -36,6 +37,10 @@ typedef enum co_usdo_cs {
     CO_USDO_CS_BULK_LAST = 0x08,               /* request, last 0..60 bytes */
     CO_USDO_CS_UPLOAD = 0x11,                  /* request (expedited or segmented) */
     CO_USDO_CS_UPLOAD_SEGMENT = 0x13,          /* request for the next segment */
+    CO_USDO_CS_BULK_UPLOAD = 0x16,             /* request, bulk upload: the client's window
+                                                  (layout UNCONFIRMED, our choice) */
+    CO_USDO_CS_BULK_UPLOAD_ACK = 0x17,         /* request: segments received up to a counter,
+                                                  more credit (our choice) */
     CO_USDO_CS_DOWNLOAD_EXPEDITED_RSP = 0x21,
     CO_USDO_CS_DOWNLOAD_INITIATE_RSP = 0x22,
     CO_USDO_CS_DOWNLOAD_SEGMENT_RSP = 0x23,
@@ -46,6 +51,9 @@ typedef enum co_usdo_cs {
     CO_USDO_CS_UPLOAD_INITIATE_RSP = 0x32,
     CO_USDO_CS_UPLOAD_SEGMENT_RSP = 0x33,
     CO_USDO_CS_UPLOAD_LAST_RSP = 0x34,
+    CO_USDO_CS_BULK_UPLOAD_INITIATE_RSP = 0x36, /* bulk upload: type and total size */
+    CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP = 0x37,  /* 60 data bytes, not confirmed one by one */
+    CO_USDO_CS_BULK_UPLOAD_LAST_RSP = 0x38,     /* last 0..60 bytes: the transfer ends */
     CO_USDO_CS_ABORT = 0x7F,
     CO_USDO_CS_REMOTE_ABORT = 0xFF             /* remote (routed) USDO: not supported */
 } co_usdo_cs_t;
@@ -106,13 +114,15 @@ typedef enum co_usdo_layout {
     CO_USDO_LAYOUT_UNKNOWN = 0,   /* command specifier without a known layout */
     CO_USDO_LAYOUT_MUX,           /* 6: dest cs sid sub index(2)                 0x11 0x21 0x22 */
     CO_USDO_LAYOUT_EXPEDITED,     /* 8+N: mux type N data[N], N 0..56            0x01 0x31 */
-    CO_USDO_LAYOUT_INITIATE,      /* 12: mux type 0 size(4)                      0x02 0x32 0x06 */
-    CO_USDO_LAYOUT_SEGMENT,       /* 64: dest cs sid counter data[60]            0x03 0x33 0x07 */
-    CO_USDO_LAYOUT_LAST,          /* 4+n: dest cs sid n data[n], n 0..60         0x04 0x34 0x08 */
-    CO_USDO_LAYOUT_COUNTER,       /* 4: dest cs sid counter                      0x13 0x23 */
+    CO_USDO_LAYOUT_INITIATE,      /* 12: mux type 0 size(4)                 0x02 0x32 0x06 0x36 */
+    CO_USDO_LAYOUT_SEGMENT,       /* 64: dest cs sid counter data[60]       0x03 0x33 0x07 0x37
+                                     (5..63 bytes accepted: data = the rest) */
+    CO_USDO_LAYOUT_LAST,          /* 4+n: dest cs sid n data[n], n 0..60    0x04 0x34 0x08 0x38 */
+    CO_USDO_LAYOUT_COUNTER,       /* 4: dest cs sid counter                 0x13 0x23 0x17 */
     CO_USDO_LAYOUT_END,           /* 3: dest cs sid                              0x24 0x28 */
     CO_USDO_LAYOUT_ABORT,         /* 7: mux code                                 0x7F */
-    CO_USDO_LAYOUT_BULK_ACCEPT    /* 8: mux pacing(2), 100 us units, 0 = none    0x26 (UNCONFIRMED) */
+    CO_USDO_LAYOUT_BULK_ACCEPT,   /* 8: mux pacing(2), 100 us units, 0 = none    0x26 (UNCONFIRMED) */
+    CO_USDO_LAYOUT_BULK_REQUEST   /* 8: mux window(1) reserved(1)                0x16 (UNCONFIRMED) */
 } co_usdo_layout_t;
 
 /* A decoded (or to-be-encoded) frame. Fields a layout does not have are 0. */
@@ -127,7 +137,9 @@ typedef struct co_usdo_msg {
     uint8_t abort_code;    /* ABORT: co_usdo_abort_t */
     uint32_t size;         /* INITIATE: total size of the transfer */
     uint16_t pacing;       /* BULK_ACCEPT: minimum gap between bulk segments, 100 us units */
-    uint8_t length;        /* EXPEDITED: N, SEGMENT: 60, LAST: n */
+    uint8_t window;        /* BULK_REQUEST: segments the server may send beyond those
+                              acknowledged (0 is invalid: the server refuses it) */
+    uint8_t length;        /* EXPEDITED: N, SEGMENT: 60 (sent; 1..60 received), LAST: n */
     const uint8_t *data;   /* decode: points into the decoded buffer; encode: source */
 } co_usdo_msg_t;
 
@@ -144,10 +156,19 @@ co_usdo_layout_t co_usdo_layout_of(uint8_t cs);
 bool co_usdo_layout_has_mux(co_usdo_layout_t layout);
 
 /* Decode len bytes (trailing padding is fine: in-frame size fields give the
- * data length). Never reads data[len] or beyond. *out is always written:
+ * data length). A SEGMENT frame has no size field: 64 bytes carry 60 data
+ * bytes; a shorter one (5..63 bytes, a sender with a smaller "MTU") is
+ * accepted with len - 4 data bytes (co_usdo_short_segment tells). Never reads data[len] or beyond. *out is always written:
  * whatever could be read (dest, cs, session from 3 bytes on; sub/index when
  * the layout has them and 6 bytes are there), the rest 0. */
 co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_msg_t *out);
+
+/* A decoded SEGMENT frame that carried fewer than 60 data bytes (we never
+ * send one; receivers accept and count it). */
+static inline bool co_usdo_short_segment(const co_usdo_msg_t *m)
+{
+    return m->length < CO_USDO_SEGMENT_DATA;
+}
 
 /* Encode into out (64 bytes): returns the frame length before FD rounding
  * (the line rounds up and pads with 0), 0 when the command specifier has no

@@ -1,6 +1,6 @@
 /* USDO client (CiA 1301, fd lines only): expedited, segmented and bulk
- * download, expedited and segmented upload, unicast and broadcast, many
- * transfers at once to one or many servers.
+ * download, expedited, segmented and bulk upload, unicast and broadcast,
+ * many transfers at once to one or many servers.
  *
  * The client has its own node-id (a tool without a local node can be client
  * 0x7F): requests go out on 0x600 + that node-id with byte 0 = the server's
@@ -16,6 +16,9 @@
  *   FREE -> start -> DL_EXPEDITED (0x01 sent, waits for 0x21)
  *                 -> UL_INIT (0x11 sent) -> 0x31: done
  *                                        -> 0x32: UL_SEG ... (0x13 / 0x33 until 0x34)
+ *                 -> UL_BULK_INIT (0x16 sent) -> 0x36: UL_BULK ... (0x37 streamed,
+ *                                        a 0x17 every half window, until 0x38)
+ *                                        (0x31 / 0x32 taken too: the server's choice)
  *                 -> DL_INIT -> DL_SEG ... -> DL_LAST           segmented download
  *                 -> BULK_INIT -> BULK_SEND -> BULK_LAST         bulk download
  *                 -> BROADCAST (collects answers until the window ends)
@@ -27,7 +30,10 @@
  * CO_USDO_CLIENT_BULK_BURST per process call, while the line's tx queue is
  * below 3/4 full (a quarter stays free for other services), and resume when
  * it has drained to half (co_line tx-space indication); a server's pacing
- * is honoured with a timer. The client's timers run from the line's clock:
+ * is honoured with a timer. A bulk upload gives the server a window of
+ * segments it may send beyond those acknowledged; the windows of all bulk
+ * uploads running together never exceed half the line's receive queue, so
+ * the server's stream cannot overflow it (see co_usdo_client_config_t). The client's timers run from the line's clock:
  * a caller that starts a transfer outside co_line_process sets the line's
  * time first (co_line_set_time), or the per-frame timeout counts from the
  * last process call. Wire choices and their
@@ -52,7 +58,10 @@ enum {
     /* Unpaced bulk: at most this many segments per co_line_process call
      * (the rest follow at the next call), so a receiver on the same thread
      * or behind a small socket buffer reads between bursts. */
-    CO_USDO_CLIENT_BULK_BURST = 64
+    CO_USDO_CLIENT_BULK_BURST = 64,
+    /* Bulk upload window (segments the server may send beyond those we
+     * acknowledged), before the cap by the receive queue (see the config). */
+    CO_USDO_CLIENT_DEFAULT_BULK_WINDOW = 64
 };
 /* Largest download: 0xFFFFFFFF means "unknown size" in USDO size fields. */
 #define CO_USDO_CLIENT_SIZE_MAX 0xFFFFFFFEu
@@ -93,10 +102,12 @@ struct co_usdo_request {            /* caller-owned; must live until done() */
     uint16_t index;
     uint8_t sub;
     bool upload;
-    uint8_t mode;                   /* co_usdo_mode_t (downloads; uploads: the server decides) */
+    uint8_t mode;                   /* co_usdo_mode_t; uploads: AUTO (0x11, or bulk for a
+                                       size hint >= CO_USDO_CLIENT_BULK_THRESHOLD) or BULK */
     uint8_t type;                   /* data type byte sent with a download; 0 is sent as
                                        0x0F (DOMAIN = raw bytes) */
-    uint32_t size;                  /* download: total bytes (at most 0xFFFFFFFE) */
+    uint32_t size;                  /* download: total bytes (at most 0xFFFFFFFE);
+                                       upload: bytes expected, 0 = unknown (AUTO's choice) */
     co_usdo_source_fn source;       /* downloads (may be NULL when size is 0) */
     co_usdo_sink_fn sink;           /* unicast uploads */
     void *ctx;                      /* for source / sink */
@@ -130,7 +141,9 @@ typedef enum co_usdo_client_state {
     CO_USDO_CLIENT_BULK_INIT,       /* 0x06 sent: waits for 0x26 */
     CO_USDO_CLIENT_BULK_SEND,       /* sending 0x07 (paced / waiting for tx space) */
     CO_USDO_CLIENT_BULK_LAST,       /* 0x08 sent: waits for 0x28 */
-    CO_USDO_CLIENT_BROADCAST        /* collecting answers until the window ends */
+    CO_USDO_CLIENT_BROADCAST,       /* collecting answers until the window ends */
+    CO_USDO_CLIENT_UL_BULK_INIT,    /* 0x16 sent: waits for 0x36 (or 0x31 / 0x32) */
+    CO_USDO_CLIENT_UL_BULK          /* taking 0x37 until 0x38, acknowledging with 0x17 */
 } co_usdo_client_state_t;
 
 typedef struct co_usdo_client_session {
@@ -150,9 +163,15 @@ typedef struct co_usdo_client_session {
     uint8_t session_id;
     uint8_t counter;                /* segment counter outstanding / next to send */
     uint8_t burst;                  /* bulk: segments per burst */
+    uint8_t since_ack;              /* bulk upload: segments taken since our last 0x17 */
+    bool short_seen;                /* bulk upload: a segment of fewer than 60 bytes came */
+    uint32_t taken;                 /* bulk upload: segments taken */
+    uint32_t acked;                 /* bulk upload: segments our last 0x17 acknowledged */
     bool wait_space;                /* bulk: waits for the tx-space indication */
+    bool bulk_rx;                   /* bulk upload: holds a window of the receive budget */
 } co_usdo_client_session_t;
 
+/* cffi:begin */
 /* Everything ignored or refused is counted here (never silent). */
 typedef struct co_usdo_client_stats {
     uint32_t rx_frames;             /* frames on 0x581..0x5FF given to the client */
@@ -178,8 +197,15 @@ typedef struct co_usdo_client_stats {
     uint32_t sink_refused;          /* a sink returned an abort code */
     uint32_t tx_failed;             /* co_line_send refused (queue full) */
     uint32_t bulk_paused;           /* bulk sending stopped to wait for tx space */
-    uint32_t bulk_fallback;         /* AUTO: bulk refused with 0x13, retried segmented */
+    uint32_t bulk_fallback;         /* AUTO: bulk refused with 0x13, retried segmented
+                                       (downloads) or as a plain upload (uploads) */
+    uint32_t rx_short_segment;      /* segment with fewer than 60 data bytes: accepted */
+    uint32_t bulk_uploads;          /* bulk uploads completed */
+    uint32_t acks_sent;             /* bulk upload acknowledgements (0x17) */
+    uint32_t bulk_budget_full;      /* bulk upload not started: the receive budget is
+                                       taken (AUTO went plain, BULK refused 0x70) */
 } co_usdo_client_stats_t;
+/* cffi:end */
 
 struct co_usdo_client {
     co_line_t *line;                /* NULL when not initialised */
@@ -190,6 +216,9 @@ struct co_usdo_client {
     uint8_t space_rr;               /* who resumes first after tx space (fairness) */
     uint8_t waiting;                /* sessions waiting for tx space */
     uint16_t max_pacing;
+    uint8_t bulk_window;            /* bulk upload window (segments) */
+    uint8_t bulk_rx;                /* bulk uploads holding a window now */
+    uint32_t bulk_budget;           /* segments all windows together may hold */
     uint64_t timeout_us;
     uint32_t live_sid[8];           /* one bit per live session-ID */
     co_usdo_client_stats_t stats;
@@ -201,6 +230,10 @@ typedef struct co_usdo_client_config {
     uint8_t node_id;                /* our client node-id 1..127 (not the line's node-id) */
     uint32_t timeout_ms;            /* default per-frame timeout, 0 = 1000 */
     uint16_t max_pacing;            /* cap on a server's bulk pacing, 100 us units, 0 = 100 */
+    uint8_t bulk_window;            /* bulk upload window in segments, 0 = 64; capped at a
+                                       quarter of the line's receive queue (at least 1).
+                                       Bulk uploads run together only while their windows
+                                       fit in half the receive queue. */
 } co_usdo_client_config_t;
 
 /* fd lines only; subscribes 0x581..0x5FF and registers for the line's tx
@@ -213,10 +246,12 @@ void co_usdo_client_deinit(co_usdo_client_t *c);
 
 /* Start: 0 when started (done() will be called once), else a USDO abort
  * code saying why not, and done() is never called:
- *   0x70  no free session, or the tx queue refused the first frame
+ *   0x70  no free session, the tx queue refused the first frame, or a BULK
+ *         upload whose window does not fit in the receive budget now
  *   0x1E  EXPEDITED mode (or a broadcast download) with more than 56 bytes
  *   0x10  bad request: no done(), server > 127 or = our node-id, no sink on
- *         a unicast upload, no source for data, unknown mode, size
+ *         a unicast upload, no source for data, unknown mode, a broadcast
+ *         bulk upload, size
  *         0xFFFFFFFF, a broadcast download not expedited, the request
  *         already running, client not initialised, or an expedited
  *         download whose source failed.
@@ -232,6 +267,10 @@ bool co_usdo_client_running(const co_usdo_client_t *c, const co_usdo_request_t *
 /* The mode AUTO resolves to for a download of `size` bytes (other modes are
  * returned as they are). */
 co_usdo_mode_t co_usdo_client_choose_mode(uint8_t mode, uint32_t size);
+/* Uploads: BULK for BULK, or for AUTO with a size hint of at least
+ * CO_USDO_CLIENT_BULK_THRESHOLD; else AUTO (0x11: the server picks
+ * expedited or segmented). */
+co_usdo_mode_t co_usdo_client_choose_upload_mode(uint8_t mode, uint32_t size_hint);
 
 /* Buffer source/sink for tests, benches and simple callers. Source: the
  * first `size` bytes of data. Sink: refuses (0x16) an announced total or

@@ -1,6 +1,6 @@
 /* USDO server (CiA 1301, fd lines only): expedited, segmented and bulk
- * download, expedited and segmented upload of the local object dictionary,
- * several sessions at once.
+ * download, expedited, segmented and bulk upload of the local object
+ * dictionary, several sessions at once.
  *
  * Requests arrive on 0x601..0x67F (0x600 + client node-id) with byte 0 =
  * our node-id or 0 (broadcast, answered individually); answers go out on
@@ -15,6 +15,8 @@
  *                     -> DOWNLOAD / UPLOAD (segments follow)      segmented
  *                     -> BULK (segments follow, none answered     bulk download
  *                        until the last one)
+ *                     -> BULK_UPLOAD (0x36, then segments streamed within the
+ *                        client's window; each 0x17 moves the window on)
  *                     -> PENDING (a handler split; waits for co_usdo_server_resume)
  *   DOWNLOAD / BULK -> (last segment) -> answer, FREE, or PENDING (split)
  *   DOWNLOAD/UPLOAD/BULK/PENDING -> idle timeout -> timeout abort sent -> FREE
@@ -41,7 +43,8 @@ typedef enum co_usdo_session_state {
     CO_USDO_SESSION_UPLOAD,      /* segmented upload: waiting for the next segment request */
     CO_USDO_SESSION_PENDING,     /* a handler split: waiting for co_usdo_server_resume */
     CO_USDO_SESSION_ABANDONED,   /* was PENDING, then timed out / aborted: freed by the resume */
-    CO_USDO_SESSION_BULK         /* bulk download: waiting for the next (unanswered) segment */
+    CO_USDO_SESSION_BULK,        /* bulk download: waiting for the next (unanswered) segment */
+    CO_USDO_SESSION_BULK_UPLOAD  /* bulk upload: streaming within the client's window */
 } co_usdo_session_state_t;
 
 typedef struct co_usdo_server co_usdo_server_t;
@@ -59,6 +62,11 @@ typedef struct co_usdo_session {
     uint8_t counter;            /* next segment counter expected */
     uint32_t total;             /* download: announced size */
     uint32_t received;          /* download: data bytes received */
+    uint32_t sent;              /* bulk upload: segments sent (0x37 and 0x38) */
+    uint32_t acked;             /* bulk upload: segments the client acknowledged */
+    uint8_t window;             /* bulk upload: the client's window (segments) */
+    bool tx_wait;               /* bulk upload: stopped for tx room */
+    bool tx_resume;             /* bulk upload: tx room came back, the timer resumes it */
 } co_usdo_session_t;
 
 /* cffi:begin */
@@ -89,6 +97,11 @@ typedef struct co_usdo_server_stats {
     uint32_t tx_failed;          /* co_line_send refused (queue full) */
     uint32_t rx_not_serving;     /* the node is stopped (no USDO then): ignored */
     uint32_t closed_by_state;    /* open transfers ended silently on leaving pre-op/op */
+    uint32_t rx_short_segment;   /* segment with fewer than 60 data bytes: accepted */
+    uint32_t rx_bad_window;      /* bulk upload request with window 0: abort 0x11 */
+    uint32_t rx_stray_ack;       /* bulk upload ack (0x17) for no open transfer: ignored */
+    uint32_t bulk_uploads;       /* bulk uploads completed (also counted in uploads) */
+    uint32_t tx_deferred;        /* bulk upload stopped until the tx queue drained */
 } co_usdo_server_stats_t;
 /* cffi:end */
 
@@ -118,7 +131,8 @@ uint32_t co_usdo_server_scratch_need(const co_od_t *od);
 
 /* Serve `od` on `line` (an fd line; the node-id is read from co_line_node_id
  * at every request, so requests before a node exists are ignored). False on
- * a classic line, a bad configuration or when 0x601..0x67F is taken. */
+ * a classic line, a bad configuration, when 0x601..0x67F is taken or the
+ * line's tx-space indication table is full (bulk uploads wait on it). */
 bool co_usdo_server_init(co_usdo_server_t *server, co_line_t *line, co_od_t *od,
                          const co_usdo_server_config_t *config);
 /* Unsubscribe; open transfers are aborted (a domain writer is told),

@@ -343,7 +343,7 @@ static void prepare_usdo(rt_req_t *r, const co_rt_transfer_request_t *q)
     req->upload = q->upload != 0;
     req->mode = (uint8_t)q->mode;
     req->type = q->type;
-    req->size = q->upload ? 0 : q->size;
+    req->size = q->size;   /* upload: the size hint AUTO picks bulk by (0 = unknown) */
     req->timeout_ms = q->timeout_ms;
     req->ctx = r;
     req->user = r;
@@ -411,7 +411,9 @@ static rt_req_t *prepare(co_rt_t *rt, rt_client_t *c, const co_rt_transfer_reque
 static const char *usdo_refusal(uint32_t code)
 {
     switch (code) {
-    case CO_USDO_ABORT_BUSY: return "every USDO client session is in use";
+    case CO_USDO_ABORT_BUSY:
+        return "every USDO client session is in use, or bulk uploads already hold the "
+               "line's receive budget";
     case CO_USDO_ABORT_DLC: return "more than 56 bytes cannot go expedited (or broadcast)";
     default: return "request refused (server node-id, mode, size or data)";
     }

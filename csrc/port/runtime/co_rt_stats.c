@@ -90,6 +90,9 @@ int co_rt_service_stats(co_rt_t *rt, int line, co_rt_service_stats_t *out)
     if (co_stack_usdo_server(s)) {
         out->usdo_server = co_stack_usdo_server(s)->stats;
     }
+    if (co_stack_usdo_client(s)) {
+        out->usdo_client = co_stack_usdo_client(s)->stats;
+    }
     rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
