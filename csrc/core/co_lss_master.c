@@ -71,6 +71,33 @@ static bool many_may_answer(const co_lss_master_t *m)
            m->request == CO_LSS_REQ_IDENTIFY_NON_CONFIGURED;
 }
 
+/* When a step that got its first answer ends. Slaves answer one request
+ * with separate frames when their latencies differ (a software slave, a
+ * busy one): a frame that comes after its step ended would be taken as the
+ * next step's answer and corrupt a fast scan bit. So:
+ * - the fast scan reset and the identify requests wait their whole timeout:
+ *   they count every slave that answers;
+ * - fast scan checks end a settle time after the first answer while more
+ *   than one slave answered the last reset, at once when one did (the last
+ *   slave, or a single one, runs at full speed);
+ * - scan ranges (how many answer is unknown) end a settle time after;
+ * - a single slave's answer ends its step at once.
+ * "At once" is after this call's frames are all in: the timer list runs
+ * after the rx queue is drained. CO_TIME_NEVER: the running timer stays. */
+static uint64_t step_end_after_answer(const co_lss_master_t *m)
+{
+    uint64_t now = co_line_now(m->line);
+    if (m->step == FS_RESET || m->request == CO_LSS_REQ_IDENTIFY_REMOTE ||
+        m->request == CO_LSS_REQ_IDENTIFY_NON_CONFIGURED) {
+        return CO_TIME_NEVER;
+    }
+    if (((m->step == FS_BIT || m->step == FS_CONFIRM) && m->reset_answers > 1u) ||
+        m->step == SCAN_IDENTIFY) {
+        return now + m->settle_us;
+    }
+    return now;
+}
+
 static void on_answer(co_line_t *line, const co_frame_t *frame, void *user)
 {
     (void)line;
@@ -93,9 +120,10 @@ static void on_answer(co_line_t *line, const co_frame_t *frame, void *user)
     m->answers++;
     if (m->answers == 1u) {
         m->first = msg;
-        /* End the step once this call's frames are all in: the timer list
-         * runs after the rx queue is drained. */
-        co_timer_start(co_line_timers(m->line), &m->timer, co_line_now(m->line));
+        uint64_t end = step_end_after_answer(m);
+        if (end != CO_TIME_NEVER) {
+            co_timer_start(co_line_timers(m->line), &m->timer, end);
+        }
     } else if (!many_may_answer(m)) {
         m->stats.duplicates++;
     }
@@ -147,6 +175,7 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
     uint8_t data[8];
     switch (m->step) {
     case FS_RESET:
+        m->reset_answers = m->answers;
         if (!answered) {
             finish(m, CO_LSS_OK, 0);
         } else if (m->found >= m->node_id_count) {
@@ -341,6 +370,7 @@ bool co_lss_master_init(co_lss_master_t *master, co_line_t *line, uint32_t timeo
     memset(master, 0, sizeof *master);
     master->line = line;
     master->timeout_us = (uint64_t)(timeout_ms ? timeout_ms : 100u) * 1000u;
+    master->settle_us = master->timeout_us / 8u;
     master->on_done = on_done;
     master->user = user;
     co_timer_init(&master->timer, on_timer, master);
@@ -353,6 +383,16 @@ bool co_lss_master_set_timeout(co_lss_master_t *master, uint32_t timeout_ms)
         return false;
     }
     master->timeout_us = (uint64_t)(timeout_ms ? timeout_ms : 100u) * 1000u;
+    master->settle_us = master->timeout_us / 8u;
+    return true;
+}
+
+bool co_lss_master_set_settle(co_lss_master_t *master, uint32_t settle_us)
+{
+    if (co_lss_master_busy(master) || settle_us > master->timeout_us) {
+        return false;
+    }
+    master->settle_us = settle_us;
     return true;
 }
 
@@ -380,6 +420,7 @@ static bool begin(co_lss_master_t *m, co_lss_request_t request)
     m->frames = 0;
     m->found = 0;
     m->answers = 0;
+    m->reset_answers = 0;
     return true;
 }
 
