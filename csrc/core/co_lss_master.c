@@ -170,6 +170,26 @@ static bool switch_waiting(co_lss_master_t *m)
     return send(m, data);
 }
 
+/* No slave has the address found (a part did not confirm, or the address
+ * selected nobody to configure): a slower slave's late answer was taken for
+ * a 0-bit, or the slave is gone. Start over: every slave back to waiting,
+ * the reset puts every non-configured one back to the vendor-ID; LOST after
+ * CO_LSS_FASTSCAN_RESTARTS tries for one slave. */
+static void fastscan_restart(co_lss_master_t *m)
+{
+    if (m->restarts >= CO_LSS_FASTSCAN_RESTARTS) {
+        finish(m, CO_LSS_LOST, 0);
+        return;
+    }
+    m->restarts++;
+    m->stats.fastscan_restarts++;
+    if (!switch_waiting(m)) {
+        finish(m, CO_LSS_TX_FAILED, 0);
+        return;
+    }
+    fastscan_reset(m);
+}
+
 static void fastscan_step_end(co_lss_master_t *m, bool answered)
 {
     uint8_t data[8];
@@ -177,7 +197,8 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
     case FS_RESET:
         m->reset_answers = m->answers;
         if (!answered) {
-            finish(m, CO_LSS_OK, 0);
+            /* after a restart: the slave that failed to confirm is gone */
+            finish(m, m->restarts ? CO_LSS_LOST : CO_LSS_OK, 0);
         } else if (m->found >= m->node_id_count) {
             finish(m, CO_LSS_NO_NODE_ID, 0);
         } else if (m->found >= m->capacity) {
@@ -206,12 +227,12 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
         if (answered) {
             fastscan_part_done(m);
         } else {
-            finish(m, CO_LSS_LOST, 0);
+            fastscan_restart(m);
         }
         break;
     case FS_CONFIGURE:
         if (!answered) {
-            finish(m, CO_LSS_LOST, 0);
+            fastscan_restart(m);
         } else if (m->answers > 1u) {
             /* Two slaves took the same node-id: take it back from both. */
             co_lss_encode_bytes(data, CO_LSS_CS_CONFIGURE_NODE_ID, CO_LSS_NODE_ID_UNCONFIGURED,
@@ -224,6 +245,7 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
             m->devices[m->found].address = m->id;
             m->devices[m->found].node_id = m->node_ids[m->found];
             m->found++;
+            m->restarts = 0;
             if (!switch_waiting(m)) {
                 finish(m, CO_LSS_TX_FAILED, 0);
                 return;
@@ -421,6 +443,7 @@ static bool begin(co_lss_master_t *m, co_lss_request_t request)
     m->found = 0;
     m->answers = 0;
     m->reset_answers = 0;
+    m->restarts = 0;
     return true;
 }
 

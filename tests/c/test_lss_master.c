@@ -33,6 +33,7 @@ typedef struct sim {
     uint64_t late_us;
     co_frame_t held[LOG_MAX];        /* its frames on their way ... */
     uint64_t held_at[LOG_MAX];       /* ... and when they arrive */
+    uint32_t held_from[LOG_MAX];     /* ... from which line */
     uint32_t held_count;
 } sim_t;
 
@@ -99,11 +100,12 @@ static void sim_step(sim_t *s, uint64_t now)
     for (uint32_t h = 0; h < s->held_count; h++) {
         if (s->held_at[h] > now) {
             s->held[kept] = s->held[h];
+            s->held_from[kept] = s->held_from[h];
             s->held_at[kept++] = s->held_at[h];
             continue;
         }
         for (uint32_t k = 0; k <= s->n; k++) {
-            if (k != s->late) {
+            if (k != s->held_from[h]) {
                 assert_true(co_line_receive(line_of(s, k), &s->held[h]));
             }
         }
@@ -120,6 +122,7 @@ static void sim_step(sim_t *s, uint64_t now)
                 if (s->late != 0 && i == s->late) {
                     assert_true(s->held_count < LOG_MAX);
                     s->held[s->held_count] = f;
+                    s->held_from[s->held_count] = i;
                     s->held_at[s->held_count++] = now + s->late_us;
                     continue;
                 }
@@ -652,6 +655,56 @@ static void test_fastscan_slave_later_than_settle(void **state)
     sim_free(s);
 }
 
+/* A slave later than the settle time makes a part fail to confirm: the
+ * scan starts over with a reset (CO_LSS_FASTSCAN_RESTARTS times) and finds
+ * both once the slave is quick again; a slave late every time ends LOST. */
+static void test_fastscan_restarts(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    /* serials 2 and 3: at serial bit 1 nobody answers, but the late
+     * slave's answer to bit 2 comes then and reads as a 0-bit */
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000002u), 255);
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000003u), 255);
+    s->late = 2;
+    s->late_us = 5000;
+    assert_true(co_lss_master_set_settle(&s->master, 1000));
+    const uint8_t ids[2] = {10, 11};
+    co_lss_device_t found[2];
+    assert_true(co_lss_master_fastscan(&s->master, ids, 2, found, 2));
+    const co_lss_master_stats_t *st = co_lss_master_stats(&s->master);
+    sim_step(s, s->now);
+    for (long guard = 0; st->fastscan_restarts == 0; guard++) {
+        assert_true(guard < 1000000 && s->done == 0);
+        uint64_t d = sim_next_deadline(s);
+        sim_step(s, d > s->now ? d : s->now);
+    }
+    s->late = 0;                     /* quick from now on */
+    co_lss_master_result_t r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 2);
+    assert_int_equal(co_lss_slave_active_node_id(&s->slaves[0]), 10);
+    assert_int_equal(co_lss_slave_active_node_id(&s->slaves[1]), 11);
+    assert_int_equal(st->fastscan_restarts, 1);
+    sim_free(s);
+
+    s = sim_new();
+    /* serials 2 and 3: at serial bit 1 nobody answers, but the late
+     * slave's answer to bit 2 comes then and reads as a 0-bit */
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000002u), 255);
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000003u), 255);
+    s->late = 2;
+    s->late_us = 5000;
+    assert_true(co_lss_master_set_settle(&s->master, 1000));
+    assert_true(co_lss_master_fastscan(&s->master, ids, 2, found, 2));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_LOST);
+    assert_int_equal(r.found, 0);
+    assert_int_equal(co_lss_master_stats(&s->master)->fastscan_restarts,
+                     CO_LSS_FASTSCAN_RESTARTS);
+    sim_free(s);
+}
+
 /* Identify requests count every slave that answers within the timeout. */
 static void test_identify_counts_late_answers(void **state)
 {
@@ -697,6 +750,7 @@ int main(void)
         cmocka_unit_test(test_scan),
         cmocka_unit_test(test_fastscan_late_slave),
         cmocka_unit_test(test_fastscan_slave_later_than_settle),
+        cmocka_unit_test(test_fastscan_restarts),
         cmocka_unit_test(test_identify_counts_late_answers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -55,6 +55,7 @@ typedef struct co_lss_master_stats {
     uint32_t timeouts;         /* steps that ended without an answer */
     uint32_t bad_length;
     uint32_t unknown_cs;
+    uint32_t fastscan_restarts; /* fast scans started over after a part failed to confirm */
 } co_lss_master_stats_t;
 
 typedef struct co_lss_master_result {
@@ -80,6 +81,9 @@ typedef void (*co_lss_done_fn)(co_lss_master_t *master, const co_lss_master_resu
                                void *user);
 
 enum { CO_LSS_SCAN_STACK = 72 };   /* ranges a scan keeps to look at (2 x 33 levels + room) */
+/* A fast scan whose part does not confirm (a slave's late answer read as a
+ * 0-bit, or a slave gone) starts over with a reset this often before LOST. */
+enum { CO_LSS_FASTSCAN_RESTARTS = 2 };
 
 typedef struct co_lss_range {
     uint32_t low;
@@ -113,6 +117,7 @@ struct co_lss_master {
     uint8_t sub;
     uint8_t bit;
     uint32_t reset_answers;        /* fast scan: slaves that answered the last reset */
+    uint8_t restarts;              /* fast scan: started over since the last slave found */
     uint32_t vendor, product;      /* scan: the fixed parts */
     uint32_t revision_low, revision_high;
     uint32_t serial;               /* scan: the serial number pinned down */

@@ -557,6 +557,10 @@ typedef struct co_rt_lss_request {
     uint8_t node_ids[127];     /* FASTSCAN: node-ids to give, in order */
     int node_id_count;
     int timeout_ms;            /* per step, 0 = 100 */
+    /* how long a step several slaves may answer stays open after its first
+     * answer, for slower slaves' answers (co_lss_master_set_settle); at most
+     * the timeout, 0 = an eighth of it */
+    int settle_ms;
 } co_rt_lss_request_t;
 typedef struct co_rt_lss_device {
     uint32_t address[4];       /* vendor, product, revision, serial */
