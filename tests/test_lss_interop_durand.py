@@ -96,24 +96,34 @@ class _Timers(AbstractScheduler):  # type: ignore[misc]
 class Rig:
     """durand nodes, our master line and a recorder on one virtual channel."""
 
-    def __init__(self, timers: _Timers) -> None:
+    def __init__(self, timers: _Timers, vcan: Optional[str] = None) -> None:
         self.timers = timers
-        self.channel = f"durand-{os.getpid()}-{next(_channels)}"
+        self.channel = vcan or f"durand-{os.getpid()}-{next(_channels)}"
+        self._vcan = vcan
         self.frames = Recorder()
         self._notifiers: List[Any] = []
         self._networks: List[Any] = []
+        self._buses: List[Any] = []
         self.net = canopenfd.Network()
-        self.line = self.net.open_line(bus=virtual_bus(self.channel), mode="classic")
+        # on vcan our line is the stack's own SocketCAN line, durand's python-can's
+        self.line = (self.net.open_line(vcan, mode="classic") if vcan else
+                     self.net.open_line(bus=virtual_bus(self.channel), mode="classic"))
         # Step timeout and settle time for software slaves on a shared CPU:
         # durand answers within a millisecond unless the machine is loaded
         # (a stall longer than the timeout makes the scan start over).
         self.line.lss.timeout_ms = min(60000, int(100 * TIME_SCALE))
         self.line.lss.settle_ms = min(self.line.lss.timeout_ms, int(20 * TIME_SCALE))
-        recorder_bus = virtual_bus(self.channel)
-        self._notifiers.append(can.Notifier(recorder_bus, [_Wire(self.frames)], 0.1))
+        self._notifiers.append(can.Notifier(self._bus(), [_Wire(self.frames)], 0.1))
+
+    def _bus(self) -> Any:
+        if not self._vcan:
+            return virtual_bus(self.channel)
+        bus = can.Bus(interface="socketcan", channel=self._vcan)
+        self._buses.append(bus)
+        return bus
 
     def add(self, identity: Identity, node_id: int = 0xFF) -> Any:
-        network = durand.CANBusNetwork(virtual_bus(self.channel))
+        network = durand.CANBusNetwork(self._bus())
         self._networks.append(network)
         node = durand.MinimalNode(network, node_id)
         for sub, value in enumerate(identity, start=1):
@@ -141,20 +151,31 @@ class Rig:
             thread.start()
         for thread in stops:
             thread.join()
+        for bus in self._buses:
+            bus.shutdown()
 
 
-@pytest.fixture
-def rig() -> Iterator[Rig]:
+def _rig(vcan: Optional[str] = None) -> Iterator[Rig]:
     # durand times activate bit timing on a process-wide scheduler
     previous = get_scheduler()
     timers = _Timers()
     set_scheduler(timers)
-    r = Rig(timers)
+    r = Rig(timers, vcan)
     try:
         yield r
     finally:
         r.close()
         set_scheduler(previous)
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    yield from _rig()
+
+
+@pytest.fixture
+def vcan_rig(vcan: List[str]) -> Iterator[Rig]:
+    yield from _rig(vcan[0])
 
 
 def check_fastscan_layout(data: bytes) -> Tuple[int, int, int, int]:
@@ -330,3 +351,20 @@ def test_identify(rig):
     assert lss.identify_non_configured() == 2
     lss.switch_global("waiting")                     # now it takes 60
     assert lss.identify_non_configured() == 1
+
+
+@pytest.mark.vcan
+def test_fast_scan_two_durand_nodes_on_vcan(vcan_rig):
+    """The same on real SocketCAN: our line on vcan0 (the stack's SocketCAN
+    driver), two durand nodes over python-can's socketcan interface."""
+    rig = vcan_rig
+    nodes = [rig.add(ZEROS), rig.add(LAST_BIT)]
+    found = rig.line.lss.fast_scan([10, 11])
+    assert found == [LssDevice(*ZEROS, 10), LssDevice(*LAST_BIT, 11)]
+    assert [node.node_id for node in nodes] == [10, 11]
+    rig.wait(0, lambda c: (0x70A, b"\x00") in c and (0x70B, b"\x00") in c, "both boot-ups")
+    sent = rig.data(0, LSS_MASTER, 2 * 131 + 1 + 1)
+    for data in sent:
+        if data[0] == 0x51:
+            check_fastscan_layout(data)
+    assert rig.line.lss.identify_non_configured() == 0
