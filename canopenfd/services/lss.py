@@ -400,8 +400,9 @@ class LssSlave:
         return self._state_callbacks.add(callback)
 
     def on_configured(self, callback: Callable[[int], None]) -> Callable[[int], None]:
-        """callback(node_id): a node created with node-id 255 got node_id from LSS
-        and runs (booted) with it now."""
+        """callback(node_id): a node created with node-id 255 got node_id from LSS,
+        or a configured node took its pending node-id at NMT reset communication
+        (CiA 305); it runs (and boots) with it now."""
         return self._configured_callbacks.add(callback)
 
     def add_configured_hook(self, hook: Callable[[int], None]) -> None:

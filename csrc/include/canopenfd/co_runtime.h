@@ -582,8 +582,9 @@ enum {
     CO_RT_LSS_SLAVE_STORE = 111,      /* b = node-id to persist: co_rt_lss_slave_answer */
     CO_RT_LSS_SLAVE_ACTIVATE = 112,   /* b = switch delay ms */
     CO_RT_LSS_SLAVE_BIT_TIMING = 113, /* b = selector << 8 | index, accepted */
-    CO_RT_LSS_SLAVE_CONFIGURED = 114  /* a node created with node-id 255 got b from LSS:
-                                         it runs (and booted) with it now */
+    CO_RT_LSS_SLAVE_CONFIGURED = 114  /* a node created with node-id 255 got b from LSS,
+                                         or a configured node took its pending node-id b
+                                         at a reset: it runs (and boots) with it now */
 };
 /* store != 0: store requests are the application's (answered with
  * co_rt_lss_slave_answer), else "not supported". bit_timings: bit n set =
