@@ -87,7 +87,8 @@ class LocalNode:
         return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
 
     def _lss_configured(self, node_id: int) -> None:
-        """Created unconfigured (255), LSS gave the node node_id: it runs with it."""
+        """LSS gave the node node_id (created unconfigured, or its pending one at a
+        reset): it runs with it."""
         self.node_id = node_id
         self._slave.node_id = node_id
         self._context.local_node_id = node_id

@@ -182,3 +182,66 @@ def test_unconfigured_local_node_gets_its_node_id(net, bus_name):
     assert line.lss.identify_non_configured() == 0
     with pytest.raises(ConfigurationError, match="node-id 0 outside"):
         net.open_line(bus_name, mode="classic").create_local_node(0)
+
+
+def test_configured_node_takes_the_pending_node_id_at_reset_communication(net, bus_name):
+    """CiA 305: a configured node keeps its active node-id until NMT reset
+    communication, then boots with the pending one (and a store persists the
+    pending one). Checked on the wire: boot-up, heartbeat and SDO CAN-IDs."""
+    device = net.open_line(bus_name, mode="classic").create_local_node(
+        5, 50, od=identity_od(0x42))
+    line = net.open_line(bus_name, mode="classic")
+    frames, configured, stored = Recorder(), Recorder(), []
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    device.lss.on_configured(configured)
+    device.lss.on_store(stored.append)
+    line.lss.timeout_ms = 50
+    line.lss.switch_global("configuration")
+    line.lss.configure_node_id(9)
+    line.lss.store()
+    assert stored == [9]                              # the pending node-id persisted
+    assert device.lss.info == {"state": "configuration", "active": 5, "pending": 9,
+                               "persistent": 9}
+    line.lss.switch_global("waiting")
+    device_type = device[0x1000].raw
+    sdo_of = lambda node_id: int.from_bytes(line.add_node(node_id).read(0x1000), "little")
+    assert sdo_of(5) == device_type                   # still node 5 on SDO
+    assert device.node_id == 5
+    start = len(frames)
+    line.nmt.reset_communication(5)
+    configured.wait_for(lambda c: c == [9], 2, "the node renumbered")
+    boot = frames.wait_for(lambda c: [f for f in c[start:] if f.id == 0x709], 2, "boot-up")
+    assert bytes(boot[0].data) == b"\x00"
+    device.nmt.wait_for_state("PRE-OPERATIONAL", timeout=2)
+    assert device.node_id == 9
+    assert device.lss.info["active"] == 9
+    frames.wait_for(lambda c: len([f for f in c[start:] if f.id == 0x709]) >= 3, 2,
+                    "heartbeats of node 9")
+    after_boot = frames.snapshot()[start:]
+    assert [f for f in after_boot if f.id == 0x705 and bytes(f.data) != b"\x7f"] == []
+    assert sdo_of(9) == device_type                   # SDO on 0x609 / 0x589
+    frames.wait_for(lambda c: [f for f in c[start:] if f.id == 0x589], 2, "the SDO answer")
+    assert [f for f in frames.snapshot()[start:] if f.id == 0x585] == []
+    device.emcy.raise_error(0x5000)                   # EMCY on 0x80 + the new node-id
+    emcy = frames.wait_for(lambda c: [f for f in c[start:] if f.id in (0x85, 0x89)], 2, "EMCY")
+    assert emcy[0].id == 0x89 and bytes(emcy[0].data[:2]) == b"\x00\x50"
+
+
+def test_configure_node_id_out_of_range_is_refused_on_the_wire(net, bus_name):
+    """Node-ids 0 and 128..254 are answered with error 1 (out of range):
+    our master does not send them, so the request is a raw frame."""
+    device = net.open_line(bus_name, mode="classic").create_local_node(
+        5, od=identity_od(0x42))
+    line = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    line.lss.switch_global("configuration")
+    for bad in (0, 128, 254):
+        with pytest.raises(ConfigurationError, match="node_id must be 1..127 or 255"):
+            line.lss.configure_node_id(bad)
+        start = len(frames)
+        line.send_frame(0x7E5, bytes([0x11, bad, 0, 0, 0, 0, 0, 0]))
+        answer = frames.wait_for(lambda c: [f for f in c[start:] if f.id == 0x7E4], 2,
+                                 f"the answer to node-id {bad}")
+        assert bytes(answer[0].data) == bytes([0x11, 0x01, 0, 0, 0, 0, 0, 0])
+        assert device.lss.info["pending"] == 5

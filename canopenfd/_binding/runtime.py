@@ -659,7 +659,7 @@ class Runtime:
         self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)
 
     def lss_start(self, line: int, kind: int, values: Sequence[int], node_ids: Sequence[int],
-                  timeout_ms: int, what: str) -> None:
+                  timeout_ms: int, what: str, settle_ms: int = 0) -> None:
         """Start a request of the line's LSS master (co_rt_lss_start)."""
         request = ffi.new("co_rt_lss_request_t *")
         request.kind = kind
@@ -669,6 +669,7 @@ class Runtime:
             request.node_ids[i] = node_id
         request.node_id_count = len(node_ids)
         request.timeout_ms = timeout_ms
+        request.settle_ms = settle_ms
         self._call(what, lib.co_rt_lss_start, line, request)
 
     def lss_result(self, line: int, what: str

@@ -123,6 +123,10 @@ class LssMaster:
         self._running: Optional[_Request[Any]] = None
         #: Step timeout in ms (an answer must come within it; 0 = 100 ms).
         self.timeout_ms = 100
+        #: How long a step several slaves may answer (fast scan checks, scan
+        #: ranges) stays open after its first answer, for the answers of
+        #: slower slaves, in ms: at most timeout_ms; None = timeout_ms / 8.
+        self.settle_ms: Optional[int] = None
         context.subscribe(EventKind.LSS, self._event)
 
     # ---------------------------------------------------------------- no answer
@@ -253,8 +257,14 @@ class LssMaster:
                 not 0 <= self.timeout_ms <= 60000:
             raise ConfigurationError(f"{where}: lss.timeout_ms must be an int 0..60000, got "
                                      f"{self.timeout_ms!r}")
+        settle = self.settle_ms
+        if settle is not None and (isinstance(settle, bool) or not isinstance(settle, int) or
+                                   not 1 <= settle <= (self.timeout_ms or 100)):
+            raise ConfigurationError(f"{where}: lss.settle_ms must be None or an int 1.."
+                                     f"{self.timeout_ms or 100} (lss.timeout_ms), got "
+                                     f"{settle!r}")
         self._context.runtime.lss_start(self._context.index, kind, values, node_ids,
-                                        self.timeout_ms, where)
+                                        self.timeout_ms, where, settle or 0)
 
     def _start(self, kind: LssRequest, values: List[int], node_ids: List[int], where: str,
                finish: Callable[[Result, List[LssDevice], str], T]) -> "_Request[T]":
@@ -390,8 +400,9 @@ class LssSlave:
         return self._state_callbacks.add(callback)
 
     def on_configured(self, callback: Callable[[int], None]) -> Callable[[int], None]:
-        """callback(node_id): a node created with node-id 255 got node_id from LSS
-        and runs (booted) with it now."""
+        """callback(node_id): a node created with node-id 255 got node_id from LSS,
+        or a configured node took its pending node-id at NMT reset communication
+        (CiA 305); it runs (and boots) with it now."""
         return self._configured_callbacks.add(callback)
 
     def add_configured_hook(self, hook: Callable[[int], None]) -> None:

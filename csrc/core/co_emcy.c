@@ -391,6 +391,19 @@ void co_emcy_set_inhibit(co_emcy_t *e, uint16_t inhibit_100us)
     }
 }
 
+void co_emcy_set_node_id(co_emcy_t *e, uint8_t node_id)
+{
+    /* Without 0x1014 the COB-ID is the default one, 0x80 + node-id; with it
+     * the OD's $NODEID default is reloaded by the reset that renumbers. */
+    bool own_default = (e->cob_id & ~CO_EMCY_COB_ID_INVALID) ==
+                       CO_EMCY_COB_ID_BASE + (uint32_t)e->node_id;
+    e->node_id = node_id;
+    if (own_default && (e->od == NULL || !co_od_has_index(e->od, OD_COB_ID_EMCY))) {
+        apply_cob_id(e, (e->cob_id & CO_EMCY_COB_ID_INVALID) |
+                            (CO_EMCY_COB_ID_BASE + (uint32_t)node_id));
+    }
+}
+
 void co_emcy_set_nmt_state(co_emcy_t *e, co_nmt_state_t state)
 {
     e->may_send = state == CO_NMT_PRE_OPERATIONAL || state == CO_NMT_OPERATIONAL;

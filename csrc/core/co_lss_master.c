@@ -71,6 +71,33 @@ static bool many_may_answer(const co_lss_master_t *m)
            m->request == CO_LSS_REQ_IDENTIFY_NON_CONFIGURED;
 }
 
+/* When a step that got its first answer ends. Slaves answer one request
+ * with separate frames when their latencies differ (a software slave, a
+ * busy one): a frame that comes after its step ended would be taken as the
+ * next step's answer and corrupt a fast scan bit. So:
+ * - the fast scan reset and the identify requests wait their whole timeout:
+ *   they count every slave that answers;
+ * - fast scan checks end a settle time after the first answer while more
+ *   than one slave answered the last reset, at once when one did (the last
+ *   slave, or a single one, runs at full speed);
+ * - scan ranges (how many answer is unknown) end a settle time after;
+ * - a single slave's answer ends its step at once.
+ * "At once" is after this call's frames are all in: the timer list runs
+ * after the rx queue is drained. CO_TIME_NEVER: the running timer stays. */
+static uint64_t step_end_after_answer(const co_lss_master_t *m)
+{
+    uint64_t now = co_line_now(m->line);
+    if (m->step == FS_RESET || m->request == CO_LSS_REQ_IDENTIFY_REMOTE ||
+        m->request == CO_LSS_REQ_IDENTIFY_NON_CONFIGURED) {
+        return CO_TIME_NEVER;
+    }
+    if (((m->step == FS_BIT || m->step == FS_CONFIRM) && m->reset_answers > 1u) ||
+        m->step == SCAN_IDENTIFY) {
+        return now + m->settle_us;
+    }
+    return now;
+}
+
 static void on_answer(co_line_t *line, const co_frame_t *frame, void *user)
 {
     (void)line;
@@ -93,9 +120,10 @@ static void on_answer(co_line_t *line, const co_frame_t *frame, void *user)
     m->answers++;
     if (m->answers == 1u) {
         m->first = msg;
-        /* End the step once this call's frames are all in: the timer list
-         * runs after the rx queue is drained. */
-        co_timer_start(co_line_timers(m->line), &m->timer, co_line_now(m->line));
+        uint64_t end = step_end_after_answer(m);
+        if (end != CO_TIME_NEVER) {
+            co_timer_start(co_line_timers(m->line), &m->timer, end);
+        }
     } else if (!many_may_answer(m)) {
         m->stats.duplicates++;
     }
@@ -142,13 +170,35 @@ static bool switch_waiting(co_lss_master_t *m)
     return send(m, data);
 }
 
+/* No slave has the address found (a part did not confirm, or the address
+ * selected nobody to configure): a slower slave's late answer was taken for
+ * a 0-bit, or the slave is gone. Start over: every slave back to waiting,
+ * the reset puts every non-configured one back to the vendor-ID; LOST after
+ * CO_LSS_FASTSCAN_RESTARTS tries for one slave. */
+static void fastscan_restart(co_lss_master_t *m)
+{
+    if (m->restarts >= CO_LSS_FASTSCAN_RESTARTS) {
+        finish(m, CO_LSS_LOST, 0);
+        return;
+    }
+    m->restarts++;
+    m->stats.fastscan_restarts++;
+    if (!switch_waiting(m)) {
+        finish(m, CO_LSS_TX_FAILED, 0);
+        return;
+    }
+    fastscan_reset(m);
+}
+
 static void fastscan_step_end(co_lss_master_t *m, bool answered)
 {
     uint8_t data[8];
     switch (m->step) {
     case FS_RESET:
+        m->reset_answers = m->answers;
         if (!answered) {
-            finish(m, CO_LSS_OK, 0);
+            /* after a restart: the slave that failed to confirm is gone */
+            finish(m, m->restarts ? CO_LSS_LOST : CO_LSS_OK, 0);
         } else if (m->found >= m->node_id_count) {
             finish(m, CO_LSS_NO_NODE_ID, 0);
         } else if (m->found >= m->capacity) {
@@ -177,12 +227,12 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
         if (answered) {
             fastscan_part_done(m);
         } else {
-            finish(m, CO_LSS_LOST, 0);
+            fastscan_restart(m);
         }
         break;
     case FS_CONFIGURE:
         if (!answered) {
-            finish(m, CO_LSS_LOST, 0);
+            fastscan_restart(m);
         } else if (m->answers > 1u) {
             /* Two slaves took the same node-id: take it back from both. */
             co_lss_encode_bytes(data, CO_LSS_CS_CONFIGURE_NODE_ID, CO_LSS_NODE_ID_UNCONFIGURED,
@@ -195,6 +245,7 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
             m->devices[m->found].address = m->id;
             m->devices[m->found].node_id = m->node_ids[m->found];
             m->found++;
+            m->restarts = 0;
             if (!switch_waiting(m)) {
                 finish(m, CO_LSS_TX_FAILED, 0);
                 return;
@@ -341,6 +392,7 @@ bool co_lss_master_init(co_lss_master_t *master, co_line_t *line, uint32_t timeo
     memset(master, 0, sizeof *master);
     master->line = line;
     master->timeout_us = (uint64_t)(timeout_ms ? timeout_ms : 100u) * 1000u;
+    master->settle_us = master->timeout_us / 8u;
     master->on_done = on_done;
     master->user = user;
     co_timer_init(&master->timer, on_timer, master);
@@ -353,6 +405,16 @@ bool co_lss_master_set_timeout(co_lss_master_t *master, uint32_t timeout_ms)
         return false;
     }
     master->timeout_us = (uint64_t)(timeout_ms ? timeout_ms : 100u) * 1000u;
+    master->settle_us = master->timeout_us / 8u;
+    return true;
+}
+
+bool co_lss_master_set_settle(co_lss_master_t *master, uint32_t settle_us)
+{
+    if (co_lss_master_busy(master) || settle_us > master->timeout_us) {
+        return false;
+    }
+    master->settle_us = settle_us;
     return true;
 }
 
@@ -380,6 +442,8 @@ static bool begin(co_lss_master_t *m, co_lss_request_t request)
     m->frames = 0;
     m->found = 0;
     m->answers = 0;
+    m->reset_answers = 0;
+    m->restarts = 0;
     return true;
 }
 

@@ -423,10 +423,40 @@ static void services_reset(co_node_t *node)
     led_show_errors(node);
 }
 
+bool co_node_set_node_id(co_node_t *node, uint8_t node_id)
+{
+    if (node_id < 1u || node_id > 127u) {
+        return false;
+    }
+    node->nmt.node_id = node_id;            /* NMT commands, boot-up, heartbeat, guarding */
+    co_line_set_node_id(node->line, node_id);   /* SDO/USDO servers, flying master */
+    if (node->od) {
+        co_od_set_node_id(node->od, node_id);   /* $NODEID defaults at the next load */
+    }
+    if (node->services.emcy) {
+        co_emcy_set_node_id(node->services.emcy, node_id);
+    }
+    return true;
+}
+
+void co_node_set_reset_node_id(co_node_t *node, co_node_reset_id_fn fn, void *user)
+{
+    node->reset_node_id = fn;
+    node->reset_node_id_user = user;
+}
+
 static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
 {
     (void)nmt;
     co_node_t *node = user;
+    /* A new node-id first (LSS: the pending one becomes active at reset
+     * communication), so the reloaded $NODEID defaults and the boot-up use it. */
+    if (node->reset_node_id) {
+        uint8_t id = node->reset_node_id(node, kind, node->reset_node_id_user);
+        if (id != node->nmt.node_id) {
+            (void)co_node_set_node_id(node, id);
+        }
+    }
     /* Reset communication reloads the communication parameters, reset node
      * all of them. The boot-up message follows right after this, the first
      * heartbeat one period later. */
@@ -524,6 +554,8 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
     forget_detected_errors(node);
     node->overrun_told = false;
     node->overrun_told_us = 0;
+    node->reset_node_id = NULL;
+    node->reset_node_id_user = NULL;
     if (!co_nmt_init(&node->nmt, line, node_id, &nmt_indications, node)) {
         return false;
     }

@@ -673,6 +673,31 @@ static void lss_reset_communication(co_lss_slave_t *slave, uint8_t node_id, void
     }
 }
 
+/* A configured node's reset (communication or node): the pending node-id
+ * becomes the active one (CiA 305). Another valid one renumbers the running
+ * node (co_node_set_node_id, called by the node before its parameters
+ * reload), the default SDO channel follows, the application is told before
+ * the boot-up. A pending 255 keeps the node-id: a configured node leaving
+ * the network for LSS-only operation is not implemented. */
+static uint8_t lss_node_id_at_reset(co_node_t *node, co_nmt_command_t kind, void *user)
+{
+    (void)kind;
+    co_stack_t *s = user;
+    uint8_t pending = co_lss_slave_pending_node_id(&s->lss_slave);
+    if (pending < 1u || pending > 127u || pending == node->nmt.node_id) {
+        return node->nmt.node_id;
+    }
+    uint8_t id = co_lss_slave_reset_communication(&s->lss_slave);
+    (void)co_node_set_node_id(node, id);
+    if (CO_CONFIG_CLASSIC && s->has_sdo_server) {
+        co_sdo_server_refresh(&s->sdo_server);   /* channel 0: 0x600/0x580 + node-id */
+    }
+    if (s->lss_app && s->lss_app->reset_communication) {
+        s->lss_app->reset_communication(&s->lss_slave, id, s->lss_user);
+    }
+    return id;
+}
+
 static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t *config,
                                      const node_sizes_t *n);
 
@@ -696,6 +721,7 @@ static void lss_configured(co_timer_t *timer, uint64_t now_us, void *user)
         return;                          /* co_stack_failed_part says which part */
     }
     s->unconfigured = false;
+    co_node_set_reset_node_id(&s->node, lss_node_id_at_reset, s);
     /* told before the boot-up, so the application knows the new node-id by the
      * time the node's first state change reaches it */
     if (s->lss_app && s->lss_app->reset_communication) {
@@ -724,12 +750,18 @@ static co_stack_status_t lss_start(co_stack_t *s, const co_stack_node_config_t *
         return fail(s, CO_STACK_PART_LSS, CO_STACK_ERR_TAKEN);
     }
     s->has_lss_slave = true;
+    if (s->has_node) {
+        co_node_set_reset_node_id(&s->node, lss_node_id_at_reset, s);
+    }
     return CO_STACK_OK;
 }
 
 static void lss_undo(co_stack_t *s)
 {
     if (s->has_lss_slave) {
+        if (s->has_node) {
+            co_node_set_reset_node_id(&s->node, NULL, NULL);
+        }
         co_timer_cancel(co_line_timers(s->line), &s->lss_timer);
         co_lss_slave_deinit(&s->lss_slave);
         s->has_lss_slave = false;

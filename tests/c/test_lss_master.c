@@ -29,6 +29,12 @@ typedef struct sim {
     uint32_t master_frames;          /* frames the master put on the bus */
     co_frame_t log[LOG_MAX];         /* the first master frames since sim_log_clear */
     uint32_t log_count;
+    uint32_t late;                   /* a slave (1..n) whose frames arrive late_us later; 0: none */
+    uint64_t late_us;
+    co_frame_t held[LOG_MAX];        /* its frames on their way ... */
+    uint64_t held_at[LOG_MAX];       /* ... and when they arrive */
+    uint32_t held_from[LOG_MAX];     /* ... from which line */
+    uint32_t held_count;
 } sim_t;
 
 static void on_done(co_lss_master_t *m, const co_lss_master_result_t *r, void *user)
@@ -89,6 +95,22 @@ static void sim_step(sim_t *s, uint64_t now)
 {
     assert_true(now >= s->now);
     s->now = now;
+    /* The late slave's frames that are due now reach everyone else. */
+    uint32_t kept = 0;
+    for (uint32_t h = 0; h < s->held_count; h++) {
+        if (s->held_at[h] > now) {
+            s->held[kept] = s->held[h];
+            s->held_from[kept] = s->held_from[h];
+            s->held_at[kept++] = s->held_at[h];
+            continue;
+        }
+        for (uint32_t k = 0; k <= s->n; k++) {
+            if (k != s->held_from[h]) {
+                assert_true(co_line_receive(line_of(s, k), &s->held[h]));
+            }
+        }
+    }
+    s->held_count = kept;
     for (int round = 0; round < 100000; round++) {
         for (uint32_t i = 0; i <= s->n; i++) {
             (void)co_line_process(line_of(s, i), now);
@@ -97,6 +119,13 @@ static void sim_step(sim_t *s, uint64_t now)
         for (uint32_t i = 0; i <= s->n; i++) {
             co_frame_t f;
             while (co_line_tx_pop(line_of(s, i), &f)) {
+                if (s->late != 0 && i == s->late) {
+                    assert_true(s->held_count < LOG_MAX);
+                    s->held[s->held_count] = f;
+                    s->held_from[s->held_count] = i;
+                    s->held_at[s->held_count++] = now + s->late_us;
+                    continue;
+                }
                 moved++;
                 if (i == 0) {
                     s->master_frames++;
@@ -124,6 +153,9 @@ static uint64_t sim_next_deadline(sim_t *s)
     for (uint32_t i = 0; i <= s->n; i++) {
         uint64_t d = co_timer_list_next(co_line_timers(line_of(s, i)));
         next = d < next ? d : next;
+    }
+    for (uint32_t h = 0; h < s->held_count; h++) {
+        next = s->held_at[h] < next ? s->held_at[h] : next;
     }
     return next;
 }
@@ -564,6 +596,144 @@ static void test_scan(void **state)
     sim_free(s);
 }
 
+/* -------------------------------------------------- slaves with different latencies */
+
+/* Two non-configured slaves, one of them answering every request 2 ms
+ * after the other (a slower device; found with durand's software slaves):
+ * each answer must count for the request it answers. Before the settle
+ * time a step ended at the first answer and the late one was taken by the
+ * next check, which then read a 1-bit as 0: the scan ended LOST. */
+static void test_fastscan_late_slave(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    /* equal prefixes, differing in the last serial bit; vendor bit 0 is 1 */
+    sim_add(s, addr(0x00000001u, 0x00000002u, 0x00000003u, 0x00000010u), 255);
+    sim_add(s, addr(0x00000001u, 0x00000002u, 0x00000003u, 0x00000011u), 255);
+    s->late = 2;
+    s->late_us = 2000;      /* under the settle time set here */
+    assert_true(co_lss_master_set_settle(&s->master, 3000));
+    assert_false(co_lss_master_set_settle(&s->master, TIMEOUT_MS * 1000u + 1u));
+    const uint8_t ids[2] = {10, 11};
+    co_lss_device_t found[2];
+    assert_true(co_lss_master_fastscan(&s->master, ids, 2, found, 2));
+    co_lss_master_result_t r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 2);
+    assert_int_equal(co_lss_slave_active_node_id(&s->slaves[0]), 10);   /* serial 0x10 first */
+    assert_int_equal(co_lss_slave_active_node_id(&s->slaves[1]), 11);
+    assert_int_equal(found[1].address.part[CO_LSS_SERIAL], 0x11);
+    /* No answer was taken by a step it did not answer. */
+    assert_int_equal(s->held_count, 0);
+    sim_free(s);
+}
+
+/* The same slower slave, settle time shorter than its latency: the late
+ * answers are still attributed wrongly; the scan must end in a defined
+ * state (never wedge), and only with a result the slaves agree with. */
+static void test_fastscan_slave_later_than_settle(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    sim_add(s, addr(0x00000001u, 0x00000002u, 0x00000003u, 0x00000010u), 255);
+    sim_add(s, addr(0x00000001u, 0x00000002u, 0x00000003u, 0x00000011u), 255);
+    s->late = 2;
+    s->late_us = 5000;
+    assert_true(co_lss_master_set_settle(&s->master, 1000));
+    const uint8_t ids[2] = {10, 11};
+    co_lss_device_t found[2];
+    assert_true(co_lss_master_fastscan(&s->master, ids, 2, found, 2));
+    co_lss_master_result_t r = sim_wait(s);
+    assert_true(r.status == CO_LSS_OK || r.status == CO_LSS_LOST);
+    for (uint32_t i = 0; i < r.found; i++) {
+        uint8_t id = found[i].node_id;
+        const co_lss_slave_t *slave = id == co_lss_slave_active_node_id(&s->slaves[0])
+                                          ? &s->slaves[0] : &s->slaves[1];
+        assert_int_equal(co_lss_slave_active_node_id(slave), id);
+        assert_memory_equal(&found[i].address, &slave->address, sizeof slave->address);
+    }
+    sim_free(s);
+}
+
+/* A slave later than the settle time makes a part fail to confirm: the
+ * scan starts over with a reset (CO_LSS_FASTSCAN_RESTARTS times) and finds
+ * both once the slave is quick again; a slave late every time ends LOST. */
+static void test_fastscan_restarts(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    /* serials 2 and 3: at serial bit 1 nobody answers, but the late
+     * slave's answer to bit 2 comes then and reads as a 0-bit */
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000002u), 255);
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000003u), 255);
+    s->late = 2;
+    s->late_us = 5000;
+    assert_true(co_lss_master_set_settle(&s->master, 1000));
+    const uint8_t ids[2] = {10, 11};
+    co_lss_device_t found[2];
+    assert_true(co_lss_master_fastscan(&s->master, ids, 2, found, 2));
+    const co_lss_master_stats_t *st = co_lss_master_stats(&s->master);
+    sim_step(s, s->now);
+    for (long guard = 0; st->fastscan_restarts == 0; guard++) {
+        assert_true(guard < 1000000 && s->done == 0);
+        uint64_t d = sim_next_deadline(s);
+        sim_step(s, d > s->now ? d : s->now);
+    }
+    s->late = 0;                     /* quick from now on */
+    co_lss_master_result_t r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 2);
+    assert_int_equal(co_lss_slave_active_node_id(&s->slaves[0]), 10);
+    assert_int_equal(co_lss_slave_active_node_id(&s->slaves[1]), 11);
+    assert_int_equal(st->fastscan_restarts, 1);
+    sim_free(s);
+
+    s = sim_new();
+    /* serials 2 and 3: at serial bit 1 nobody answers, but the late
+     * slave's answer to bit 2 comes then and reads as a 0-bit */
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000002u), 255);
+    sim_add(s, addr(0x00000000u, 0x00000000u, 0x00000000u, 0x00000003u), 255);
+    s->late = 2;
+    s->late_us = 5000;
+    assert_true(co_lss_master_set_settle(&s->master, 1000));
+    assert_true(co_lss_master_fastscan(&s->master, ids, 2, found, 2));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_LOST);
+    assert_int_equal(r.found, 0);
+    assert_int_equal(co_lss_master_stats(&s->master)->fastscan_restarts,
+                     CO_LSS_FASTSCAN_RESTARTS);
+    sim_free(s);
+}
+
+/* Identify requests count every slave that answers within the timeout. */
+static void test_identify_counts_late_answers(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    sim_add(s, addr(0x77, 0x10, 3, 1000), 255);
+    sim_add(s, addr(0x77, 0x10, 3, 1001), 255);
+    s->late = 2;
+    s->late_us = 4000;
+    assert_true(co_lss_master_identify_non_configured(&s->master));
+    co_lss_master_result_t r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.answers, 2);
+    assert_true(co_lss_master_identify_remote(&s->master, 0x77, 0x10, 0, 10, 0, 2000));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.answers, 2);
+    /* A scan with the late slave finds both, and nothing else. */
+    assert_true(co_lss_master_set_settle(&s->master, 5000));
+    co_lss_device_t found[4];
+    assert_true(co_lss_master_scan(&s->master, 0x77, 0x10, 0, 10, 0, 2000, found, 4));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 2);
+    assert_int_equal(found[0].address.part[CO_LSS_SERIAL], 1000);
+    assert_int_equal(found[1].address.part[CO_LSS_SERIAL], 1001);
+    sim_free(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -578,6 +748,10 @@ int main(void)
         cmocka_unit_test(test_fastscan_runs_out),
         cmocka_unit_test(test_fastscan_slave_vanishes),
         cmocka_unit_test(test_scan),
+        cmocka_unit_test(test_fastscan_late_slave),
+        cmocka_unit_test(test_fastscan_slave_later_than_settle),
+        cmocka_unit_test(test_fastscan_restarts),
+        cmocka_unit_test(test_identify_counts_late_answers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -263,6 +263,123 @@ static void test_unconfigured_configured_before_boot(void **state)
     fx_free(fx);
 }
 
+/* The tool sends one raw frame on the bus. */
+static void tool_send(fx_t *fx, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    assert_true(co_line_send(&fx->tool_line.line, id, data, len));
+    tu_step(&fx->tb, fx->tb.now + 1);
+}
+
+/* CiA 305: a configured node given another node-id keeps its active one
+ * until NMT reset communication, then boots with the pending one: boot-up,
+ * heartbeat, SDO server, EMCY COB-ID and NMT addressing move to it. */
+static void test_configured_node_new_id_at_reset(void **state)
+{
+    (void)state;
+    for (int kind = 0; kind < 2; kind++) {
+        const uint8_t command = kind == 0 ? 0x82 : 0x81;   /* reset communication / node */
+        fx_t *fx = fx_new();
+        device_od(&fx->dev, NODE, true);
+        co_stack_node_config_t c = config_of(fx, NODE);
+        assert_int_equal(co_stack_node_init(&fx->stack, &c), CO_STACK_OK);
+        assert_int_equal(co_stack_boot(&fx->stack), CO_STACK_OK);
+        assert_true(co_lss_master_switch_global(master(fx), CO_LSS_STATE_CONFIGURATION));
+        assert_true(co_lss_master_configure_node_id(master(fx), 7));
+        assert_int_equal(wait_done(fx).status, CO_LSS_OK);
+        /* Pending only: the node answers as 5, back in waiting too. */
+        assert_true(co_lss_master_inquire(master(fx), CO_LSS_CS_INQUIRE_NODE_ID));
+        assert_int_equal(wait_done(fx).value, NODE);
+        assert_true(co_lss_master_switch_global(master(fx), CO_LSS_STATE_WAITING));
+        tu_log_clear(&fx->tb);
+        tu_run_until(&fx->tb, fx->tb.now + 250u * TU_MS);
+        assert_true(tu_log_count_id(&fx->tb, 0x705) >= 2);   /* heartbeats as 5 */
+        assert_int_equal(tu_log_count_id(&fx->tb, 0x707), 0);
+        assert_int_equal(fx->resets, 0);
+        /* An NMT command for node 7 is not for it yet. */
+        const uint8_t start7[2] = {0x01, 7};
+        tool_send(fx, 0x000, start7, 2);
+        assert_int_equal(co_stack_node(&fx->stack)->nmt.state, CO_NMT_PRE_OPERATIONAL);
+
+        /* NMT reset to node 5: the boot-up comes from 7. */
+        tu_log_clear(&fx->tb);
+        const uint8_t reset5[2] = {command, NODE};
+        tool_send(fx, 0x000, reset5, 2);
+        const uint8_t zero = 0;
+        long boot = tu_log_find_id(&fx->tb, 0x707, 0);
+        tu_assert_logged(&fx->tb, boot, 0x707, &zero, 1);
+        assert_int_equal(tu_log_count_id(&fx->tb, 0x705), 0);
+        assert_int_equal(fx->resets, 1);
+        assert_int_equal(fx->reset_id, 7);
+        assert_int_equal(co_line_node_id(&fx->dev_line.line), 7);
+        co_lss_slave_t *slave = co_stack_lss_slave(&fx->stack);
+        assert_int_equal(co_lss_slave_active_node_id(slave), 7);
+        assert_int_equal(co_lss_slave_pending_node_id(slave), 7);
+        uint32_t emcy_cob = 0;
+        assert_true(co_od_get_u32(&fx->dev.od, 0x1014, 0, &emcy_cob));
+        assert_int_equal(emcy_cob, 0x87);                 /* $NODEID default reloaded */
+        /* Heartbeats as 7, SDO on 0x607/0x587, NMT for 7 taken, for 5 not. */
+        tu_run_until(&fx->tb, fx->tb.now + 250u * TU_MS);
+        assert_true(tu_log_count_id(&fx->tb, 0x707) >= 3);
+        assert_int_equal(tu_log_count_id(&fx->tb, 0x705), 0);
+        const uint8_t upload[8] = {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0};
+        tool_send(fx, 0x605, upload, 8);
+        assert_int_equal(tu_log_count_id(&fx->tb, 0x585), 0);
+        tool_send(fx, 0x607, upload, 8);
+        const uint8_t answer[8] = {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x00, 0x00};
+        tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x587, 0), 0x587, answer, 8);
+        const uint8_t start5[2] = {0x01, NODE};
+        tool_send(fx, 0x000, start5, 2);
+        assert_int_equal(co_stack_node(&fx->stack)->nmt.state, CO_NMT_PRE_OPERATIONAL);
+        tool_send(fx, 0x000, start7, 2);
+        assert_int_equal(co_stack_node(&fx->stack)->nmt.state, CO_NMT_OPERATIONAL);
+        /* A second reset with nothing pending keeps 7. */
+        const uint8_t reset7[2] = {command, 7};
+        tu_log_clear(&fx->tb);
+        tool_send(fx, 0x000, reset7, 2);
+        assert_int_equal(tu_log_count_id(&fx->tb, 0x707), 1);
+        assert_int_equal(fx->resets, 1);
+        fx_free(fx);
+    }
+}
+
+/* Configure node-id 0 and 128..254: refused with error 1 (out of range) on
+ * the wire, nothing pending; 255 is taken but a configured node keeps its
+ * node-id at the reset (leaving for LSS-only operation is not implemented). */
+static void test_configure_node_id_out_of_range(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    device_od(&fx->dev, NODE, true);
+    co_stack_node_config_t c = config_of(fx, NODE);
+    assert_int_equal(co_stack_node_init(&fx->stack, &c), CO_STACK_OK);
+    assert_int_equal(co_stack_boot(&fx->stack), CO_STACK_OK);
+    assert_true(co_lss_master_switch_global(master(fx), CO_LSS_STATE_CONFIGURATION));
+    tu_step(&fx->tb, fx->tb.now + 1);
+    const uint8_t bad[] = {0, 128, 200, 254};
+    for (size_t i = 0; i < sizeof bad; i++) {
+        tu_log_clear(&fx->tb);
+        const uint8_t request[8] = {0x11, bad[i], 0, 0, 0, 0, 0, 0};
+        tool_send(fx, CO_LSS_ID_MASTER, request, 8);
+        const uint8_t refused[8] = {0x11, 0x01, 0, 0, 0, 0, 0, 0};
+        tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, CO_LSS_ID_SLAVE, 0), CO_LSS_ID_SLAVE,
+                         refused, 8);
+        assert_int_equal(co_lss_slave_pending_node_id(co_stack_lss_slave(&fx->stack)), NODE);
+    }
+    /* Our master does not even send them. */
+    assert_false(co_lss_master_configure_node_id(master(fx), 0));
+    assert_false(co_lss_master_configure_node_id(master(fx), 128));
+    /* 255: accepted, but the configured node stays 5 through a reset. */
+    assert_true(co_lss_master_configure_node_id(master(fx), 255));
+    assert_int_equal(wait_done(fx).status, CO_LSS_OK);
+    tu_log_clear(&fx->tb);
+    const uint8_t reset5[2] = {0x82, NODE};
+    tool_send(fx, 0x000, reset5, 2);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x705), 1);
+    assert_int_equal(co_line_node_id(&fx->dev_line.line), NODE);
+    assert_int_equal(fx->resets, 0);
+    fx_free(fx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -270,6 +387,8 @@ int main(void)
         cmocka_unit_test(test_no_lss),
         cmocka_unit_test(test_unconfigured_node),
         cmocka_unit_test(test_unconfigured_configured_before_boot),
+        cmocka_unit_test(test_configured_node_new_id_at_reset),
+        cmocka_unit_test(test_configure_node_id_out_of_range),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -137,6 +137,10 @@ void co_emcy_detach_od(co_emcy_t *e);
  * out (in order, inhibit time respected) on entering pre-operational or
  * operational. */
 void co_emcy_set_nmt_state(co_emcy_t *e, co_nmt_state_t state);
+/* The node got another node-id (LSS at a reset): the default COB-ID
+ * 0x80 + node-id follows when the OD has no 0x1014 (with one, the reload of
+ * its $NODEID default does). */
+void co_emcy_set_node_id(co_emcy_t *e, uint8_t node_id);
 
 /* Parameters without an OD (with one bound, they are written into 0x1014 /
  * 0x1015 and take effect through its handlers). An invalid COB-ID (bit 31)

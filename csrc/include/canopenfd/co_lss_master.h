@@ -55,6 +55,7 @@ typedef struct co_lss_master_stats {
     uint32_t timeouts;         /* steps that ended without an answer */
     uint32_t bad_length;
     uint32_t unknown_cs;
+    uint32_t fastscan_restarts; /* fast scans started over after a part failed to confirm */
 } co_lss_master_stats_t;
 
 typedef struct co_lss_master_result {
@@ -80,6 +81,9 @@ typedef void (*co_lss_done_fn)(co_lss_master_t *master, const co_lss_master_resu
                                void *user);
 
 enum { CO_LSS_SCAN_STACK = 72 };   /* ranges a scan keeps to look at (2 x 33 levels + room) */
+/* A fast scan whose part does not confirm (a slave's late answer read as a
+ * 0-bit, or a slave gone) starts over with a reset this often before LOST. */
+enum { CO_LSS_FASTSCAN_RESTARTS = 2 };
 
 typedef struct co_lss_range {
     uint32_t low;
@@ -91,6 +95,7 @@ struct co_lss_master {
     co_line_t *line;
     co_timer_t timer;
     uint64_t timeout_us;
+    uint64_t settle_us;            /* wait for more answers after the first (see .c) */
     co_lss_done_fn on_done;
     void *user;
     co_lss_master_stats_t stats;
@@ -111,6 +116,8 @@ struct co_lss_master {
     co_lss_address_t id;           /* fast scan: the address being found */
     uint8_t sub;
     uint8_t bit;
+    uint32_t reset_answers;        /* fast scan: slaves that answered the last reset */
+    uint8_t restarts;              /* fast scan: started over since the last slave found */
     uint32_t vendor, product;      /* scan: the fixed parts */
     uint32_t revision_low, revision_high;
     uint32_t serial;               /* scan: the serial number pinned down */
@@ -123,8 +130,13 @@ struct co_lss_master {
 bool co_lss_master_init(co_lss_master_t *master, co_line_t *line, uint32_t timeout_ms,
                         co_lss_done_fn on_done, void *user);
 void co_lss_master_deinit(co_lss_master_t *master);
-/* The step timeout of the next requests (0 = 100 ms); false while busy. */
+/* The step timeout of the next requests (0 = 100 ms); false while busy.
+ * Sets the settle time to an eighth of it. */
 bool co_lss_master_set_timeout(co_lss_master_t *master, uint32_t timeout_ms);
+/* How long a step many slaves may answer stays open after its first answer
+ * for the others' (slaves answer with different latencies); at most the
+ * timeout. False while busy or above the timeout. */
+bool co_lss_master_set_settle(co_lss_master_t *master, uint32_t settle_us);
 static inline bool co_lss_master_busy(const co_lss_master_t *m)
 {
     return m->request != CO_LSS_REQ_NONE;

@@ -67,6 +67,11 @@ enum {
     CO_NODE_OVERRUN_QUIET_US = 1000000
 };
 
+/* The node-id a node runs with after the reset it is in (1..127; another
+ * value keeps the current one). Runs inside the reset, before the
+ * parameters reload and the boot-up is sent. */
+typedef uint8_t (*co_node_reset_id_fn)(co_node_t *node, co_nmt_command_t kind, void *user);
+
 struct co_node {
     co_line_t *line;
     co_nmt_t nmt;
@@ -89,6 +94,10 @@ struct co_node {
     bool overrun_told;                          /* 0x8110 sent at overrun_told_us */
     uint64_t overrun_told_us;
     bool sync_timeout;                          /* no SYNC within 1.5 x 0x1006 (LED) */
+    /* Asked at each reset, before the parameters reload (co_stack: the LSS
+     * slave's pending node-id, CiA 305); NULL: the node-id stays. */
+    co_node_reset_id_fn reset_node_id;
+    void *reset_node_id_user;
 };
 
 extern const co_pdo_indications_t co_node_pdo_indications;
@@ -126,6 +135,14 @@ void co_node_error_behaviour(co_node_t *node, uint8_t error_class);
 void co_node_guard_life(co_guard_slave_t *slave, co_guard_life_event_t event, void *user);
 /* Write 0x1017: takes effect at once. */
 void co_node_set_heartbeat(co_node_t *node, uint16_t time_ms);
+/* Who decides the node-id at each reset (NULL: nobody, it stays). When it
+ * names another one the node takes it before its parameters reload: NMT,
+ * the line (services reading co_line_node_id), the OD's $NODEID defaults,
+ * the EMCY producer's default COB-ID; the boot-up carries it. */
+void co_node_set_reset_node_id(co_node_t *node, co_node_reset_id_fn fn, void *user);
+/* Renumber the node now (1..127), as a reset with fn naming node_id does,
+ * without reloading anything; false for an invalid node-id. */
+bool co_node_set_node_id(co_node_t *node, uint8_t node_id);
 static inline co_nmt_state_t co_node_state(const co_node_t *node) { return node->nmt.state; }
 
 #endif

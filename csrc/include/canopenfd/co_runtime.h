@@ -560,6 +560,10 @@ typedef struct co_rt_lss_request {
     uint8_t node_ids[127];     /* FASTSCAN: node-ids to give, in order */
     int node_id_count;
     int timeout_ms;            /* per step, 0 = 100 */
+    /* how long a step several slaves may answer stays open after its first
+     * answer, for slower slaves' answers (co_lss_master_set_settle); at most
+     * the timeout, 0 = an eighth of it */
+    int settle_ms;
 } co_rt_lss_request_t;
 typedef struct co_rt_lss_device {
     uint32_t address[4];       /* vendor, product, revision, serial */
@@ -581,8 +585,9 @@ enum {
     CO_RT_LSS_SLAVE_STORE = 111,      /* b = node-id to persist: co_rt_lss_slave_answer */
     CO_RT_LSS_SLAVE_ACTIVATE = 112,   /* b = switch delay ms */
     CO_RT_LSS_SLAVE_BIT_TIMING = 113, /* b = selector << 8 | index, accepted */
-    CO_RT_LSS_SLAVE_CONFIGURED = 114  /* a node created with node-id 255 got b from LSS:
-                                         it runs (and booted) with it now */
+    CO_RT_LSS_SLAVE_CONFIGURED = 114  /* a node created with node-id 255 got b from LSS,
+                                         or a configured node took its pending node-id b
+                                         at a reset: it runs (and boots) with it now */
 };
 /* store != 0: store requests are the application's (answered with
  * co_rt_lss_slave_answer), else "not supported". bit_timings: bit n set =

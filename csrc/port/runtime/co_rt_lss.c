@@ -22,6 +22,11 @@ static int check_request(co_rt_t *rt, int line, const co_rt_lss_request_t *r)
         return rt_argument_error(rt, "line %d: LSS step timeout %d ms: 0..60000", line,
                                  r->timeout_ms);
     }
+    int timeout_ms = r->timeout_ms ? r->timeout_ms : 100;
+    if (r->settle_ms < 0 || r->settle_ms > timeout_ms) {
+        return rt_argument_error(rt, "line %d: LSS settle time %d ms: 0..%d (the step timeout)",
+                                 line, r->settle_ms, timeout_ms);
+    }
     switch (r->kind) {
     case CO_RT_LSS_SWITCH_GLOBAL:
         if (v[0] > CO_LSS_STATE_CONFIGURATION) {
@@ -141,6 +146,9 @@ int co_rt_lss_start(co_rt_t *rt, int line, const co_rt_lss_request_t *request)
         return rt_kick_unlock(rt, CO_RT_ERR_STATE);
     }
     (void)co_lss_master_set_timeout(m, (uint32_t)request->timeout_ms);
+    if (request->settle_ms > 0) {
+        (void)co_lss_master_set_settle(m, (uint32_t)request->settle_ms * 1000u);
+    }
     if (!start(l, m, request)) {
         rt_set_error(rt, "line %d: LSS request %d refused (tx queue full?)", line,
                      request->kind);
