@@ -15,7 +15,7 @@ from helpers import package_env
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 #: Pages whose python blocks are whole scripts.
-RUNNABLE_PAGES = ["docs/from-python-canopen.md"]
+RUNNABLE_PAGES = ["docs/from-python-canopen.md", "docs/routing.md"]
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
