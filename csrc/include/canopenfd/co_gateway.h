@@ -34,8 +34,18 @@ enum {
     CO_GATEWAY_EMCY_ROUTES = 0x1F2F,
     CO_GATEWAY_PDO_FIRST = 0xB000,   /* objects forwarded between lines */
     CO_GATEWAY_PDO_LAST = 0xBFFF,
-    CO_GATEWAY_EMCY_NETWORKS = 32    /* 0x1F2F is UNSIGNED32: networks 1..32 */
+    CO_GATEWAY_EMCY_NETWORKS = 32,   /* 0x1F2F is UNSIGNED32: networks 1..32 */
+    CO_GATEWAY_SDO_CONNECTIONS = 4,  /* SDO networking connections at once */
+    CO_GATEWAY_SDO_TIMEOUT_MS = 1000 /* default wait for the target's answer */
 };
+
+/* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
+ * of the "network indication" request and of its confirmation (ccs/scs 7). */
+#define CO_GATEWAY_SDO_NETWORK_IND 0xE0u
+/* Aborts of the gateway: no connection or target CAN-ID free (the seed's
+ * "SDO client busy"), and a network it cannot reach. */
+#define CO_GATEWAY_ABORT_BUSY 0x060A0023u
+#define CO_GATEWAY_ABORT_NO_ROUTE 0x08000000u
 
 /* cffi:begin */
 typedef struct co_gateway_stats {
@@ -49,6 +59,11 @@ typedef struct co_gateway_stats {
     uint32_t tpdo_refused;       /* a trigger the PDO service refused (not operational) */
     uint32_t routes_refused;     /* 0x1F2C writes / route calls refused */
     uint32_t route_loops;        /* loops met while resolving a route */
+    uint32_t sdo_connects;       /* network indications confirmed */
+    uint32_t sdo_refused;        /* network indications refused (abort sent) */
+    uint32_t sdo_relayed;        /* client requests relayed to a target */
+    uint32_t sdo_answers;        /* target answers relayed to a client */
+    uint32_t sdo_timeouts;       /* no answer from the target: aborted both ways */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -67,6 +82,25 @@ typedef enum co_gateway_event {
 /* cffi:end */
 
 typedef struct co_gateway co_gateway_t;
+struct co_gateway_port;
+
+/* One SDO networking connection: a client on a port's server channel whose
+ * requests go to `target` on another port's line (the device itself when its
+ * network is attached, else the next gateway). */
+typedef struct co_gateway_sdo {
+    co_gateway_t *gw;
+    struct co_gateway_port *from;    /* NULL: free */
+    uint8_t channel;                 /* the server channel the client uses */
+    uint32_t reply_id;               /* its answer CAN-ID */
+    struct co_gateway_port *to;
+    uint8_t target;                  /* node-id addressed on the target line */
+    uint8_t net;                     /* what the client asked for */
+    uint8_t node;
+    uint8_t state;                   /* co_gateway_sdo_state in co_gateway_sdo.c */
+    uint8_t mux[3];                  /* bytes 1..3 of the last relayed request */
+    co_timer_t timer;
+} co_gateway_sdo_t;
+
 typedef void (*co_gateway_event_fn)(co_gateway_t *gw, co_gateway_event_t event, uint8_t net,
                                     uint32_t code, void *user);
 
@@ -76,6 +110,7 @@ typedef struct co_gateway_port {
     uint8_t network_id;
     bool od_hooked;              /* mapping / 0x1F2C handlers on the line's OD */
     co_pdo_t *pdo;               /* tapped PDO service, or NULL */
+    co_sdo_server_t *sdo_server; /* filtered SDO server (classic lines), or NULL */
     /* 0x1F2F of lines without one in their OD (co_gateway_set_emcy_route) */
     uint32_t emcy_routes[CO_GATEWAY_NETWORKS];
 } co_gateway_port_t;
@@ -85,6 +120,8 @@ struct co_gateway {
     uint8_t port_count;
     uint16_t routes[CO_GATEWAY_NETWORKS];   /* via network | node << 8, 0 = none */
     bool syncing;                /* copying a route into the other ODs */
+    co_gateway_sdo_t sdo[CO_GATEWAY_SDO_CONNECTIONS];
+    uint32_t sdo_timeout_us;
     co_gateway_event_fn on_event;
     void *user;
     co_gateway_stats_t stats;
@@ -124,6 +161,14 @@ co_gateway_route_kind_t co_gateway_resolve(co_gateway_t *gw, uint8_t net, co_sta
  * network k. False for an unknown line or node-id. */
 bool co_gateway_set_emcy_route(co_gateway_t *gw, co_stack_t *stack, uint8_t node_id,
                                uint32_t networks);
+
+/* SDO networking: how long a relayed request waits for the target (0 =
+ * CO_GATEWAY_SDO_TIMEOUT_MS). */
+void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms);
+
+/* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
+void co_gateway_sdo_hook(struct co_gateway_port *port);
+void co_gateway_sdo_unhook(struct co_gateway_port *port);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
 {
