@@ -50,6 +50,9 @@ typedef struct fx {
     tu_line_t peer;              /* raw frames on network 3 (the "next gateway") */
     co_gateway_t gw;
     bool drop_answer;
+    co_stack_t tool;             /* an SDO client on the client's line */
+    co_stack_arena_t tool_arena;
+    unsigned char tool_memory[32 * 1024];
 } fx_t;
 
 static void node_init(tu_bus_t *tb, node_t *n, co_mode_t mode, uint8_t node_id,
@@ -137,6 +140,9 @@ static fx_t *fx_new(void)
 static void fx_free(fx_t *fx)
 {
     co_gateway_deinit(&fx->gw);
+    if (co_stack_line(&fx->tool) != NULL) {
+        co_stack_deinit(&fx->tool);
+    }
     co_stack_deinit(&fx->gw_a.stack);
     co_stack_deinit(&fx->gw_b.stack);
     co_stack_deinit(&fx->gw_c.stack);
@@ -357,6 +363,80 @@ static void test_indication_forwarded_to_the_next_gateway(void **state)
     fx_free(fx);
 }
 
+/* ------------------------------------------------------------ the client side */
+
+typedef struct upload {
+    co_sdo_request_t req;
+    co_sdo_buffer_t sink;
+    uint8_t data[32];
+    bool done;
+} upload_t;
+
+static void upload_done(co_sdo_request_t *req)
+{
+    ((upload_t *)req->user)->done = true;
+}
+
+static void routed_upload(fx_t *fx, upload_t *u, uint8_t network, uint8_t node, uint16_t index)
+{
+    memset(u, 0, sizeof *u);
+    u->sink.data = u->data;
+    u->sink.capacity = sizeof u->data;
+    u->req = (co_sdo_request_t){.server = GW, .index = index, .upload = true,
+                                .sink = co_sdo_buffer_sink, .ctx = &u->sink,
+                                .done = upload_done, .user = u, .network = network,
+                                .network_node = node};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &u->req), 0);
+    advance(fx, fx->a.now + 10 * TU_MS);
+    assert_true(u->done);
+}
+
+/* co_sdo_client with (network, node): the indication goes first, once per
+ * connection; network 0 brings the gateway back to its own OD; a refusal
+ * ends the request with the gateway's abort. */
+static void test_client_reaches_a_node_through_the_gateway(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    upload_t u;
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(u.sink.size, 4);
+    assert_int_equal(tu_le_get(u.data, 4), 0x12345678);
+    expect(&fx->a, 0x601, 0, IND_3_5);
+    expect(&fx->a, 0x601, 1, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x605, 0, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    /* connected already: no second indication */
+    routed_upload(fx, &u, NET_C, DEV, 0x2001);
+    assert_int_equal(u.req.abort, 0);
+    assert_memory_equal(u.data, "hello gateway!", 14);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x601), 2 + 3);
+    /* the gateway's own OD again */
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, 0, 0, 0x1000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(tu_le_get(u.data, 4), 0x302);
+    expect(&fx->a, 0x601, 0, (const uint8_t[]){0xE0, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0xE0, 0, 0, 0, 0, 0, 0, 0});
+    /* a network no route reaches */
+    routed_upload(fx, &u, 9, DEV, 0x2000);
+    assert_int_equal(u.req.abort, CO_GATEWAY_ABORT_NO_ROUTE);
+    assert_true(u.req.abort_from_server);
+    /* a routed request without its gateway is refused at the start */
+    u.req.server = 0;
+    u.req.network = NET_C;
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &u.req),
+                     CO_ABORT_GENERAL);
+    fx_free(fx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -367,6 +447,7 @@ int main(void)
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_back_to_the_gateways_own_server),
         cmocka_unit_test(test_indication_forwarded_to_the_next_gateway),
+        cmocka_unit_test(test_client_reaches_a_node_through_the_gateway),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
