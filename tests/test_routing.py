@@ -13,7 +13,7 @@ import itertools
 
 import pytest
 
-from canopenfd import ConfigurationError
+from canopenfd import ConfigurationError, SdoAbortError
 from canopenfd.od import DataType, ODArray, ODVariable, demo_od
 from canopenfd.services.routing import GatewayRouteKind
 from helpers import Recorder
@@ -166,3 +166,40 @@ def test_routes_resolve_refuse_and_report_loops(rig):
     assert routing.stats["routes_refused"] == 3 and routing.stats["route_loops"] == 1
     routing.remove_route(4)
     assert routing.resolve(4).kind == GatewayRouteKind.UNKNOWN
+
+
+def test_sdo_networking_reaches_a_node_of_another_network(net):
+    """A client on network 1 reads and writes device 5 of network 3 through
+    the gateway (node 1 on both classic lines): the network indication, then
+    every frame relayed; a network no route reaches is the gateway's abort."""
+    n = next(_buses)
+    a, c = f"mem:routing-sdo-a-{n}", f"mem:routing-sdo-c-{n}"
+    for bus, network_id in ((a, 1), (c, 3)):
+        gateway = net.open_line(bus, mode="classic")
+        gateway.create_local_node(GW, od=demo_od("classic"))
+        gateway.network_id = network_id
+    target = net.open_line(c, mode="classic").create_local_node(5, od=demo_od("classic"))
+    seen_a, seen_c = Recorder(), Recorder()
+    net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
+    net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
+    client = net.open_line(a, mode="classic")
+
+    device = client.sdo.remote(network=3, node=5, gateway=GW)
+    assert device.upload(0x1000) == target[0x1000].data     # device 5's own value
+    device.download(0x1017, 0, (250).to_bytes(2, "little"))
+    assert target[0x1017].raw == 250
+    indication = bytes([0xE0, 3, 0, 5, 0, 0, 0, 0])
+    requests = seen_a.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x601] or None, 5.0, "client requests")
+    assert requests[0].data == indication
+    relayed = seen_c.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x605] or None, 5.0, "relayed request")
+    assert relayed[0].data == bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0])
+    stats = net.routing.stats
+    assert stats["sdo_connects"] == 1 and stats["sdo_relayed"] >= 1
+
+    with pytest.raises(SdoAbortError, match="0x08000000") as refused:
+        client.sdo.remote(network=9, node=5, gateway=GW).upload(0x1000)
+    assert refused.value.from_server
+    with pytest.raises(ConfigurationError, match="network must be 1..127"):
+        client.sdo.remote(network=0, node=5, gateway=GW)

@@ -320,6 +320,9 @@ typedef struct co_rt_transfer_request {
     int no_done_event;         /* 1: post no CO_EV_TRANSFER_DONE; the caller blocks in
                                   co_rt_transfer_wait (or polls co_rt_transfer_result), so
                                   the event loop has nothing to do when the transfer ends */
+    uint8_t network;           /* SDO networking: node network_node of this network through
+                                  the gateway `server` (0: the server itself); classic lines */
+    uint8_t network_node;
 } co_rt_transfer_request_t;
 
 typedef struct co_rt_transfer_result {
