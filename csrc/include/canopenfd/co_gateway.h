@@ -18,7 +18,11 @@
  *     application call per frame). Mapping such an object partially, or with
  *     another type or size than the other lines hold, is refused with
  *     0x06040043; what a classic PDO cannot hold is refused by the PDO
- *     service (0x06040041 / 0x06040042).
+ *     service (0x06040041 / 0x06040042);
+ *   - relays SDO networking (co_gateway_sdo.c): a client's network
+ *     indication (0xE0, network LE16, node) on a classic port's SDO server
+ *     connects it to a node of another network; its frames then go to that
+ *     node (or the next gateway) and the answers back, unchanged.
  *
  * Layouts of 0x1F2C / 0x1F2F and their evidence: docs/protocol-notes.md
  * "Gateway". No global state, no allocation: the caller owns co_gateway_t. */
