@@ -40,16 +40,21 @@ void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms)
     gw->sdo_timeout_us = (uint64_t)timeout_ms * 1000u;
 }
 
-static void send8(co_line_t *line, uint32_t id, const uint8_t *data)
+/* A refused frame (tx queue full) is counted; the peers' timeouts end
+ * the transfer as for a lost frame. */
+static void send8(co_gateway_t *gw, co_line_t *line, uint32_t id, const uint8_t *data)
 {
-    (void)co_line_send(line, id, data, SDO_FRAME);
+    if (!co_line_send(line, id, data, SDO_FRAME)) {
+        gw->stats.sdo_tx_failed++;
+    }
 }
 
-static void send_abort(co_line_t *line, uint32_t id, const uint8_t *mux, uint32_t code)
+static void send_abort(co_gateway_t *gw, co_line_t *line, uint32_t id, const uint8_t *mux,
+                       uint32_t code)
 {
     uint8_t f[SDO_FRAME] = {SDO_CCS_ABORT, mux[0], mux[1], mux[2], (uint8_t)code,
                             (uint8_t)(code >> 8), (uint8_t)(code >> 16), (uint8_t)(code >> 24)};
-    send8(line, id, f);
+    send8(gw, line, id, f);
 }
 
 static co_gateway_sdo_t *find(co_gateway_t *gw, const co_gateway_port_t *from, uint8_t channel)
@@ -95,8 +100,8 @@ static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
     (void)timer;
     (void)now_us;
     c->gw->stats.sdo_timeouts++;
-    send_abort(line_of(c->from), c->reply_id, c->mux, SDO_TIMEOUT);
-    send_abort(line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux, SDO_TIMEOUT);
+    send_abort(c->gw, line_of(c->from), c->reply_id, c->mux, SDO_TIMEOUT);
+    send_abort(c->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux, SDO_TIMEOUT);
     if (connecting) {
         release(c);   /* never connected: the next gateway has nothing open */
     } else {
@@ -114,7 +119,7 @@ static void on_answer(co_line_t *line, const co_frame_t *f, void *user)
     }
     co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
     c->gw->stats.sdo_answers++;
-    send8(line_of(c->from), c->reply_id, f->data);
+    send8(c->gw, line_of(c->from), c->reply_id, f->data);
     if (c->state == SDO_CONNECTING) {
         if (f->data[0] == CO_GATEWAY_SDO_NETWORK_IND) {
             c->state = SDO_CONNECTED;
@@ -138,7 +143,7 @@ static bool refuse(co_gateway_t *gw, co_line_t *line, uint32_t reply_id, const u
                    uint32_t code)
 {
     gw->stats.sdo_refused++;
-    send_abort(line, reply_id, mux, code);
+    send_abort(gw, line, reply_id, mux, code);
     return true;
 }
 
@@ -159,7 +164,7 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
     if (net == 0 || (net == from->network_id && node == co_line_node_id(line))) {
         /* back to this gateway's own server */
         gw->stats.sdo_connects++;
-        send8(line, reply_id, data);
+        send8(gw, line, reply_id, data);
         return true;
     }
     if (net > 127 || node < 1 || node > 127) {
@@ -202,13 +207,13 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
     if (kind == CO_GATEWAY_VIA) {
         /* the next gateway connects on: it confirms or aborts */
         c->state = SDO_CONNECTING;
-        send8(line_of(to), SDO_REQUEST_BASE + target, data);
+        send8(gw, line_of(to), SDO_REQUEST_BASE + target, data);
         arm(c);
         return true;
     }
     c->state = SDO_CONNECTED;
     gw->stats.sdo_connects++;
-    send8(line, reply_id, data);
+    send8(gw, line, reply_id, data);
     return true;
 }
 
@@ -226,11 +231,11 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
         return false;   /* not connected: the gateway's own server answers */
     }
     if (c->state == SDO_CONNECTING) {
-        send_abort(line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
+        send_abort(from->gw, line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
         return true;
     }
     from->gw->stats.sdo_relayed++;
-    send8(line_of(c->to), SDO_REQUEST_BASE + c->target, f->data);
+    send8(from->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, f->data);
     if (f->data[0] == SDO_CCS_ABORT) {
         co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
         c->state = SDO_CONNECTED;   /* an abort is not answered */

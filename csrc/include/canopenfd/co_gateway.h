@@ -68,6 +68,7 @@ typedef struct co_gateway_stats {
     uint32_t sdo_relayed;        /* client requests relayed to a target */
     uint32_t sdo_answers;        /* target answers relayed to a client */
     uint32_t sdo_timeouts;       /* no answer from the target: aborted both ways */
+    uint32_t sdo_tx_failed;      /* a relayed frame the line refused (tx queue full) */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
