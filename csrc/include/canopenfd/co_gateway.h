@@ -40,6 +40,9 @@ enum {
     CO_GATEWAY_PDO_LAST = 0xBFFF,
     CO_GATEWAY_EMCY_NETWORKS = 32,   /* 0x1F2F is UNSIGNED32: networks 1..32 */
     CO_GATEWAY_SDO_CONNECTIONS = 4,  /* SDO networking connections at once */
+    /* OD handler subscriptions a joined node's OD needs besides
+     * CO_STACK_OD_SUBSCRIPTIONS (mapping checks, 0x1F2C) */
+    CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
     CO_GATEWAY_SDO_TIMEOUT_MS = 1000 /* default wait for the target's answer */
 };
 

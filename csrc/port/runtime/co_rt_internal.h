@@ -58,7 +58,7 @@ enum {
     RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
     /* the stack's parts, indications, domains, app store (2) */
     RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2 +
-                          2,   /* the gateway's (co_rt_gateway.c) */
+                          CO_GATEWAY_OD_SUBSCRIPTIONS,
     RT_GUARD_NODES = 32,          /* remote nodes guarded by a classic line */
     RT_PDO_WATCHES = 64,          /* CAN-IDs of other nodes' PDOs Python hears */
     RT_RPDO_PRODUCERS = 32,       /* other nodes' RPDOs the line produces (a master) */
