@@ -130,6 +130,21 @@ class Line:
         return self._context.where
 
     @property
+    def network_id(self) -> Optional[int]:
+        """The network-id (1..127) this line carries in the network's gateway
+        (`network.routing`), None while it has not joined."""
+        net = self._context.runtime.gateway_network(self.index, f"{self._where}: network-id")
+        return net or None
+
+    @network_id.setter
+    def network_id(self, value: Optional[int]) -> None:
+        what = f"{self._where}: network-id"
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int)
+                                  or not 1 <= value <= 127):
+            raise ConfigurationError(f"{what} must be 1..127 (None leaves), got {value!r}")
+        self._context.runtime.gateway_join(self.index, value or 0, what)
+
+    @property
     def _pdo_watches(self) -> Dict[int, List[FrameHandler]]:
         """{CAN-ID: handlers} of the remote PDOs heard now (tests look at it)."""
         return self._context.pdo_watches.watchers

@@ -26,6 +26,7 @@ from ._binding.hostbus import HostBridge, PythonCanBus
 from ._binding.runtime import Event, Runtime
 from .errors import ClosedError, ConfigurationError
 from .line import Line
+from .services.routing import RoutingService
 
 log = logging.getLogger("canopenfd")
 
@@ -99,6 +100,9 @@ class Network:
         self._stalls = 0
         self._burst: Optional[List[float]] = None   # events lost: [first, last, count]
         self._stop_watch = threading.Event()
+        #: Routing between the lines (line.network_id, 0x1F2C routes, EMCY
+        #: routing, PDO forwarding): see canopenfd.services.routing.
+        self.routing = RoutingService(self._runtime, self._lines.get)
         self._active = self._new_dispatcher()
         #: every dispatcher thread still running: the active one and those blocked
         self._threads: Set[threading.Thread] = {self._active}
@@ -206,6 +210,7 @@ class Network:
                                          closed=lambda: self._closed,
                                          on_dispatcher=self._on_dispatcher)
             line = Line(self, context, brs, bool(monitor))
+            self.routing.attach(context)
             self._contexts[index] = context
             self._lines[index] = line
             if bus is not None:

@@ -456,6 +456,13 @@ SEVEN = bytes(range(1, 8))
     (sdo(0x605, 0x40, 0x08, 0x10, 0x00), "SDO 5 rx initiate upload 0x1008:00"),
     (sdo(0x605, 0x60), "SDO 5 rx upload segment request t=0"),
     (sdo(0x605, 0x70), "SDO 5 rx upload segment request t=1"),
+    # ccs / scs 7: SDO networking through a gateway (layout: docs/protocol-notes.md)
+    (sdo(0x601, 0xE0, 3, 0, 5),
+     "SDO 1 rx network indication: network 3 node 5 or block segment #96 last"),
+    (sdo(0x581, 0xE0, 3, 0, 5),
+     "SDO 1 tx network indication confirmed: network 3 node 5 or block segment #96 last"),
+    (sdo(0x601, 0xE0),
+     "SDO 1 rx network indication: back to the gateway itself or block segment #96 last"),
     # ccs 4: abort
     (sdo(0x605, 0x80, 0x00, 0x21, 0x00, le32(0x05040000)),
      "SDO 5 rx ABORT 0x2100:00 0x05040000 SDO protocol timed out"),
@@ -476,7 +483,8 @@ SEVEN = bytes(range(1, 8))
     (sdo(0x605, 0xCD, 0x2B, 0x1A), "SDO 5 rx end block download n=3 crc 0x1A2B"),
     (sdo(0x605, 0xC1), "SDO 5 rx end block download n=0 crc 0x0000"),
     # ccs 7: none; alone it may still be a block segment (c=1)
-    (sdo(0x605, 0xE0), "SDO 5 rx unknown command 0xE0 or block segment #96 last"),
+    (sdo(0x605, 0xE0),
+     "SDO 5 rx network indication: back to the gateway itself or block segment #96 last"),
     (sdo(0x605, 0xFF), "SDO 5 rx unknown command 0xFF or block segment #127 last"),
 
     # server -> client (0x580 + server node-id): "tx"
@@ -953,7 +961,8 @@ if hypothesis is not None:
             assert isinstance(text, str) and "\n" not in text
             assert head in text
         if len(data) == 8 and data[0] >> 5 == 7:
-            assert "unknown command" in decode(frame)
+            assert ("network indication" if data[0] == 0xE0 else "unknown command") \
+                in decode(frame)
 
     @settings(max_examples=300, deadline=None, database=None)
     @given(frames=_SDO_SEQUENCES)

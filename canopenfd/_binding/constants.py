@@ -30,6 +30,7 @@ __all__ = [
     "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "LssRequest", "LssStatus", "Mode",
     "NmtCommand", "NmtState", "FlymaAction", "FlymaEvent", "FlymaState",
+    "GatewayEvent", "GatewayRouteKind",
     "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
     "SleepPhase", "StoreStatus", "BootError", "BootEvent", "BootStep", "ManagerEventCode",
     "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
@@ -107,6 +108,11 @@ FlymaEvent = _c_enum("FlymaEvent", "CO_FLYMA_EV_", "co_flyma_event_t",
                      doc="What the flying master reports (co_flyma_event_t).")
 FlymaAction = _c_enum("FlymaAction", "CO_RT_FLYMA_", "co_rt_flyma_action_t",
                       doc="What the application asks of the flying master.")
+# ---------------------------------------------------------------- gateway between lines
+GatewayRouteKind = _c_enum("GatewayRouteKind", "CO_GATEWAY_", "co_gateway_route_kind_t",
+                           doc="How a network is reached (co_gateway_route_kind_t).")
+GatewayEvent = _c_enum("GatewayEvent", "CO_GATEWAY_EV_", "co_gateway_event_t",
+                       doc="What the gateway reports (co_gateway_event_t).")
 # ---------------------------------------------------------------- LED indicators (CiA 303-3)
 LedPattern = _c_enum("LedPattern", "CO_LED_", "co_led_pattern_t",
                      doc="What a CiA 303-3 LED shows (co_led_pattern_t).")

@@ -27,6 +27,8 @@ __all__ = [
     "FlymaAction",
     "FlymaEvent",
     "FlymaState",
+    "GatewayEvent",
+    "GatewayRouteKind",
     "OdOrigin",
     "ParameterGroup",
     "RtStatus",
@@ -157,6 +159,7 @@ class EventKind(enum.IntEnum):
     MANAGER = 23
     SLEEP = 24
     FLYMA = 25
+    GATEWAY = 26
 
 
 class FrameFlag(enum.IntEnum):
@@ -267,6 +270,20 @@ class FlymaState(enum.IntEnum):
     NEGOTIATING = 3
     MASTER = 4
     SLAVE = 5
+
+
+class GatewayEvent(enum.IntEnum):
+    """What the gateway reports (co_gateway_event_t)."""
+    ROUTE_LOOP = 1
+    ROUTE_REFUSED = 2
+
+
+class GatewayRouteKind(enum.IntEnum):
+    """How a network is reached (co_gateway_route_kind_t)."""
+    ATTACHED = 0
+    VIA = 1
+    UNKNOWN = 2
+    LOOP = 3
 
 
 class OdOrigin(enum.IntEnum):

@@ -654,6 +654,30 @@ class Runtime:
         return phase, {name: getattr(stats, name)
                        for name, _ in ffi.typeof("co_sleep_stats_t").fields}
 
+    def gateway_join(self, line: int, network_id: int, what: str) -> None:
+        self._call(what, lib.co_rt_gateway_join, line, network_id)
+
+    def gateway_network(self, line: int, what: str) -> int:
+        return self._call(what, lib.co_rt_gateway_network, line)
+
+    def gateway_route(self, net: int, via_net: int, node_id: int, what: str) -> None:
+        self._call(what, lib.co_rt_gateway_route, net, via_net, node_id, ffi.NULL)
+
+    def gateway_resolve(self, net: int, what: str) -> Tuple[int, int, int]:
+        """(co_gateway_route_kind_t, line index or -1, gateway node or 0)."""
+        line = ffi.new("int *")
+        node = ffi.new("uint8_t *")
+        kind = self._call(what, lib.co_rt_gateway_resolve, net, line, node)
+        return kind, int(line[0]), int(node[0])
+
+    def gateway_emcy_route(self, line: int, node_id: int, networks: int, what: str) -> None:
+        self._call(what, lib.co_rt_gateway_emcy_route, line, node_id, networks)
+
+    def gateway_stats(self, what: str) -> Dict[str, int]:
+        out = ffi.new("co_gateway_stats_t *")
+        self._call(what, lib.co_rt_gateway_stats, out)
+        return {name: getattr(out, name) for name, _ in ffi.typeof("co_gateway_stats_t").fields}
+
     def guard(self, line: int, node_id: int, guard_ms: int, life_factor: int,
               what: str) -> None:
         self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)

@@ -39,6 +39,8 @@ class TransferRequest:
     block_threshold: int = 0          # SDO AUTO: block from this size
     progress: bool = False            # post progress events
     done_event: bool = False          # post TRANSFER_DONE (else: ask with transfer_notify)
+    network: int = 0                  # SDO networking: node network_node of this network
+    network_node: int = 0             # through the gateway `server` (0: the server itself)
 
     def to_c(self) -> CData:
         """The co_rt_transfer_request_t (cdata) of this request."""
@@ -59,6 +61,8 @@ class TransferRequest:
         request.block_threshold = self.block_threshold
         request.progress = int(self.progress)
         request.no_done_event = int(not self.done_event)
+        request.network = self.network
+        request.network_node = self.network_node
         return request
 
 

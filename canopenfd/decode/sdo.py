@@ -27,6 +27,7 @@ _SDO_LEN = 8
 _SDO_ABORT = 0x80
 _SDO_BLKSIZE_MAX = 127
 _SDO_CS_MASK = 0xE3             # ccs/scs and the sub-command bits of block frames
+_SDO_NETWORK = 0xE0             # SDO networking: the network indication (ccs/scs 7)
 _SDO_BLOCK_ACK = 0xA2           # client: block upload ack; server: block download ack
 _SDO_BLOCK_UPLOAD_START = 0xA3  # client
 _SDO_BLOCK_DOWNLOAD_OK = 0xA0   # server: initiate block download response
@@ -121,6 +122,16 @@ def _sdo_unknown(command: int) -> str:
     return f"{text} or {_block_segment(command)}" if command & 0x7F else text
 
 
+def _sdo_network(data: bytes, confirmed: bool) -> str:
+    """SDO networking (gateway; layout in docs/protocol-notes.md): byte 0 0xE0,
+    the network (LE16) and the node a client asks the gateway to reach. Read
+    alone it may also be a block segment (#96, last)."""
+    what = "network indication confirmed" if confirmed else "network indication"
+    network, node = data[1] | data[2] << 8, data[3]
+    target = "back to the gateway itself" if network == 0 else f"network {network} node {node}"
+    return f"{what}: {target} or {_block_segment(data[0])}"
+
+
 def _sdo_client(data: bytes) -> str:
     """A client->server frame, byte 0 read as a command specifier (ccs)."""
     command = data[0]
@@ -150,6 +161,8 @@ def _sdo_client(data: bytes) -> str:
             return _sdo_end("end block download", data)
         return (f"initiate block download {_sdo_mux(data)} {_sdo_size(data, command & 0x02)}"
                 f"{_sdo_crc(command)}")
+    if command == _SDO_NETWORK:
+        return _sdo_network(data, False)
     return _sdo_unknown(command)
 
 
@@ -182,6 +195,8 @@ def _sdo_server(data: bytes) -> str:
             return _sdo_end("end block upload", data)
         return (f"initiate block upload response {_sdo_mux(data)} "
                 f"{_sdo_size(data, command & 0x02)}{_sdo_crc(command)}")
+    if command == _SDO_NETWORK:
+        return _sdo_network(data, True)
     return _sdo_unknown(command)
 
 

@@ -351,28 +351,31 @@ class TransferClient:
                      timeout: float = 1.0, max_size: Optional[int] = None,
                      file: Optional[BinaryIO] = None,
                      progress: Optional[Progress] = None, size_hint: int = 0,
-                     mode: str = "auto") -> Transfer:
+                     mode: str = "auto", route: Optional["Route"] = None) -> Transfer:
         """Start reading index:sub of node; returns at once. `file`: an open
         binary file the data streams into (else memory, at most max_size).
         size_hint: the bytes expected, so AUTO can pick a block upload (SDO)
         or a bulk upload (USDO, from 4 KiB on; a server without bulk answers
         0x13 and the upload goes on plainly). mode: 'auto', 'bulk' (USDO) /
         'block' (SDO) whatever the size, or for SDO 'expedited' / 'segmented'
-        (a normal upload: the server picks which)."""
+        (a normal upload: the server picks which).
+        route (SDO): Route(network, node) of a node reached through the
+        gateway `node` (see remote())."""
         return self._begin_upload(node, index, sub, timeout=timeout, max_size=max_size,
                                   file=file, progress=progress, size_hint=size_hint,
-                                  mode=mode)
+                                  mode=mode, route=route)
 
     def _begin_upload(self, node: int, index: int, sub: int, *,
                       timeout: float = 1.0, max_size: Optional[int] = None,
                       file: Optional[BinaryIO] = None,
                       progress: Optional[Progress] = None, size_hint: int = 0,
-                      mode: str = "auto") -> Transfer:
-        what = f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X} from node {node}"
+                      mode: str = "auto", route: Optional["Route"] = None) -> Transfer:
+        what = (f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X} from "
+                f"{_target(node, route)}")
         if mode not in self.UPLOAD_MODES:
             raise ConfigurationError(f"{what}: mode {mode!r} is not one of "
                                      f"{', '.join(self.UPLOAD_MODES)}")
-        request = self._request(node, index, sub, True, timeout, what)
+        request = self._request(node, index, sub, True, timeout, what, route)
         request.mode = self.MODES.index(mode)
         if not 0 <= size_hint < 0xFFFFFFFF:
             raise ConfigurationError(f"{what}: size_hint {size_hint} outside 0..2^32-2")
@@ -389,24 +392,27 @@ class TransferClient:
     def start_download(self, node: int, index: int, sub: int, data: DownloadSource, *,
                        mode: str = "auto", data_type: Union[None, int, str] = None,
                        timeout: float = 1.0,
-                       progress: Optional[Progress] = None) -> Transfer:
+                       progress: Optional[Progress] = None,
+                       route: Optional["Route"] = None) -> Transfer:
         """Start writing `data` (bytes-like, or an open binary file read from
         its position to its end) to index:sub of node. mode: 'auto' (by the
         size), 'expedited', 'segmented', or 'bulk' (USDO) / 'block' (SDO).
         data_type (USDO): the CiA 301 type code sent (default DOMAIN 0x0F =
-        raw bytes, accepted for any entry)."""
+        raw bytes, accepted for any entry). route (SDO): as start_upload's."""
         return self._begin_download(node, index, sub, data, mode=mode,
-                                    data_type=data_type, timeout=timeout, progress=progress)
+                                    data_type=data_type, timeout=timeout, progress=progress,
+                                    route=route)
 
     def _begin_download(self, node: int, index: int, sub: int, data: DownloadSource,
                         *, mode: str = "auto",
                         data_type: Union[None, int, str] = None, timeout: float = 1.0,
-                        progress: Optional[Progress] = None) -> Transfer:
-        what = f"{self.PROTOCOL} download 0x{index:04X}:{sub:02X} to node {node}"
+                        progress: Optional[Progress] = None,
+                        route: Optional["Route"] = None) -> Transfer:
+        what = f"{self.PROTOCOL} download 0x{index:04X}:{sub:02X} to {_target(node, route)}"
         if mode not in self.MODES:
             raise ConfigurationError(f"{what}: mode {mode!r} is not one of "
                                      f"{', '.join(self.MODES)}")
-        request = self._request(node, index, sub, False, timeout, what)
+        request = self._request(node, index, sub, False, timeout, what, route)
         request.mode = self.MODES.index(mode)
         request.data_type = _DOMAIN if data_type is None else _type_code(data_type, what)
         keep: object   # what must stay alive while C reads it
@@ -428,7 +434,7 @@ class TransferClient:
         return self._start(request, keep, progress, what)
 
     def _request(self, node: int, index: int, sub: int, upload: bool, timeout: float,
-                 what: str) -> TransferRequest:
+                 what: str, route: Optional["Route"] = None) -> TransferRequest:
         lowest = 0 if self.PROTOCOL == "USDO" else 1
         if isinstance(node, bool) or not isinstance(node, int) or not lowest <= node <= 127:
             raise ConfigurationError(f"{what}: node must be 1..127"
@@ -437,7 +443,10 @@ class TransferClient:
             raise ConfigurationError(f"{what}: 0x{index:X}:{sub:X} outside 0..0xFFFF:0..0xFF")
         if not 0 < timeout <= 3600:
             raise ConfigurationError(f"{what}: timeout {timeout!r} s outside (0, 3600]")
-        return TransferRequest(node, index, sub, upload, max(1, int(timeout * 1000)))
+        request = TransferRequest(node, index, sub, upload, max(1, int(timeout * 1000)))
+        if route is not None:
+            request.network, request.network_node = route
+        return request
 
     def _start(self, request: TransferRequest, keep: object,
                progress: Optional[Progress], what: str) -> Transfer:
@@ -461,6 +470,20 @@ class TransferClient:
         """Write data to index:sub of node and wait for the end (options: start_download)."""
         self._begin_download(node, index, sub, data, **options).result()
 
+    def remote(self, network: int, node: int, *, gateway: int) -> "RoutedNode":
+        """Node `node` of network `network`, reached through the gateway
+        node `gateway` on this line (SDO networking, CiA 302-7 style: the
+        client sends the gateway a network indication, then the gateway
+        relays every frame). Its upload/download work as this client's."""
+        what = f"{self.PROTOCOL} remote(network={network!r}, node={node!r})"
+        if self.PROTOCOL != "SDO":
+            raise ConfigurationError(f"{what}: remote USDO (routed requests on fd lines) is "
+                                     "not implemented; SDO networking runs on classic lines")
+        for name, value in (("network", network), ("node", node), ("gateway", gateway)):
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 127:
+                raise ConfigurationError(f"{what}: {name} must be 1..127, got {value!r}")
+        return RoutedNode(self, gateway, Route(network, node))
+
     async def aupload(self, node: int, index: int, sub: int = 0, **options: Any) -> bytes:
         _not_broadcast(node, f"{self.PROTOCOL} upload 0x{index:04X}:{sub:02X}")
         return uploaded_bytes(await self.start_upload(node, index, sub, **options))
@@ -468,6 +491,49 @@ class TransferClient:
     async def adownload(self, node: int, index: int, sub: int, data: DownloadSource,
                         **options: Any) -> None:
         await self.start_download(node, index, sub, data, **options)
+
+
+class Route(NamedTuple):
+    """A node of another network: what a routed request names."""
+
+    network: int
+    node: int
+
+
+def _target(node: int, route: Optional[Route]) -> str:
+    return f"node {node}" if route is None else \
+        f"node {route.node} of network {route.network} (gateway {node})"
+
+
+class RoutedNode:
+    """A node of another network reached through a gateway (client.remote())."""
+
+    def __init__(self, client: TransferClient, gateway: int, route: Route) -> None:
+        self._client = client
+        self.gateway = gateway
+        self.network = route.network
+        self.node = route.node
+        self._route = route
+
+    def __repr__(self) -> str:
+        return f"<RoutedNode {_target(self.gateway, self._route)}>"
+
+    def start_upload(self, index: int, sub: int = 0, **options: Any) -> Transfer:
+        return self._client.start_upload(self.gateway, index, sub, route=self._route,
+                                         **options)
+
+    def start_download(self, index: int, sub: int, data: DownloadSource,
+                       **options: Any) -> Transfer:
+        return self._client.start_download(self.gateway, index, sub, data,
+                                           route=self._route, **options)
+
+    def upload(self, index: int, sub: int = 0, **options: Any) -> bytes:
+        """Read index:sub of the routed node and wait for the data."""
+        return uploaded_bytes(self.start_upload(index, sub, **options).result())
+
+    def download(self, index: int, sub: int, data: DownloadSource, **options: Any) -> None:
+        """Write data to index:sub of the routed node and wait for the end."""
+        self.start_download(index, sub, data, **options).result()
 
 
 def uploaded_bytes(result: Result) -> bytes:

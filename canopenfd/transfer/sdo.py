@@ -18,7 +18,7 @@ from .._binding.constants import AbortCode
 from .._binding.context import LineContext
 from .._binding.transfers import TransferRequest
 from ..errors import ABORT_TEXT, AbortError, ConfigurationError, TransferAbortError
-from .client import TransferClient
+from .client import Route, TransferClient
 
 __all__ = ["SdoAbortError", "SdoClient"]
 
@@ -54,8 +54,8 @@ class SdoClient(TransferClient):
         return SdoAbortError(code, node, index, sub, from_server, what)
 
     def _request(self, node: int, index: int, sub: int, upload: bool, timeout: float,
-                 what: str) -> TransferRequest:
-        request = super()._request(node, index, sub, upload, timeout, what)
+                 what: str, route: Optional[Route] = None) -> TransferRequest:
+        request = super()._request(node, index, sub, upload, timeout, what, route)
         threshold = self.block_threshold
         if threshold is not None and (isinstance(threshold, bool) or
                                       not isinstance(threshold, int) or

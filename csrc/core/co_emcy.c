@@ -651,6 +651,9 @@ static bool on_other_frame(co_line_t *line, const co_frame_t *frame, void *user)
         if (c->on_emcy) {
             c->on_emcy(c, (uint8_t)node, &msg, c->user);
         }
+        if (c->tap) {
+            c->tap(c, (uint8_t)node, &msg, c->tap_user);
+        }
         return true;
     }
     return false;
@@ -670,6 +673,12 @@ bool co_emcy_consumer_init(co_emcy_consumer_t *c, co_line_t *line, co_emcy_rx_fn
         c->cob_id[node] = CO_EMCY_COB_ID_INVALID;
     }
     return co_line_subscribe_other(line, on_other_frame, c);
+}
+
+void co_emcy_consumer_set_tap(co_emcy_consumer_t *c, co_emcy_rx_fn fn, void *user)
+{
+    c->tap = fn;
+    c->tap_user = fn ? user : NULL;
 }
 
 void co_emcy_consumer_deinit(co_emcy_consumer_t *c)

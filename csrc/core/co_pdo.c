@@ -588,6 +588,9 @@ static void apply(co_pdo_t *pdo, co_pdo_channel_t *ch, const uint8_t *data)
     if (pdo->ind != NULL && pdo->ind->received != NULL) {
         pdo->ind->received(pdo, ch->number, pdo->user);
     }
+    if (pdo->rx_tap != NULL) {
+        pdo->rx_tap(pdo, ch->number, pdo->rx_tap_user);
+    }
 }
 
 /* A frame's length error (0 = none), told only when it differs from the
@@ -1041,4 +1044,15 @@ bool co_pdo_pack_values(const co_pdo_t *pdo, bool is_rpdo, uint16_t number, uint
     co_pdo_map_pack(pdo->od, ch->map, ch->map_count, ch->bits, data);
     *len = (uint8_t)((ch->bits + 7u) / 8u);
     return true;
+}
+
+const co_pdo_channel_t *co_pdo_channel(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)
+{
+    return channel_at(pdo, slot_of(pdo, is_rpdo, number));
+}
+
+void co_pdo_set_rx_tap(co_pdo_t *pdo, co_pdo_rx_tap_fn fn, void *user)
+{
+    pdo->rx_tap = fn;
+    pdo->rx_tap_user = fn != NULL ? user : NULL;
 }

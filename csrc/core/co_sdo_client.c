@@ -45,7 +45,8 @@
 enum {
     NODE_MAX = 127,
     CMD_ABORT = 0x80,
-    CMD_BLOCK_ACK = 0xA2
+    CMD_BLOCK_ACK = 0xA2,
+    NETWORK_IND = 0xE0   /* SDO networking: ccs/scs 7 (docs/protocol-notes.md) */
 };
 
 #define COB_RESERVED 0x3FFFF800u    /* bits 11..29 of a valid COB-ID: 11-bit CAN-IDs only */
@@ -726,6 +727,10 @@ static uint32_t check_request(const co_sdo_client_t *c, const co_sdo_request_t *
         req->mode > CO_SDO_MODE_BLOCK || running(c, req)) {
         return CO_ABORT_GENERAL;
     }
+    if (req->network != 0 && (req->server == 0 || req->network > NODE_MAX ||
+                              req->network_node < 1 || req->network_node > NODE_MAX)) {
+        return CO_ABORT_GENERAL;   /* a routed request names its gateway and target */
+    }
     if (req->blksize > CO_SDO_BLKSIZE_MAX) {
         return CO_ABORT_BLOCK_SIZE;
     }
@@ -797,6 +802,61 @@ static co_sdo_client_channel_t *pick_channel(co_sdo_client_t *c, const co_sdo_re
     return NULL;
 }
 
+/* ------------------------------------------------------------ SDO networking */
+
+/* The gateway connection a request needs (network | node << 8; 0 = none). */
+static uint16_t routed_of(const co_sdo_request_t *req)
+{
+    return req->network != 0 ? (uint16_t)(req->network | req->network_node << 8) : 0u;
+}
+
+/* The gateway (req->server) holds another connection for us: the network
+ * indication goes first (network 0 = back to the gateway's own OD); the
+ * transfer's first frame follows its confirmation. */
+static uint32_t send_network_indication(co_sdo_client_channel_t *ch, const uint8_t *data)
+{
+    co_sdo_request_t *req = ch->req;
+    uint8_t f[CO_SDO_FRAME_LEN] = {NETWORK_IND, req->network, 0, req->network_node, 0, 0, 0, 0};
+    if (data != NULL) {
+        memcpy(ch->first_data, data, sizeof ch->first_data);
+    }
+    if (req->network == 0) {
+        f[3] = 0;
+    }
+    if (!co_line_send(ch->client->line, ch->tx_id, f, sizeof f)) {
+        ch->client->stats.tx_failed++;
+        return CO_ABORT_NO_RESOURCE;
+    }
+    ch->state = CO_SDO_CLIENT_NET_IND;
+    arm_timeout(ch);
+    return 0;
+}
+
+/* The gateway's answer to our network indication. */
+static void on_network_answer(co_sdo_client_channel_t *ch, const uint8_t *b)
+{
+    co_sdo_client_t *c = ch->client;
+    co_sdo_request_t *req = ch->req;
+    uint8_t node = req->network != 0 ? req->network_node : 0;
+    if (b[1] != req->network || b[2] != 0 || b[3] != node ||
+        (b[0] != NETWORK_IND && b[0] != CMD_ABORT)) {
+        c->stats.rx_unexpected++;
+        return;
+    }
+    if (b[0] == CMD_ABORT) {
+        uint32_t code = (uint32_t)b[4] | (uint32_t)b[5] << 8 | (uint32_t)b[6] << 16 |
+                        (uint32_t)b[7] << 24;
+        c->routed[req->server] = 0;   /* a refusing gateway keeps no connection */
+        c->stats.aborts_received++;
+        finish(ch, code != 0 ? code : (uint32_t)CO_ABORT_GENERAL, true);
+        return;
+    }
+    c->routed[req->server] = routed_of(req);
+    if (send_first(ch, ch->first_data) != 0) {
+        finish(ch, CO_ABORT_NO_RESOURCE, false);
+    }
+}
+
 /* Take a channel for req and send the first frame; 0 or why not. */
 static uint32_t open_channel(co_sdo_client_t *c, co_sdo_request_t *req, const uint8_t *data)
 {
@@ -833,7 +893,8 @@ static uint32_t open_channel(co_sdo_client_t *c, co_sdo_request_t *req, const ui
     req->total = 0;
     req->transferred = 0;
     ch->state = CO_SDO_CLIENT_UL_INIT;   /* taken; send_first sets the real state */
-    code = send_first(ch, data);
+    code = routed_of(req) != c->routed[req->server] ? send_network_indication(ch, data)
+                                                    : send_first(ch, data);
     if (code != 0) {
         release(ch);
     }
@@ -928,6 +989,10 @@ static void handle(co_sdo_client_channel_t *ch, const co_frame_t *f)
     }
     if (!is_busy(ch)) {
         c->stats.rx_idle++;
+        return;
+    }
+    if (ch->state == CO_SDO_CLIENT_NET_IND) {
+        on_network_answer(ch, b);
         return;
     }
     if (b[0] == CMD_ABORT) {
@@ -1060,6 +1125,9 @@ static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
         return;
     }
     ch->client->stats.timeouts++;
+    if (ch->state == CO_SDO_CLIENT_NET_IND) {
+        ch->client->routed[ch->req->server] = 0;   /* the gateway's state is unknown */
+    }
     fail(ch, CO_ABORT_TIMEOUT);
 }
 

@@ -894,8 +894,17 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
         s->stats.rx_bad_length++;
         return;
     }
+    if (s->filter != NULL && s->filter(s, ch->number, ch->tx_id, f, s->filter_user)) {
+        return;
+    }
     handle(ch, f->data);
     apply_pending(s);
+}
+
+void co_sdo_server_set_filter(co_sdo_server_t *server, co_sdo_server_filter_fn fn, void *user)
+{
+    server->filter = fn;
+    server->filter_user = fn != NULL ? user : NULL;
 }
 
 static void on_timer(co_timer_t *timer, uint64_t now_us, void *user)

@@ -189,6 +189,8 @@ typedef struct co_emcy_consumer {
     co_od_t *od;
     co_emcy_rx_fn on_emcy;
     void *user;
+    co_emcy_rx_fn tap;                    /* a second listener (the gateway), or NULL */
+    void *tap_user;
     uint32_t cob_id[CO_EMCY_MAX_NODES];   /* per node-id; bit 31 = not consumed */
     uint32_t id_used[2048 / 32];          /* 11-bit CAN-IDs some entry uses (fast reject) */
     co_emcy_stats_t stats;
@@ -210,6 +212,8 @@ uint32_t co_emcy_consumer_get_entry(const co_emcy_consumer_t *c, uint8_t node_id
 /* Bind a sealed OD: 0x1028 sub n (n = 1..127) configures node n; writes take
  * effect at once (a CAN-ID above 0x7FF without bit 29: 0x06090030). Nodes
  * the OD has no entry for keep their API entries. */
+/* Set (fn NULL: clear) the one tap: told of every EMCY after on_emcy. */
+void co_emcy_consumer_set_tap(co_emcy_consumer_t *c, co_emcy_rx_fn fn, void *user);
 bool co_emcy_consumer_attach_od(co_emcy_consumer_t *c, co_od_t *od);
 void co_emcy_consumer_detach_od(co_emcy_consumer_t *c);
 

@@ -121,6 +121,10 @@ typedef struct co_pdo_channel {
 
 typedef struct co_pdo co_pdo_t;
 
+/* A second listener of applied RPDOs, beside the node's indications: the
+ * gateway forwards what an RPDO wrote (co_pdo_set_rx_tap). */
+typedef void (*co_pdo_rx_tap_fn)(co_pdo_t *pdo, uint16_t rpdo_number, void *user);
+
 /* Why an RPDO's reception error began or ended (rx_error_changed). */
 typedef enum co_pdo_rx_cause {
     CO_PDO_RX_FRAME,            /* a frame's length, or a frame after a missed deadline */
@@ -184,6 +188,8 @@ struct co_pdo {
     uint16_t *rx_map;               /* 11-bit CAN-ID -> active RPDO channel + 1, or NULL */
     uint16_t *rtr_map;              /* 11-bit CAN-ID -> TPDO answering RTR + 1, or NULL */
     co_timer_t retry_timer;         /* sends synchronous TPDOs the tx queue refused */
+    co_pdo_rx_tap_fn rx_tap;        /* told after `received` (NULL: none) */
+    void *rx_tap_user;
     co_pdo_stats_t stats;
 };
 
@@ -225,6 +231,11 @@ bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number);
  * *len = the mapped bytes. False when the PDO does not exist. */
 bool co_pdo_pack_values(const co_pdo_t *pdo, bool is_rpdo, uint16_t number, uint8_t *data,
                         uint8_t *len);
+/* The channel of PDO `number` (its compiled mapping, type, state), or NULL. */
+const co_pdo_channel_t *co_pdo_channel(const co_pdo_t *pdo, bool is_rpdo, uint16_t number);
+/* Set (fn NULL: clear) the one rx tap: told after every applied RPDO, after
+ * the node's `received` indication. Survives co_pdo_reload, not deinit. */
+void co_pdo_set_rx_tap(co_pdo_t *pdo, co_pdo_rx_tap_fn fn, void *user);
 static inline const co_pdo_stats_t *co_pdo_stats(const co_pdo_t *pdo) { return &pdo->stats; }
 
 #endif

@@ -15,6 +15,7 @@
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_flyma.h"
+#include "canopenfd/co_gateway.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_lss_master.h"
 #include "canopenfd/co_pdo.h"
@@ -136,8 +137,11 @@ typedef enum co_rt_event_kind {
     CO_EV_SLEEP = 24,          /* sleep and wake-up (co_rt_sleep_start): a =
                                   co_sleep_event_t, b = arg | arg2 << 8, node = the
                                   phase after it (co_sleep_phase_t) */
-    CO_EV_FLYMA = 25           /* flying master (co_rt_flyma_start): a = co_flyma_event_t,
+    CO_EV_FLYMA = 25,          /* flying master (co_rt_flyma_start): a = co_flyma_event_t,
                                   b = master | priority << 8, node = co_flyma_state_t */
+    CO_EV_GATEWAY = 26         /* gateway between the lines (co_rt_gateway_join): node =
+                                  network, a = co_gateway_event_t, b = abort code; posted
+                                  on the first joined line */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -317,6 +321,9 @@ typedef struct co_rt_transfer_request {
     int no_done_event;         /* 1: post no CO_EV_TRANSFER_DONE; the caller blocks in
                                   co_rt_transfer_wait (or polls co_rt_transfer_result), so
                                   the event loop has nothing to do when the transfer ends */
+    uint8_t network;           /* SDO networking: node network_node of this network through
+                                  the gateway `server` (0: the server itself); classic lines */
+    uint8_t network_node;
 } co_rt_transfer_request_t;
 
 typedef struct co_rt_transfer_result {
@@ -674,6 +681,26 @@ int co_rt_config_entries(co_rt_t *rt, int line, int handle, co_rt_config_entry_t
 int co_rt_config_cancel(co_rt_t *rt, int line, int handle);
 /* Forget a configuration (a running one is cancelled first). */
 int co_rt_config_release(co_rt_t *rt, int line, int handle);
+
+/* ---- gateway between the lines of this runtime (co_rt_gateway.c, co_gateway)
+ * A line joins with its network-id 1..127 (0 leaves); joined lines route
+ * EMCYs per 0x1F2F and forward 0xB000..0xBFFF PDO objects between their
+ * local nodes; the 0x1F2C routes are one table for all. A line's local node
+ * created after the line joined is joined with it. */
+int co_rt_gateway_join(co_rt_t *rt, int line, uint8_t network_id);
+/* The line's network-id (0: not joined). */
+int co_rt_gateway_network(co_rt_t *rt, int line);
+/* Route to network `net` through gateway node_id on network via_net
+ * (via_net 0: remove); refused as a 0x1F2C write is (*abort = the CiA 301
+ * code, CO_RT_ERR_ARGUMENT with the reason in co_rt_last_error). */
+int co_rt_gateway_route(co_rt_t *rt, uint8_t net, uint8_t via_net, uint8_t node_id,
+                        uint32_t *abort);
+/* co_gateway_route_kind_t of network `net`; *line = the line to send on
+ * (-1: none), *node_id = the gateway node to hand requests to (0: attached). */
+int co_rt_gateway_resolve(co_rt_t *rt, uint8_t net, int *line, uint8_t *node_id);
+/* 0x1F2F sub node_id of a joined line whose OD has none: bit k-1 = network k. */
+int co_rt_gateway_emcy_route(co_rt_t *rt, int line, uint8_t node_id, uint32_t networks);
+int co_rt_gateway_stats(co_rt_t *rt, co_gateway_stats_t *out);
 /* cffi:end */
 
 #endif

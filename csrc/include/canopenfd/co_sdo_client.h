@@ -127,6 +127,12 @@ struct co_sdo_request {             /* caller-owned; must live until done() */
     uint8_t pst;                    /* block upload: protocol switch threshold (bytes),
                                        0 = no switch */
     bool no_crc;                    /* block transfers: do not offer CRC (default: offered) */
+    /* SDO networking (CiA 302-7 style): reach node `network_node` of network
+     * `network` through the gateway `server` (network 0: the server itself).
+     * The client sends the gateway a network indication first whenever the
+     * gateway's connection (remembered per server) differs. */
+    uint8_t network;
+    uint8_t network_node;
     /* results (written by the client) */
     uint32_t abort;                 /* 0 = ok, else the CiA 301 abort code */
     bool abort_from_server;         /* true when the server sent the abort */
@@ -155,7 +161,8 @@ typedef enum co_sdo_client_state {
     CO_SDO_CLIENT_BD_END,           /* end sent: waits for 0xA1 */
     CO_SDO_CLIENT_BU_INIT,          /* block upload initiate sent: waits for 0xC0 | ... */
     CO_SDO_CLIENT_BU_DATA,          /* start / ack sent: receives sub-block segments */
-    CO_SDO_CLIENT_BU_END            /* last segment acknowledged: waits for 0xC1 | n<<2 */
+    CO_SDO_CLIENT_BU_END,           /* last segment acknowledged: waits for 0xC1 | n<<2 */
+    CO_SDO_CLIENT_NET_IND           /* network indication sent: waits for 0xE0 or an abort */
 } co_sdo_client_state_t;
 
 /* How a channel got its COB-IDs. */
@@ -183,6 +190,7 @@ typedef struct co_sdo_client_channel {
     bool valid;                     /* configured and usable */
     bool subscribed;                /* rx_id outside 0x581..0x5FF: own line receiver */
     uint8_t state;                  /* co_sdo_client_state_t */
+    uint8_t first_data[4];          /* an expedited download's bytes while NET_IND */
     uint8_t mode;                   /* co_sdo_mode_t in use */
     uint8_t toggle;                 /* segmented: toggle of the next exchange */
     bool last_sent;                 /* segmented download: the last segment is out */
@@ -253,6 +261,9 @@ struct co_sdo_client {
     bool od_hooked;
     uint64_t timeout_us;
     uint32_t block_threshold;
+    /* SDO networking: per server node-id, the connection its gateway holds
+     * for us (network | node << 8; 0 = its own OD, or not known) */
+    uint16_t routed[128];
     co_sdo_client_stats_t stats;
 };
 

@@ -133,8 +133,16 @@ typedef struct co_sdo_server_stats {
 } co_sdo_server_stats_t;
 /* cffi:end */
 
+/* Sees every 8-byte request of a serving channel first (channel number,
+ * the channel's answer CAN-ID); true = taken, the server ignores it. The
+ * gateway's SDO networking relays a connected client's requests with it. */
+typedef bool (*co_sdo_server_filter_fn)(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
+                                        const co_frame_t *frame, void *user);
+
 struct co_sdo_server {
     co_line_t *line;
+    co_sdo_server_filter_fn filter;   /* NULL: none */
+    void *filter_user;
     co_od_t *od;
     co_sdo_channel_t *channels;
     uint8_t channel_count;
@@ -194,5 +202,7 @@ uint8_t co_sdo_server_active(const co_sdo_server_t *server);
  * states ends open transfers without an abort frame (the object dictionary
  * learns of it with 0x08000022). */
 void co_sdo_server_set_nmt_state(co_sdo_server_t *server, co_nmt_state_t state);
+/* Set (fn NULL: clear) the one request filter. */
+void co_sdo_server_set_filter(co_sdo_server_t *server, co_sdo_server_filter_fn fn, void *user);
 
 #endif

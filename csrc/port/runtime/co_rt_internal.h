@@ -57,7 +57,8 @@ enum {
     RT_INDICATIONS = 16,          /* key ranges with Python indications */
     RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
     /* the stack's parts, indications, domains, app store (2) */
-    RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2,
+    RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2 +
+                          CO_GATEWAY_OD_SUBSCRIPTIONS,
     RT_GUARD_NODES = 32,          /* remote nodes guarded by a classic line */
     RT_PDO_WATCHES = 64,          /* CAN-IDs of other nodes' PDOs Python hears */
     RT_RPDO_PRODUCERS = 32,       /* other nodes' RPDOs the line produces (a master) */
@@ -253,6 +254,10 @@ typedef struct rt_line {
     rt_led_t led;
     struct rt_config *config;        /* configurations (co_rt_config.c): at the first one */
     rt_lss_t lss;
+    /* gateway (co_rt_gateway.c): the network-id (0: not joined) and the
+     * 0x1F2F routes given through the API, kept across rebuilds */
+    uint8_t network_id;
+    uint32_t emcy_routes[CO_GATEWAY_NETWORKS];
 } rt_line_t;
 
 /* The Linux waiter (co_rt_wait_epoll.c): epoll over the sockets, a timerfd
@@ -326,6 +331,7 @@ struct co_rt {
     rt_bus_t *buses[RT_MAX_BUSES];
     rt_mailbox_t mail;
     rt_events_t events;
+    co_gateway_t gateway;  /* between the joined lines (co_rt_gateway.c), under lock */
     /* Client transfers that ended: done_gen counts them, done_ready wakes
      * threads blocked in co_rt_transfer_wait (own lock: never waits for a
      * turn of the runtime thread). */
@@ -430,6 +436,11 @@ uint32_t rt_events_waiters(rt_events_t *q);
 /* The line, or NULL with the error set (host_only: host-driver lines only). */
 rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only);
 void rt_line_free(rt_line_t *l);
+
+/* ---------------------------------------------------------------- co_rt_gateway.c */
+/* Under rt->lock: join the lines with a network-id again (a local node was
+ * created or set up by LSS); routes and API EMCY routes are kept. */
+int rt_gateway_rebuild(co_rt_t *rt);
 
 /* ---------------------------------------------------------------- drivers */
 /* co_rt_membus.c: under rt->lock, join (or create) the line's named bus. */

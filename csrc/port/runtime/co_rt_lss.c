@@ -257,6 +257,9 @@ static void slave_configured(co_lss_slave_t *slave, uint8_t node_id, void *user)
 {
     (void)slave;
     rt_line_t *l = user;
+    if (l->network_id != 0) {
+        (void)rt_gateway_rebuild(l->rt);   /* hook the node's new OD and PDOs */
+    }
     rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_CONFIGURED, node_id, NULL);
 }
 

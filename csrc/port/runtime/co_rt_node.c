@@ -190,7 +190,8 @@ int rt_node_create(co_rt_t *rt, rt_line_t *l, const co_rt_command_t *cmd)
     }
     co_stack_boot(&l->stack);
     post_store_status(l);
-    return CO_RT_OK;
+    /* the gateway hooks the new node's OD and PDOs */
+    return l->network_id != 0 ? rt_gateway_rebuild(rt) : CO_RT_OK;
 }
 
 /* Creating the local node runs at once under the lock (the thread is not

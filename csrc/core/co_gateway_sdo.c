@@ -1,0 +1,270 @@
+/* co_gateway SDO networking (CiA 302-7 style, seed 000 §13.1): a client's
+ * network indication (ccs 7) on a server channel of one port names a target
+ * network and node; from then on the gateway relays that client's SDO
+ * frames to the target on the line that reaches it (the device itself when
+ * its network is attached, the next gateway otherwise, which got the same
+ * indication first) and the target's answers back, until the client names
+ * another network. No answer within the timeout aborts both sides.
+ *
+ * Frames are relayed as they are (8 bytes, classic lines on both sides), so
+ * expedited, segmented and block transfers all pass; the gateway only reads
+ * byte 0 (the indication, aborts) and bytes 1..3 (for its own aborts). */
+#include "canopenfd/co_gateway.h"
+
+#include <string.h>
+
+enum co_gateway_sdo_state {
+    SDO_CONNECTING = 1,   /* the indication went to the next gateway */
+    SDO_CONNECTED = 2,
+    SDO_WAITING = 3       /* a request went to the target */
+};
+
+enum { SDO_FRAME = 8, SDO_REQUEST_BASE = 0x600, SDO_RESPONSE_BASE = 0x580,
+       SDO_CCS_ABORT = 0x80 };
+
+#define SDO_TIMEOUT 0x05040000u   /* CiA 301: SDO protocol timed out */
+
+static co_line_t *line_of(const co_gateway_port_t *p)
+{
+    return co_stack_line(p->stack);
+}
+
+static uint64_t timeout_us(const co_gateway_t *gw)
+{
+    return gw->sdo_timeout_us != 0 ? gw->sdo_timeout_us
+                                   : (uint64_t)CO_GATEWAY_SDO_TIMEOUT_MS * 1000u;
+}
+
+void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms)
+{
+    gw->sdo_timeout_us = (uint64_t)timeout_ms * 1000u;
+}
+
+/* A refused frame (tx queue full) is counted; the peers' timeouts end
+ * the transfer as for a lost frame. */
+static void send8(co_gateway_t *gw, co_line_t *line, uint32_t id, const uint8_t *data)
+{
+    if (!co_line_send(line, id, data, SDO_FRAME)) {
+        gw->stats.sdo_tx_failed++;
+    }
+}
+
+static void send_abort(co_gateway_t *gw, co_line_t *line, uint32_t id, const uint8_t *mux,
+                       uint32_t code)
+{
+    uint8_t f[SDO_FRAME] = {SDO_CCS_ABORT, mux[0], mux[1], mux[2], (uint8_t)code,
+                            (uint8_t)(code >> 8), (uint8_t)(code >> 16), (uint8_t)(code >> 24)};
+    send8(gw, line, id, f);
+}
+
+static co_gateway_sdo_t *find(co_gateway_t *gw, const co_gateway_port_t *from, uint8_t channel)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        if (gw->sdo[i].from == from && gw->sdo[i].channel == channel) {
+            return &gw->sdo[i];
+        }
+    }
+    return NULL;
+}
+
+static co_gateway_sdo_t *find_free(co_gateway_t *gw)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        if (gw->sdo[i].from == NULL) {
+            return &gw->sdo[i];
+        }
+    }
+    return NULL;
+}
+
+static void on_answer(co_line_t *line, const co_frame_t *f, void *user);
+
+static void release(co_gateway_sdo_t *c)
+{
+    if (c->from == NULL) {
+        return;
+    }
+    co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
+    co_line_unsubscribe(line_of(c->to), on_answer, c);
+    c->from = NULL;
+    c->to = NULL;
+    c->state = 0;
+}
+
+/* No answer from the target: both sides hear an abort (the target so it
+ * does not wait for a request that will not come). */
+static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    co_gateway_sdo_t *c = user;
+    bool connecting = c->state == SDO_CONNECTING;
+    (void)timer;
+    (void)now_us;
+    c->gw->stats.sdo_timeouts++;
+    send_abort(c->gw, line_of(c->from), c->reply_id, c->mux, SDO_TIMEOUT);
+    send_abort(c->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux, SDO_TIMEOUT);
+    if (connecting) {
+        release(c);   /* never connected: the next gateway has nothing open */
+    } else {
+        c->state = SDO_CONNECTED;
+    }
+}
+
+/* The target (or the next gateway) answered: relay it to the client. */
+static void on_answer(co_line_t *line, const co_frame_t *f, void *user)
+{
+    co_gateway_sdo_t *c = user;
+    (void)line;
+    if (c->from == NULL || (f->flags & CO_FRAME_FD) || f->len != SDO_FRAME) {
+        return;
+    }
+    co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
+    c->gw->stats.sdo_answers++;
+    send8(c->gw, line_of(c->from), c->reply_id, f->data);
+    if (c->state == SDO_CONNECTING) {
+        if (f->data[0] == CO_GATEWAY_SDO_NETWORK_IND) {
+            c->state = SDO_CONNECTED;
+            c->gw->stats.sdo_connects++;
+        } else {
+            c->gw->stats.sdo_refused++;
+            release(c);   /* the next gateway refused: the client heard its abort */
+        }
+        return;
+    }
+    c->state = SDO_CONNECTED;
+}
+
+static void arm(co_gateway_sdo_t *c)
+{
+    co_line_t *line = line_of(c->to);
+    co_timer_start(co_line_timers(line), &c->timer, co_line_now(line) + timeout_us(c->gw));
+}
+
+static bool refuse(co_gateway_t *gw, co_line_t *line, uint32_t reply_id, const uint8_t *mux,
+                   uint32_t code)
+{
+    gw->stats.sdo_refused++;
+    send_abort(gw, line, reply_id, mux, code);
+    return true;
+}
+
+/* A network indication from a client on `from`'s server channel. */
+static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_id,
+                       const uint8_t *data)
+{
+    co_gateway_t *gw = from->gw;
+    co_line_t *line = line_of(from);
+    co_gateway_sdo_t *c = find(gw, from, channel);
+    uint16_t net = (uint16_t)(data[1] | data[2] << 8);
+    uint8_t node = data[3];
+    co_stack_t *target_line = NULL;
+    uint8_t hop = 0;
+    if (c != NULL) {
+        release(c);   /* a new indication ends the old connection */
+    }
+    if (net == 0 || (net == from->network_id && node == co_line_node_id(line))) {
+        /* back to this gateway's own server */
+        gw->stats.sdo_connects++;
+        send8(gw, line, reply_id, data);
+        return true;
+    }
+    if (net > 127 || node < 1 || node > 127) {
+        return refuse(gw, line, reply_id, data + 1, CO_ABORT_INVALID_VALUE);
+    }
+    co_gateway_route_kind_t kind = co_gateway_resolve(gw, (uint8_t)net, &target_line, &hop);
+    if (kind != CO_GATEWAY_ATTACHED && kind != CO_GATEWAY_VIA) {
+        return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_NO_ROUTE);
+    }
+    co_gateway_port_t *to = NULL;
+    for (uint8_t i = 0; i < gw->port_count; i++) {
+        if (gw->ports[i].stack == target_line) {
+            to = &gw->ports[i];
+        }
+    }
+    uint8_t target = kind == CO_GATEWAY_VIA ? hop : node;
+    if (to == NULL || to == from || co_line_mode(line_of(to)) != CO_MODE_CLASSIC ||
+        target == co_line_node_id(line_of(to))) {
+        /* relaying needs SDO on both sides; the line it came on, or our own
+         * node there, would loop */
+        return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
+    }
+    c = find_free(gw);
+    if (c == NULL || co_line_id_taken(line_of(to), SDO_RESPONSE_BASE + target) ||
+        !co_line_subscribe(line_of(to), SDO_RESPONSE_BASE + target, SDO_RESPONSE_BASE + target,
+                           on_answer, c)) {
+        /* no connection free, or another client already talks to the target */
+        return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
+    }
+    c->gw = gw;
+    c->from = from;
+    c->channel = channel;
+    c->reply_id = reply_id;
+    c->to = to;
+    c->target = target;
+    c->net = (uint8_t)net;
+    c->node = node;
+    memcpy(c->mux, data + 1, 3);
+    co_timer_init(&c->timer, on_timeout, c);
+    if (kind == CO_GATEWAY_VIA) {
+        /* the next gateway connects on: it confirms or aborts */
+        c->state = SDO_CONNECTING;
+        send8(gw, line_of(to), SDO_REQUEST_BASE + target, data);
+        arm(c);
+        return true;
+    }
+    c->state = SDO_CONNECTED;
+    gw->stats.sdo_connects++;
+    send8(gw, line, reply_id, data);
+    return true;
+}
+
+static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
+                       const co_frame_t *f, void *user)
+{
+    co_gateway_port_t *from = user;
+    co_gateway_sdo_t *c;
+    (void)server;
+    if ((f->data[0] & 0xE0u) == CO_GATEWAY_SDO_NETWORK_IND) {
+        return indication(from, channel, tx_id, f->data);
+    }
+    c = find(from->gw, from, channel);
+    if (c == NULL) {
+        return false;   /* not connected: the gateway's own server answers */
+    }
+    if (c->state == SDO_CONNECTING) {
+        send_abort(from->gw, line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
+        return true;
+    }
+    from->gw->stats.sdo_relayed++;
+    send8(from->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, f->data);
+    if (f->data[0] == SDO_CCS_ABORT) {
+        co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
+        c->state = SDO_CONNECTED;   /* an abort is not answered */
+        return true;
+    }
+    memcpy(c->mux, f->data + 1, 3);
+    c->state = SDO_WAITING;
+    arm(c);
+    return true;
+}
+
+void co_gateway_sdo_hook(co_gateway_port_t *port)
+{
+    port->sdo_server = co_stack_sdo_server(port->stack);
+    if (port->sdo_server != NULL) {
+        co_sdo_server_set_filter(port->sdo_server, on_request, port);
+    }
+}
+
+void co_gateway_sdo_unhook(co_gateway_port_t *port)
+{
+    co_gateway_t *gw = port->gw;
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        if (gw->sdo[i].from == port || gw->sdo[i].to == port) {
+            release(&gw->sdo[i]);
+        }
+    }
+    if (port->sdo_server != NULL) {
+        co_sdo_server_set_filter(port->sdo_server, NULL, NULL);
+        port->sdo_server = NULL;
+    }
+}

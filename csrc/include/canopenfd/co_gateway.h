@@ -1,0 +1,186 @@
+/* co_gateway: routing between the CAN lines of one device (CiA 302-7 style,
+ * seed 000 §13): each line (a co_stack, its "port") carries a network-id
+ * 1..127, and the gateway
+ *
+ *   - keeps the network routes of 0x1F2C: sub n (network n) = via network
+ *     (bits 0..7) | next gateway's node-id on it (bits 8..15), 0 = no route;
+ *     a route to an attached network, through itself, through our own node
+ *     or closing a loop is refused (0x06040043) and a loop met while
+ *     resolving one (values loaded from a store are not checked) is counted
+ *     and reported;
+ *   - routes EMCYs per 0x1F2F: sub n, parallel to 0x1028 sub n (node n's
+ *     EMCY on the same line), bit k-1 = re-send it on network k (1..32),
+ *     re-encoded for the target line (classic 8 bytes / fd 20 bytes) on the
+ *     CAN-ID it was heard on;
+ *   - forwards process data: when an RPDO of one line has written objects of
+ *     0xB000..0xBFFF, the same objects on the other lines get the values and
+ *     every TPDO there that maps one is triggered once (event-driven, no
+ *     application call per frame). Mapping such an object partially, or with
+ *     another type or size than the other lines hold, is refused with
+ *     0x06040043; what a classic PDO cannot hold is refused by the PDO
+ *     service (0x06040041 / 0x06040042);
+ *   - relays SDO networking (co_gateway_sdo.c): a client's network
+ *     indication (0xE0, network LE16, node) on a classic port's SDO server
+ *     connects it to a node of another network; its frames then go to that
+ *     node (or the next gateway) and the answers back, unchanged.
+ *
+ * Layouts of 0x1F2C / 0x1F2F and their evidence: docs/protocol-notes.md
+ * "Gateway". No global state, no allocation: the caller owns co_gateway_t. */
+#ifndef CO_GATEWAY_H
+#define CO_GATEWAY_H
+
+#include "canopenfd/co_stack.h"
+
+enum {
+    CO_GATEWAY_MAX_PORTS = 8,        /* lines one gateway joins */
+    CO_GATEWAY_NETWORKS = 128,       /* network-ids 1..127 index the route table */
+    CO_GATEWAY_ROUTES = 0x1F2C,
+    CO_GATEWAY_EMCY_ROUTES = 0x1F2F,
+    CO_GATEWAY_PDO_FIRST = 0xB000,   /* objects forwarded between lines */
+    CO_GATEWAY_PDO_LAST = 0xBFFF,
+    CO_GATEWAY_EMCY_NETWORKS = 32,   /* 0x1F2F is UNSIGNED32: networks 1..32 */
+    CO_GATEWAY_SDO_CONNECTIONS = 4,  /* SDO networking connections at once */
+    /* OD handler subscriptions a joined node's OD needs besides
+     * CO_STACK_OD_SUBSCRIPTIONS (mapping checks, 0x1F2C) */
+    CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
+    CO_GATEWAY_SDO_TIMEOUT_MS = 1000 /* default wait for the target's answer */
+};
+
+/* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
+ * of the "network indication" request and of its confirmation (ccs/scs 7). */
+#define CO_GATEWAY_SDO_NETWORK_IND 0xE0u
+/* Aborts of the gateway: no connection or target CAN-ID free (the seed's
+ * "SDO client busy"), and a network it cannot reach. */
+#define CO_GATEWAY_ABORT_BUSY 0x060A0023u
+#define CO_GATEWAY_ABORT_NO_ROUTE 0x08000000u
+
+/* cffi:begin */
+typedef struct co_gateway_stats {
+    uint32_t emcy_routed;        /* EMCYs re-sent on a target line */
+    uint32_t emcy_no_route;      /* a 0x1F2F bit names a network no line carries */
+    uint32_t emcy_tx_failed;     /* the target line refused the frame */
+    uint32_t pdo_forwarded;      /* RPDOs whose objects were copied to another line */
+    uint32_t pdo_values;         /* object values copied */
+    uint32_t pdo_mismatch;       /* an object another line holds with another type/size */
+    uint32_t tpdo_triggered;     /* TPDOs triggered by a forwarded value */
+    uint32_t tpdo_refused;       /* a trigger the PDO service refused (not operational) */
+    uint32_t routes_refused;     /* 0x1F2C writes / route calls refused */
+    uint32_t route_loops;        /* loops met while resolving a route */
+    uint32_t sdo_connects;       /* network indications confirmed */
+    uint32_t sdo_refused;        /* network indications refused (abort sent) */
+    uint32_t sdo_relayed;        /* client requests relayed to a target */
+    uint32_t sdo_answers;        /* target answers relayed to a client */
+    uint32_t sdo_timeouts;       /* no answer from the target: aborted both ways */
+    uint32_t sdo_tx_failed;      /* a relayed frame the line refused (tx queue full) */
+} co_gateway_stats_t;
+
+/* Results of co_gateway_resolve. */
+typedef enum co_gateway_route_kind {
+    CO_GATEWAY_ATTACHED = 0,     /* the network is a line of ours */
+    CO_GATEWAY_VIA = 1,          /* reached through a gateway node on one of our lines */
+    CO_GATEWAY_UNKNOWN = 2,      /* no route */
+    CO_GATEWAY_LOOP = 3          /* the routes form a loop (counted, reported) */
+} co_gateway_route_kind_t;
+
+/* Events told to the indication. */
+typedef enum co_gateway_event {
+    CO_GATEWAY_EV_ROUTE_LOOP = 1,   /* resolving network `net` met a loop */
+    CO_GATEWAY_EV_ROUTE_REFUSED = 2 /* a route to `net` was refused (abort in `code`) */
+} co_gateway_event_t;
+/* cffi:end */
+
+typedef struct co_gateway co_gateway_t;
+struct co_gateway_port;
+
+/* One SDO networking connection: a client on a port's server channel whose
+ * requests go to `target` on another port's line (the device itself when its
+ * network is attached, else the next gateway). */
+typedef struct co_gateway_sdo {
+    co_gateway_t *gw;
+    struct co_gateway_port *from;    /* NULL: free */
+    uint8_t channel;                 /* the server channel the client uses */
+    uint32_t reply_id;               /* its answer CAN-ID */
+    struct co_gateway_port *to;
+    uint8_t target;                  /* node-id addressed on the target line */
+    uint8_t net;                     /* what the client asked for */
+    uint8_t node;
+    uint8_t state;                   /* co_gateway_sdo_state in co_gateway_sdo.c */
+    uint8_t mux[3];                  /* bytes 1..3 of the last relayed request */
+    co_timer_t timer;
+} co_gateway_sdo_t;
+
+typedef void (*co_gateway_event_fn)(co_gateway_t *gw, co_gateway_event_t event, uint8_t net,
+                                    uint32_t code, void *user);
+
+typedef struct co_gateway_port {
+    co_gateway_t *gw;
+    co_stack_t *stack;
+    uint8_t network_id;
+    bool od_hooked;              /* mapping / 0x1F2C handlers on the line's OD */
+    co_pdo_t *pdo;               /* tapped PDO service, or NULL */
+    co_sdo_server_t *sdo_server; /* filtered SDO server (classic lines), or NULL */
+    /* 0x1F2F of lines without one in their OD (co_gateway_set_emcy_route) */
+    uint32_t emcy_routes[CO_GATEWAY_NETWORKS];
+} co_gateway_port_t;
+
+struct co_gateway {
+    co_gateway_port_t ports[CO_GATEWAY_MAX_PORTS];
+    uint8_t port_count;
+    uint16_t routes[CO_GATEWAY_NETWORKS];   /* via network | node << 8, 0 = none */
+    bool syncing;                /* copying a route into the other ODs */
+    co_gateway_sdo_t sdo[CO_GATEWAY_SDO_CONNECTIONS];
+    uint32_t sdo_timeout_us;
+    co_gateway_event_fn on_event;
+    void *user;
+    co_gateway_stats_t stats;
+};
+
+typedef enum co_gateway_status {
+    CO_GATEWAY_OK = 0,
+    CO_GATEWAY_ERR_ARGUMENT = 1, /* network-id outside 1..127, NULL, the same line twice */
+    CO_GATEWAY_ERR_NETWORK = 2,  /* another line has this network-id */
+    CO_GATEWAY_ERR_FULL = 3,     /* CO_GATEWAY_MAX_PORTS lines already */
+    CO_GATEWAY_ERR_TAKEN = 4     /* the OD has no room for the gateway's handlers */
+} co_gateway_status_t;
+
+void co_gateway_init(co_gateway_t *gw, co_gateway_event_fn on_event, void *user);
+/* Join a line: after its node (if any) is set up, since the gateway hooks
+ * the node's OD (0x1600..0x1BFF mapping checks, 0x1F2C), its PDOs and the
+ * line's EMCY consumer. Routes found in the OD's 0x1F2C join the table. */
+co_gateway_status_t co_gateway_add_port(co_gateway_t *gw, co_stack_t *stack,
+                                        uint8_t network_id);
+/* Every hook removed (before the stacks go). */
+void co_gateway_deinit(co_gateway_t *gw);
+
+/* The line carrying network `net`, or NULL. */
+co_stack_t *co_gateway_line_of(co_gateway_t *gw, uint8_t net);
+/* The network-id of a joined line, 0 when it is none of ours. */
+uint8_t co_gateway_network_of(const co_gateway_t *gw, const co_stack_t *stack);
+
+/* Set (value 0: remove) the route to `net` as a write of 0x1F2C sub net
+ * does, written into every joined OD with 0x1F2C: 0 or the abort code. */
+uint32_t co_gateway_set_route(co_gateway_t *gw, uint8_t net, uint8_t via_net, uint8_t node_id);
+/* Where requests for node(s) of network `net` go: *line = the line to send
+ * on, *node_id = the gateway node to hand them to (0 when attached). */
+co_gateway_route_kind_t co_gateway_resolve(co_gateway_t *gw, uint8_t net, co_stack_t **line,
+                                           uint8_t *node_id);
+
+/* 0x1F2F sub node_id of a line whose OD has no such entry: bit k-1 =
+ * network k. False for an unknown line or node-id. */
+bool co_gateway_set_emcy_route(co_gateway_t *gw, co_stack_t *stack, uint8_t node_id,
+                               uint32_t networks);
+
+/* SDO networking: how long a relayed request waits for the target (0 =
+ * CO_GATEWAY_SDO_TIMEOUT_MS). */
+void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms);
+
+/* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
+void co_gateway_sdo_hook(struct co_gateway_port *port);
+void co_gateway_sdo_unhook(struct co_gateway_port *port);
+
+static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
+{
+    return &gw->stats;
+}
+
+#endif

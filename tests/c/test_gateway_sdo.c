@@ -1,0 +1,453 @@
+/* co_gateway SDO networking: a gateway (node 1 on each line) joins a classic
+ * line with a client (network 1), an fd line (network 2) and a classic line
+ * with device 5 (network 3). The client's network indication (0xE0, network
+ * LE16, node) is confirmed, its requests are relayed to the device and the
+ * answers back, byte for byte on both buses (expedited, segmented, a
+ * download, an abort of the device, an abort of the client); faults: a
+ * silent target, a lost answer (both sides aborted with 0x05040000), the
+ * gateway's client busy, an unknown or fd network; a route through a next
+ * gateway forwards the indication and relays its confirmation or refusal. */
+#include "test_od_util.h"
+
+#include "canopenfd/co_gateway.h"
+#include "canopenfd/co_stack.h"
+
+#include <stdlib.h>
+
+enum { GW = 1, DEV = 5, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3, TIMEOUT_MS = 100 };
+
+static const tu_od_row_t gateway_rows[] = {
+    {0x1000, 0, VAR, U32, RO, 0, 4, 0x00000302, NULL, 0, 0},
+    {0x1001, 0, VAR, U8, RO, 0, 1, 0, NULL, 0, 0},
+    {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
+};
+
+static const tu_od_row_t device_rows[] = {
+    {0x1000, 0, VAR, U32, RO, 0, 4, 0x00000191, NULL, 0, 0},
+    {0x1001, 0, VAR, U8, RO, 0, 1, 0, NULL, 0, 0},
+    {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
+    {0x2000, 0, VAR, U32, RW, 0, 4, 0x12345678, NULL, 0, 0},
+    {0x2001, 0, VAR, VS, RO, 0, 14, 0, "hello gateway!", 0, 0},
+};
+
+#define ROWS(r) (sizeof(r) / sizeof((r)[0]))
+
+typedef struct node {
+    tu_line_t line;
+    co_od_t od;
+    co_od_entry_t entries[16];
+    uint8_t pool[512];
+    co_od_subscription_t subs[CO_STACK_OD_SUBSCRIPTIONS + 4];
+    co_stack_t stack;
+    co_stack_arena_t arena;
+    unsigned char memory[48 * 1024];
+} node_t;
+
+typedef struct fx {
+    tu_bus_t a, b, c;
+    node_t gw_a, gw_b, gw_c, dev;
+    tu_line_t client;            /* raw frames on network 1 */
+    tu_line_t peer;              /* raw frames on network 3 (the "next gateway") */
+    co_gateway_t gw;
+    bool drop_answer;
+    co_stack_t tool;             /* an SDO client on the client's line */
+    co_stack_arena_t tool_arena;
+    unsigned char tool_memory[32 * 1024];
+} fx_t;
+
+static void node_init(tu_bus_t *tb, node_t *n, co_mode_t mode, uint8_t node_id,
+                      const tu_od_row_t *rows, size_t count)
+{
+    tu_bus_add_line(tb, &n->line);
+    co_od_init(&n->od, mode, n->entries, 16, n->pool, sizeof n->pool, n->subs,
+               CO_STACK_OD_SUBSCRIPTIONS + 4);
+    tu_od_add_rows(&n->od, rows, count);
+    assert_true(co_od_seal(&n->od, node_id));
+    co_stack_arena_init(&n->arena, n->memory, sizeof n->memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 2};
+    assert_int_equal(co_stack_init(&n->stack, &n->line.line, &lc,
+                                   co_stack_arena_allocator(&n->arena)), CO_STACK_OK);
+    co_stack_node_config_t nc = {.node_id = node_id, .od = &n->od};
+    assert_int_equal(co_stack_node_init(&n->stack, &nc), CO_STACK_OK);
+    assert_int_equal(co_stack_boot(&n->stack), CO_STACK_OK);
+}
+
+static uint8_t drop_answer(const co_frame_t *frame, void *user)
+{
+    fx_t *fx = user;
+    if (fx->drop_answer && frame->id == 0x580 + DEV) {
+        fx->drop_answer = false;
+        return 0;
+    }
+    return 1;
+}
+
+static void step_all(fx_t *fx, uint64_t t)
+{
+    for (int round = 0; round < 4; round++) {
+        tu_step(&fx->a, t);
+        tu_step(&fx->b, t);
+        tu_step(&fx->c, t);
+    }
+}
+
+static void settle(fx_t *fx)
+{
+    step_all(fx, fx->a.now);
+}
+
+/* Advance the three buses together to `until`, stopping at each deadline. */
+static void advance(fx_t *fx, uint64_t until)
+{
+    for (int guard = 0; guard < 10000; guard++) {
+        uint64_t d = tu_next_deadline(&fx->a), e = tu_next_deadline(&fx->b),
+                 f = tu_next_deadline(&fx->c);
+        d = e < d ? e : d;
+        d = f < d ? f : d;
+        if (d > until) {
+            break;
+        }
+        step_all(fx, d > fx->a.now ? d : fx->a.now);
+    }
+    step_all(fx, until);
+}
+
+static fx_t *fx_new(void)
+{
+    fx_t *fx = calloc(1, sizeof *fx);
+    assert_non_null(fx);
+    tu_bus_init(&fx->a, CO_MODE_CLASSIC, false);
+    tu_bus_init(&fx->b, CO_MODE_FD, true);
+    tu_bus_init(&fx->c, CO_MODE_CLASSIC, false);
+    node_init(&fx->a, &fx->gw_a, CO_MODE_CLASSIC, GW, gateway_rows, ROWS(gateway_rows));
+    node_init(&fx->b, &fx->gw_b, CO_MODE_FD, GW, gateway_rows, ROWS(gateway_rows));
+    node_init(&fx->c, &fx->gw_c, CO_MODE_CLASSIC, GW, gateway_rows, ROWS(gateway_rows));
+    node_init(&fx->c, &fx->dev, CO_MODE_CLASSIC, DEV, device_rows, ROWS(device_rows));
+    tu_bus_add_line(&fx->a, &fx->client);
+    tu_bus_add_line(&fx->c, &fx->peer);
+    co_gateway_init(&fx->gw, NULL, NULL);
+    co_gateway_set_sdo_timeout(&fx->gw, TIMEOUT_MS);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_a.stack, NET_A), CO_GATEWAY_OK);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_b.stack, NET_B), CO_GATEWAY_OK);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_c.stack, NET_C), CO_GATEWAY_OK);
+    co_membus_set_fault(&fx->c.bus, drop_answer, fx);
+    settle(fx);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    return fx;
+}
+
+static void fx_free(fx_t *fx)
+{
+    co_gateway_deinit(&fx->gw);
+    if (co_stack_line(&fx->tool) != NULL) {
+        co_stack_deinit(&fx->tool);
+    }
+    co_stack_deinit(&fx->gw_a.stack);
+    co_stack_deinit(&fx->gw_b.stack);
+    co_stack_deinit(&fx->gw_c.stack);
+    co_stack_deinit(&fx->dev.stack);
+    free(fx);
+}
+
+/* The client sends one request to the gateway; the buses settle. */
+static void request(fx_t *fx, const uint8_t *data)
+{
+    assert_true(co_line_send(&fx->client.line, 0x600 + GW, data, 8));
+    settle(fx);
+}
+
+/* The k-th frame with `id` in a bus log must be exactly these 8 bytes. */
+static void expect(const tu_bus_t *tb, uint32_t id, size_t k, const uint8_t *data)
+{
+    tu_assert_logged(tb, tu_log_find_id(tb, id, k), id, data, 8);
+}
+
+static const uint8_t IND_3_5[8] = {0xE0, NET_C, 0x00, DEV, 0, 0, 0, 0};
+
+static void connect_3_5(fx_t *fx)
+{
+    request(fx, IND_3_5);
+    expect(&fx->a, 0x581, 0, IND_3_5);          /* confirmed, the same bytes */
+    assert_int_equal(tu_log_count_id(&fx->c, 0x600 + DEV), 0);   /* attached: nothing sent */
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+}
+
+static void test_expedited_read_and_write_relayed(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    const uint8_t up[8] = {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0};
+    const uint8_t up_ok[8] = {0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12};
+    request(fx, up);
+    expect(&fx->c, 0x605, 0, up);               /* relayed unchanged to device 5 */
+    expect(&fx->c, 0x585, 0, up_ok);
+    expect(&fx->a, 0x581, 0, up_ok);            /* its answer back to the client */
+    const uint8_t down[8] = {0x23, 0x00, 0x20, 0x00, 0xBE, 0xBA, 0xFE, 0xCA};
+    const uint8_t down_ok[8] = {0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0};
+    request(fx, down);
+    expect(&fx->c, 0x605, 1, down);
+    expect(&fx->a, 0x581, 1, down_ok);
+    uint32_t v = 0;
+    assert_true(co_od_get_u32(&fx->dev.od, 0x2000, 0, &v));
+    assert_int_equal(v, 0xCAFEBABE);
+    const co_gateway_stats_t *st = co_gateway_stats(&fx->gw);
+    assert_int_equal(st->sdo_connects, 1);
+    assert_int_equal(st->sdo_relayed, 2);
+    assert_int_equal(st->sdo_answers, 2);
+    /* no timeout fires afterwards: answered requests disarm it */
+    advance(fx, fx->a.now + 5 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(st->sdo_timeouts, 0);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 2);
+    fx_free(fx);
+}
+
+static void test_segmented_upload_relayed(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    request(fx, (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x01, 0x20, 0x00, 14, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x00, 'h', 'e', 'l', 'l', 'o', ' ', 'g'});
+    request(fx, (const uint8_t[]){0x70, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x11, 'a', 't', 'e', 'w', 'a', 'y', '!'});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 3);
+    fx_free(fx);
+}
+
+/* Either side's abort reaches the other: the device's (no such object) is
+ * relayed to the client; the client's (mid-transfer) to the device, and no
+ * timeout follows it. */
+static void test_aborts_relayed(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    const uint8_t nothing[8] = {0x80, 0xFF, 0x2F, 0x00, 0x00, 0x00, 0x02, 0x06};
+    request(fx, (const uint8_t[]){0x40, 0xFF, 0x2F, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x585, 0, nothing);
+    expect(&fx->a, 0x581, 0, nothing);
+    request(fx, (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0});
+    const uint8_t client_abort[8] = {0x80, 0x01, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05};
+    request(fx, client_abort);
+    expect(&fx->c, 0x605, 2, client_abort);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 0);
+    /* the device took the abort: a new upload starts cleanly */
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12});
+    fx_free(fx);
+}
+
+/* A silent target and a lost answer: after the timeout both the client and
+ * the target hear abort 0x05040000 with the request's multiplexer; the
+ * connection stays, the next request goes through. */
+static void test_silent_target_and_lost_answer(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    const uint8_t ind_3_7[8] = {0xE0, NET_C, 0x00, 7, 0, 0, 0, 0};
+    request(fx, ind_3_7);
+    expect(&fx->a, 0x581, 0, ind_3_7);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    const uint8_t timed_out[8] = {0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05};
+    uint64_t sent = fx->a.now;
+    advance(fx, sent + (TIMEOUT_MS - 1) * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);   /* not before the timeout */
+    advance(fx, sent + (TIMEOUT_MS + 1) * TU_MS);
+    expect(&fx->a, 0x581, 1, timed_out);
+    expect(&fx->c, 0x607, 1, timed_out);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 1);
+
+    request(fx, IND_3_5);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    fx->drop_answer = true;
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    advance(fx, fx->a.now + (TIMEOUT_MS + 1) * TU_MS);
+    expect(&fx->a, 0x581, 0, timed_out);
+    expect(&fx->c, 0x605, 1, timed_out);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12});
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 2);
+    fx_free(fx);
+}
+
+/* Refusals, each an abort with the indication's bytes 1..3: a network no
+ * route reaches (0x08000000), an fd network (0x060A0023: SDO cannot be
+ * relayed there), the client's own line (0x060A0023), a bad node-id
+ * (0x06090030), the gateway's SDO client on the target line holding the
+ * answer CAN-IDs (busy: 0x060A0023). A refused client stays with the
+ * gateway's own server. */
+static void test_refusals(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    request(fx, (const uint8_t[]){0xE0, 9, 0, DEV, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 9, 0, DEV, 0x00, 0x00, 0x00, 0x08});
+    request(fx, (const uint8_t[]){0xE0, NET_B, 0, DEV, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x80, NET_B, 0, DEV, 0x23, 0x00, 0x0A, 0x06});
+    request(fx, (const uint8_t[]){0xE0, NET_A, 0, 7, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x80, NET_A, 0, 7, 0x23, 0x00, 0x0A, 0x06});
+    request(fx, (const uint8_t[]){0xE0, NET_C, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 3, (const uint8_t[]){0x80, NET_C, 0, 0, 0x30, 0x00, 0x09, 0x06});
+    co_stack_client_config_t cc = {.sessions = 2};
+    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
+    request(fx, IND_3_5);
+    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x80, NET_C, 0, DEV, 0x23, 0x00, 0x0A, 0x06});
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 5);
+    /* still served by the gateway itself */
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 5, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);
+    fx_free(fx);
+}
+
+/* An indication naming the gateway itself ends the connection. */
+static void test_back_to_the_gateways_own_server(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    const uint8_t home[8] = {0xE0, NET_A, 0x00, GW, 0, 0, 0, 0};
+    request(fx, home);
+    expect(&fx->a, 0x581, 0, home);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);
+    fx_free(fx);
+}
+
+/* Network 4 lies behind gateway node 9 on network 3: the indication goes on
+ * to it; its confirmation connects, its refusal is relayed and ends it. */
+static void test_indication_forwarded_to_the_next_gateway(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    assert_int_equal(co_gateway_set_route(&fx->gw, 4, NET_C, NEXT_GW), 0);
+    const uint8_t ind_4_5[8] = {0xE0, 4, 0x00, DEV, 0, 0, 0, 0};
+    request(fx, ind_4_5);
+    expect(&fx->c, 0x600 + NEXT_GW, 0, ind_4_5);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 0);   /* waits for the next gateway */
+    /* a request before the confirmation: busy */
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x00, 0x20, 0x00, 0x23, 0x00, 0x0A, 0x06});
+    assert_true(co_line_send(&fx->peer.line, 0x580 + NEXT_GW, ind_4_5, 8));
+    settle(fx);
+    expect(&fx->a, 0x581, 1, ind_4_5);
+    const uint8_t up[8] = {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0};
+    request(fx, up);
+    expect(&fx->c, 0x600 + NEXT_GW, 1, up);
+    const uint8_t answer[8] = {0x43, 0x00, 0x20, 0x00, 1, 2, 3, 4};
+    assert_true(co_line_send(&fx->peer.line, 0x580 + NEXT_GW, answer, 8));
+    settle(fx);
+    expect(&fx->a, 0x581, 2, answer);
+
+    /* the next gateway refuses another indication */
+    request(fx, (const uint8_t[]){0xE0, 4, 0x00, 6, 0, 0, 0, 0});
+    const uint8_t refused[8] = {0x80, 4, 0x00, 6, 0x00, 0x00, 0x00, 0x08};
+    assert_true(co_line_send(&fx->peer.line, 0x580 + NEXT_GW, refused, 8));
+    settle(fx);
+    expect(&fx->a, 0x581, 3, refused);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});   /* own server */
+    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
+    /* a silent next gateway: the indication times out on both sides */
+    tu_log_clear(&fx->a);
+    request(fx, ind_4_5);
+    advance(fx, fx->a.now + (TIMEOUT_MS + 1) * TU_MS);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 4, 0x00, DEV, 0x00, 0x00, 0x04, 0x05});
+    fx_free(fx);
+}
+
+/* ------------------------------------------------------------ the client side */
+
+typedef struct upload {
+    co_sdo_request_t req;
+    co_sdo_buffer_t sink;
+    uint8_t data[32];
+    bool done;
+} upload_t;
+
+static void upload_done(co_sdo_request_t *req)
+{
+    ((upload_t *)req->user)->done = true;
+}
+
+static void routed_upload(fx_t *fx, upload_t *u, uint8_t network, uint8_t node, uint16_t index)
+{
+    memset(u, 0, sizeof *u);
+    u->sink.data = u->data;
+    u->sink.capacity = sizeof u->data;
+    u->req = (co_sdo_request_t){.server = GW, .index = index, .upload = true,
+                                .sink = co_sdo_buffer_sink, .ctx = &u->sink,
+                                .done = upload_done, .user = u, .network = network,
+                                .network_node = node};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &u->req), 0);
+    advance(fx, fx->a.now + 10 * TU_MS);
+    assert_true(u->done);
+}
+
+/* co_sdo_client with (network, node): the indication goes first, once per
+ * connection; network 0 brings the gateway back to its own OD; a refusal
+ * ends the request with the gateway's abort. */
+static void test_client_reaches_a_node_through_the_gateway(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    upload_t u;
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(u.sink.size, 4);
+    assert_int_equal(tu_le_get(u.data, 4), 0x12345678);
+    expect(&fx->a, 0x601, 0, IND_3_5);
+    expect(&fx->a, 0x601, 1, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x605, 0, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    /* connected already: no second indication */
+    routed_upload(fx, &u, NET_C, DEV, 0x2001);
+    assert_int_equal(u.req.abort, 0);
+    assert_memory_equal(u.data, "hello gateway!", 14);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x601), 2 + 3);
+    /* the gateway's own OD again */
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, 0, 0, 0x1000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(tu_le_get(u.data, 4), 0x302);
+    expect(&fx->a, 0x601, 0, (const uint8_t[]){0xE0, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0xE0, 0, 0, 0, 0, 0, 0, 0});
+    /* a network no route reaches */
+    routed_upload(fx, &u, 9, DEV, 0x2000);
+    assert_int_equal(u.req.abort, CO_GATEWAY_ABORT_NO_ROUTE);
+    assert_true(u.req.abort_from_server);
+    /* a routed request without its gateway is refused at the start */
+    u.req.server = 0;
+    u.req.network = NET_C;
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &u.req),
+                     CO_ABORT_GENERAL);
+    fx_free(fx);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_expedited_read_and_write_relayed),
+        cmocka_unit_test(test_segmented_upload_relayed),
+        cmocka_unit_test(test_aborts_relayed),
+        cmocka_unit_test(test_silent_target_and_lost_answer),
+        cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_back_to_the_gateways_own_server),
+        cmocka_unit_test(test_indication_forwarded_to_the_next_gateway),
+        cmocka_unit_test(test_client_reaches_a_node_through_the_gateway),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,205 @@
+"""Routing between the lines of one Network (line.network_id, network.routing;
+the C core's co_gateway running in the runtime thread): a classic line
+(network 1) and an fd line (network 2), each with the gateway's local node 1,
+and a device line on each bus sending raw frames. Checked on the wire by a
+monitor line per bus: a classic RPDO leaves the fd line as a TPDO with the
+same bytes, an fd RPDO is split over two classic TPDOs, EMCYs are routed
+per 0x1F2F (OD) and per the API (no 0x1F2F) re-encoded for the target line,
+and the 0x1F2C routes with their refusals as exceptions naming the abort."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from canopenfd import ConfigurationError, SdoAbortError
+from canopenfd.od import DataType, ODArray, ODVariable, demo_od
+from canopenfd.services.routing import GatewayRouteKind
+from helpers import Recorder
+
+GW = 1
+U16, U32 = DataType.UNSIGNED16, DataType.UNSIGNED32
+_buses = itertools.count(1)
+
+
+def _array(od, index, name, dtype, values, mappable=False):
+    array = ODArray(name, index)
+    array.add_member(ODVariable("Highest sub-index supported", index, 0, DataType.UNSIGNED8,
+                                "ro", max(values)))
+    for sub in range(1, max(values) + 1):
+        array.add_member(ODVariable(f"{name} {sub}", index, sub, dtype[sub - 1]
+                                    if isinstance(dtype, list) else dtype, "rw",
+                                    values.get(sub, 0), pdo_mapping=mappable))
+    od.add_object(array)
+
+
+def _pdo(od, comm, number, cob_id, mapping):
+    od[comm + number - 1][1].default = cob_id
+    od[comm + number - 1][2].default = 255
+    maps = od[comm + 0x200 + number - 1]
+    maps[0].default = len(mapping)
+    for sub, value in enumerate(mapping, 1):
+        maps[sub].default = value
+
+
+def gateway_od(mode):
+    """0xB000: U16 + U32 (classic -> fd), 0xB001: 4 x U32 (fd -> classic);
+    0x1028 consumes nodes 5 and 6; the classic side has 0x1F2F and 0x1F2C."""
+    od = demo_od(mode, pdos=2)
+    _array(od, 0xB000, "to fd", [U16, U32], {1: 0, 2: 0}, mappable=True)
+    _array(od, 0xB001, "to classic", U32, {1: 0, 2: 0, 3: 0, 4: 0}, mappable=True)
+    _array(od, 0x1028, "Emergency consumer", U32,
+           {**{n: 0x80000000 for n in range(1, 8)}, 5: 0x85, 6: 0x86})
+    if mode == "classic":
+        _array(od, 0x1F2F, "EMCY routing", U32, {n: 0 for n in range(1, 8)} | {5: 0x2})
+        _array(od, 0x1F2C, "Network routes", U32, {n: 0 for n in range(1, 11)})
+        _pdo(od, 0x1400, 1, 0x185, [0xB0000110, 0xB0000220])
+        _pdo(od, 0x1800, 1, 0x181, [0xB0010120, 0xB0010220])
+        _pdo(od, 0x1800, 2, 0x281, [0xB0010320, 0xB0010420])
+    else:
+        _pdo(od, 0x1400, 1, 0x206, [0xB0010120, 0xB0010220, 0xB0010320, 0xB0010420])
+        _pdo(od, 0x1800, 1, 0x181, [0xB0000110, 0xB0000220])
+    return od
+
+
+class Rig:
+    def __init__(self, net):
+        n = next(_buses)
+        self.net = net
+        self.buses = {mode: f"mem:routing-{mode}-{n}" for mode in ("classic", "fd")}
+        self.gw = {}
+        self.dev = {}
+        self.seen = {}
+        for mode, bus in self.buses.items():
+            self.gw[mode] = net.open_line(bus, mode=mode)
+            self.gw[mode].create_local_node(GW, od=gateway_od(mode))
+            self.dev[mode] = net.open_line(bus, mode=mode)
+            self.seen[mode] = Recorder()
+            net.open_line(bus, mode=mode, monitor=True).on_frame(self.seen[mode])
+        self.gw["classic"].network_id = 1
+        self.gw["fd"].network_id = 2
+        for mode in self.buses:
+            self.dev[mode].nmt.start(GW)
+            self.gw[mode].local_node.nmt.wait_for_state("OPERATIONAL", timeout=5)
+
+    def frames(self, mode, can_id, count, what):
+        def enough(calls):
+            got = [f for f in calls if f.id == can_id]
+            return got if len(got) >= count else None
+        return self.seen[mode].wait_for(enough, 5.0, what)
+
+
+@pytest.fixture
+def rig(net):
+    return Rig(net)
+
+
+def test_network_ids_and_refusals(rig):
+    classic, fd = rig.gw["classic"], rig.gw["fd"]
+    assert (classic.network_id, fd.network_id) == (1, 2)
+    assert rig.dev["classic"].network_id is None
+    with pytest.raises(ConfigurationError, match="carries network 1 already"):
+        rig.dev["classic"].network_id = 1
+    with pytest.raises(ConfigurationError, match=r"network-id must be 1\.\.127"):
+        rig.dev["classic"].network_id = 128
+
+
+def test_classic_rpdo_leaves_the_fd_line_as_a_tpdo(rig):
+    data = bytes([0x34, 0x12, 0x78, 0x56, 0x34, 0x12])
+    rig.dev["classic"].send_frame(0x185, data)
+    (frame,) = rig.frames("fd", 0x181, 1, "the forwarded TPDO on the fd line")
+    assert frame.data == data and frame.fd
+    assert rig.gw["fd"].local_node[0xB000][2].raw == 0x12345678   # the fd node's copy
+    stats = rig.net.routing.stats
+    assert stats["pdo_forwarded"] == 1 and stats["pdo_values"] == 2
+    assert stats["tpdo_triggered"] == 1
+
+
+def test_fd_rpdo_is_split_over_two_classic_tpdos(rig):
+    data = bytes(range(0xA0, 0xB0))
+    rig.dev["fd"].send_frame(0x206, data)
+    (first,) = rig.frames("classic", 0x181, 1, "classic TPDO1")
+    (second,) = rig.frames("classic", 0x281, 1, "classic TPDO2")
+    assert (first.data, second.data) == (data[:8], data[8:])
+    assert not first.fd and rig.net.routing.stats["tpdo_triggered"] == 2
+
+
+def test_emcy_routed_by_0x1f2f_and_by_the_api(rig):
+    classic_emcy = bytes([0x10, 0x81, 0x11, 1, 2, 3, 4, 5])
+    rig.dev["classic"].send_frame(0x85, classic_emcy)
+    (frame,) = rig.frames("fd", 0x85, 1, "node 5's EMCY on the fd line")
+    assert frame.data == classic_emcy + bytes(12)        # the 20-byte FD EMCY
+    # the fd side has no 0x1F2F: the API routes node 6 to network 1
+    rig.net.routing.emcy_route(rig.gw["fd"], 6, [1])
+    fd_emcy = bytes([0x30, 0x42, 0x05, 9, 8, 7, 6, 5, 1, 0x15, 0x05, 1, 1, 2, 3, 4, 5, 6,
+                     0, 0])
+    rig.dev["fd"].send_frame(0x86, fd_emcy)
+    (frame,) = rig.frames("classic", 0x86, 1, "node 6's EMCY on the classic line")
+    assert frame.data == fd_emcy[:8]
+    assert rig.net.routing.stats["emcy_routed"] == 2
+    with pytest.raises(ConfigurationError, match="networks 1..32"):
+        rig.net.routing.emcy_route(rig.gw["fd"], 6, [33])
+
+
+def test_routes_resolve_refuse_and_report_loops(rig):
+    routing = rig.net.routing
+    notices = Recorder()
+    routing.add_callback(notices)
+    assert routing.resolve(1).kind == GatewayRouteKind.ATTACHED
+    assert routing.resolve(1).line is rig.gw["classic"]
+    assert routing.resolve(9).kind == GatewayRouteKind.UNKNOWN
+    routing.route(3, via=2, node=7)
+    routing.route(4, via=3, node=9)
+    route = routing.resolve(4)
+    assert (route.kind, route.line, route.node) == (GatewayRouteKind.VIA, rig.gw["fd"], 7)
+    with pytest.raises(ConfigurationError, match="0x06040043"):
+        routing.route(3, via=4, node=9)                  # 3 -> 4 -> 3
+    with pytest.raises(ConfigurationError, match="0x06040043"):
+        routing.route(2, via=1, node=7)                  # attached
+    with pytest.raises(ConfigurationError, match="0x06040043"):
+        routing.route(5, via=1, node=GW)                 # through our own node
+    notices.wait_for(lambda calls: len(calls) >= 4 or None, 5.0, "loop + 3 refusals")
+    events = [(n.event.name, n.network, n.abort) for n in notices.snapshot()]
+    assert ("ROUTE_LOOP", 3, 0x06040043) in events
+    assert events.count(("ROUTE_REFUSED", 3, 0x06040043)) == 1
+    assert routing.stats["routes_refused"] == 3 and routing.stats["route_loops"] == 1
+    routing.remove_route(4)
+    assert routing.resolve(4).kind == GatewayRouteKind.UNKNOWN
+
+
+def test_sdo_networking_reaches_a_node_of_another_network(net):
+    """A client on network 1 reads and writes device 5 of network 3 through
+    the gateway (node 1 on both classic lines): the network indication, then
+    every frame relayed; a network no route reaches is the gateway's abort."""
+    n = next(_buses)
+    a, c = f"mem:routing-sdo-a-{n}", f"mem:routing-sdo-c-{n}"
+    for bus, network_id in ((a, 1), (c, 3)):
+        gateway = net.open_line(bus, mode="classic")
+        gateway.create_local_node(GW, od=demo_od("classic"))
+        gateway.network_id = network_id
+    target = net.open_line(c, mode="classic").create_local_node(5, od=demo_od("classic"))
+    seen_a, seen_c = Recorder(), Recorder()
+    net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
+    net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
+    client = net.open_line(a, mode="classic")
+
+    device = client.sdo.remote(network=3, node=5, gateway=GW)
+    assert device.upload(0x1000) == target[0x1000].data     # device 5's own value
+    device.download(0x1017, 0, (250).to_bytes(2, "little"))
+    assert target[0x1017].raw == 250
+    indication = bytes([0xE0, 3, 0, 5, 0, 0, 0, 0])
+    requests = seen_a.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x601] or None, 5.0, "client requests")
+    assert requests[0].data == indication
+    relayed = seen_c.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x605] or None, 5.0, "relayed request")
+    assert relayed[0].data == bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0])
+    stats = net.routing.stats
+    assert stats["sdo_connects"] == 1 and stats["sdo_relayed"] >= 1
+
+    with pytest.raises(SdoAbortError, match="0x08000000") as refused:
+        client.sdo.remote(network=9, node=5, gateway=GW).upload(0x1000)
+    assert refused.value.from_server
+    with pytest.raises(ConfigurationError, match="network must be 1..127"):
+        client.sdo.remote(network=0, node=5, gateway=GW)
