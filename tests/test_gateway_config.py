@@ -27,6 +27,10 @@ GOOD = textwrap.dedent("""\
     [line 2]
     channel = mem:gwcfg-2
     mode = classic
+    routing = off
+
+    [routes]
+    3 = 1:7
 
     [node 2.9]
     heartbeat_timeout_ms = 300
@@ -42,8 +46,10 @@ def test_a_good_file_is_read(tmp_path: pathlib.Path) -> None:
     path.write_text(GOOD, encoding="utf-8")
     config = load_config(path)
     assert config.name == "plant-gw"
-    assert [(c.net, c.channel, c.mode, c.node_id, c.heartbeat_ms) for c in config.lines] == [
-        (1, "mem:gwcfg-1", "fd", 1, 100), (2, "mem:gwcfg-2", "classic", None, 0)]
+    assert [(c.net, c.channel, c.mode, c.node_id, c.heartbeat_ms, c.routing)
+            for c in config.lines] == [(1, "mem:gwcfg-1", "fd", 1, 100, True),
+                                       (2, "mem:gwcfg-2", "classic", None, 0, False)]
+    assert [(r.network, r.via, r.node) for r in config.routes] == [(3, 1, 7)]
     assert [(n.net, n.node_id, n.heartbeat_timeout_ms, n.pdos) for n in config.nodes] == [
         (2, 9, 300, "none"), (1, 5, 0, "od")]
     assert config.nodes[1].od == str(tmp_path.resolve() / "drive.eds")   # beside the file
@@ -66,6 +72,11 @@ def test_a_good_file_is_read(tmp_path: pathlib.Path) -> None:
     ("[gateway]\nname = a/b\n[line 1]\nchannel = can0\n", 1, "may not hold"),
     ("[gateway]\nname = gw\n", None, "no [line NET] section"),
     ("[line 1]\nchannel = can0\n[mqtt]\nport = 70000\n", 4, "port = 70000 is not 1..65535"),
+    ("[line 1]\nchannel = can0\nrouting = maybe\n", 3, "expected one of on, off"),
+    ("[line 1]\nchannel = can0\n[routes]\n3 = 1\n", 4, "expected NETWORK = VIA:NODE"),
+    ("[line 1]\nchannel = can0\n[routes]\n3 = 1:200\n", 4, "expected NETWORK = VIA:NODE"),
+    ("[line 1]\nchannel = can0\n[routes]\n1 = 1:7\n", 4, "is a line of this gateway"),
+    ("[line 1]\nchannel = can0\n[routes]\n3 = 2:7\n", 4, "has no [line 2]"),
     ("channel = can0\n", 1, "before the first [section]"),
     ("[line 1\n", 1, "bad section header"),
     ("", None, "empty"),
@@ -94,6 +105,9 @@ def test_the_gateway_opens_lines_and_watches_nodes() -> None:
             assert gateway.lines[1].mode == "fd" and gateway.lines[2].mode == "classic"
             assert gateway.lines[1].local_node is not None
             assert gateway.lines[1].local_node.node_id == 1
+            assert (gateway.lines[1].network_id, gateway.lines[2].network_id) == (1, None)
+            route = net.routing.resolve(3)
+            assert (route.line, route.node) == (gateway.lines[1], 7)
             node = gateway.nodes[(2, 9)]
             node.nmt.wait_for_heartbeat(timeout=5)
             assert node.read("0x1017:0") == (50).to_bytes(2, "little")

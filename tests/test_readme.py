@@ -27,7 +27,8 @@ _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 #: one world share a namespace and run in this order ("none": on their own in an
 #: empty directory, "repo": on their own in the source tree, for its sample files).
 WORLDS = {1: "none", 2: "fd", 3: "repo", 4: "fd", 5: "fd", 6: "fd", 7: "fd", 8: "fd",
-          9: "classic", 10: "fd", 11: "fd", 12: "classic", 13: "fd", 14: "none"}
+          9: "classic", 10: "fd", 11: "fd", 12: "classic", 13: "fd", 14: "none",
+          15: "none"}
 
 
 def readme_blocks() -> List[Tuple[int, int, str]]:

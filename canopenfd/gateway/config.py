@@ -10,6 +10,11 @@ with their network-ids, the nodes it watches, and its host endpoints.
     node_id = 1                     ; optional: the gateway's own node on this line
     od = gateway.eds                ; its dictionary (default: the demo dictionary)
     heartbeat_ms = 100
+    routing = on                    ; join the routing (SDO networking, EMCY routing,
+                                    ; PDO forwarding) with this network-id: on | off
+
+    [routes]                        ; networks behind other gateways (0x1F2C)
+    3 = 2:7                         ; network 3 through gateway node 7 on network 2
 
     [node 1.5]                      ; node 5 on network 1
     od = drive.eds                  ; names and types of its entries
@@ -63,6 +68,15 @@ class LineConfig:
     node_id: Optional[int] = None
     od: Optional[str] = None
     heartbeat_ms: int = 0
+    routing: bool = True
+
+
+@dataclass
+class RouteConfig:
+    network: int
+    via: int
+    node: int
+    line: int = 0      # where it is written, for messages
 
 
 @dataclass
@@ -96,6 +110,7 @@ class GatewayConfig:
     name: str = "gateway"
     lines: List[LineConfig] = field(default_factory=list)
     nodes: List[NodeConfig] = field(default_factory=list)
+    routes: List[RouteConfig] = field(default_factory=list)
     ascii: Optional[AsciiConfig] = None
     mqtt: Optional[MqttConfig] = None
     path: str = "<config>"
@@ -198,7 +213,12 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
             nets[net] = LineConfig(
                 net, channel, reader.choice("mode", "fd", _MODES),
                 reader.number("node_id", None, 1, 127), reader.path_value("od"),
-                reader.number("heartbeat_ms", 0, 0, 65535) or 0)
+                reader.number("heartbeat_ms", 0, 0, 65535) or 0,
+                reader.choice("routing", "on", ("on", "off")) == "on")
+        elif kind == "routes" and not tail:
+            for key in section.keys.values():
+                config.routes.append(_route(key, reader))
+                reader.used.add(key.name.lower())
         elif kind == "node":
             net_text, dot, node_text = tail.partition(".")
             if not dot:
@@ -224,11 +244,19 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
                 reader.text("username"), reader.text("password"))
         else:
             raise reader.error("unknown section (expected [gateway], [line NET], "
-                               "[node NET.NODE], [ascii] or [mqtt])")
+                               "[node NET.NODE], [routes], [ascii] or [mqtt])")
         reader.finish()
     if not nets:
         raise GatewayConfigError("no [line NET] section: a gateway needs a line", path)
     config.lines = [nets[net] for net in sorted(nets)]
+    for route in config.routes:
+        if route.network in nets:
+            raise GatewayConfigError(f"[routes] network {route.network} is a line of this "
+                                     "gateway, not behind another one", path, route.line)
+        if route.via not in nets:
+            raise GatewayConfigError(f"[routes] network {route.via} (the way to network "
+                                     f"{route.network}) has no [line {route.via}]", path,
+                                     route.line)
     for node in config.nodes:
         line = nets.get(node.net)
         if line is None:
@@ -240,6 +268,18 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
                 f"own node on line {node.net}", path,
                 _section_line(ini, f"node {node.net}.{node.node_id}"))
     return config
+
+
+def _route(key: Key, reader: _Reader) -> RouteConfig:
+    via_text, colon, node_text = key.value.partition(":")
+    try:
+        network, via, node = int(key.name, 0), int(via_text, 0), int(node_text, 0)
+    except ValueError:
+        network = via = node = -1
+    if not colon or not 1 <= network <= 127 or not 1 <= via <= 127 or not 1 <= node <= 127:
+        raise reader.error(f"route {key.name} = {key.value!r}: expected NETWORK = VIA:NODE "
+                           "(network-ids and node-id 1..127), e.g. 3 = 2:7", key)
+    return RouteConfig(network, via, node, key.line)
 
 
 def _or(value: Optional[int], default: int) -> int:

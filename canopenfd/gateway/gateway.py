@@ -62,14 +62,17 @@ class Gateway:
         if self._given_lines is not None:
             self.lines = dict(self._given_lines)
             return
-        if self.network is None:
-            self.network = Network()
+        network = self.network = self.network if self.network is not None else Network()
         for cfg in self.config.lines:
-            line = self.network.open_line(cfg.channel, mode=cfg.mode)
+            line = network.open_line(cfg.channel, mode=cfg.mode)
             self.lines[cfg.net] = line
             if cfg.node_id is not None:
                 od: Any = cfg.od if cfg.od is not None else demo_od(cfg.mode)
                 line.create_local_node(cfg.node_id, od=od, heartbeat_ms=cfg.heartbeat_ms)
+            if cfg.routing:
+                line.network_id = cfg.net
+        for route in self.config.routes:
+            network.routing.route(route.network, via=route.via, node=route.node)
 
     def _start_endpoints(self) -> None:
         if self.config.ascii is not None:
