@@ -39,9 +39,12 @@ class Broker:
         self.folder = folder
         self.port = port or free_port()
         self.conf = folder / "mosquitto.conf"
+        # As root, mosquitto drops to user "mosquitto", which cannot write its
+        # database into our folder: the sessions would not survive a restart.
+        user = "user root\n" if hasattr(os, "geteuid") and os.geteuid() == 0 else ""
         self.conf.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\n"
                              f"persistence true\npersistence_location {folder}/\n"
-                             "max_queued_messages 100000\n", encoding="utf-8")
+                             f"max_queued_messages 100000\n{user}", encoding="utf-8")
         self.process: Optional[subprocess.Popen] = None
         self.start()
 
@@ -65,6 +68,9 @@ class Broker:
         if self.process is not None and self.process.poll() is None:
             self.process.send_signal(signal.SIGTERM)
             self.process.wait(timeout=10)
+            if not (self.folder / "mosquitto.db").exists():
+                raise RuntimeError("mosquitto did not save its sessions: " +
+                                   (self.folder / "mosquitto.log").read_text(errors="replace"))
         self.process = None
 
 
