@@ -280,3 +280,20 @@ def rate_text(count: float, seconds: float) -> str:
     if rate >= 1e3:
         return f"{rate / 1e3:.2f} kB/s"
     return f"{rate:.0f} B/s"
+
+
+def od_option(spec: Optional[str], mode: str, node_id: Optional[int]) -> Any:
+    """The ObjectDictionary an `--od` option names (device, gateway): the built-in demo one for the
+    line's mode by default, builtin:fd / builtin:classic, or an EDS/DCF/XDD/XDC
+    file (a file that cannot be read is a usage error naming file and line)."""
+    from ..od import OdFileError, demo_od, import_od
+
+    if spec is None:
+        return demo_od(mode)
+    kind = builtin_od_kind(spec)
+    if kind is not None:
+        return demo_od(kind)
+    try:
+        return import_od(spec, node_id=node_id)
+    except OdFileError as exc:
+        raise UsageError(f"--od {exc}") from None
