@@ -99,6 +99,13 @@ class Rig:
     def nmt_frames(self):
         return [bytes(f.data) for f in self.frames.snapshot() if f.id == 0 and not f.rtr]
 
+    def wait_nmt(self, *wanted):
+        """The NMT frames once the monitor delivered every one of `wanted` (it
+        delivers asynchronously, after the slaves may have acted on them)."""
+        self.frames.wait_for(lambda _: all(f in self.nmt_frames() for f in wanted), 5,
+                             f"NMT frames {[f.hex() for f in wanted]}")
+        return self.nmt_frames()
+
 
 def kinds(events):
     return [(e.kind, e.node_id) for e in events]
@@ -115,7 +122,7 @@ def test_network_starts_mandatory_and_optional_slaves(net, bus_name, mode):
     assert rig.manager.phase == ManagerPhase.RUNNING
     assert rig.manager.slave(2) == (SlaveStatus.BOOTED, "")
     assert rig.manager.slave(4) == (SlaveStatus.NONE, "")
-    nmt = rig.nmt_frames()
+    nmt = rig.wait_nmt(bytes([0x82, 2]), bytes([0x82, 3]), bytes([0x01, 2]), bytes([0x01, 3]))
     assert bytes([0x82, 2]) in nmt and bytes([0x82, 3]) in nmt     # reset communication
     assert nmt.index(bytes([0x82, 2])) < nmt.index(bytes([0x01, 2]))   # then the start
     assert bytes([0x01, 0]) not in nmt                               # one per node
@@ -141,7 +148,7 @@ def test_start_all_with_one_command(net, bus_name):
     rig.manager.start()
     rig.manager.wait_started(scaled(5))
     rig.slaves[3].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
-    starts = [f for f in rig.nmt_frames() if f[0] == 0x01]
+    starts = [f for f in rig.wait_nmt(bytes([0x01, 0x00])) if f[0] == 0x01]
     assert starts == [bytes([0x01, 0x00])]
 
 
