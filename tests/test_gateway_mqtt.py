@@ -269,3 +269,29 @@ def test_the_example_runs(broker: Broker) -> None:
     assert done.stdout.splitlines() == [
         "state: OPERATIONAL", "value: 4711", "emcy code: 0x4210",
         "read heartbeat time: {'id': 1, 'ok': True, 'value': 100}"], done.stdout
+
+
+def test_hostile_payloads_never_end_the_bridge(broker: Broker) -> None:
+    """A payload nested deeper than Python's JSON parser recurses, and a read
+    whose value JSON cannot hold as it is (TIME_OF_DAY), are each answered;
+    the bridge serves the next command (an exception on paho's network
+    thread would end it silently)."""
+    with Network() as net:
+        bench = Bench(net, "fd", "mem:mqtt-hostile")
+        sub = Subscriber(broker.port, [f"{BASE}/1/5/reply"])
+        with MqttBridge({1: bench.gw_line}, port=broker.port, gateway="gw") as bridge:
+            bridge.watch(1, 5, od=demo_od("fd", pdos=1), pdos=None)
+            sub.publish(f"{BASE}/1/5/cmd/read", b"[" * 200000)
+            reply = sub.wait(f"{BASE}/1/5/reply")[-1].json
+            assert reply["ok"] is False and "JSON" in reply["error"]
+            assert bridge.stats["bad_commands"] == 1
+
+            sub.publish(f"{BASE}/1/5/cmd/read", {"id": 1, "key": "Demo TIME_OF_DAY"})
+            reply = sub.wait(f"{BASE}/1/5/reply", 2)[-1].json
+            assert reply == {"id": 1, "ok": True,
+                             "value": {"ms": 12 * 3600 * 1000, "days": 14610}}
+
+            sub.publish(f"{BASE}/1/5/cmd/read", {"id": 2, "key": "0x1017:0"})
+            reply = sub.wait(f"{BASE}/1/5/reply", 3)[-1].json
+            assert reply == {"id": 2, "ok": True, "value": 50}
+        sub.close()
