@@ -643,3 +643,31 @@ def test_xmodem_checksums_as_esacademys_host_code(net: canopenfd.Network, bus_na
             assert server.stats["bad_crc"] == 1
         finally:
             raw.close()
+
+
+def test_closed_server_leaves_the_bus_alone(net: canopenfd.Network, bus_name: str) -> None:
+    """After close() the manager's automation is off: a node falling back to
+    pre-operational is not started again (KEEP_OP), the heartbeat monitoring
+    HB_RECEIVE_ALL switched on is the application's again (0), and the PDO
+    values of a scanned node no longer reach the server."""
+    w, _ = make_world(net, bus_name)
+    host, bus = w.host, w.bus
+    try:
+        assert host.ask(b"W\x01\x5f\x04\x03\x00\x00\x00") == b"W\x01\x5f\x04\x00\x00"
+        bus.wait_for(lambda calls: b"\x01\x00" in nmt_frames(bus), what="start of all nodes")
+        w.line[DEV].wait_for_state("OPERATIONAL", timeout=scaled(2))
+        assert w.line[DEV].heartbeat_timeout_ms == 1000
+    finally:
+        host.close()
+        w.server.close()
+    assert w.line[DEV].heartbeat_timeout_ms == 0
+    # the state change reaches the gateway line's callbacks: ours comes after
+    # the manager's (registered first), so once it ran the manager had its turn
+    seen = Recorder()
+    w.line[DEV].on_state_change(seen)
+    before = len(nmt_frames(bus))
+    w.dev.apply("PRE_OPERATIONAL")
+    seen.wait_value(canopenfd.NmtState.PRE_OPERATIONAL)
+    w.line.nmt.start(99)           # a marker sent after anything the manager sent
+    bus.wait_for(lambda calls: b"\x01\x63" in nmt_frames(bus), what="the marker NMT frame")
+    assert nmt_frames(bus)[before:] == [b"\x01\x63"]

@@ -111,6 +111,11 @@ class _Served:
         self.line.on_emcy(self._emcy, nodes=[n for n in range(1, 128) if n != self.own_id])
         self.hook_local()
 
+    def unhook(self) -> None:
+        """Undo hook() where the line can (the EMCY callback); the comm-event
+        and local-node callbacks stay, told nothing once the server closed."""
+        self.line.remove_emcy_callback(self._emcy)
+
     def hook_local(self) -> None:
         local = self.local
         if local is None or local is self._hooked_local:
@@ -504,6 +509,7 @@ class RemoteAccessServer:
         for connection in connections:
             connection.close()
         for served in self.served.values():
+            served.unhook()
             served.manager.stop()
 
     # ------------------------------------------------------------ indications
@@ -511,6 +517,8 @@ class RemoteAccessServer:
         """Send indication D to every connected host (dropped for a host whose
         queue is full, counted); one longer than max_payload is not sent
         (counted `indications_too_long`: a cut value would be a wrong one)."""
+        if self._closed:
+            return
         payload = ra.encode_new_data(indication)
         if len(payload) > self.max_payload:
             with self._lock:
