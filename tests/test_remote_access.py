@@ -671,3 +671,55 @@ def test_closed_server_leaves_the_bus_alone(net: canopenfd.Network, bus_name: st
     w.line.nmt.start(99)           # a marker sent after anything the manager sent
     bus.wait_for(lambda calls: b"\x01\x63" in nmt_frames(bus), what="the marker NMT frame")
     assert nmt_frames(bus)[before:] == [b"\x01\x63"]
+
+
+class _StuckHost:
+    """A host stream that sends `data` at once and takes nothing back until
+    `release` is set (then records what it was sent)."""
+
+    name = "stuck host"
+
+    def __init__(self, data: bytes) -> None:
+        self._data = data
+        self.release = threading.Event()
+        self.sent = Recorder()
+        self.closed = False
+
+    def read(self, timeout: float) -> bytes:
+        if self.closed:
+            raise EOFError("closed")
+        data, self._data = self._data, b""
+        if not data:
+            time.sleep(min(timeout, 0.05))
+        return data
+
+    def write(self, data: bytes) -> None:
+        while not self.release.wait(0.05):
+            if self.closed:
+                raise EOFError("closed")
+        self.sent(data)
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_a_host_that_does_not_read_holds_its_own_requests(world: World) -> None:
+    """Responses are never dropped, so a host sending requests without reading
+    the answers is not read any further once RESPONSE_QUEUE answers wait
+    (before: every answer queued, without bound); once it reads, every answer
+    comes, in order."""
+    from canopenfd.gateway import remote_access_server as ras
+
+    count = ras.RESPONSE_QUEUE * 4
+    stuck = _StuckHost(b"".join(frame(b"R\x00\x5f\x01") for _ in range(count)))
+    connection = world.server.serve(stuck)
+    try:
+        deadline = time.monotonic() + scaled(5)
+        while connection.stats["output_waits"] == 0:
+            assert time.monotonic() < deadline, "the reader never waited for the host"
+            time.sleep(0.01)
+        stuck.release.set()
+        stuck.sent.wait_for(lambda calls: len(calls) >= count, what=f"{count} answers")
+        assert stuck.sent.snapshot() == [frame(b"R\x00\x5f\x01\x00\x00" + bytes((GW,)))] * count
+    finally:
+        connection.close()

@@ -14,7 +14,8 @@ nodes (remote_access_manager.py).
 Each connection has a reader thread (frames in, local commands answered at
 once), a worker for its remote command and a writer thread with a bounded
 queue, so a slow host never holds the CAN side: indications beyond the bound
-are dropped and counted, responses never.
+are dropped and counted, responses never (with RESPONSE_QUEUE of them
+waiting, the host's further requests are not read until it takes some).
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ log = logging.getLogger(__name__)
 
 #: Indications a connection queues for a slow host before dropping (counted).
 INDICATION_QUEUE = 4096
+#: Responses a connection queues for its host; then its input is not read
+#: until the host takes some (responses are never dropped).
+RESPONSE_QUEUE = 64
 
 _ABORT_BITS = {
     0x06020000: ra.RaError.OD_NOT_FOUND,      # object does not exist
@@ -255,7 +259,11 @@ class RemoteAccessConnection:
         # (is an indication, frame); None ends the writer
         self._out: "queue.Queue[Optional[Tuple[bool, bytes]]]" = queue.Queue()
         self._queued_indications = 0
+        self._queued_responses = 0
+        #: times the reader waited for the host to take its responses
+        self.output_waits = 0
         self._count_lock = threading.Lock()
+        self._taken = threading.Condition(self._count_lock)   # the writer took a response
         # one remote command at a time: the next one while it runs is refused BUSY
         self._remote: "queue.Queue[Optional[Tuple[int, ra.Command]]]" = queue.Queue()
         self._remote_running = False
@@ -276,19 +284,30 @@ class RemoteAccessConnection:
         stats = self.decoder.stats.as_dict()
         stats.update(unknown_command=self.unknown_command, invalid_length=self.invalid_length,
                      busy=self.busy, indications_dropped=self.indications_dropped,
-                     internal_errors=self.internal_errors)
+                     internal_errors=self.internal_errors, output_waits=self.output_waits)
         return stats
 
     # ------------------------------------------------------------ output
     def send_payload(self, net: int, payload: bytes, indication: bool = False) -> None:
+        """Queue a frame for the host: an indication is dropped (counted) when
+        the queue is full, a response waits for room (the host's next request
+        is not read meanwhile)."""
         if self.closed.is_set():
             return
-        if indication:
-            with self._count_lock:
+        with self._count_lock:
+            if indication:
                 if self._queued_indications >= self.server.indication_queue:
                     self.indications_dropped += 1
                     return
                 self._queued_indications += 1
+            else:
+                if self._queued_responses >= RESPONSE_QUEUE:
+                    self.output_waits += 1
+                while self._queued_responses >= RESPONSE_QUEUE:
+                    if self.closed.is_set():
+                        return
+                    self._taken.wait(0.1)
+                self._queued_responses += 1
         self._out.put((indication, ra.encode_frame(payload, net, crc=self.server.crc)))
 
     def _write_loop(self) -> None:
@@ -297,9 +316,12 @@ class RemoteAccessConnection:
             if item is None:
                 return
             indication, frame = item
-            if indication:
-                with self._count_lock:
+            with self._count_lock:
+                if indication:
                     self._queued_indications -= 1
+                else:
+                    self._queued_responses -= 1
+                    self._taken.notify_all()
             try:
                 self.stream.write(frame)
             except EOFError:
