@@ -5,6 +5,7 @@ broker restart loses no QoS 1 event, a 1000/s PDO stream loses nothing."""
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from typing import Any, Iterator
@@ -294,4 +295,27 @@ def test_hostile_payloads_never_end_the_bridge(broker: Broker) -> None:
             sub.publish(f"{BASE}/1/5/cmd/read", {"id": 2, "key": "0x1017:0"})
             reply = sub.wait(f"{BASE}/1/5/reply", 3)[-1].json
             assert reply == {"id": 2, "ok": True, "value": 50}
+        sub.close()
+
+
+def test_pipelined_commands_to_one_node_take_turns(broker: Broker) -> None:
+    """Commands for one node of a classic line arriving together all succeed
+    (the SDO client runs one transfer per server: before, every command
+    meeting a running one was answered 'busy'), one SDO upload each on the bus."""
+    with Network() as net:
+        bench = Bench(net, "classic", "mem:mqtt-turns")
+        sub = Subscriber(broker.port, [f"{BASE}/1/5/reply"])
+        with MqttBridge({1: bench.gw_line}, port=broker.port, gateway="gw"):
+            for number in range(8):
+                sub.client.publish(f"{BASE}/1/5/cmd/read",
+                                   json.dumps({"id": number, "key": "0x1018:1"}), qos=1)
+            replies = [m.json for m in sub.wait(f"{BASE}/1/5/reply", 8)]
+            vendor = bench.device["0x1018:1"].data.hex()
+            assert sorted(replies, key=lambda r: r["id"]) == \
+                [{"id": number, "ok": True, "value": vendor} for number in range(8)]
+            uploads = bench.frames.wait_for(
+                lambda fs: [f for f in fs if f.id == 0x605] if len(
+                    [f for f in fs if f.id == 0x585]) >= 8 else None, what="8 SDO answers")
+            assert [bytes(f.data) for f in uploads] == \
+                [bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])] * 8
         sub.close()

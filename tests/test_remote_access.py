@@ -723,3 +723,37 @@ def test_a_host_that_does_not_read_holds_its_own_requests(world: World) -> None:
         assert stuck.sent.snapshot() == [frame(b"R\x00\x5f\x01\x00\x00" + bytes((GW,)))] * count
     finally:
         connection.close()
+
+
+def test_hosts_reading_one_classic_node_take_turns(net: canopenfd.Network, bus_name: str
+                                                    ) -> None:
+    """Three hosts read one node of a classic line at once: every read succeeds (the SDO client runs one
+    transfer per server; before, the one meeting a running transfer was
+    refused MISC), each a plain SDO upload on the bus."""
+    w, _ = make_world(net, bus_name, mode="classic")
+    port = w.server.serve_tcp(0)
+    errors: List[BaseException] = []
+    answers = Recorder()
+
+    def host() -> None:
+        try:
+            with RemoteAccessClient.connect("127.0.0.1", port) as client:
+                for _ in range(20):
+                    answers(client.read_remote(DEV, 0x1018, 1))
+        except BaseException as exc:    # noqa: BLE001 - handed to the test
+            errors.append(exc)
+
+    try:
+        threads = [threading.Thread(target=host) for _ in range(3)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(scaled(30))
+        assert errors == []
+        vendor = w.dev[0x1018][1].data
+        assert answers.snapshot() == [vendor] * 60
+        requests = [bytes(f.data) for f in w.bus.snapshot() if f.id == 0x600 + DEV]
+        assert requests == [bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])] * 60
+    finally:
+        w.host.close()
+        w.server.close()

@@ -44,6 +44,7 @@ from ..services.lss import LssError
 from ..services.nmt import HeartbeatEvent, NmtState
 from ..transfer.client import uploaded_bytes
 from . import ascii309 as proto
+from .node_turns import taking_turn_async
 
 __all__ = ["AsciiGateway", "BackgroundGateway", "Session", "lss_error_code"]
 
@@ -119,7 +120,6 @@ class AsciiGateway:
         self._events_lock = threading.Lock()
         self._flush_pending = False
         self._lss_locks: Dict[int, asyncio.Lock] = {}
-        self._node_locks: Dict[Tuple[int, int], asyncio.Lock] = {}
         self._hooks: List[Tuple[Line, Any, Any]] = []
         self._tasks: Set["asyncio.Task[None]"] = set()
 
@@ -462,33 +462,14 @@ class AsciiGateway:
         if not fd:
             options["mode"] = "block" if session.sdo_block else "auto"
         # one SDO transfer per server on a classic line's default channel:
-        # sessions reaching the same node take turns
-        lock = self._node_locks.setdefault((net, node), asyncio.Lock()) if not fd else None
-        if lock is not None:
-            await lock.acquire()
+        # sessions (and the other host protocols) reaching the same node take turns
         try:
-            if request.command == "read":
-                transfer = client.start_upload(node, index, sub, **options)
-            else:
-                if fd and request.kind is not None and request.kind.name != "hex":
-                    options["data_type"] = int(request.kind.data_type)
-                transfer = client.start_download(node, index, sub, request.value, **options)
-            try:
-                result = await transfer
-            except asyncio.CancelledError:
-                # the client went away (or the server closes): abort on the bus too
-                self.stats["cancelled_transfers"] += 1
-                try:
-                    transfer.cancel()
-                except CanopenFDError:
-                    pass
-                raise
+            async with taking_turn_async(line, node):
+                result, transfer = await self._run_transfer(request, client, node, index,
+                                                            sub, fd, options)
         except AbortError as exc:
             self.stats["errors"] += 1
             return proto.format_abort(seq, exc.code)
-        finally:
-            if lock is not None:
-                lock.release()
         if request.command == "write":
             return proto.format_ok(seq)
         data = uploaded_bytes(result)
@@ -499,6 +480,28 @@ class AsciiGateway:
             kind = proto.TYPE_OF_CODE.get(code, proto.TYPES["hex"]) if code else \
                 proto.TYPES["hex"]
         return proto.format_answer(seq, proto.format_value(kind, data))
+
+    async def _run_transfer(self, request: proto.Request, client: Any, node: int, index: int,
+                            sub: int, fd: bool, options: Dict[str, Any]) -> Tuple[Any, Any]:
+        """(result, transfer) of the request's upload or download; a cancelled
+        wait aborts the transfer on the bus too."""
+        if request.command == "read":
+            transfer = client.start_upload(node, index, sub, **options)
+        else:
+            if fd and request.kind is not None and request.kind.name != "hex":
+                options["data_type"] = int(request.kind.data_type)
+            transfer = client.start_download(node, index, sub, request.value, **options)
+        try:
+            result = await transfer
+        except asyncio.CancelledError:
+            # the client went away (or the server closes): abort on the bus too
+            self.stats["cancelled_transfers"] += 1
+            try:
+                transfer.cancel()
+            except CanopenFDError:
+                pass
+            raise
+        return result, transfer
 
     def _info_version(self, seq: int, line: Line) -> str:
         identity = [0, 0, 0, 0]

@@ -42,6 +42,7 @@ from ..errors import AbortError, CanopenFDError, ConfigurationError
 from ..od.datatypes import TimeDifference, TimeOfDay
 from ..services.emcy import Emcy
 from ..services.pdo import PdoMap
+from .node_turns import taking_turn
 
 try:
     import paho.mqtt.client as _paho
@@ -57,6 +58,8 @@ ROOT = "canopen"
 _NMT_VERBS = ("start", "stop", "pre_operational", "reset_node", "reset_communication")
 _NMT_ALIASES = {"preop": "pre_operational", "preoperational": "pre_operational",
                 "reset": "reset_node", "reset_comm": "reset_communication"}
+#: Seconds a command waits while other requests hold its node (node_turns).
+TURN_TIMEOUT = 60.0
 _TOPIC_UNSAFE = str.maketrans({"/": "_", "+": "_", "#": "_", "\0": "_"})
 
 
@@ -419,7 +422,9 @@ class MqttBridge:
         return (index, sub)
 
     def _do_read(self, line: Any, node_id: int, request: Dict[str, Any]) -> object:
-        return json_value(line.add_node(node_id).read(self._key(request)))
+        key = self._key(request)
+        with taking_turn(line, node_id, TURN_TIMEOUT):
+            return json_value(line.add_node(node_id).read(key))
 
     def _do_write(self, line: Any, node_id: int, request: Dict[str, Any]) -> object:
         node = line.add_node(node_id)
@@ -430,7 +435,8 @@ class MqttBridge:
             value = request["value"]
         else:
             raise CommandFailed("write: give 'value' (typed by the node's OD) or 'data' (hex)")
-        node.write(key, value)
+        with taking_turn(line, node_id, TURN_TIMEOUT):
+            node.write(key, value)
         return None
 
     def _do_nmt(self, line: Any, node_id: int, request: Dict[str, Any]) -> object:

@@ -37,6 +37,7 @@ from ..services.served_od import LocalValue
 from ..transfer.sdo import SdoClient
 from ..transfer.usdo import UsdoClient
 from . import remote_access as ra
+from .node_turns import TurnTimeout, taking_turn
 from .remote_access_manager import MinimalManager, node_status_of
 from .remote_access_stream import ByteStream, TcpListener, open_serial
 
@@ -608,6 +609,15 @@ class RemoteAccessServer:
             return ra.Response(ra.Letter(ra.encode_command(command)[0]), command.node,
                                command.index, command.sub, answer.error, answer.data)
         line = served.line
+        try:
+            # other hosts' requests for the node (any protocol) go first
+            with taking_turn(line, command.node, self.remote_timeout):
+                return self._transfer(line, command)
+        except TurnTimeout:
+            return self.refusal(command, int(ra.RaError.TIMEOUT))
+
+    def _transfer(self, line: Line, command: Union[ra.RemoteRead, ra.RemoteWrite]
+                  ) -> ra.Response:
         client: Union[UsdoClient, SdoClient] = line.usdo if line.mode == "fd" else line.sdo
         try:
             if isinstance(command, ra.RemoteRead):
