@@ -757,3 +757,33 @@ def test_hosts_reading_one_classic_node_take_turns(net: canopenfd.Network, bus_n
     finally:
         w.host.close()
         w.server.close()
+
+
+def test_tcp_hosts_beyond_max_connections_are_closed(net: canopenfd.Network, bus_name: str
+                                                     ) -> None:
+    """Each connection costs three threads: past max_connections a new TCP
+    host is closed at once and counted (before: accepted without bound);
+    the hosts already served go on, and a place freed is taken again."""
+    import socket
+
+    w, _ = make_world(net, bus_name, max_connections=2)   # the pty host is one
+    try:
+        port = w.server.serve_tcp(0)
+        with RemoteAccessClient.connect("127.0.0.1", port) as second:
+            extra = socket.create_connection(("127.0.0.1", port), timeout=scaled(5))
+            try:
+                assert extra.recv(16) == b""            # closed by the gateway
+            finally:
+                extra.close()
+            assert w.server.stats["refused_connections"] == 1
+            assert second.own_node_id() == GW
+            assert w.host.ask(b"R\x00\x5f\x01") == b"R\x00\x5f\x01\x00\x00\x01"
+        deadline = time.monotonic() + scaled(5)
+        while len(w.server.connections) > 1:      # the second host's end is seen
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        with RemoteAccessClient.connect("127.0.0.1", port) as third:
+            assert third.own_node_id() == GW
+    finally:
+        w.host.close()
+        w.server.close()

@@ -48,6 +48,8 @@ INDICATION_QUEUE = 4096
 #: Responses a connection queues for its host; then its input is not read
 #: until the host takes some (responses are never dropped).
 RESPONSE_QUEUE = 64
+#: Hosts served at once (each costs three threads); more are closed, counted.
+MAX_CONNECTIONS = 16
 
 _ABORT_BITS = {
     0x06020000: ra.RaError.OD_NOT_FOUND,      # object does not exist
@@ -420,7 +422,9 @@ class RemoteAccessServer:
     timeout (s) for remote commands; remote_timeout: seconds one may take;
     control / heartbeat_ms: the minimal manager's start values ([5F01h,04h],
     [5F01h,08h]); known: {net: {node: OD or EDS path}} the manager reads PDO
-    configurations of (PDO_RECEIVE_ALL).
+    configurations of (PDO_RECEIVE_ALL); max_connections: hosts served at
+    once (a further TCP host is closed at once, counted `refused_connections`;
+    serve() raises ConfigurationError).
 
     Create the lines' local nodes first: the server watches every other
     node-id of each line (line.add_node), and they stay watched after close()."""
@@ -430,7 +434,8 @@ class RemoteAccessServer:
                  remote_timeout: float = 30.0,
                  idle_timeout: float = 0.5, control: int = 0, heartbeat_ms: int = 1000,
                  known: Optional[Mapping[int, Mapping[int, ODLike]]] = None,
-                 indication_queue: int = INDICATION_QUEUE) -> None:
+                 indication_queue: int = INDICATION_QUEUE,
+                 max_connections: int = MAX_CONNECTIONS) -> None:
         if not networks:
             raise ConfigurationError("RemoteAccessServer: no network to serve (give {1: line})")
         unsupported = control & (ra.ManagerControl.PDO_TRANSMIT_ALL | ra.ManagerControl.USE_SCANNED)
@@ -447,6 +452,11 @@ class RemoteAccessServer:
         self.remote_timeout = remote_timeout
         self.idle_timeout = idle_timeout
         self.indication_queue = indication_queue
+        if isinstance(max_connections, bool) or not isinstance(max_connections, int) or \
+                max_connections < 1:
+            raise ConfigurationError(f"RemoteAccessServer: max_connections must be an int "
+                                     f">= 1, got {max_connections!r}")
+        self.max_connections = max_connections
         self._lock = threading.Lock()
         self._connections: List[RemoteAccessConnection] = []
         self._listeners: List[TcpListener] = []
@@ -476,6 +486,11 @@ class RemoteAccessServer:
         with self._lock:
             if self._closed:
                 raise ConfigurationError("RemoteAccessServer: closed")
+            if len(self._connections) >= self.max_connections:
+                self._totals["refused_connections"] = \
+                    self._totals.get("refused_connections", 0) + 1
+                raise ConfigurationError(f"RemoteAccessServer: {stream.name} refused, "
+                                         f"{self.max_connections} hosts served already")
             connection = RemoteAccessConnection(self, stream)
             self._connections.append(connection)
         return connection
@@ -494,7 +509,8 @@ class RemoteAccessServer:
     def _accept(self, stream: ByteStream) -> None:
         try:
             self.serve(stream)
-        except ConfigurationError:
+        except ConfigurationError as exc:     # closed, or hosts enough
+            log.info("remote access: %s", exc)
             stream.close()
 
     def forget(self, connection: RemoteAccessConnection) -> None:
