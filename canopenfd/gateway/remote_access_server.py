@@ -25,7 +25,7 @@ import queue
 import threading
 import time
 from functools import partial
-from typing import Dict, List, Mapping, Optional, Tuple, Union
+from typing import Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 from .. import CommEvent, __version__
 from ..errors import AbortError, CanopenFDError, ConfigurationError
@@ -34,6 +34,7 @@ from ..node import LocalNode
 from ..services.emcy import Emcy
 from ..services.nmt import NmtState
 from ..services.served_od import LocalValue
+from ..transfer.client import Transfer
 from ..transfer.sdo import SdoClient
 from ..transfer.usdo import UsdoClient
 from . import remote_access as ra
@@ -270,6 +271,7 @@ class RemoteAccessConnection:
         # one remote command at a time: the next one while it runs is refused BUSY
         self._remote: "queue.Queue[Optional[Tuple[int, ra.Command]]]" = queue.Queue()
         self._remote_running = False
+        self._transfer: Optional[Transfer] = None    # the remote command's, while it runs
         self._threads = [
             threading.Thread(target=self._read_loop, daemon=True, name=f"ra read {stream.name}"),
             threading.Thread(target=self._write_loop, daemon=True, name=f"ra write {stream.name}"),
@@ -392,19 +394,41 @@ class RemoteAccessConnection:
             served = self.server.served.get(net)
             assert served is not None and isinstance(command, (ra.RemoteRead, ra.RemoteWrite))
             try:
-                response = self.server.remote(served, command)
+                response = self.server.remote(served, command, started=self._started)
             except Exception:   # answered, and the next remote command is taken
                 log.exception("remote access %s: %r", self.stream.name, command)
                 self.internal_errors += 1
                 response = self.server.refusal(command, int(ra.RaError.MISC))
             with self._count_lock:
                 self._remote_running = False
+                self._transfer = None
             self._respond(net, response)
 
+    def _started(self, transfer: Transfer) -> None:
+        """The remote command's transfer runs: close() aborts it (once the
+        host is gone nobody wants its result)."""
+        with self._count_lock:
+            self._transfer = transfer
+            gone = self.closed.is_set()
+        if gone:
+            self._abort(transfer)
+
+    @staticmethod
+    def _abort(transfer: Transfer) -> None:
+        try:
+            transfer.cancel()
+        except CanopenFDError:      # it ended meanwhile
+            pass
+
     def close(self) -> None:
-        if self.closed.is_set():
-            return
-        self.closed.set()
+        with self._count_lock:      # the reader, the writer and the server may all close
+            if self.closed.is_set():
+                return
+            self.closed.set()
+            transfer = self._transfer
+            self._taken.notify_all()
+        if transfer is not None:
+            self._abort(transfer)
         self._out.put(None)
         self._remote.put(None)
         self.stream.close()
@@ -611,9 +635,10 @@ class RemoteAccessServer:
             log.debug("remote access: %r refused: %s", command, exc)
             return self.refusal(command, int(ra.RaError.MISC))
 
-    def remote(self, served: _Served, command: Union[ra.RemoteRead, ra.RemoteWrite]
-               ) -> ra.Response:
-        """S or U through the line's USDO (fd) or SDO (classic) client."""
+    def remote(self, served: _Served, command: Union[ra.RemoteRead, ra.RemoteWrite],
+               started: Optional[Callable[[Transfer], None]] = None) -> ra.Response:
+        """S or U through the line's USDO (fd) or SDO (classic) client;
+        started(transfer) once its transfer runs."""
         if not 1 <= command.node <= 127:
             return self.refusal(command, int(ra.RaError.NODE_NOT_AVAILABLE))
         if command.node == served.own_id:
@@ -628,22 +653,26 @@ class RemoteAccessServer:
         try:
             # other hosts' requests for the node (any protocol) go first
             with taking_turn(line, command.node, self.remote_timeout):
-                return self._transfer(line, command)
+                return self._transfer(line, command, started)
         except TurnTimeout:
             return self.refusal(command, int(ra.RaError.TIMEOUT))
 
-    def _transfer(self, line: Line, command: Union[ra.RemoteRead, ra.RemoteWrite]
-                  ) -> ra.Response:
+    def _transfer(self, line: Line, command: Union[ra.RemoteRead, ra.RemoteWrite],
+                  started: Optional[Callable[[Transfer], None]]) -> ra.Response:
         client: Union[UsdoClient, SdoClient] = line.usdo if line.mode == "fd" else line.sdo
         try:
             if isinstance(command, ra.RemoteRead):
                 transfer = client.start_upload(command.node, command.index, command.sub,
                                                timeout=self.sdo_timeout)
+                if started is not None:
+                    started(transfer)
                 result = transfer.result(self.remote_timeout)
                 assert isinstance(result, bytes)
                 return self._read_answer(command, result)
             transfer = client.start_download(command.node, command.index, command.sub,
                                              command.data, timeout=self.sdo_timeout)
+            if started is not None:
+                started(transfer)
             transfer.result(self.remote_timeout)
             return self.refusal(command, 0)
         except AbortError as exc:
