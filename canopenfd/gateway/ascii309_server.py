@@ -16,7 +16,8 @@ wait, then its socket is not read). Clients run side by side. Reads and
 writes go through the line's public clients (`line.usdo` on fd lines,
 `line.sdo` on classic lines, awaited: the transfer runs in C), NMT through
 `line.nmt`, LSS through `line.lss` (one LSS request at a time per line:
-sessions queue for it).
+sessions queue for it; a session that switched devices into configuration
+holds the net's LSS until it switches them back or leaves).
 
 Events (boot-ups, NMT state changes, heartbeat lost/started, EMCYs) reach
 every client. They arrive on the dispatcher thread, which only puts the
@@ -120,6 +121,9 @@ class AsciiGateway:
         self._events_lock = threading.Lock()
         self._flush_pending = False
         self._lss_locks: Dict[int, asyncio.Lock] = {}
+        # {net: the session that switched devices into LSS configuration}: the
+        # net's LSS is its own until it switches them to waiting or leaves
+        self._lss_owners: Dict[int, Session] = {}
         self._hooks: List[Tuple[Line, Any, Any]] = []
         self._tasks: Set["asyncio.Task[None]"] = set()
 
@@ -286,6 +290,7 @@ class AsciiGateway:
             await asyncio.gather(worker, return_exceptions=True)
             session.closed = True
             self.sessions.discard(session)
+            self._release_lss(session)
             writer.close()
             try:
                 await writer.wait_closed()
@@ -435,7 +440,17 @@ class AsciiGateway:
             return self._info_version(seq, line)
         if command.startswith("lss_") or command == "_lss_fastscan":
             async with self._lss_locks[net]:
-                return await self._lss(seq, line, command, request.args)
+                owner = self._lss_owners.get(net)
+                if owner is not None and owner is not session:
+                    self.stats["errors"] += 1
+                    return proto.format_error(
+                        seq, proto.INTERNAL_STATE,
+                        f"LSS of net {net} is held by another client ({owner.peer}) until "
+                        "it switches the devices back to waiting or disconnects")
+                answer = await self._lss(seq, line, command, request.args)
+                if answer == proto.format_ok(seq):
+                    self._lss_owned(net, session, command, request.args)
+                return answer
         if command in ("read", "write"):
             node = self._node(session, request, 1)
             if isinstance(node, str):
@@ -502,6 +517,25 @@ class AsciiGateway:
                 pass
             raise
         return result, transfer
+
+    def _lss_owned(self, net: int, session: Session, command: str,
+                   args: Tuple[int, ...]) -> None:
+        """After a successful LSS request: who holds the net's LSS now."""
+        if command == "lss_switch_sel" or (command == "lss_switch_glob" and args[0]):
+            self._lss_owners[net] = session
+        elif command == "lss_switch_glob":
+            self._lss_owners.pop(net, None)
+
+    def _release_lss(self, session: Session) -> None:
+        """A session ends: the devices it left in LSS configuration go back
+        to waiting, so other clients can use LSS again."""
+        for net, owner in list(self._lss_owners.items()):
+            if owner is session:
+                del self._lss_owners[net]
+                try:
+                    self.networks[net].lss.switch_global("waiting")
+                except CanopenFDError as exc:     # the line closed meanwhile
+                    log.info("ASCII gateway: LSS of net %d not switched back: %s", net, exc)
 
     def _info_version(self, seq: int, line: Line) -> str:
         identity = [0, 0, 0, 0]
