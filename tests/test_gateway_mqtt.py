@@ -319,3 +319,23 @@ def test_pipelined_commands_to_one_node_take_turns(broker: Broker) -> None:
             assert [bytes(f.data) for f in uploads] == \
                 [bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])] * 8
         sub.close()
+
+
+def test_a_reply_topic_that_cannot_be_published_is_counted(broker: Broker) -> None:
+    """reply_to naming a wildcard topic cannot be answered (paho refuses to
+    publish there): counted as dropped and logged (before: the worker raised,
+    nothing counted); the next command is served."""
+    with Network() as net:
+        bench = Bench(net, "classic", "mem:mqtt-replyto")
+        sub = Subscriber(broker.port, [f"{BASE}/1/5/reply"])
+        with MqttBridge({1: bench.gw_line}, port=broker.port, gateway="gw") as bridge:
+            sub.publish(f"{BASE}/1/5/cmd/read",
+                        {"id": 1, "key": "0x1018:1", "reply_to": "tool/+/answers"})
+            deadline = time.monotonic() + scaled(5)
+            while bridge.stats["dropped"] == 0:
+                assert time.monotonic() < deadline, "the unpublishable reply was not counted"
+                time.sleep(0.01)
+            sub.publish(f"{BASE}/1/5/cmd/read", {"id": 2, "key": "0x1018:1"})
+            assert sub.wait(f"{BASE}/1/5/reply")[-1].json["id"] == 2
+            assert bridge.stats["dropped"] == 1
+        sub.close()

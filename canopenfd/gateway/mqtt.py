@@ -466,8 +466,15 @@ class MqttBridge:
         except (TypeError, ValueError):     # a value JSON cannot hold: said so, not lost
             text = json.dumps({"id": where.request_id, "ok": False,
                                "error": f"the value {value!r:.80} has no JSON form"})
-        info = self._client.publish(where.topic, text, qos=self.event_qos,
-                                    properties=properties)
+        try:
+            info = self._client.publish(where.topic, text, qos=self.event_qos,
+                                        properties=properties)
+        except ValueError as exc:     # a response topic with wildcards, or empty
+            log.warning("MQTT gateway: reply %s to %r not sent: %s", where.request_id,
+                        where.topic, exc)
+            with self._lock:
+                self.stats["dropped"] += 1
+            return
         with self._lock:
             self.stats["published" if info.rc in (_paho.MQTT_ERR_SUCCESS,
                                                   _paho.MQTT_ERR_NO_CONN) else "dropped"] += 1
