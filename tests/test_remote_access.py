@@ -809,3 +809,33 @@ def test_a_host_leaving_aborts_its_transfer_on_the_bus(net: canopenfd.Network,
         assert bytes(aborts[0].data) == bytes([0x80, 0x00, 0x10, 0x00, 0, 0, 0, 0x08])
     finally:
         w.server.close()
+
+
+def test_client_fails_at_once_when_the_gateway_hangs_up() -> None:
+    """A gateway that closes the connection: the waiting call raises at once
+    naming it (before: it waited its whole timeout, then said 'no response')."""
+    import socket
+
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(1)
+    port = listener.getsockname()[1]
+
+    def hang_up() -> None:
+        conn, _ = listener.accept()
+        conn.recv(64)          # the request, then goodbye
+        conn.close()
+
+    thread = threading.Thread(target=hang_up, daemon=True)
+    thread.start()
+    try:
+        with RemoteAccessClient.connect("127.0.0.1", port, timeout=60.0) as client:
+            started = time.monotonic()
+            with pytest.raises(RemoteAccessError, match="closed the connection"):
+                client.read_local(0x1017)
+            assert time.monotonic() - started < scaled(10)
+            with pytest.raises(RemoteAccessError, match="closed the connection"):
+                client.read_local(0x1017)
+    finally:
+        thread.join(5)
+        listener.close()
