@@ -85,6 +85,11 @@ def test_gateway_needs_an_endpoint(net: canopenfd.Network, bus_name: str,
                  "--remote-access-node", "200=x.eds"], network=net) == 2
     assert "--remote-access-node '200=x.eds': expected NODE=FILE with a node-id 1..127" in \
         capsys.readouterr().err
+    # a file that cannot be read: the option that named it, the file
+    assert main(["gateway", "--channel", bus_name, "--remote-access-tcp", "0",
+                 "--remote-access-node", "5=/nonexistent/x.eds"], network=net) == 2
+    err = capsys.readouterr().err
+    assert "--remote-access-node 5: /nonexistent/x.eds" in err, err
 
 
 def test_gateway_process_on_a_serial_port_stops_on_sigterm() -> None:

@@ -240,6 +240,25 @@ def builtin_od_kind(spec: str) -> Optional[str]:
     return kind
 
 
+def od_arg(spec: Optional[str], mode: str, node_id: Optional[int],
+           option: str = "--od") -> Any:
+    """The ObjectDictionary an --od-like option names: the built-in demo one
+    for the line's mode when None, builtin:fd / builtin:classic, or an
+    EDS/DCF/XDD/XDC file (one that cannot be read is a usage error naming
+    `option`, the file and the line)."""
+    from ..od import OdFileError, demo_od, import_od
+
+    if spec is None:
+        return demo_od(mode)
+    kind = builtin_od_kind(spec)
+    if kind is not None:
+        return demo_od(kind)
+    try:
+        return import_od(spec, node_id=node_id)
+    except OdFileError as exc:
+        raise UsageError(f"{option} {exc}") from None
+
+
 def parse_key(text: str, od: Optional[ObjectDictionary], what: str = "INDEX") -> Entry:
     """(index, sub, the OD's entry or None) of INDEX[:SUB] in hex, or with an
     OD of a name ('Producer heartbeat time', 'Identity object.Vendor-ID')."""

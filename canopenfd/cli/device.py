@@ -12,7 +12,7 @@ from typing import Any, Dict, Optional, Tuple
 
 from ..errors import CanopenFDError
 from ..od import DataType, ObjectDictionary
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, builtin_od_kind,
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
                      command_line, ms_arg, node_id_arg, parse_key, wait_until_done)
 
 _SIZE_RE = re.compile(r"^(0x[0-9a-f]+|\d+)\s*(k|kib|m|mib|g|gib|b)?$", re.IGNORECASE)
@@ -80,23 +80,6 @@ def parse_domain(text: str, od: ObjectDictionary) -> Tuple[int, int, int]:
     return index, sub, capacity
 
 
-def _device_od(spec: Optional[str], mode: str, node_id: Optional[int]) -> Any:
-    """The ObjectDictionary `device --od` serves: the built-in demo one for the
-    line's mode by default, builtin:fd / builtin:classic, or an EDS/DCF/XDD/XDC
-    file (a file that cannot be read is a usage error naming file and line)."""
-    from ..od import OdFileError, demo_od, import_od
-
-    if spec is None:
-        return demo_od(mode)
-    kind = builtin_od_kind(spec)
-    if kind is not None:
-        return demo_od(kind)
-    try:
-        return import_od(spec, node_id=node_id)
-    except OdFileError as exc:
-        raise UsageError(f"--od {exc}") from None
-
-
 def _set_serial(od: ObjectDictionary, text: Optional[str], unconfigured: bool) -> None:
     """--serial: 0x1018:04 of the dictionary (an unconfigured node needs it)."""
     serial = od.get_variable(0x1018, 4)
@@ -159,7 +142,7 @@ def cmd_device(args: argparse.Namespace) -> int:
         ms_arg(args.heartbeat, "--heartbeat", "device")
     _check_store_path(args.store)
     # a factory-fresh node's $NODEID values follow the node-id LSS gives it
-    od = _device_od(args.od, mode, None if unconfigured else node_id)
+    od = od_arg(args.od, mode, None if unconfigured else node_id)
     _set_serial(od, args.serial, unconfigured)
     # An explicit --heartbeat replaces 0x1017's start value (0 = off), so resets
     # come back to it; a value saved in --store is overwritten once after boot

@@ -20,7 +20,7 @@ from ..gateway.config import (AsciiConfig, GatewayConfig, GatewayConfigError, Mq
 from ..errors import CanopenFDError
 from ..gateway.gateway import Gateway
 from ..line import Line
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, builtin_od_kind,
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
                      command_line, ms_arg, node_id_arg)
 
 
@@ -127,24 +127,9 @@ def cmd_gateway(args: argparse.Namespace) -> int:
     mode = "classic" if args.classic else "fd"
     with command_line(args) as line:
         if node_id is not None:
-            line.create_local_node(node_id, od=_gateway_od(args.od, mode, node_id))
+            line.create_local_node(node_id, od=od_arg(args.od, mode, node_id))
         _run(Gateway(config, lines={args.net: line}), args, printer)
     return EXIT_OK
-
-
-def _gateway_od(spec: Optional[str], mode: str, node_id: int) -> Any:
-    from ..od import OdFileError, demo_od, import_od
-
-    if spec is None:
-        return demo_od(mode)
-    kind = builtin_od_kind(spec)
-    if kind is not None:
-        return demo_od(kind)
-    try:
-        return import_od(spec, node_id=node_id)
-    except OdFileError as exc:
-        raise UsageError(f"--od {exc}") from None
-
 
 
 def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
@@ -259,7 +244,7 @@ def start_remote_access(args: argparse.Namespace, lines: Dict[int, Line], printe
         if not sep or not path or not 1 <= node <= 127:
             raise UsageError(f"--remote-access-node {spec!r}: expected NODE=FILE with a "
                              "node-id 1..127")
-        known[node] = _gateway_od(path, line.mode, node)
+        known[node] = od_arg(path, line.mode, node, f"--remote-access-node {node_text}:")
     try:
         server = RemoteAccessServer(lines, crc=args.remote_access_crc,
                                     max_payload=args.remote_access_max_payload,
