@@ -41,7 +41,11 @@ class Broker:
         self.conf = folder / "mosquitto.conf"
         self.conf.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\n"
                              f"persistence true\npersistence_location {folder}/\n"
-                             "max_queued_messages 100000\n", encoding="utf-8")
+                             "max_queued_messages 100000\n"
+                             # as root mosquitto drops to user 'mosquitto', which may
+                             # not write `folder` (the sessions would not persist)
+                             + ("user root\n" if getattr(os, "geteuid", lambda: 1)() == 0 else ""),
+                             encoding="utf-8")
         self.process: Optional[subprocess.Popen] = None
         self.start()
 
