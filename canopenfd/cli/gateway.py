@@ -148,26 +148,28 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
                 printer.line(f"CiA 309-3 ASCII gateway on {ascii_config.host}:"
                              f"{gateway.ascii.port}, {served}")
             stops: List[Callable[[], None]] = []
-            if remote_access_wanted(args):
-                stops.append(start_remote_access(args, gateway.lines, printer))
-            printer.line(gateway.status())
-            started = time.monotonic()
-            while True:
-                timeout: Optional[float] = args.status_interval or None
-                if args.duration is not None:
-                    left = args.duration - (time.monotonic() - started)
-                    if left <= 0:
-                        break
-                    timeout = left if timeout is None else min(timeout, left)
-                if stop.wait(timeout):
-                    break
-                if args.duration is not None and \
-                        time.monotonic() - started >= args.duration:
-                    break
+            try:
+                if remote_access_wanted(args):
+                    stops.append(start_remote_access(args, gateway.lines, printer))
                 printer.line(gateway.status())
-            final = gateway.status()
-            for stop_endpoint in reversed(stops):
-                stop_endpoint()
+                started = time.monotonic()
+                while True:
+                    timeout: Optional[float] = args.status_interval or None
+                    if args.duration is not None:
+                        left = args.duration - (time.monotonic() - started)
+                        if left <= 0:
+                            break
+                        timeout = left if timeout is None else min(timeout, left)
+                    if stop.wait(timeout):
+                        break
+                    if args.duration is not None and \
+                            time.monotonic() - started >= args.duration:
+                        break
+                    printer.line(gateway.status())
+                final = gateway.status()
+            finally:    # whatever ended the loop, the remote-access server stops too
+                for stop_endpoint in reversed(stops):
+                    stop_endpoint()
         printer.line(final.replace("gateway ", "gateway stopped: ", 1))
         if gateway.ascii is not None:
             stats = gateway.ascii.stats
