@@ -839,3 +839,32 @@ def test_client_fails_at_once_when_the_gateway_hangs_up() -> None:
     finally:
         thread.join(5)
         listener.close()
+
+
+def test_a_server_that_cannot_start_leaves_nothing_running(net: canopenfd.Network,
+                                                           bus_name: str) -> None:
+    """The second network's line is closed (its Network is): the server
+    refuses to start and
+    the first network's manager, already started with KEEP_OP, is stopped
+    again (before: its automation went on starting nodes, with no server
+    left to close it)."""
+    first = net.open_line(bus_name, mode="classic")
+    first.create_local_node(GW, od=demo_od("classic"))
+    dev = net.open_line(bus_name, mode="classic").create_local_node(
+        DEV, od=demo_od("classic"), heartbeat_ms=50)
+    bus = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(bus)
+    other = canopenfd.Network()
+    second = other.open_line(bus_name + "-2", mode="classic")
+    other.close()
+    with pytest.raises(canopenfd.errors.CanopenFDError):
+        RemoteAccessServer({1: first, 2: second}, control=int(ra.ManagerControl.KEEP_OP))
+    first[DEV].wait_for_state("OPERATIONAL", timeout=scaled(2))   # KEEP_OP started it
+    seen = Recorder()
+    first[DEV].on_state_change(seen)
+    before = len(nmt_frames(bus))
+    dev.apply("PRE_OPERATIONAL")
+    seen.wait_value(canopenfd.NmtState.PRE_OPERATIONAL)
+    first.nmt.start(99)            # a marker after anything a manager would send
+    bus.wait_for(lambda calls: b"\x01\x63" in nmt_frames(bus), what="the marker NMT frame")
+    assert [f for f in nmt_frames(bus)[before:] if f != b"\x01\x00"] == [b"\x01\x63"]

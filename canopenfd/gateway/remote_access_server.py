@@ -492,11 +492,15 @@ class RemoteAccessServer:
             manager = MinimalManager(line, partial(self.indicate, net),
                                      heartbeat_ms=heartbeat_ms, known=known.get(net, {}))
             self.served[net] = _Served(self, net, line, manager)
-        for served in self.served.values():
-            served.hook()
-            served.manager.start()
-            if control:
-                served.manager.set_control(control)    # checked above: taken
+        try:
+            for served in self.served.values():
+                served.hook()
+                served.manager.start()
+                if control:
+                    served.manager.set_control(control)    # checked above: taken
+        except BaseException:
+            self.close()     # the networks started already stop their automation
+            raise
 
     def __enter__(self) -> "RemoteAccessServer":
         return self
