@@ -29,6 +29,10 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
+def _as_root() -> bool:
+    return getattr(os, "geteuid", lambda: 1)() == 0
+
+
 class Broker:
     """mosquitto listening on 127.0.0.1:port, its state kept in `folder` so a
     restart keeps persistent sessions (stop() lets it save them)."""
@@ -44,7 +48,7 @@ class Broker:
                              "max_queued_messages 100000\n"
                              # as root mosquitto drops to user 'mosquitto', which may
                              # not write `folder` (the sessions would not persist)
-                             + ("user root\n" if getattr(os, "geteuid", lambda: 1)() == 0 else ""),
+                             + ("user root\n" if _as_root() else ""),
                              encoding="utf-8")
         self.process: Optional[subprocess.Popen] = None
         self.start()

@@ -732,9 +732,10 @@ def test_a_host_that_does_not_read_holds_its_own_requests(world: World) -> None:
 
 def test_hosts_reading_one_classic_node_take_turns(net: canopenfd.Network, bus_name: str
                                                     ) -> None:
-    """Three hosts read one node of a classic line at once: every read succeeds (the SDO client runs one
-    transfer per server; before, the one meeting a running transfer was
-    refused MISC), each a plain SDO upload on the bus."""
+    """Three hosts read one node of a classic line at once: every read
+    succeeds (the SDO client runs one transfer per server; before, the one
+    meeting a running transfer was refused MISC), each a plain SDO upload on
+    the bus."""
     w, _ = make_world(net, bus_name, mode="classic")
     port = w.server.serve_tcp(0)
     errors: List[BaseException] = []
