@@ -399,9 +399,9 @@ def test_four_clients_a_thousand_requests_each(rig):
     assert gateway.stats["requests"] >= 4000
 
 
-def test_lss_commands(net, bus_name):
-    """The lss_* commands through line.lss against our node 7's LSS slave,
-    and the LSS frames they send."""
+def lss_rig(net, bus_name):
+    """Node 7 (an LSS slave with identity 0x1A2 0xBEEF01 0x20003 0x80000001)
+    and the gateway's classic line (LSS timeout 50 ms): (line, frames)."""
     identity = (0x1A2, 0xBEEF01, 0x20003, 0x80000001)
     od = demo_od("classic")
     for sub, value in enumerate(identity, start=1):
@@ -411,6 +411,13 @@ def test_lss_commands(net, bus_name):
     line.lss.timeout_ms = 50
     frames = Recorder()
     net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    return line, frames
+
+
+def test_lss_commands(net, bus_name):
+    """The lss_* commands through line.lss against our node 7's LSS slave,
+    and the LSS frames they send."""
+    line, frames = lss_rig(net, bus_name)
     server = AsciiGateway({1: line}).start_in_thread()
     try:
         client = Client(server.port)
@@ -560,15 +567,7 @@ def test_lss_configuration_belongs_to_one_client(net, bus_name):
     devices the first one selected (before: its lss_switch_glob 1 went out
     and a following lss_set_node would have renumbered every device); the
     owner leaving switches the devices back to waiting."""
-    identity = (0x1A2, 0xBEEF01, 0x20003, 0x80000001)
-    od = demo_od("classic")
-    for sub, value in enumerate(identity, start=1):
-        od[0x1018][sub].default = value
-    net.open_line(bus_name, mode="classic").create_local_node(7, od=od)
-    line = net.open_line(bus_name, mode="classic")
-    line.lss.timeout_ms = 50
-    frames = Recorder()
-    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    line, frames = lss_rig(net, bus_name)
 
     def lss_frames():
         # the command specifier, with its mode for a global switch
