@@ -29,6 +29,10 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
+def _as_root() -> bool:
+    return getattr(os, "geteuid", lambda: 1)() == 0
+
+
 class Broker:
     """mosquitto listening on 127.0.0.1:port, its state kept in `folder` so a
     restart keeps persistent sessions (stop() lets it save them)."""
@@ -41,7 +45,7 @@ class Broker:
         self.conf = folder / "mosquitto.conf"
         # As root, mosquitto drops to user "mosquitto", which cannot write its
         # database into our folder: the sessions would not survive a restart.
-        user = "user root\n" if hasattr(os, "geteuid") and os.geteuid() == 0 else ""
+        user = "user root\n" if _as_root() else ""
         self.conf.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\n"
                              f"persistence true\npersistence_location {folder}/\n"
                              f"max_queued_messages 100000\n{user}", encoding="utf-8")

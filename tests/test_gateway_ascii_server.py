@@ -399,9 +399,9 @@ def test_four_clients_a_thousand_requests_each(rig):
     assert gateway.stats["requests"] >= 4000
 
 
-def test_lss_commands(net, bus_name):
-    """The lss_* commands through line.lss against our node 7's LSS slave,
-    and the LSS frames they send."""
+def lss_rig(net, bus_name):
+    """Node 7 (an LSS slave with identity 0x1A2 0xBEEF01 0x20003 0x80000001)
+    and the gateway's classic line (LSS timeout 50 ms): (line, frames)."""
     identity = (0x1A2, 0xBEEF01, 0x20003, 0x80000001)
     od = demo_od("classic")
     for sub, value in enumerate(identity, start=1):
@@ -411,6 +411,13 @@ def test_lss_commands(net, bus_name):
     line.lss.timeout_ms = 50
     frames = Recorder()
     net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    return line, frames
+
+
+def test_lss_commands(net, bus_name):
+    """The lss_* commands through line.lss against our node 7's LSS slave,
+    and the LSS frames they send."""
+    line, frames = lss_rig(net, bus_name)
     server = AsciiGateway({1: line}).start_in_thread()
     try:
         client = Client(server.port)
@@ -551,3 +558,40 @@ def test_lss_failures_as_cia_309_3_codes(command, status, error, code):
     from canopenfd.gateway.ascii309_server import lss_error_code
     from canopenfd.services.lss import LssError
     assert lss_error_code(command, LssError("x", LssStatus[status], error)) == code
+
+
+def test_lss_configuration_belongs_to_one_client(net, bus_name):
+    """A client that switched devices into LSS configuration holds the net's
+    LSS until it switches them back to waiting or leaves: another client's
+    LSS request is refused (102) with nothing sent, so it can never act on
+    devices the first one selected (before: its lss_switch_glob 1 went out
+    and a following lss_set_node would have renumbered every device); the
+    owner leaving switches the devices back to waiting."""
+    line, frames = lss_rig(net, bus_name)
+
+    def lss_frames():
+        # the command specifier, with its mode for a global switch
+        return [bytes(f.data[:2] if f.data[0] == 0x04 else f.data[:1])
+                for f in frames.snapshot() if f.id == 0x7E5]
+
+    server = AsciiGateway({1: line}).start_in_thread()
+    try:
+        owner, other = Client(server.port), Client(server.port)
+        assert owner.ask("[1] lss_switch_sel 0x1A2 0xBEEF01 0x20003 0x80000001") == "[1] OK"
+        refused = other.ask("[1] lss_switch_glob 1")
+        assert refused.startswith("[1] ERROR: 102 #") and "another client" in refused
+        assert other.ask("[2] lss_set_node 9").startswith("[2] ERROR: 102 #")
+        assert owner.ask("[2] lss_get_node") == "[2] 0x07"
+        assert owner.ask("[3] lss_switch_glob 0") == "[3] OK"
+        frames.wait_for(lambda c: b"\x04\x00" in lss_frames() or None, 5, "switch to waiting")
+        # the selective switch (0x40..0x43), the inquiry (0x5E), back to waiting: no 0x04 01
+        assert lss_frames() == [b"\x40", b"\x41", b"\x42", b"\x43", b"\x5e", b"\x04\x00"]
+        assert other.ask("[3] lss_switch_glob 1") == "[3] OK"      # free again
+        assert owner.ask("[4] lss_switch_glob 0").startswith("[4] ERROR: 102 #")
+        other.close()                                   # leaves: devices back to waiting
+        frames.wait_for(lambda c: lss_frames()[-1:] == [b"\x04\x00"] and
+                        lss_frames().count(b"\x04\x00") == 2 or None, 5, "waiting again")
+        assert owner.ask("[5] lss_switch_glob 1") == "[5] OK"
+        owner.close()
+    finally:
+        server.close()

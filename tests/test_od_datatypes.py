@@ -297,3 +297,21 @@ def test_time_errors():
 def test_zero_value_encodes(dtype):
     data = encode(dtype, zero_value(dtype))
     assert len(data) == (dtype.size or 0)
+
+
+def test_real32_text_is_the_shortest_that_reads_back() -> None:
+    import math
+    import struct
+
+    from canopenfd.od.datatypes import real32_text
+
+    for value in (0.1, 1.5, -3.25, 1e-30, 1.2345678e20, 16777217.0, 0.0):
+        single = struct.unpack("<f", struct.pack("<f", value))[0]
+        text = real32_text(single)
+        assert struct.pack("<f", float(text)) == struct.pack("<f", single)
+        digits = len(text.lstrip("-").split("e")[0].replace(".", "").lstrip("0")) or 1
+        if digits > 1:      # one digit fewer does not read back
+            fewer = f"{single:.{digits - 1}g}"
+            assert struct.pack("<f", float(fewer)) != struct.pack("<f", single), (text, fewer)
+    assert real32_text(struct.unpack("<f", struct.pack("<f", 0.1))[0]) == "0.1"
+    assert real32_text(math.inf) == "inf" and real32_text(math.nan) == "nan"

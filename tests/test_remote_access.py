@@ -643,3 +643,229 @@ def test_xmodem_checksums_as_esacademys_host_code(net: canopenfd.Network, bus_na
             assert server.stats["bad_crc"] == 1
         finally:
             raw.close()
+
+
+def test_closed_server_leaves_the_bus_alone(net: canopenfd.Network, bus_name: str) -> None:
+    """After close() the manager's automation is off: a node falling back to
+    pre-operational is not started again (KEEP_OP), the heartbeat monitoring
+    HB_RECEIVE_ALL switched on is the application's again (0), and the PDO
+    values of a scanned node no longer reach the server."""
+    w, _ = make_world(net, bus_name)
+    host, bus = w.host, w.bus
+    try:
+        assert host.ask(b"W\x01\x5f\x04\x03\x00\x00\x00") == b"W\x01\x5f\x04\x00\x00"
+        bus.wait_for(lambda calls: b"\x01\x00" in nmt_frames(bus), what="start of all nodes")
+        w.line[DEV].wait_for_state("OPERATIONAL", timeout=scaled(2))
+        assert w.line[DEV].heartbeat_timeout_ms == 1000
+    finally:
+        host.close()
+        w.server.close()
+    assert w.line[DEV].heartbeat_timeout_ms == 0
+    # the state change reaches the gateway line's callbacks: ours comes after
+    # the manager's (registered first), so once it ran the manager had its turn
+    seen = Recorder()
+    w.line[DEV].on_state_change(seen)
+    before = len(nmt_frames(bus))
+    w.dev.apply("PRE_OPERATIONAL")
+    seen.wait_value(canopenfd.NmtState.PRE_OPERATIONAL)
+    w.line.nmt.start(99)           # a marker sent after anything the manager sent
+    bus.wait_for(lambda calls: b"\x01\x63" in nmt_frames(bus), what="the marker NMT frame")
+    assert nmt_frames(bus)[before:] == [b"\x01\x63"]
+
+
+class _StuckHost:
+    """A host stream that sends `data` at once and takes nothing back until
+    `release` is set (then records what it was sent)."""
+
+    name = "stuck host"
+
+    def __init__(self, data: bytes) -> None:
+        self._data = data
+        self.release = threading.Event()
+        self.sent = Recorder()
+        self.closed = False
+
+    def read(self, timeout: float) -> bytes:
+        if self.closed:
+            raise EOFError("closed")
+        data, self._data = self._data, b""
+        if not data:
+            time.sleep(min(timeout, 0.05))
+        return data
+
+    def write(self, data: bytes) -> None:
+        while not self.release.wait(0.05):
+            if self.closed:
+                raise EOFError("closed")
+        self.sent(data)
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_a_host_that_does_not_read_holds_its_own_requests(world: World) -> None:
+    """Responses are never dropped, so a host sending requests without reading
+    the answers is not read any further once RESPONSE_QUEUE answers wait
+    (before: every answer queued, without bound); once it reads, every answer
+    comes, in order."""
+    from canopenfd.gateway import remote_access_server as ras
+
+    count = ras.RESPONSE_QUEUE * 4
+    stuck = _StuckHost(b"".join(frame(b"R\x00\x5f\x01") for _ in range(count)))
+    connection = world.server.serve(stuck)
+    try:
+        deadline = time.monotonic() + scaled(5)
+        while connection.stats["output_waits"] == 0:
+            assert time.monotonic() < deadline, "the reader never waited for the host"
+            time.sleep(0.01)
+        stuck.release.set()
+        def answers(calls: List[bytes]) -> List[bytes]:     # indications D aside
+            return [data for data in calls if data[2:3] != b"D"]
+
+        stuck.sent.wait_for(lambda calls: len(answers(calls)) >= count,
+                            what=f"{count} answers")
+        assert answers(stuck.sent.snapshot()) == \
+            [frame(b"R\x00\x5f\x01\x00\x00" + bytes((GW,)))] * count
+    finally:
+        connection.close()
+
+
+def test_hosts_reading_one_classic_node_take_turns(net: canopenfd.Network, bus_name: str
+                                                    ) -> None:
+    """Three hosts read one node of a classic line at once: every read
+    succeeds (the SDO client runs one transfer per server; before, the one
+    meeting a running transfer was refused MISC), each a plain SDO upload on
+    the bus."""
+    w, _ = make_world(net, bus_name, mode="classic")
+    port = w.server.serve_tcp(0)
+    errors: List[BaseException] = []
+    answers = Recorder()
+
+    def host() -> None:
+        try:
+            with RemoteAccessClient.connect("127.0.0.1", port) as client:
+                for _ in range(20):
+                    answers(client.read_remote(DEV, 0x1018, 1))
+        except BaseException as exc:    # noqa: BLE001 - handed to the test
+            errors.append(exc)
+
+    try:
+        threads = [threading.Thread(target=host) for _ in range(3)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(scaled(30))
+        assert errors == []
+        vendor = w.dev[0x1018][1].data
+        assert answers.snapshot() == [vendor] * 60
+        requests = [bytes(f.data) for f in w.bus.snapshot() if f.id == 0x600 + DEV]
+        assert requests == [bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])] * 60
+    finally:
+        w.host.close()
+        w.server.close()
+
+
+def test_tcp_hosts_beyond_max_connections_are_closed(net: canopenfd.Network, bus_name: str
+                                                     ) -> None:
+    """Each connection costs three threads: past max_connections a new TCP
+    host is closed at once and counted (before: accepted without bound);
+    the hosts already served go on, and a place freed is taken again."""
+    import socket
+
+    w, _ = make_world(net, bus_name, max_connections=2)   # the pty host is one
+    try:
+        port = w.server.serve_tcp(0)
+        with RemoteAccessClient.connect("127.0.0.1", port) as second:
+            extra = socket.create_connection(("127.0.0.1", port), timeout=scaled(5))
+            try:
+                assert extra.recv(16) == b""            # closed by the gateway
+            finally:
+                extra.close()
+            assert w.server.stats["refused_connections"] == 1
+            assert second.own_node_id() == GW
+            assert w.host.ask(b"R\x00\x5f\x01") == b"R\x00\x5f\x01\x00\x00\x01"
+        deadline = time.monotonic() + scaled(5)
+        while len(w.server.connections) > 1:      # the second host's end is seen
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        with RemoteAccessClient.connect("127.0.0.1", port) as third:
+            assert third.own_node_id() == GW
+    finally:
+        w.host.close()
+        w.server.close()
+
+
+def test_a_host_leaving_aborts_its_transfer_on_the_bus(net: canopenfd.Network,
+                                                        bus_name: str) -> None:
+    """A host that goes away while its remote read waits for a silent node:
+    the transfer is aborted on the bus at once (general error 0x08000000),
+    not left running in the name of nobody until the SDO timeout (20 s)."""
+    w, _ = make_world(net, bus_name, mode="classic", sdo_timeout=20.0)
+    try:
+        w.host.send(frame(b"U\x09\x00\x10\x00"))       # node 9: nobody answers
+        w.bus.wait_for(lambda fs: [f for f in fs if f.id == 0x609], what="the SDO request")
+        w.host.close()
+        aborts = w.bus.wait_for(lambda fs: [f for f in fs if f.id == 0x609
+                                            and f.data[0] == 0x80], what="the SDO abort")
+        assert bytes(aborts[0].data) == bytes([0x80, 0x00, 0x10, 0x00, 0, 0, 0, 0x08])
+    finally:
+        w.server.close()
+
+
+def test_client_fails_at_once_when_the_gateway_hangs_up() -> None:
+    """A gateway that closes the connection: the waiting call raises at once
+    naming it (before: it waited its whole timeout, then said 'no response')."""
+    import socket
+
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(1)
+    port = listener.getsockname()[1]
+
+    def hang_up() -> None:
+        conn, _ = listener.accept()
+        conn.recv(64)          # the request, then goodbye
+        conn.close()
+
+    thread = threading.Thread(target=hang_up, daemon=True)
+    thread.start()
+    try:
+        with RemoteAccessClient.connect("127.0.0.1", port, timeout=60.0) as client:
+            started = time.monotonic()
+            with pytest.raises(RemoteAccessError, match="closed the connection"):
+                client.read_local(0x1017)
+            assert time.monotonic() - started < scaled(10)
+            with pytest.raises(RemoteAccessError, match="closed the connection"):
+                client.read_local(0x1017)
+    finally:
+        thread.join(5)
+        listener.close()
+
+
+def test_a_server_that_cannot_start_leaves_nothing_running(net: canopenfd.Network,
+                                                           bus_name: str) -> None:
+    """The second network's line is closed (its Network is): the server
+    refuses to start and
+    the first network's manager, already started with KEEP_OP, is stopped
+    again (before: its automation went on starting nodes, with no server
+    left to close it)."""
+    first = net.open_line(bus_name, mode="classic")
+    first.create_local_node(GW, od=demo_od("classic"))
+    dev = net.open_line(bus_name, mode="classic").create_local_node(
+        DEV, od=demo_od("classic"), heartbeat_ms=50)
+    bus = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(bus)
+    other = canopenfd.Network()
+    second = other.open_line(bus_name + "-2", mode="classic")
+    other.close()
+    with pytest.raises(canopenfd.errors.CanopenFDError):
+        RemoteAccessServer({1: first, 2: second}, control=int(ra.ManagerControl.KEEP_OP))
+    first[DEV].wait_for_state("OPERATIONAL", timeout=scaled(2))   # KEEP_OP started it
+    seen = Recorder()
+    first[DEV].on_state_change(seen)
+    before = len(nmt_frames(bus))
+    dev.apply("PRE_OPERATIONAL")
+    seen.wait_value(canopenfd.NmtState.PRE_OPERATIONAL)
+    first.nmt.start(99)            # a marker after anything a manager would send
+    bus.wait_for(lambda calls: b"\x01\x63" in nmt_frames(bus), what="the marker NMT frame")
+    assert [f for f in nmt_frames(bus)[before:] if f != b"\x01\x00"] == [b"\x01\x63"]

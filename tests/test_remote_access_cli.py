@@ -85,6 +85,11 @@ def test_gateway_needs_an_endpoint(net: canopenfd.Network, bus_name: str,
                  "--remote-access-node", "200=x.eds"], network=net) == 2
     assert "--remote-access-node '200=x.eds': expected NODE=FILE with a node-id 1..127" in \
         capsys.readouterr().err
+    # a file that cannot be read: the option that named it, the file
+    assert main(["gateway", "--channel", bus_name, "--remote-access-tcp", "0",
+                 "--remote-access-node", "5=/nonexistent/x.eds"], network=net) == 2
+    err = capsys.readouterr().err
+    assert "--remote-access-node 5: /nonexistent/x.eds" in err, err
 
 
 def test_gateway_process_on_a_serial_port_stops_on_sigterm() -> None:
@@ -113,3 +118,27 @@ def test_gateway_process_on_a_serial_port_stops_on_sigterm() -> None:
         os.close(slave)
     assert proc.returncode == 0, err
     assert "remote access: frames 2," in out
+
+
+def test_gateway_stops_remote_access_whatever_ends_it(net: canopenfd.Network, bus_name: str,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failure while the gateway serves still closes the remote-access
+    server (before: its listener and threads outlived the command)."""
+    from canopenfd.gateway.gateway import Gateway
+
+    calls: List[int] = []
+    status = Gateway.status
+
+    def failing_status(self: Gateway) -> str:
+        calls.append(1)
+        if len(calls) == 2:          # the first status line after the endpoints started
+            raise RuntimeError("status failed")
+        return status(self)
+
+    monkeypatch.setattr(Gateway, "status", failing_status)
+    port = free_port()
+    with pytest.raises(RuntimeError, match="status failed"):
+        main(["gateway", "--channel", bus_name, "--remote-access-tcp", str(port),
+              "--duration", "30"], network=net)
+    with pytest.raises(OSError):
+        socket.create_connection(("127.0.0.1", port), timeout=scaled(2)).close()

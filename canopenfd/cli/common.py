@@ -240,6 +240,25 @@ def builtin_od_kind(spec: str) -> Optional[str]:
     return kind
 
 
+def od_arg(spec: Optional[str], mode: str, node_id: Optional[int],
+           option: str = "--od") -> Any:
+    """The ObjectDictionary an --od-like option names: the built-in demo one
+    for the line's mode when None, builtin:fd / builtin:classic, or an
+    EDS/DCF/XDD/XDC file (one that cannot be read is a usage error naming
+    `option`, the file and the line)."""
+    from ..od import OdFileError, demo_od, import_od
+
+    if spec is None:
+        return demo_od(mode)
+    kind = builtin_od_kind(spec)
+    if kind is not None:
+        return demo_od(kind)
+    try:
+        return import_od(spec, node_id=node_id)
+    except OdFileError as exc:
+        raise UsageError(f"{option} {exc}") from None
+
+
 def parse_key(text: str, od: Optional[ObjectDictionary], what: str = "INDEX") -> Entry:
     """(index, sub, the OD's entry or None) of INDEX[:SUB] in hex, or with an
     OD of a name ('Producer heartbeat time', 'Identity object.Vendor-ID')."""
@@ -280,20 +299,3 @@ def rate_text(count: float, seconds: float) -> str:
     if rate >= 1e3:
         return f"{rate / 1e3:.2f} kB/s"
     return f"{rate:.0f} B/s"
-
-
-def od_option(spec: Optional[str], mode: str, node_id: Optional[int]) -> Any:
-    """The ObjectDictionary an `--od` option names (device, gateway): the built-in demo one for the
-    line's mode by default, builtin:fd / builtin:classic, or an EDS/DCF/XDD/XDC
-    file (a file that cannot be read is a usage error naming file and line)."""
-    from ..od import OdFileError, demo_od, import_od
-
-    if spec is None:
-        return demo_od(mode)
-    kind = builtin_od_kind(spec)
-    if kind is not None:
-        return demo_od(kind)
-    try:
-        return import_od(spec, node_id=node_id)
-    except OdFileError as exc:
-        raise UsageError(f"--od {exc}") from None

@@ -12,8 +12,8 @@ from typing import Any, Dict, Optional, Tuple
 
 from ..errors import CanopenFDError
 from ..od import DataType, ObjectDictionary
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, command_line, ms_arg,
-                     node_id_arg, od_option, parse_key, wait_until_done)
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
+                     command_line, ms_arg, node_id_arg, parse_key, wait_until_done)
 
 _SIZE_RE = re.compile(r"^(0x[0-9a-f]+|\d+)\s*(k|kib|m|mib|g|gib|b)?$", re.IGNORECASE)
 _SIZE_UNITS = {None: 1, "b": 1, "k": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mib": 1 << 20,
@@ -142,7 +142,7 @@ def cmd_device(args: argparse.Namespace) -> int:
         ms_arg(args.heartbeat, "--heartbeat", "device")
     _check_store_path(args.store)
     # a factory-fresh node's $NODEID values follow the node-id LSS gives it
-    od = od_option(args.od, mode, None if unconfigured else node_id)
+    od = od_arg(args.od, mode, None if unconfigured else node_id)
     _set_serial(od, args.serial, unconfigured)
     # An explicit --heartbeat replaces 0x1017's start value (0 = off), so resets
     # come back to it; a value saved in --store is overwritten once after boot

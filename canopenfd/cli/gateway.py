@@ -20,8 +20,8 @@ from ..gateway.config import (AsciiConfig, GatewayConfig, GatewayConfigError, Mq
                               load_config)
 from ..gateway.gateway import Gateway
 from ..line import Line
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, command_line, ms_arg,
-                     node_id_arg, od_option)
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
+                     command_line, ms_arg, node_id_arg)
 
 
 def add_parsers(subparsers: Any) -> None:
@@ -127,7 +127,7 @@ def cmd_gateway(args: argparse.Namespace) -> int:
     mode = "classic" if args.classic else "fd"
     with command_line(args) as line:
         if node_id is not None:
-            line.create_local_node(node_id, od=od_option(args.od, mode, node_id))
+            line.create_local_node(node_id, od=od_arg(args.od, mode, node_id))
         _run(Gateway(config, lines={args.net: line}), args, printer)
     return EXIT_OK
 
@@ -148,26 +148,28 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
                 printer.line(f"CiA 309-3 ASCII gateway on {ascii_config.host}:"
                              f"{gateway.ascii.port}, {served}")
             stops: List[Callable[[], None]] = []
-            if remote_access_wanted(args):
-                stops.append(start_remote_access(args, gateway.lines, printer))
-            printer.line(gateway.status())
-            started = time.monotonic()
-            while True:
-                timeout: Optional[float] = args.status_interval or None
-                if args.duration is not None:
-                    left = args.duration - (time.monotonic() - started)
-                    if left <= 0:
-                        break
-                    timeout = left if timeout is None else min(timeout, left)
-                if stop.wait(timeout):
-                    break
-                if args.duration is not None and \
-                        time.monotonic() - started >= args.duration:
-                    break
+            try:
+                if remote_access_wanted(args):
+                    stops.append(start_remote_access(args, gateway.lines, printer))
                 printer.line(gateway.status())
-            final = gateway.status()
-            for stop_endpoint in reversed(stops):
-                stop_endpoint()
+                started = time.monotonic()
+                while True:
+                    timeout: Optional[float] = args.status_interval or None
+                    if args.duration is not None:
+                        left = args.duration - (time.monotonic() - started)
+                        if left <= 0:
+                            break
+                        timeout = left if timeout is None else min(timeout, left)
+                    if stop.wait(timeout):
+                        break
+                    if args.duration is not None and \
+                            time.monotonic() - started >= args.duration:
+                        break
+                    printer.line(gateway.status())
+                final = gateway.status()
+            finally:    # whatever ended the loop, the remote-access server stops too
+                for stop_endpoint in reversed(stops):
+                    stop_endpoint()
         printer.line(final.replace("gateway ", "gateway stopped: ", 1))
         if gateway.ascii is not None:
             stats = gateway.ascii.stats
@@ -244,7 +246,7 @@ def start_remote_access(args: argparse.Namespace, lines: Dict[int, Line], printe
         if not sep or not path or not 1 <= node <= 127:
             raise UsageError(f"--remote-access-node {spec!r}: expected NODE=FILE with a "
                              "node-id 1..127")
-        known[node] = od_option(path, line.mode, node)
+        known[node] = od_arg(path, line.mode, node, f"--remote-access-node {node_text}:")
     try:
         server = RemoteAccessServer(lines, crc=args.remote_access_crc,
                                     max_payload=args.remote_access_max_payload,

@@ -26,7 +26,6 @@ import datetime as _dt
 import math
 import os
 import stat
-import struct
 import sys
 import tempfile
 import threading
@@ -37,6 +36,7 @@ from ..errors import AbortError, CanopenFDError
 from ..od import (DataType, ODVariable, ObjectDictionary, OdFileError, OdValueError,
                   TimeDifference, TimeOfDay, demo_od, import_od)
 from ..od import decode as _decode
+from ..od.datatypes import real32_text
 from ..od import encode as _encode
 from ..transfer import Transfer, UsdoAbortError
 from .common import (EXIT_FAILED, EXIT_OK, UsageError, add_line_options, builtin_od_kind,
@@ -250,18 +250,6 @@ def parse_value(dtype: DataType, text: str) -> Any:
 
 
 # ------------------------------------------------------------------ value output
-def _short_real32(value: float) -> str:
-    """The shortest text that reads back to the same REAL32."""
-    if not math.isfinite(value):
-        return repr(value)
-    packed = struct.pack("<f", value)
-    for digits in range(1, 10):
-        text = f"{value:.{digits}g}"
-        if struct.pack("<f", float(text)) == packed:
-            return text
-    return repr(value)
-
-
 def format_value(dtype: DataType, value: Any) -> str:
     """A read value for the terminal: integers in decimal and hex, strings
     as text, bytes as hex."""
@@ -271,7 +259,7 @@ def format_value(dtype: DataType, value: Any) -> str:
         width = dtype.size or 1
         return f"{value} (0x{value & ((1 << (8 * width)) - 1):0{2 * width}X})"
     if dtype == DataType.REAL32:
-        return _short_real32(value)
+        return real32_text(value)
     if dtype.is_real:
         return repr(value)
     if isinstance(value, TimeOfDay):

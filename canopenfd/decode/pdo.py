@@ -5,12 +5,12 @@ sub << 8 | bits, bits packed LSB first; dummies 0x0002..0x0007."""
 
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Tuple
 
 from ..frame import fd_len_round
-from ..od.datatypes import DataType, TimeDifference, TimeOfDay, decode as decode_value
+from ..od.datatypes import (DataType, TimeDifference, TimeOfDay, decode as decode_value,
+                             real32_text)
 from ..od.errors import OdValueError
 from .od_values import COB_11_BITS, COB_29_BITS, COB_EXT, COB_INVALID, configured_int
 from .raw import hex_bytes, with_bytes
@@ -156,22 +156,13 @@ def _take_bits(data: bytes, offset: int, bits: int) -> bytes:
     return number.to_bytes((bits + 7) // 8, "little")
 
 
-def _short_real32(value: float) -> str:
-    packed = struct.pack("<f", value)
-    for digits in range(1, 10):
-        text = f"{value:.{digits}g}"
-        if struct.pack("<f", float(text)) == packed:
-            return text
-    return repr(value)
-
-
 def format_pdo_value(dtype: DataType, value: Any) -> str:
     """A mapped value: integers in decimal, booleans true/false, strings quoted,
     bytes in hex, times ISO."""
     if dtype == DataType.BOOLEAN:
         return "true" if value else "false"
     if dtype == DataType.REAL32:
-        return _short_real32(value)
+        return real32_text(value)
     if isinstance(value, float):
         return repr(value)
     if isinstance(value, TimeOfDay):

@@ -33,12 +33,11 @@ from __future__ import annotations
 
 import base64
 import binascii
-import math
 import struct
 from typing import Dict, List, NamedTuple, Optional, Tuple, Union
 
 from ..errors import ABORT_TEXT
-from ..od.datatypes import DataType, TimeDifference, TimeOfDay, decode, encode
+from ..od.datatypes import DataType, TimeDifference, TimeOfDay, decode, encode, real32_text
 from ..od.errors import OdValueError
 
 __all__ = ["ERROR_TEXT", "TYPES", "AsciiType", "Reply", "Request", "MAX_LINE",
@@ -242,16 +241,7 @@ def _unquote(token: str) -> Optional[bytes]:
 def _float_text(value: float, single: bool) -> str:
     """The shortest decimal that reads back as the same float (REAL32: the
     same 32-bit value)."""
-    if math.isnan(value) or math.isinf(value):
-        return repr(value)
-    if not single:
-        return repr(value)
-    packed = struct.pack("<f", value)
-    for digits in range(1, 10):
-        text = f"{value:.{digits}g}"
-        if struct.pack("<f", float(text)) == packed:
-            return text
-    return repr(value)
+    return real32_text(value) if single else repr(value)
 
 
 def format_value(kind: AsciiType, data: bytes) -> str:

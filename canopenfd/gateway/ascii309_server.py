@@ -16,7 +16,8 @@ wait, then its socket is not read). Clients run side by side. Reads and
 writes go through the line's public clients (`line.usdo` on fd lines,
 `line.sdo` on classic lines, awaited: the transfer runs in C), NMT through
 `line.nmt`, LSS through `line.lss` (one LSS request at a time per line:
-sessions queue for it).
+sessions queue for it; a session that switched devices into configuration
+holds the net's LSS until it switches them back or leaves).
 
 Events (boot-ups, NMT state changes, heartbeat lost/started, EMCYs) reach
 every client. They arrive on the dispatcher thread, which only puts the
@@ -44,6 +45,7 @@ from ..services.lss import LssError
 from ..services.nmt import HeartbeatEvent, NmtState
 from ..transfer.client import uploaded_bytes
 from . import ascii309 as proto
+from .node_turns import taking_turn_async
 
 __all__ = ["AsciiGateway", "BackgroundGateway", "Session", "lss_error_code"]
 
@@ -119,7 +121,9 @@ class AsciiGateway:
         self._events_lock = threading.Lock()
         self._flush_pending = False
         self._lss_locks: Dict[int, asyncio.Lock] = {}
-        self._node_locks: Dict[Tuple[int, int], asyncio.Lock] = {}
+        # {net: the session that switched devices into LSS configuration}: the
+        # net's LSS is its own until it switches them to waiting or leaves
+        self._lss_owners: Dict[int, Session] = {}
         self._hooks: List[Tuple[Line, Any, Any]] = []
         self._tasks: Set["asyncio.Task[None]"] = set()
 
@@ -286,6 +290,7 @@ class AsciiGateway:
             await asyncio.gather(worker, return_exceptions=True)
             session.closed = True
             self.sessions.discard(session)
+            self._release_lss(session)
             writer.close()
             try:
                 await writer.wait_closed()
@@ -435,7 +440,17 @@ class AsciiGateway:
             return self._info_version(seq, line)
         if command.startswith("lss_") or command == "_lss_fastscan":
             async with self._lss_locks[net]:
-                return await self._lss(seq, line, command, request.args)
+                owner = self._lss_owners.get(net)
+                if owner is not None and owner is not session:
+                    self.stats["errors"] += 1
+                    return proto.format_error(
+                        seq, proto.INTERNAL_STATE,
+                        f"LSS of net {net} is held by another client ({owner.peer}) until "
+                        "it switches the devices back to waiting or disconnects")
+                answer = await self._lss(seq, line, command, request.args)
+                if answer == proto.format_ok(seq):
+                    self._lss_owned(net, session, command, request.args)
+                return answer
         if command in ("read", "write"):
             node = self._node(session, request, 1)
             if isinstance(node, str):
@@ -462,33 +477,14 @@ class AsciiGateway:
         if not fd:
             options["mode"] = "block" if session.sdo_block else "auto"
         # one SDO transfer per server on a classic line's default channel:
-        # sessions reaching the same node take turns
-        lock = self._node_locks.setdefault((net, node), asyncio.Lock()) if not fd else None
-        if lock is not None:
-            await lock.acquire()
+        # sessions (and the other host protocols) reaching the same node take turns
         try:
-            if request.command == "read":
-                transfer = client.start_upload(node, index, sub, **options)
-            else:
-                if fd and request.kind is not None and request.kind.name != "hex":
-                    options["data_type"] = int(request.kind.data_type)
-                transfer = client.start_download(node, index, sub, request.value, **options)
-            try:
-                result = await transfer
-            except asyncio.CancelledError:
-                # the client went away (or the server closes): abort on the bus too
-                self.stats["cancelled_transfers"] += 1
-                try:
-                    transfer.cancel()
-                except CanopenFDError:
-                    pass
-                raise
+            async with taking_turn_async(line, node):
+                result, transfer = await self._run_transfer(request, client, node, index,
+                                                            sub, fd, options)
         except AbortError as exc:
             self.stats["errors"] += 1
             return proto.format_abort(seq, exc.code)
-        finally:
-            if lock is not None:
-                lock.release()
         if request.command == "write":
             return proto.format_ok(seq)
         data = uploaded_bytes(result)
@@ -499,6 +495,47 @@ class AsciiGateway:
             kind = proto.TYPE_OF_CODE.get(code, proto.TYPES["hex"]) if code else \
                 proto.TYPES["hex"]
         return proto.format_answer(seq, proto.format_value(kind, data))
+
+    async def _run_transfer(self, request: proto.Request, client: Any, node: int, index: int,
+                            sub: int, fd: bool, options: Dict[str, Any]) -> Tuple[Any, Any]:
+        """(result, transfer) of the request's upload or download; a cancelled
+        wait aborts the transfer on the bus too."""
+        if request.command == "read":
+            transfer = client.start_upload(node, index, sub, **options)
+        else:
+            if fd and request.kind is not None and request.kind.name != "hex":
+                options["data_type"] = int(request.kind.data_type)
+            transfer = client.start_download(node, index, sub, request.value, **options)
+        try:
+            result = await transfer
+        except asyncio.CancelledError:
+            # the client went away (or the server closes): abort on the bus too
+            self.stats["cancelled_transfers"] += 1
+            try:
+                transfer.cancel()
+            except CanopenFDError:
+                pass
+            raise
+        return result, transfer
+
+    def _lss_owned(self, net: int, session: Session, command: str,
+                   args: Tuple[int, ...]) -> None:
+        """After a successful LSS request: who holds the net's LSS now."""
+        if command == "lss_switch_sel" or (command == "lss_switch_glob" and args[0]):
+            self._lss_owners[net] = session
+        elif command == "lss_switch_glob":
+            self._lss_owners.pop(net, None)
+
+    def _release_lss(self, session: Session) -> None:
+        """A session ends: the devices it left in LSS configuration go back
+        to waiting, so other clients can use LSS again."""
+        for net, owner in list(self._lss_owners.items()):
+            if owner is session:
+                del self._lss_owners[net]
+                try:
+                    self.networks[net].lss.switch_global("waiting")
+                except CanopenFDError as exc:     # the line closed meanwhile
+                    log.info("ASCII gateway: LSS of net %d not switched back: %s", net, exc)
 
     def _info_version(self, seq: int, line: Line) -> str:
         identity = [0, 0, 0, 0]

@@ -39,8 +39,10 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 from ..errors import AbortError, CanopenFDError, ConfigurationError
+from ..od.datatypes import TimeDifference, TimeOfDay
 from ..services.emcy import Emcy
 from ..services.pdo import PdoMap
+from .node_turns import taking_turn
 
 try:
     import paho.mqtt.client as _paho
@@ -56,6 +58,8 @@ ROOT = "canopen"
 _NMT_VERBS = ("start", "stop", "pre_operational", "reset_node", "reset_communication")
 _NMT_ALIASES = {"preop": "pre_operational", "preoperational": "pre_operational",
                 "reset": "reset_node", "reset_comm": "reset_communication"}
+#: Seconds a command waits while other requests hold its node (node_turns).
+TURN_TIMEOUT = 60.0
 _TOPIC_UNSAFE = str.maketrans({"/": "_", "+": "_", "#": "_", "\0": "_"})
 
 
@@ -65,9 +69,12 @@ def topic_part(name: str) -> str:
 
 
 def json_value(value: object) -> object:
-    """A typed OD value as JSON: bytes become a hex string."""
+    """A typed OD value as JSON: bytes become a hex string, TIME_OF_DAY and
+    TIME_DIFFERENCE {"ms": .., "days": ..} (json.dumps knows neither)."""
     if isinstance(value, (bytes, bytearray, memoryview)):
         return bytes(value).hex()
+    if isinstance(value, (TimeOfDay, TimeDifference)):
+        return {"ms": value.ms, "days": value.days}
     return value
 
 
@@ -304,14 +311,24 @@ class MqttBridge:
                         self.port, reason)
 
     def _on_message(self, client: object, userdata: object, message: Any) -> None:
-        """On the MQTT network thread: parse, then hand the work to a worker."""
+        """On the MQTT network thread: parse, then hand the work to a worker.
+        Nothing may escape: paho re-raises a callback's exception and its
+        network thread (every publish and command) ends with it."""
+        try:
+            self._take(message)
+        except Exception:  # noqa: BLE001 - logged and counted, the bridge goes on
+            log.exception("MQTT gateway: command on %r failed", message.topic)
+            with self._lock:
+                self.stats["command_errors"] += 1
+
+    def _take(self, message: Any) -> None:
         parts = message.topic[len(self.base) + 1:].split("/")
         props = getattr(message, "properties", None)
         reply_topic = getattr(props, "ResponseTopic", None)
         correlation = getattr(props, "CorrelationData", None)
         try:
             request = json.loads(message.payload or b"{}")
-        except ValueError:
+        except (ValueError, RecursionError):    # nested too deep is not JSON to us
             request = None
         request_id = request.get("id") if isinstance(request, dict) else None
         if isinstance(request, dict) and isinstance(request.get("reply_to"), str):
@@ -376,6 +393,12 @@ class MqttBridge:
             with self._lock:
                 self.stats["command_errors"] += 1
             self._reply(where, error=str(exc) or type(exc).__name__)
+        except Exception:  # noqa: BLE001 - a fault of ours still gets its answer
+            log.exception("MQTT gateway: %s of node %d on network %d failed", verb, node_id,
+                          net)
+            with self._lock:
+                self.stats["command_errors"] += 1
+            self._reply(where, error=f"{verb}: internal error (see the gateway's log)")
         else:
             self._reply(where, value=value)
         finally:
@@ -399,7 +422,9 @@ class MqttBridge:
         return (index, sub)
 
     def _do_read(self, line: Any, node_id: int, request: Dict[str, Any]) -> object:
-        return json_value(line.add_node(node_id).read(self._key(request)))
+        key = self._key(request)
+        with taking_turn(line, node_id, TURN_TIMEOUT):
+            return json_value(line.add_node(node_id).read(key))
 
     def _do_write(self, line: Any, node_id: int, request: Dict[str, Any]) -> object:
         node = line.add_node(node_id)
@@ -410,7 +435,8 @@ class MqttBridge:
             value = request["value"]
         else:
             raise CommandFailed("write: give 'value' (typed by the node's OD) or 'data' (hex)")
-        node.write(key, value)
+        with taking_turn(line, node_id, TURN_TIMEOUT):
+            node.write(key, value)
         return None
 
     def _do_nmt(self, line: Any, node_id: int, request: Dict[str, Any]) -> object:
@@ -435,8 +461,20 @@ class MqttBridge:
         if where.correlation is not None:
             properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
             properties.CorrelationData = where.correlation
-        info = self._client.publish(where.topic, json.dumps(body), qos=self.event_qos,
-                                    properties=properties)
+        try:
+            text = json.dumps(body)
+        except (TypeError, ValueError):     # a value JSON cannot hold: said so, not lost
+            text = json.dumps({"id": where.request_id, "ok": False,
+                               "error": f"the value {value!r:.80} has no JSON form"})
+        try:
+            info = self._client.publish(where.topic, text, qos=self.event_qos,
+                                        properties=properties)
+        except ValueError as exc:     # a response topic with wildcards, or empty
+            log.warning("MQTT gateway: reply %s to %r not sent: %s", where.request_id,
+                        where.topic, exc)
+            with self._lock:
+                self.stats["dropped"] += 1
+            return
         with self._lock:
             self.stats["published" if info.rc in (_paho.MQTT_ERR_SUCCESS,
                                                   _paho.MQTT_ERR_NO_CONN) else "dropped"] += 1

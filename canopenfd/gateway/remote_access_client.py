@@ -77,6 +77,8 @@ class RemoteAccessClient:
         self._data_callbacks: List[Callable[[int, ra.NewData], None]] = []
         self._state_callbacks: List[Callable[[int, int, int], None]] = []
         self._closed = threading.Event()
+        #: set when the reader ended: the gateway closed the stream (or close())
+        self._ended = threading.Event()
         self._reader = threading.Thread(target=self._read_loop, daemon=True,
                                         name=f"ra client {stream.name}")
         self._reader.start()
@@ -145,6 +147,7 @@ class RemoteAccessClient:
                 else:
                     self._responses.put(message)
         self.decoder.close()
+        self._ended.set()
 
     def _deliver(self, net: int, data: ra.NewData) -> None:
         """Run the callbacks on the reader thread; one that raises is logged
@@ -171,6 +174,9 @@ class RemoteAccessClient:
         with self._request_lock:
             if self._closed.is_set():
                 raise RemoteAccessError(f"{what}: client closed", None, net)
+            if self._ended.is_set():
+                raise RemoteAccessError(f"{what}: the gateway closed the connection", None,
+                                        net)
             while not self._responses.empty():     # answers to commands that timed out
                 self._responses.get_nowait()
                 self.unexpected += 1
@@ -184,8 +190,12 @@ class RemoteAccessClient:
                 if remaining <= 0:
                     raise RemoteAccessError(what, None, net)
                 try:
-                    response = self._responses.get(timeout=remaining)
+                    # short waits: a gateway hanging up ends the wait at once
+                    response = self._responses.get(timeout=min(remaining, 0.1))
                 except queue.Empty:
+                    if self._ended.is_set() and self._responses.empty():
+                        raise RemoteAccessError(f"{what}: the gateway closed the connection",
+                                                None, net) from None
                     continue
                 if (response.letter == letter and response.node == node
                         and (response.error or (response.index == command.index

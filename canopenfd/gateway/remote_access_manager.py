@@ -21,7 +21,7 @@ import logging
 import queue
 import threading
 from functools import partial
-from typing import Callable, Dict, Mapping, Optional, Set, Tuple
+from typing import Callable, Dict, List, Mapping, Optional, Set, Tuple
 
 from ..errors import CanopenFDError
 from ..line import Line, ODLike
@@ -62,6 +62,8 @@ class MinimalManager:
         self._nodes: Dict[int, RemoteNode] = {}
         self._own_timeouts: Dict[int, int] = {}   # the application's, left alone
         self._heard_pdos: Set[Tuple[int, int]] = set()   # (node, TPDO number) heard
+        self._pdo_callbacks: List[Tuple[PdoMap, Callable[[PdoMap], None]]] = []
+        self._stopped = False
         self._scans: "queue.Queue[Optional[int]]" = queue.Queue()
         self._thread: Optional[threading.Thread] = None
         #: scans that failed (transfer aborted, no OD)
@@ -90,6 +92,20 @@ class MinimalManager:
         self._thread.start()
 
     def stop(self) -> None:
+        """End the automation: no more NMT commands or indications, the
+        heartbeat monitoring HB_RECEIVE_ALL switched on is undone, PDO
+        callbacks removed (the nodes stay on the line, watched)."""
+        with self._lock:
+            if self._stopped:
+                return
+            self._stopped = True
+            hb_on = bool(self.control & ra.ManagerControl.HB_RECEIVE_ALL)
+            self.control = 0
+            callbacks, self._pdo_callbacks = self._pdo_callbacks, []
+        if hb_on:
+            self._apply_heartbeat()
+        for pdo_map, callback in callbacks:
+            pdo_map.remove_callback(callback)
         self._scans.put(None)
         if self._thread is not None:
             self._thread.join(5.0)
@@ -105,6 +121,8 @@ class MinimalManager:
         if bits & (ra.ManagerControl.PDO_TRANSMIT_ALL | ra.ManagerControl.USE_SCANNED):
             return int(ra.RaError.NOT_SUPPORTED)
         with self._lock:
+            if self._stopped:
+                return int(ra.RaError.NOT_SUPPORTED)
             before, self.control = self.control, bits
         if (bits ^ before) & ra.ManagerControl.HB_RECEIVE_ALL:
             self._apply_heartbeat()
@@ -166,6 +184,8 @@ class MinimalManager:
     def report(self, node_id: int, status: int) -> None:
         """Record a node's state or event and tell the hosts."""
         with self._lock:
+            if self._stopped:
+                return      # the node callbacks stay registered: they end here
             self._status[node_id] = status
         self._indicate(ra.NewData(node_id, ra.NODE_STATE_INDEX, node_id, bytes((status,))))
 
@@ -220,7 +240,13 @@ class MinimalManager:
                 continue
             if (node_id, number) not in self._heard_pdos:      # one callback per TPDO
                 self._heard_pdos.add((node_id, number))
-                pdo_map.add_callback(partial(self._pdo_received, node_id))
+                callback = pdo_map.add_callback(partial(self._pdo_received, node_id))
+                with self._lock:
+                    stopped = self._stopped
+                    if not stopped:
+                        self._pdo_callbacks.append((pdo_map, callback))
+                if stopped:     # stop() came during the scan
+                    pdo_map.remove_callback(callback)
         self.report(node_id, ra.NodeStatus.SCAN_COMPLETE)
 
     def _pdo_received(self, node_id: int, pdo_map: PdoMap) -> None:

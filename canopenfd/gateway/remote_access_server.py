@@ -14,7 +14,8 @@ nodes (remote_access_manager.py).
 Each connection has a reader thread (frames in, local commands answered at
 once), a worker for its remote command and a writer thread with a bounded
 queue, so a slow host never holds the CAN side: indications beyond the bound
-are dropped and counted, responses never.
+are dropped and counted, responses never (with RESPONSE_QUEUE of them
+waiting, the host's further requests are not read until it takes some).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import queue
 import threading
 import time
 from functools import partial
-from typing import Dict, List, Mapping, Optional, Tuple, Union
+from typing import Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 from .. import CommEvent, __version__
 from ..errors import AbortError, CanopenFDError, ConfigurationError
@@ -33,9 +34,11 @@ from ..node import LocalNode
 from ..services.emcy import Emcy
 from ..services.nmt import NmtState
 from ..services.served_od import LocalValue
+from ..transfer.client import Transfer
 from ..transfer.sdo import SdoClient
 from ..transfer.usdo import UsdoClient
 from . import remote_access as ra
+from .node_turns import TurnTimeout, taking_turn
 from .remote_access_manager import MinimalManager, node_status_of
 from .remote_access_stream import ByteStream, TcpListener, open_serial
 
@@ -43,6 +46,11 @@ log = logging.getLogger(__name__)
 
 #: Indications a connection queues for a slow host before dropping (counted).
 INDICATION_QUEUE = 4096
+#: Responses a connection queues for its host; then its input is not read
+#: until the host takes some (responses are never dropped).
+RESPONSE_QUEUE = 64
+#: Hosts served at once (each costs three threads); more are closed, counted.
+MAX_CONNECTIONS = 16
 
 _ABORT_BITS = {
     0x06020000: ra.RaError.OD_NOT_FOUND,      # object does not exist
@@ -110,6 +118,11 @@ class _Served:
         self.line.on_comm_event(self._comm_event)
         self.line.on_emcy(self._emcy, nodes=[n for n in range(1, 128) if n != self.own_id])
         self.hook_local()
+
+    def unhook(self) -> None:
+        """Undo hook() where the line can (the EMCY callback); the comm-event
+        and local-node callbacks stay, told nothing once the server closed."""
+        self.line.remove_emcy_callback(self._emcy)
 
     def hook_local(self) -> None:
         local = self.local
@@ -250,10 +263,15 @@ class RemoteAccessConnection:
         # (is an indication, frame); None ends the writer
         self._out: "queue.Queue[Optional[Tuple[bool, bytes]]]" = queue.Queue()
         self._queued_indications = 0
+        self._queued_responses = 0
+        #: times the reader waited for the host to take its responses
+        self.output_waits = 0
         self._count_lock = threading.Lock()
+        self._taken = threading.Condition(self._count_lock)   # the writer took a response
         # one remote command at a time: the next one while it runs is refused BUSY
         self._remote: "queue.Queue[Optional[Tuple[int, ra.Command]]]" = queue.Queue()
         self._remote_running = False
+        self._transfer: Optional[Transfer] = None    # the remote command's, while it runs
         self._threads = [
             threading.Thread(target=self._read_loop, daemon=True, name=f"ra read {stream.name}"),
             threading.Thread(target=self._write_loop, daemon=True, name=f"ra write {stream.name}"),
@@ -271,19 +289,30 @@ class RemoteAccessConnection:
         stats = self.decoder.stats.as_dict()
         stats.update(unknown_command=self.unknown_command, invalid_length=self.invalid_length,
                      busy=self.busy, indications_dropped=self.indications_dropped,
-                     internal_errors=self.internal_errors)
+                     internal_errors=self.internal_errors, output_waits=self.output_waits)
         return stats
 
     # ------------------------------------------------------------ output
     def send_payload(self, net: int, payload: bytes, indication: bool = False) -> None:
+        """Queue a frame for the host: an indication is dropped (counted) when
+        the queue is full, a response waits for room (the host's next request
+        is not read meanwhile)."""
         if self.closed.is_set():
             return
-        if indication:
-            with self._count_lock:
+        with self._count_lock:
+            if indication:
                 if self._queued_indications >= self.server.indication_queue:
                     self.indications_dropped += 1
                     return
                 self._queued_indications += 1
+            else:
+                if self._queued_responses >= RESPONSE_QUEUE:
+                    self.output_waits += 1
+                while self._queued_responses >= RESPONSE_QUEUE:
+                    if self.closed.is_set():
+                        return
+                    self._taken.wait(0.1)
+                self._queued_responses += 1
         self._out.put((indication, ra.encode_frame(payload, net, crc=self.server.crc)))
 
     def _write_loop(self) -> None:
@@ -292,9 +321,12 @@ class RemoteAccessConnection:
             if item is None:
                 return
             indication, frame = item
-            if indication:
-                with self._count_lock:
+            with self._count_lock:
+                if indication:
                     self._queued_indications -= 1
+                else:
+                    self._queued_responses -= 1
+                    self._taken.notify_all()
             try:
                 self.stream.write(frame)
             except EOFError:
@@ -362,19 +394,41 @@ class RemoteAccessConnection:
             served = self.server.served.get(net)
             assert served is not None and isinstance(command, (ra.RemoteRead, ra.RemoteWrite))
             try:
-                response = self.server.remote(served, command)
+                response = self.server.remote(served, command, started=self._started)
             except Exception:   # answered, and the next remote command is taken
                 log.exception("remote access %s: %r", self.stream.name, command)
                 self.internal_errors += 1
                 response = self.server.refusal(command, int(ra.RaError.MISC))
             with self._count_lock:
                 self._remote_running = False
+                self._transfer = None
             self._respond(net, response)
 
+    def _started(self, transfer: Transfer) -> None:
+        """The remote command's transfer runs: close() aborts it (once the
+        host is gone nobody wants its result)."""
+        with self._count_lock:
+            self._transfer = transfer
+            gone = self.closed.is_set()
+        if gone:
+            self._abort(transfer)
+
+    @staticmethod
+    def _abort(transfer: Transfer) -> None:
+        try:
+            transfer.cancel()
+        except CanopenFDError:      # it ended meanwhile
+            pass
+
     def close(self) -> None:
-        if self.closed.is_set():
-            return
-        self.closed.set()
+        with self._count_lock:      # the reader, the writer and the server may all close
+            if self.closed.is_set():
+                return
+            self.closed.set()
+            transfer = self._transfer
+            self._taken.notify_all()
+        if transfer is not None:
+            self._abort(transfer)
         self._out.put(None)
         self._remote.put(None)
         self.stream.close()
@@ -392,7 +446,9 @@ class RemoteAccessServer:
     timeout (s) for remote commands; remote_timeout: seconds one may take;
     control / heartbeat_ms: the minimal manager's start values ([5F01h,04h],
     [5F01h,08h]); known: {net: {node: OD or EDS path}} the manager reads PDO
-    configurations of (PDO_RECEIVE_ALL).
+    configurations of (PDO_RECEIVE_ALL); max_connections: hosts served at
+    once (a further TCP host is closed at once, counted `refused_connections`;
+    serve() raises ConfigurationError).
 
     Create the lines' local nodes first: the server watches every other
     node-id of each line (line.add_node), and they stay watched after close()."""
@@ -402,7 +458,8 @@ class RemoteAccessServer:
                  remote_timeout: float = 30.0,
                  idle_timeout: float = 0.5, control: int = 0, heartbeat_ms: int = 1000,
                  known: Optional[Mapping[int, Mapping[int, ODLike]]] = None,
-                 indication_queue: int = INDICATION_QUEUE) -> None:
+                 indication_queue: int = INDICATION_QUEUE,
+                 max_connections: int = MAX_CONNECTIONS) -> None:
         if not networks:
             raise ConfigurationError("RemoteAccessServer: no network to serve (give {1: line})")
         unsupported = control & (ra.ManagerControl.PDO_TRANSMIT_ALL | ra.ManagerControl.USE_SCANNED)
@@ -419,6 +476,11 @@ class RemoteAccessServer:
         self.remote_timeout = remote_timeout
         self.idle_timeout = idle_timeout
         self.indication_queue = indication_queue
+        if isinstance(max_connections, bool) or not isinstance(max_connections, int) or \
+                max_connections < 1:
+            raise ConfigurationError(f"RemoteAccessServer: max_connections must be an int "
+                                     f">= 1, got {max_connections!r}")
+        self.max_connections = max_connections
         self._lock = threading.Lock()
         self._connections: List[RemoteAccessConnection] = []
         self._listeners: List[TcpListener] = []
@@ -430,11 +492,15 @@ class RemoteAccessServer:
             manager = MinimalManager(line, partial(self.indicate, net),
                                      heartbeat_ms=heartbeat_ms, known=known.get(net, {}))
             self.served[net] = _Served(self, net, line, manager)
-        for served in self.served.values():
-            served.hook()
-            served.manager.start()
-            if control:
-                served.manager.set_control(control)    # checked above: taken
+        try:
+            for served in self.served.values():
+                served.hook()
+                served.manager.start()
+                if control:
+                    served.manager.set_control(control)    # checked above: taken
+        except BaseException:
+            self.close()     # the networks started already stop their automation
+            raise
 
     def __enter__(self) -> "RemoteAccessServer":
         return self
@@ -448,6 +514,11 @@ class RemoteAccessServer:
         with self._lock:
             if self._closed:
                 raise ConfigurationError("RemoteAccessServer: closed")
+            if len(self._connections) >= self.max_connections:
+                self._totals["refused_connections"] = \
+                    self._totals.get("refused_connections", 0) + 1
+                raise ConfigurationError(f"RemoteAccessServer: {stream.name} refused, "
+                                         f"{self.max_connections} hosts served already")
             connection = RemoteAccessConnection(self, stream)
             self._connections.append(connection)
         return connection
@@ -466,7 +537,8 @@ class RemoteAccessServer:
     def _accept(self, stream: ByteStream) -> None:
         try:
             self.serve(stream)
-        except ConfigurationError:
+        except ConfigurationError as exc:     # closed, or hosts enough
+            log.info("remote access: %s", exc)
             stream.close()
 
     def forget(self, connection: RemoteAccessConnection) -> None:
@@ -504,6 +576,7 @@ class RemoteAccessServer:
         for connection in connections:
             connection.close()
         for served in self.served.values():
+            served.unhook()
             served.manager.stop()
 
     # ------------------------------------------------------------ indications
@@ -511,6 +584,8 @@ class RemoteAccessServer:
         """Send indication D to every connected host (dropped for a host whose
         queue is full, counted); one longer than max_payload is not sent
         (counted `indications_too_long`: a cut value would be a wrong one)."""
+        if self._closed:
+            return
         payload = ra.encode_new_data(indication)
         if len(payload) > self.max_payload:
             with self._lock:
@@ -564,9 +639,10 @@ class RemoteAccessServer:
             log.debug("remote access: %r refused: %s", command, exc)
             return self.refusal(command, int(ra.RaError.MISC))
 
-    def remote(self, served: _Served, command: Union[ra.RemoteRead, ra.RemoteWrite]
-               ) -> ra.Response:
-        """S or U through the line's USDO (fd) or SDO (classic) client."""
+    def remote(self, served: _Served, command: Union[ra.RemoteRead, ra.RemoteWrite],
+               started: Optional[Callable[[Transfer], None]] = None) -> ra.Response:
+        """S or U through the line's USDO (fd) or SDO (classic) client;
+        started(transfer) once its transfer runs."""
         if not 1 <= command.node <= 127:
             return self.refusal(command, int(ra.RaError.NODE_NOT_AVAILABLE))
         if command.node == served.own_id:
@@ -578,16 +654,29 @@ class RemoteAccessServer:
             return ra.Response(ra.Letter(ra.encode_command(command)[0]), command.node,
                                command.index, command.sub, answer.error, answer.data)
         line = served.line
+        try:
+            # other hosts' requests for the node (any protocol) go first
+            with taking_turn(line, command.node, self.remote_timeout):
+                return self._transfer(line, command, started)
+        except TurnTimeout:
+            return self.refusal(command, int(ra.RaError.TIMEOUT))
+
+    def _transfer(self, line: Line, command: Union[ra.RemoteRead, ra.RemoteWrite],
+                  started: Optional[Callable[[Transfer], None]]) -> ra.Response:
         client: Union[UsdoClient, SdoClient] = line.usdo if line.mode == "fd" else line.sdo
         try:
             if isinstance(command, ra.RemoteRead):
                 transfer = client.start_upload(command.node, command.index, command.sub,
                                                timeout=self.sdo_timeout)
+                if started is not None:
+                    started(transfer)
                 result = transfer.result(self.remote_timeout)
                 assert isinstance(result, bytes)
                 return self._read_answer(command, result)
             transfer = client.start_download(command.node, command.index, command.sub,
                                              command.data, timeout=self.sdo_timeout)
+            if started is not None:
+                started(transfer)
             transfer.result(self.remote_timeout)
             return self.refusal(command, 0)
         except AbortError as exc:

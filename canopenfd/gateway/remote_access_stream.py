@@ -5,13 +5,17 @@ pty (FdStream, POSIX); and the TCP listener."""
 
 from __future__ import annotations
 
+import collections
+import logging
 import os
 import select
 import socket
 import threading
-from typing import Any, Callable, List, Optional, Protocol
+from typing import Any, Callable, Deque, Optional, Protocol
 
 from ..errors import ConfigurationError, InterfaceError
+
+log = logging.getLogger(__name__)
 
 #: Bytes asked of the OS per read.
 READ_CHUNK = 4096
@@ -261,8 +265,9 @@ class TcpListener:
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True,
                                         name=f"remote-access tcp {self.port}")
-        #: the peers that connected, as "tcp ADDRESS:PORT"
-        self.connections: List[str] = []
+        #: the last peers that connected, as "tcp ADDRESS:PORT" (bounded: a
+        #: listener may run for months)
+        self.connections: Deque[str] = collections.deque(maxlen=100)
         self._thread.start()
 
     def _run(self) -> None:
@@ -276,7 +281,11 @@ class TcpListener:
                 return
             name = f"tcp {peer[0]}:{peer[1]}"
             self.connections.append(name)
-            self._on_connection(SocketStream(conn, name))
+            try:
+                self._on_connection(SocketStream(conn, name))
+            except Exception:  # noqa: BLE001 - one host's failure never ends the listener
+                log.exception("remote access TCP %d: %s", self.port, name)
+                conn.close()
 
     def close(self, timeout: Optional[float] = 2.0) -> None:
         self._closed.set()

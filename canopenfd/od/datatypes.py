@@ -41,7 +41,7 @@ from .errors import OdValueError
 
 __all__ = [
     "DataType", "TimeOfDay", "TimeDifference", "Value",
-    "check", "encode", "decode", "zero_value", "TIME_EPOCH",
+    "check", "encode", "decode", "zero_value", "real32_text", "TIME_EPOCH",
 ]
 
 
@@ -256,6 +256,19 @@ class TimeDifference:
 
 
 Value = Union[bool, int, float, str, bytes, TimeOfDay, TimeDifference]
+
+
+def real32_text(value: float) -> str:
+    """The shortest decimal text that reads back as the same REAL32 (what a
+    terminal, a monitor or a gateway shows of a single-precision value)."""
+    if not math.isfinite(value):
+        return repr(value)
+    packed = struct.pack("<f", value)
+    for digits in range(1, 10):
+        text = f"{value:.{digits}g}"
+        if struct.pack("<f", float(text)) == packed:
+            return text
+    return repr(value)
 
 
 # ------------------------------------------------------------------ checks
