@@ -61,6 +61,8 @@ class MinimalManager:
         self._status: Dict[int, int] = {}
         self._nodes: Dict[int, RemoteNode] = {}
         self._own_timeouts: Dict[int, int] = {}   # the application's, left alone
+        self._created: Set[int] = set()           # nodes start() added: stop() removes them
+        self._stopped = False
         self._heard_pdos: Set[Tuple[int, int]] = set()   # (node, TPDO number) heard
         self._scans: "queue.Queue[Optional[int]]" = queue.Queue()
         self._thread: Optional[threading.Thread] = None
@@ -78,6 +80,8 @@ class MinimalManager:
             if node_id == own:
                 continue
             od = self._known.get(node_id)
+            if node_id not in line.nodes:
+                self._created.add(node_id)
             node = line.add_node(node_id, od=od) if od is not None else line.add_node(node_id)
             self._nodes[node_id] = node
             self._own_timeouts[node_id] = node.heartbeat_timeout_ms
@@ -90,9 +94,28 @@ class MinimalManager:
         self._thread.start()
 
     def stop(self) -> None:
+        """Stop the scans and give the line back as start() found it: the nodes
+        it added are removed, the application's own nodes keep their heartbeat
+        timeouts and no longer report to the hosts (their callbacks cannot be
+        removed, they are silenced)."""
+        with self._lock:
+            if self._stopped:
+                return
+            self._stopped = True
         self._scans.put(None)
         if self._thread is not None:
             self._thread.join(5.0)
+        for node_id, node in list(self._nodes.items()):
+            try:
+                if node_id in self._created:
+                    if self.line.nodes.get(node_id) is node:
+                        self.line.remove_node(node_id)
+                elif node.heartbeat_timeout_ms != self._own_timeouts.get(node_id, 0):
+                    node.heartbeat_timeout_ms = self._own_timeouts.get(node_id, 0)
+            except CanopenFDError as exc:    # the line closed meanwhile
+                log.info("remote access manager: node %d left as it is: %s", node_id, exc)
+        self._nodes.clear()
+        self._created.clear()
 
     # ------------------------------------------------------------ [5F01h,04h] / [5F01h,08h]
     def control_word(self) -> int:
@@ -166,10 +189,14 @@ class MinimalManager:
     def report(self, node_id: int, status: int) -> None:
         """Record a node's state or event and tell the hosts."""
         with self._lock:
+            if self._stopped:
+                return
             self._status[node_id] = status
         self._indicate(ra.NewData(node_id, ra.NODE_STATE_INDEX, node_id, bytes((status,))))
 
     def _bootup(self, node_id: int) -> None:
+        if self._stopped:
+            return
         self.report(node_id, ra.NodeStatus.BOOT)
         if self._on(ra.ManagerControl.KEEP_OP):
             self.line.nmt.start(node_id)
@@ -177,6 +204,8 @@ class MinimalManager:
             self._scans.put(node_id)
 
     def _state(self, node_id: int, state: NmtState) -> None:
+        if self._stopped:
+            return
         if state == NmtState.INITIALISING:
             return      # the boot-up reported it
         self.report(node_id, node_status_of(state))
@@ -185,6 +214,8 @@ class MinimalManager:
             self.line.nmt.start(node_id)
 
     def _lost(self, node_id: int) -> None:
+        if self._stopped:
+            return
         self.report(node_id, ra.NodeStatus.HB_LOST)
         if self._on(ra.ManagerControl.HB_RECEIVE_ALL):
             # the seed's automated recovery: reset the lost node
@@ -224,6 +255,8 @@ class MinimalManager:
         self.report(node_id, ra.NodeStatus.SCAN_COMPLETE)
 
     def _pdo_received(self, node_id: int, pdo_map: PdoMap) -> None:
+        if self._stopped:
+            return
         for variable in pdo_map:
             if variable.is_dummy:
                 continue
