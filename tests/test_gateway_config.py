@@ -235,3 +235,21 @@ def test_the_gateway_serves_remote_access(tmp_path: pathlib.Path) -> None:
                                    f"{server.stats['frames']} frames, 0 busy)"), status
             assert server.stats["frames"] >= 3
         assert gateway.remote_access is None
+
+
+def test_a_port_in_use_is_named_with_the_section() -> None:
+    import socket
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        config = parse_config(f"[line 1]\nchannel = mem:gwcfg-busy\n[remote_access]\n"
+                              f"tcp = {port}\n", "site/gw.ini")
+        with Network() as net:
+            gateway = Gateway(config, network=net)
+            with pytest.raises(GatewayConfigError) as caught:
+                gateway.start()
+            assert (caught.value.path, caught.value.line) == ("site/gw.ini", 3)
+            assert str(caught.value).startswith("site/gw.ini:3: [remote_access] ")
+            # closed on the way out: the server's watches are gone from the line
+            assert gateway.remote_access is None and not gateway.lines[1].nodes

@@ -127,12 +127,18 @@ class Gateway:
             raise GatewayConfigError(f"[remote_access] {exc}", self.config.path,
                                      ra.line) from None
         self.remote_access = server
-        if ra.serial is not None:
-            server.serve_serial(ra.serial, ra.baud)
-            self.remote_access_on.append(f"serial {ra.serial} ({ra.baud} Bd)")
-        if ra.tcp is not None:
-            port = server.serve_tcp(ra.tcp, ra.host)
-            self.remote_access_on.append(f"tcp {ra.host}:{port}")
+        try:
+            if ra.serial is not None:
+                server.serve_serial(ra.serial, ra.baud)
+                self.remote_access_on.append(f"serial {ra.serial} ({ra.baud} Bd)")
+            if ra.tcp is not None:
+                port = server.serve_tcp(ra.tcp, ra.host)
+                self.remote_access_on.append(f"tcp {ra.host}:{port}")
+        except CanopenFDError as exc:
+            if not ra.line:      # not from a file: the error names what failed
+                raise
+            raise GatewayConfigError(f"[remote_access] {exc}", self.config.path,
+                                     ra.line) from None
 
     def _known_od(self, node: KnownNodeConfig, mode: str) -> Any:
         kind = node.od.lower()
