@@ -6,7 +6,8 @@
  * - fast scan: finds every non-configured slave bit by bit (vendor, product,
  *   revision, serial: 32 checks each), gives each a node-id from the
  *   caller's list and switches it back to waiting, until no slave answers
- *   the scan's reset;
+ *   the scan's reset; filters match or skip parts of the address, and
+ *   without node-ids it identifies one slave and leaves it selected;
  * - scan: finds configured or not, every slave of one vendor and product
  *   inside a revision and serial range, by halving the ranges with
  *   "identify remote slave".
