@@ -362,6 +362,10 @@ class Line:
         """callback(CommEvent): bus-off, error passive, overflow, interface down/up..."""
         return self._comm.add(callback)
 
+    def remove_comm_event_callback(self, callback: Callable[[CommEvent], None]) -> None:
+        """Stop calling a callback on_comm_event registered."""
+        self._comm.remove(callback)
+
     def on_emcy(self, callback: Callable[[Emcy], None],
                 nodes: Optional[Iterable[int]] = None) -> Callable[[Emcy], None]:
         """callback(Emcy) for every EMCY the line consumes: those of the

@@ -241,7 +241,8 @@ def test_error_codes(rig, net, bus_name):
                                       "command 'bogus'"
     assert client.ask("[8] 5 w 0x1000") == "[8] ERROR: 101 #Syntax error: w[rite] index sub " \
                                            "type value"
-    assert client.ask("[9] _lss_fastscan").startswith("[9] ERROR: 100 #")
+    assert client.ask("[9] _lss_fastscan 5") == "[9] ERROR: 103 #Time-out: no unconfigured " \
+                                                "device answered"
     # 104: a gateway whose nets do not include net 1 has no default net
     other = AsciiGateway({2: line}).start_in_thread()
     try:
@@ -469,6 +470,105 @@ def test_lss_allnodes_gives_node_ids(net, bus_name):
         client.wait_event("1 10 BOOT_UP")
         assert stored.snapshot() == [10]                    # store asked for: stored
         assert client.ask("[2] 10 r 0x1018 4 x32") == "[2] 0x80000042"
+        client.close()
+    finally:
+        server.close()
+
+
+def unconfigured_device(net, bus_name, identity):
+    od = demo_od("classic")
+    for sub, value in enumerate(identity, start=1):
+        od[0x1018][sub].default = value
+    return net.open_line(bus_name, mode="classic").create_local_node(255, od=od)
+
+
+def lss_requests(bus: Recorder) -> List[bytes]:
+    return [bytes(f.data) for f in bus.snapshot() if f.id == 0x7E5]
+
+
+def fastscan_frames(address) -> List[bytes]:
+    """What CiA 305 has the master send to find `address` alone (reset, 32
+    bit checks per part, the bit-0 check naming the next part, a
+    confirmation after a part ending in a 1-bit), written out here."""
+    frames = [bytes((0x51, 0, 0, 0, 0, 0x80, 0, 0))]
+    for part, value in enumerate(address):
+        following = (part + 1) % 4
+        for bit in range(31, -1, -1):
+            above = value & ~((1 << (bit + 1)) - 1) & 0xFFFFFFFF
+            frames.append(bytes((0x51,)) + above.to_bytes(4, "little") +
+                          bytes((bit, part, following if bit == 0 else part)))
+        if value & 1:
+            frames.append(bytes((0x51,)) + value.to_bytes(4, "little") +
+                          bytes((0, part, following)))
+    return frames
+
+
+def test_lss_fastscan_finds_one_device_and_leaves_it_selected(net, bus_name):
+    """_lss_fastscan: the LSS address of an unconfigured device, found bit by
+    bit (every frame on the bus as CiA 305 has it) and answered as
+    CANopenNode's gateway does; the device stays in the configuration state
+    without a node-id, so lss_set_node / lss_store go to it."""
+    identity = (0x1A2, 0xBEEF01, 0x20003, 0x80000042)
+    device = unconfigured_device(net, bus_name, identity)
+    stored = Recorder()
+    device.lss.on_store(stored)
+    bus = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(bus)
+    line = net.open_line(bus_name, mode="classic")
+    server = AsciiGateway({1: line}).start_in_thread()
+    try:
+        client = Client(server.port)
+        assert client.ask("[1] _lss_fastscan 20") == \
+            "[1] 0x000001A2 0x00BEEF01 0x00020003 0x80000042"
+        expected = fastscan_frames(identity)
+        assert len(expected) == 1 + 128 + 2     # product and revision end in a 1-bit
+        bus.wait_for(lambda calls: len(lss_requests(bus)) >= len(expected),
+                     what="the fast scan's frames")
+        assert lss_requests(bus) == expected            # nothing configured, nothing else
+        assert device.lss.info["state"] == "configuration"
+        assert device.lss.info["pending"] == 255
+        assert client.ask("[2] lss_set_node 12") == "[2] OK"
+        assert client.ask("[3] lss_store") == "[3] OK"
+        assert client.ask("[4] lss_switch_glob 0") == "[4] OK"
+        client.wait_event("1 12 BOOT_UP")
+        assert stored.snapshot() == [12]
+        # configured now: nobody is left to find
+        assert client.ask("[5] _lss_fastscan 5").startswith("[5] ERROR: 103 #Time-out")
+        client.close()
+    finally:
+        server.close()
+
+
+def test_lss_allnodes_with_scan_filters(net, bus_name):
+    """lss_allnodes with the 11-number form: vendor matched (one frame with
+    its value on the bus), revision ignored (reported 0, the product's bit-0
+    check names the serial next): only the matching device gets a node-id,
+    the other stays unconfigured."""
+    wanted = unconfigured_device(net, bus_name, (0x1A2, 0xBEEF01, 0x20003, 0x80000042))
+    other = unconfigured_device(net, bus_name, (0x1A3, 0xBEEF01, 0x20003, 0x80000001))
+    bus = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(bus)
+    line = net.open_line(bus_name, mode="classic")
+    server = AsciiGateway({1: line}).start_in_thread()
+    try:
+        client = Client(server.port)
+        client.send("[1] lss_allnodes 20 20 0 2 0x1A2 0 0 1 0 0 0")
+        assert client.answer() == "# Node-ID 20 assigned to: 0x000001A2 " \
+                                            "0x00BEEF01 0x00000000 0x80000042"
+        assert client.answer() == "# Found 1 nodes, search finished."
+        assert client.answer() == "[1] OK"
+        requests = lss_requests(bus)
+        vendor = bytes((0x51, 0xA2, 0x01, 0, 0, 0, 0, 1))       # value, bit 0, part 0 -> 1
+        assert requests[:2] == [bytes((0x51, 0, 0, 0, 0, 0x80, 0, 0)), vendor]
+        assert bytes((0x51,)) + (0xBEEF01).to_bytes(4, "little") + bytes((0, 1, 3)) \
+            in requests                                           # revision skipped
+        assert not [r for r in requests if r[0] == 0x51 and r[6] == 2]   # never part 2
+        assert bytes((0x11, 20, 0, 0, 0, 0, 0, 0)) in requests    # configure node-id 20
+        # the second round: the reset answered by `other`, the vendor match is not
+        assert requests[-2:] == [bytes((0x51, 0, 0, 0, 0, 0x80, 0, 0)), vendor]
+        client.wait_event("1 20 BOOT_UP")
+        assert wanted.lss.info["active"] == 20
+        assert other.lss.info["pending"] == 255 and other.lss.info["active"] == 255
         client.close()
     finally:
         server.close()

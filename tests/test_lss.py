@@ -245,3 +245,73 @@ def test_configure_node_id_out_of_range_is_refused_on_the_wire(net, bus_name):
                                  f"the answer to node-id {bad}")
         assert bytes(answer[0].data) == bytes([0x11, 0x01, 0, 0, 0, 0, 0, 0])
         assert device.lss.info["pending"] == 5
+
+
+# ---------------------------------------------------------------- identify-only fast scan
+def test_fast_scan_identify_leaves_the_device_selected(net, bus_name):
+    """fast_scan_identify finds one unconfigured device (the lower address of
+    two), returns its address with node_id 0 and leaves it alone in the
+    configuration state: no configure node-id or switch frame on the bus.
+    With match/skip filters (CiA 305) it finds the other one."""
+    first = net.open_line(bus_name, mode="classic").create_local_node(
+        255, od=identity_od(0x80000001))
+    second = net.open_line(bus_name, mode="classic").create_local_node(
+        255, od=identity_od(0x80000002))
+    line = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    lss = line.lss
+    lss.timeout_ms = 20
+
+    def scan_frames(count: int) -> list:
+        """The fast scan frames (0x51) on the bus, once `count` arrived."""
+        def arrived(calls: list) -> list:
+            found = [bytes(f.data) for f in calls if f.id == 0x7E5 and f.data[0] == 0x51]
+            return found if len(found) >= count else []
+        return frames.wait_for(arrived, what=f"{count} fast scan frames")
+
+    device = lss.fast_scan_identify()
+    assert device == LssDevice(*IDENTITY[:3], 0x80000001, 0)
+    # reset, 4 x 32 bit checks, confirmations of the product's, revision's
+    # and serial's 1-bits
+    sent = scan_frames(1 + 128 + 3)
+    assert len(sent) == 1 + 128 + 3
+    assert sent[-1] == bytes((0x51, 0x01, 0, 0, 0x80, 0, 3, 0))  # serial confirmed: selected
+    assert {bytes(f.data)[0] for f in frames.snapshot() if f.id == 0x7E5} == {0x51}
+    assert first.lss.info["state"] == "configuration" and first.lss.info["pending"] == 255
+    assert second.lss.info["state"] == "waiting"
+    assert lss.inquire("serial") == 0x80000001               # it is the one selected
+    lss.switch_global("waiting")
+    # the serial matched at once, the revision skipped: the second device
+    device = lss.fast_scan_identify(match={"serial": 0x80000002}, skip=["revision"])
+    assert device == LssDevice(*IDENTITY[:2], 0, 0x80000002, 0)
+    # reset, 2 x 32 bits, the product's 1-bit confirmed, one frame for the serial
+    sent = scan_frames(132 + 1 + 64 + 1 + 1)[132:]
+    assert len(sent) == 1 + 64 + 1 + 1
+    assert sent[-1] == bytes((0x51, 0x02, 0, 0, 0x80, 0, 3, 0))
+    assert sent[-2] == bytes((0x51,)) + IDENTITY[1].to_bytes(4, "little") + bytes((0, 1, 3))
+    assert second.lss.info["state"] == "configuration"
+    lss.switch_global("waiting")
+    # nobody with this serial: None after the reset, the vendor, product and
+    # revision found (answered by both) and the one serial frame nobody answers
+    assert lss.fast_scan_identify(match={"serial": 0x12345678}) is None
+    sent = scan_frames(199 + 1 + 96 + 2 + 1)[199:]
+    assert len(sent) == 1 + 96 + 2 + 1
+    assert sent[-1] == bytes((0x51, 0x78, 0x56, 0x34, 0x12, 0, 3, 0))
+
+
+def test_fast_scan_filters_are_checked(rig):
+    line, _ = rig
+    lss = line.lss
+    with pytest.raises(ConfigurationError, match="vendor_id cannot be skipped"):
+        lss.fast_scan_identify(skip=["vendor_id"])
+    with pytest.raises(ConfigurationError, match="match 'colour': the parts are"):
+        lss.fast_scan_identify(match={"colour": 1})
+    with pytest.raises(ConfigurationError, match="serial is both matched and skipped"):
+        lss.fast_scan([5], match={"serial": 1}, skip=["serial"])
+    with pytest.raises(ConfigurationError, match=r"match\['serial'\] must be an int"):
+        lss.fast_scan_identify(match={"serial": -1})
+    with pytest.raises(ConfigurationError, match="skip must be a list"):
+        lss.fast_scan_identify(skip="revision")
+    # configured devices take no part: nothing found
+    assert lss.fast_scan_identify() is None

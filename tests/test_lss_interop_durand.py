@@ -249,6 +249,31 @@ def test_fast_scan_adversarial_nodes(rig, count):
     assert rig.line.lss.identify_non_configured() == 0
 
 
+def test_fast_scan_identify_and_match(rig):
+    """Identify only: durand's node with the lower address is found and left
+    selected (it alone answers inquire, then takes a node-id); a second
+    identify matches the other's all-ones serial with one frame."""
+    first = rig.add(ZEROS)
+    second = rig.add(ONES_SERIAL)
+    lss = rig.line.lss
+    assert lss.fast_scan_identify() == LssDevice(*ZEROS, 0)
+    sent = rig.data(0, LSS_MASTER, 129)
+    assert all(data[0] == 0x51 for data in sent)           # nothing but the scan
+    assert sent[-1] == frame(0x51, 0, 0, 0, 0, 0, 3, 0)     # the serial: selected
+    assert lss.inquire("serial") == 0                       # only the selected one answers
+    lss.configure_node_id(42)
+    lss.switch_global("waiting")
+    rig.wait(0, lambda c: [f for f in c if f == (0x72A, b"\x00")], "the boot-up of node 42")
+    assert first.node_id == 42
+    start = len(rig.frames)
+    assert lss.fast_scan_identify(match={"serial": 0xFFFFFFFF}) == LssDevice(*ONES_SERIAL, 0)
+    sent = rig.data(start, LSS_MASTER, 1 + 96 + 1)
+    assert sent[-1] == frame(0x51, 0xFF, 0xFF, 0xFF, 0xFF, 0, 3, 0)   # one frame for it
+    assert len([d for d in sent if d[0] == 0x51]) == 1 + 96 + 1
+    assert second.node_id == 0xFF                           # selected, not configured
+    lss.switch_global("waiting")
+
+
 def test_switch_selective_inquire_configure_store(rig):
     """Configured durand nodes with equal prefixes: switch state selective
     picks one (frames checked), inquire, configure node-id (pending until

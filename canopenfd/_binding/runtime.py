@@ -683,8 +683,10 @@ class Runtime:
         self._call(what, lib.co_rt_guard, line, node_id, guard_ms, life_factor)
 
     def lss_start(self, line: int, kind: int, values: Sequence[int], node_ids: Sequence[int],
-                  timeout_ms: int, what: str, settle_ms: int = 0) -> None:
-        """Start a request of the line's LSS master (co_rt_lss_start)."""
+                  timeout_ms: int, what: str, settle_ms: int = 0,
+                  fastscan_filter: Sequence[Tuple[int, int]] = ()) -> None:
+        """Start a request of the line's LSS master (co_rt_lss_start);
+        fastscan_filter: (kind, match value) per part of the address."""
         request = ffi.new("co_rt_lss_request_t *")
         request.kind = kind
         for i, value in enumerate(values):
@@ -692,6 +694,9 @@ class Runtime:
         for i, node_id in enumerate(node_ids):
             request.node_ids[i] = node_id
         request.node_id_count = len(node_ids)
+        for i, (part_kind, match) in enumerate(fastscan_filter):
+            request.fs_kind[i] = part_kind
+            request.fs_match[i] = match
         request.timeout_ms = timeout_ms
         request.settle_ms = settle_ms
         self._call(what, lib.co_rt_lss_start, line, request)

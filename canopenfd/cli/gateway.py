@@ -13,14 +13,13 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, List, Optional
 
-from ..errors import CanopenFDError
-from ..gateway.config import (AsciiConfig, GatewayConfig, GatewayConfigError, MqttConfig,
-                              load_config)
+from ..gateway.config import (AsciiConfig, GatewayConfig, GatewayConfigError, KnownNodeConfig,
+                              MqttConfig, RemoteAccessConfig, load_config)
+from ..gateway import remote_access as ra
 from ..gateway.gateway import Gateway
-from ..line import Line
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, builtin_od_kind,
                      command_line, ms_arg, node_id_arg)
 
 
@@ -32,7 +31,8 @@ def add_parsers(subparsers: Any) -> None:
                     "endpoints; without it the line options give one line.")
     p.add_argument("config", nargs="?", metavar="CONFIG",
                    help="gateway configuration (INI: [gateway], [line NET], "
-                        "[node NET.NODE], [ascii], [mqtt]); --tcp/--mqtt add to it")
+                        "[node NET.NODE], [routes], [ascii], [mqtt], [remote_access]); "
+                        "--tcp/--mqtt/--serial/--remote-access-tcp add to it")
     add_line_options(p, channel_required=False)
     p.add_argument("--net", type=int, default=1, metavar="N",
                    help="without CONFIG: the network id hosts give the line (1..127, "
@@ -84,7 +84,9 @@ def _mqtt_arg(text: str) -> MqttConfig:
     return MqttConfig(host, number)
 
 
-def _endpoints(args: argparse.Namespace, config: GatewayConfig) -> None:
+def _endpoints(args: argparse.Namespace, config: GatewayConfig, first_net: int) -> None:
+    """The endpoint options fill the configuration (first_net: the network the
+    --remote-access-node nodes are on)."""
     if args.tcp is not None:
         if not 0 <= args.tcp <= 65535:
             raise UsageError(f"--tcp {args.tcp}: a TCP port is 0..65535")
@@ -94,12 +96,14 @@ def _endpoints(args: argparse.Namespace, config: GatewayConfig) -> None:
         config.ascii = AsciiConfig(args.tcp, args.host, sdo_timeout)
     if args.mqtt is not None:
         config.mqtt = _mqtt_arg(args.mqtt)
+    if remote_access_wanted(args):
+        config.remote_access = remote_access_config(args, first_net)
     if args.name is not None:
         config.name = args.name
-    if config.ascii is None and config.mqtt is None and not remote_access_wanted(args):
+    if config.ascii is None and config.mqtt is None and config.remote_access is None:
         raise UsageError("gateway: no host endpoint given (--tcp PORT, --mqtt BROKER, "
                          "--serial PATH or --remote-access-tcp PORT, or a CONFIG with "
-                         "[ascii] / [mqtt])")
+                         "[ascii] / [mqtt] / [remote_access])")
 
 
 def cmd_gateway(args: argparse.Namespace) -> int:
@@ -114,7 +118,7 @@ def cmd_gateway(args: argparse.Namespace) -> int:
             config = load_config(args.config)
         except GatewayConfigError as exc:
             raise UsageError(str(exc)) from None
-        _endpoints(args, config)
+        _endpoints(args, config, config.lines[0].net)
         _run(Gateway(config), args, printer)
         return EXIT_OK
     if args.channel is None:
@@ -122,7 +126,7 @@ def cmd_gateway(args: argparse.Namespace) -> int:
     if not 1 <= args.net <= 127:
         raise UsageError(f"--net {args.net}: a network id is 1..127")
     config = GatewayConfig()
-    _endpoints(args, config)
+    _endpoints(args, config, args.net)
     node_id = None if args.node_id is None else node_id_arg(args.node_id, "--node-id")
     mode = "classic" if args.classic else "fd"
     with command_line(args) as line:
@@ -147,30 +151,32 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
                                    for net, line in sorted(gateway.lines.items()))
                 printer.line(f"CiA 309-3 ASCII gateway on {ascii_config.host}:"
                              f"{gateway.ascii.port}, {served}")
-            stops: List[Callable[[], None]] = []
-            try:
-                if remote_access_wanted(args):
-                    stops.append(start_remote_access(args, gateway.lines, printer))
+            remote_access = gateway.remote_access
+            if remote_access is not None:
+                line = gateway.lines[min(gateway.lines)]
+                print(f"gateway on {line.channel} ({line.mode}): remote access on "
+                      f"{', '.join(gateway.remote_access_on)}; Ctrl-C or SIGTERM to stop",
+                      file=sys.stderr, flush=True)
+            printer.line(gateway.status())
+            started = time.monotonic()
+            while True:
+                timeout: Optional[float] = args.status_interval or None
+                if args.duration is not None:
+                    left = args.duration - (time.monotonic() - started)
+                    if left <= 0:
+                        break
+                    timeout = left if timeout is None else min(timeout, left)
+                if stop.wait(timeout):
+                    break
+                if args.duration is not None and \
+                        time.monotonic() - started >= args.duration:
+                    break
                 printer.line(gateway.status())
-                started = time.monotonic()
-                while True:
-                    timeout: Optional[float] = args.status_interval or None
-                    if args.duration is not None:
-                        left = args.duration - (time.monotonic() - started)
-                        if left <= 0:
-                            break
-                        timeout = left if timeout is None else min(timeout, left)
-                    if stop.wait(timeout):
-                        break
-                    if args.duration is not None and \
-                            time.monotonic() - started >= args.duration:
-                        break
-                    printer.line(gateway.status())
-                final = gateway.status()
-            finally:    # whatever ended the loop, the remote-access server stops too
-                for stop_endpoint in reversed(stops):
-                    stop_endpoint()
+            final = gateway.status()
         printer.line(final.replace("gateway ", "gateway stopped: ", 1))
+        if remote_access is not None:    # closed now: its counters include every host
+            printer.line("remote access: " + ", ".join(
+                f"{key} {value}" for key, value in remote_access.stats.items()))
         if gateway.ascii is not None:
             stats = gateway.ascii.stats
             printer.line(f"gateway stopped: {stats.get('clients', 0)} clients, "
@@ -184,8 +190,9 @@ def _run(gateway: Gateway, args: argparse.Namespace, printer: Printer) -> None:
 # (issue 16 part 4: the CANopenIA binary protocol over a serial port and TCP)
 
 def add_remote_access_options(p: argparse.ArgumentParser) -> None:
-    group = p.add_argument_group("remote access (seed 001 binary protocol; network 1 = "
-                                 "the line)")
+    group = p.add_argument_group("remote access (seed 001 binary protocol; they replace "
+                                 "CONFIG's [remote_access], known nodes on its lowest "
+                                 "network)")
     group.add_argument("--serial", metavar="PATH",
                        help="serve the remote-access protocol on this serial port (needs "
                             "pyserial: pip install 'canopenfd[serial]')")
@@ -219,24 +226,28 @@ def remote_access_wanted(args: argparse.Namespace) -> bool:
     return args.serial is not None or args.remote_access_tcp is not None
 
 
-def start_remote_access(args: argparse.Namespace, lines: Dict[int, Line], printer: Printer
-                        ) -> Callable[[], None]:
-    """Start the remote-access server on the gateway's lines (the known nodes of
-    --remote-access-node are on the lowest network); the function that stops it."""
-    from ..gateway.remote_access_server import RemoteAccessServer
-
+def remote_access_config(args: argparse.Namespace, net: int) -> RemoteAccessConfig:
+    """The remote-access options as a [remote_access] section (known nodes on `net`)."""
     try:
         control = int(args.remote_access_manager, 0)
     except ValueError:
         raise UsageError(f"--remote-access-manager {args.remote_access_manager!r}: not a "
                          "number (like 3 or 0x7)") from None
+    if not 0 <= control <= 0x1F:
+        raise UsageError(f"--remote-access-manager {args.remote_access_manager}: the bits "
+                         "are 0..0x1F")
+    if control & (ra.ManagerControl.PDO_TRANSMIT_ALL | ra.ManagerControl.USE_SCANNED):
+        raise UsageError(f"gateway: manager control 0x{control:08X} refused "
+                         f"({ra.error_text(ra.RaError.NOT_SUPPORTED)}: bits 3 and 4 are not "
+                         "served)")
     heartbeat = ms_arg(args.remote_access_heartbeat, "--remote-access-heartbeat", "gateway")
     if not 1 <= args.remote_access_max_payload <= 0xFFFF:
         raise UsageError(f"--remote-access-max-payload {args.remote_access_max_payload}: "
                          "expected 1..65535")
-    first = min(lines)
-    line = lines[first]
-    known = {}
+    if args.remote_access_tcp is not None and not 0 <= args.remote_access_tcp <= 65535:
+        raise UsageError(f"--remote-access-tcp {args.remote_access_tcp}: a TCP port is "
+                         "0..65535")
+    known = []
     for spec in args.remote_access_node or []:
         node_text, sep, path = spec.partition("=")
         try:
@@ -246,31 +257,7 @@ def start_remote_access(args: argparse.Namespace, lines: Dict[int, Line], printe
         if not sep or not path or not 1 <= node <= 127:
             raise UsageError(f"--remote-access-node {spec!r}: expected NODE=FILE with a "
                              "node-id 1..127")
-        known[node] = od_arg(path, line.mode, node, f"--remote-access-node {node_text}:")
-    try:
-        server = RemoteAccessServer(lines, crc=args.remote_access_crc,
-                                    max_payload=args.remote_access_max_payload,
-                                    control=control, heartbeat_ms=heartbeat,
-                                    known={first: known})
-    except CanopenFDError as exc:
-        raise UsageError(f"gateway: {exc}") from None
-    where = []
-    try:
-        if args.serial is not None:
-            server.serve_serial(args.serial, args.baud)
-            where.append(f"serial {args.serial} ({args.baud} Bd)")
-        if args.remote_access_tcp is not None:
-            port = server.serve_tcp(args.remote_access_tcp, args.remote_access_host)
-            where.append(f"tcp {args.remote_access_host}:{port}")
-    except CanopenFDError:
-        server.close()
-        raise
-    print(f"gateway on {line.channel} ({line.mode}): remote access on {', '.join(where)}; "
-          "Ctrl-C or SIGTERM to stop", file=sys.stderr, flush=True)
-
-    def stop() -> None:
-        server.close()
-        stats = server.stats
-        printer.line("remote access: " + ", ".join(f"{key} {value}" for key, value
-                                                    in stats.items()))
-    return stop
+        known.append(KnownNodeConfig(net, node, path))
+    return RemoteAccessConfig(args.serial, args.baud, args.remote_access_tcp,
+                              args.remote_access_host, args.remote_access_crc,
+                              args.remote_access_max_payload, control, heartbeat, known)

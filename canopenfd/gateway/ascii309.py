@@ -19,7 +19,7 @@ The grammar, as CiA 309-3 and the gateways its users know (CANopenNode's
     [seq] [net] lss_switch_glob 0|1 | lss_switch_sel vendor product revision serial
     [seq] [net] lss_set_node N | lss_conf_bitrate 0 index | lss_activate_bitrate MS
     [seq] [net] lss_store | lss_inquire_addr [0..3] | lss_get_node
-    [seq] [net] _lss_fastscan [MS] | lss_allnodes [MS [start store]]
+    [seq] [net] _lss_fastscan [MS] | lss_allnodes [MS [start store [8 scan values]]]
 
 Answers: `[seq] OK`, `[seq] <value>`, `[seq] ERROR: <code> #<text>` (codes
 100..600 below) and `[seq] ERROR: 0x<abort code> #<text>` for an SDO/USDO
@@ -562,6 +562,9 @@ def _check_lss(seq: int, net: Optional[int], command: str,
             return bad("start node-id 1..127, store 0|1")
         if len(numbers) == 11 and any(n > 2 for n in numbers[3::2]):
             return bad("scan types are 0 (scan), 1 (ignore), 2 (match)")
+        if len(numbers) == 11 and numbers[3] == 1:
+            return bad("the vendor-ID cannot be ignored (scan type 1): every fast scan "
+                       "starts with it")
     return Request(seq, net, None, command, tuple(numbers))
 
 
@@ -596,5 +599,8 @@ HELP_LSS = """\
 # [seq] [net] lss_store
 # [seq] [net] lss_inquire_addr [0..3]              all four, or vendor/product/rev/serial
 # [seq] [net] lss_get_node
-# [seq] [net] _lss_fastscan [MS]                   not served (ERROR: 100): use lss_allnodes
-# [seq] [net] lss_allnodes [MS [start store]]      fast scan: node-ids from start on"""
+# [seq] [net] _lss_fastscan [MS]                   find one unconfigured slave (fast scan),
+#                                                  left in configuration: its LSS address
+# [seq] [net] lss_allnodes [MS [start store [T0 vendor T1 product T2 revision T3 serial]]]
+#                                                  fast scan: node-ids from start on; T:
+#                                                  0 scan, 1 ignore (not the vendor), 2 match"""

@@ -35,13 +35,13 @@ import collections
 import logging
 import socket
 import threading
-from typing import Any, Deque, Dict, List, Mapping, Optional, Set, Tuple, Union
+from typing import Any, Callable, Deque, Dict, List, Mapping, Optional, Set, Tuple, Union
 
 from .. import __version__
 from ..errors import AbortError, CanopenFDError
 from ..line import Line
 from ..services.emcy import Emcy
-from ..services.lss import LssError
+from ..services.lss import LssDevice, LssError
 from ..services.nmt import HeartbeatEvent, NmtState
 from ..transfer.client import uploaded_bytes
 from . import ascii309 as proto
@@ -578,9 +578,7 @@ class AsciiGateway:
                 values = [await lss.start_inquire(name) for name in wanted]
                 return proto.format_answer(seq, " ".join(f"0x{v:08X}" for v in values))
             elif command == "_lss_fastscan":
-                return proto.format_error(seq, proto.REQUEST_NOT_SUPPORTED,
-                                          "use lss_allnodes (this gateway's fast scan gives "
-                                          "node-ids as it finds devices)")
+                return await self._lss_fastscan(seq, line, args)
             elif command == "lss_allnodes":
                 return await self._lss_allnodes(seq, line, args)
         except LssError as exc:
@@ -588,39 +586,70 @@ class AsciiGateway:
             return proto.format_error(seq, lss_error_code(command, exc), str(exc)[:200])
         return proto.format_ok(seq)
 
+    async def _lss_fastscan(self, seq: int, line: Line, args: Tuple[int, ...]) -> str:
+        """One unconfigured slave found by fast scan (step timeout `args[0]`
+        ms, 0 or none: 100) and left selected in the configuration state for
+        the next lss_set_node / lss_store: its LSS address, as CANopenNode's
+        gateway answers it. None: a time-out error."""
+        device = await self._with_timeout(line, args[0] if args and args[0] else 100,
+                                          line.lss.start_fast_scan_identify)
+        if device is None:
+            return proto.format_error(seq, proto.TIME_OUT, "no unconfigured device answered")
+        return proto.format_answer(seq, _address(device))
+
     async def _lss_allnodes(self, seq: int, line: Line, args: Tuple[int, ...]) -> str:
-        """Fast scan: node-ids from `start` (default 2, as CANopenNode) on;
-        store each when asked (default yes). Scan filters other than 'scan
-        every bit' are not served."""
+        """Every unconfigured slave, one at a time: found by fast scan (with
+        the scan types and values of the 11-number form: 0 scan, 1 ignore,
+        2 match), given the next node-id from `start` (default 2, as
+        CANopenNode), stored when asked (default yes), back to waiting."""
         lss = line.lss
-        if len(args) == 11 and any(kind != 0 for kind in args[3::2]):
-            return proto.format_error(seq, proto.REQUEST_NOT_SUPPORTED,
-                                      "only scan type 0 (fast scan of every bit) is served")
         timeout = args[0] if args and args[0] else 100
         start, store = (args[1], bool(args[2])) if len(args) >= 3 else (2, True)
+        match: Dict[str, int] = {}
+        skip: List[str] = []
+        if len(args) == 11:
+            for part, kind, value in zip(_LSS_PARTS, args[3::2], args[4::2]):
+                if kind == 1:
+                    skip.append(part)
+                elif kind == 2:
+                    match[part] = value
+        lines: List[str] = []
+        node_id = start
+        while True:
+            device = await self._with_timeout(
+                line, timeout, lambda: lss.start_fast_scan_identify(match=match, skip=skip))
+            if device is None:
+                break
+            await lss.start_configure_node_id(node_id)
+            if store:
+                await asyncio.to_thread(lss.store)
+            lss.switch_global("waiting")
+            lines.append(f"# Node-ID {node_id} assigned to: {_address(device)}")
+            if node_id >= 127:
+                lines.append("# Not all nodes scanned!")
+                return "\r\n".join(lines + [proto.format_ok(seq)])
+            node_id += 1
+        lines.append(f"# Found {node_id - start} nodes, search finished.")
+        return "\r\n".join(lines + [proto.format_ok(seq)])
+
+    @staticmethod
+    async def _with_timeout(line: Line, timeout_ms: int, start: Callable[[], Any]) -> Any:
+        """Await an LSS request with the step timeout the command gave."""
+        lss = line.lss
         old_timeout = lss.timeout_ms
-        lss.timeout_ms = timeout
+        lss.timeout_ms = timeout_ms
         try:
-            try:
-                found = await lss.start_fast_scan(list(range(start, 128)))
-            except LssError as exc:
-                if exc.status.name != "TIMEOUT":
-                    raise
-                found = list(getattr(exc, "found", []))
-            lines = []
-            for device in found:
-                if store:
-                    await lss.start_switch_selective(device.vendor_id, device.product_code,
-                                                     device.revision, device.serial)
-                    await asyncio.to_thread(lss.store)
-                    lss.switch_global("waiting")
-                lines.append(f"# Node-ID {device.node_id} assigned to: 0x{device.vendor_id:08X}"
-                             f" 0x{device.product_code:08X} 0x{device.revision:08X}"
-                             f" 0x{device.serial:08X}")
+            return await start()
         finally:
             lss.timeout_ms = old_timeout
-        lines.append(f"# Found {len(found)} nodes, search finished.")
-        return "\r\n".join(lines + [proto.format_ok(seq)])
+
+
+_LSS_PARTS = ("vendor_id", "product_code", "revision", "serial")
+
+
+def _address(device: LssDevice) -> str:
+    return (f"0x{device.vendor_id:08X} 0x{device.product_code:08X} 0x{device.revision:08X} "
+            f"0x{device.serial:08X}")
 
 
 def lss_error_code(command: str, exc: LssError) -> int:

@@ -32,6 +32,19 @@ with their network-ids, the nodes it watches, and its host endpoints.
     value_qos = 0
     event_qos = 1
 
+    [remote_access]                 ; the seed 001 binary protocol (serial and/or TCP)
+    serial = /dev/ttyUSB0           ; a serial port (needs pyserial)
+    baud = 115200
+    tcp = 5001                      ; a TCP port (0: any free one)
+    host = 127.0.0.1
+    crc = seed                      ; seed | xmodem
+    max_payload = 35                ; longest frame payload, 1..65535
+    manager = 0x5                   ; minimal-manager bits at start: 1 keep nodes
+                                    ; operational, 2 monitor heartbeats, 4 scan PDOs
+    heartbeat_ms = 1000             ; the heartbeat time bit 2 monitors with
+    1.5 = drive.eds                 ; a known node NET.NODE and its dictionary (or
+                                    ; builtin:fd / builtin:classic): bit 4 scans it
+
 Every problem is reported with the file and line (`GatewayConfigError`).
 Relative file names (od=) are taken from the configuration file's folder.
 """
@@ -106,6 +119,28 @@ class MqttConfig:
 
 
 @dataclass
+class KnownNodeConfig:
+    net: int
+    node_id: int
+    od: str            # a file, or builtin:fd / builtin:classic
+    line: int = 0      # where it is written, for messages
+
+
+@dataclass
+class RemoteAccessConfig:
+    serial: Optional[str] = None
+    baud: int = 115200
+    tcp: Optional[int] = None
+    host: str = "127.0.0.1"
+    crc: str = "seed"
+    max_payload: int = 35
+    manager: int = 0
+    heartbeat_ms: int = 1000
+    known: List[KnownNodeConfig] = field(default_factory=list)
+    line: int = 0      # the section's line, for messages
+
+
+@dataclass
 class GatewayConfig:
     name: str = "gateway"
     lines: List[LineConfig] = field(default_factory=list)
@@ -113,6 +148,7 @@ class GatewayConfig:
     routes: List[RouteConfig] = field(default_factory=list)
     ascii: Optional[AsciiConfig] = None
     mqtt: Optional[MqttConfig] = None
+    remote_access: Optional[RemoteAccessConfig] = None
     path: str = "<config>"
 
 
@@ -242,9 +278,12 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
                 reader.number("value_qos", 0, 0, 2) or 0,
                 _or(reader.number("event_qos", 1, 0, 2), 1),
                 reader.text("username"), reader.text("password"))
+        elif kind == "remote_access" and not tail:
+            config.remote_access = _remote_access(section, reader)
         else:
             raise reader.error("unknown section (expected [gateway], [line NET], "
-                               "[node NET.NODE], [routes], [ascii] or [mqtt])")
+                               "[node NET.NODE], [routes], [ascii], [mqtt] or "
+                               "[remote_access])")
         reader.finish()
     if not nets:
         raise GatewayConfigError("no [line NET] section: a gateway needs a line", path)
@@ -257,6 +296,16 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
             raise GatewayConfigError(f"[routes] network {route.via} (the way to network "
                                      f"{route.network}) has no [line {route.via}]", path,
                                      route.line)
+    for known in config.remote_access.known if config.remote_access is not None else []:
+        line = nets.get(known.net)
+        if line is None:
+            raise GatewayConfigError(f"[remote_access] known node {known.net}.{known.node_id}: "
+                                     f"no [line {known.net}]", path, known.line)
+        if line.node_id == known.node_id:
+            raise GatewayConfigError(
+                f"[remote_access] known node {known.net}.{known.node_id}: node-id "
+                f"{known.node_id} is the gateway's own node on line {known.net}", path,
+                known.line)
     for node in config.nodes:
         line = nets.get(node.net)
         if line is None:
@@ -267,6 +316,48 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
                 f"[node {node.net}.{node.node_id}]: node-id {node.node_id} is the gateway's "
                 f"own node on line {node.net}", path,
                 _section_line(ini, f"node {node.net}.{node.node_id}"))
+    return config
+
+
+# manager bits the remote-access server refuses (PDO_TRANSMIT_ALL, USE_SCANNED)
+_MANAGER_REFUSED = 0x18
+
+
+def _remote_access(section: Section, reader: _Reader) -> RemoteAccessConfig:
+    config = RemoteAccessConfig(line=section.line)
+    config.serial = reader.text("serial")
+    config.baud = _or(reader.number("baud", 115200, 50, 10_000_000), 115200)
+    config.tcp = reader.number("tcp", None, 0, 65535)
+    config.host = reader.text("host", "127.0.0.1") or "127.0.0.1"
+    config.crc = reader.choice("crc", "seed", ("seed", "xmodem"))
+    config.max_payload = _or(reader.number("max_payload", 35, 1, 0xFFFF), 35)
+    config.manager = _or(reader.number("manager", 0, 0, 0x1F), 0)
+    if config.manager & _MANAGER_REFUSED:
+        raise reader.error(f"manager = 0x{config.manager:X}: bits 8 and 16 (send every PDO, "
+                           "use scanned configurations) are not served",
+                           section.get("manager"))
+    config.heartbeat_ms = _or(reader.number("heartbeat_ms", 1000, 0, 65535), 1000)
+    for key in section.keys.values():
+        if not key.name[:1].isdigit():
+            continue
+        reader.used.add(key.name.lower())
+        net_text, dot, node_text = key.name.partition(".")
+        try:
+            net, node = int(net_text, 0), int(node_text, 0)
+        except ValueError:
+            net = node = -1
+        if not dot or not 1 <= net <= 127 or not 1 <= node <= 127:
+            raise reader.error(f"known node {key.name!r}: expected NET.NODE = FILE (network-id "
+                               "and node-id 1..127), e.g. 1.5 = drive.eds", key)
+        if not key.value:
+            raise reader.error(f"known node {key.name}: the dictionary file is missing", key)
+        od = key.value if key.value.lower().startswith("builtin:") else \
+            reader.path_value(key.name)
+        assert od is not None
+        config.known.append(KnownNodeConfig(net, node, od, key.line))
+    if config.serial is None and config.tcp is None:
+        raise reader.error("serial or tcp is missing (where hosts connect: serial = "
+                           "/dev/ttyUSB0 and/or tcp = 5001)")
     return config
 
 

@@ -7,13 +7,14 @@ import logging
 import pathlib
 from typing import Any, Dict, List, Optional, Tuple, Union
 
-from ..errors import ConfigurationError
+from ..errors import CanopenFDError, ConfigurationError
 from ..line import Line
 from ..network import Network
 from ..node import RemoteNode
-from ..od import demo_od
+from ..od import OdFileError, demo_od, import_od
 from .ascii309_server import AsciiGateway, BackgroundGateway
-from .config import GatewayConfig, load_config
+from .config import GatewayConfig, GatewayConfigError, KnownNodeConfig, load_config
+from .remote_access_server import RemoteAccessServer
 
 log = logging.getLogger(__name__)
 
@@ -21,7 +22,8 @@ log = logging.getLogger(__name__)
 class Gateway:
     """Opens the configured lines (on `network`, or a Network of its own),
     creates the gateway's own nodes, watches the configured nodes and starts
-    the endpoints (CiA 309-3 ASCII over TCP, MQTT). `start()` / `close()`, or
+    the endpoints (CiA 309-3 ASCII over TCP, MQTT, the seed 001 remote-access
+    protocol over a serial port and TCP). `start()` / `close()`, or
     `with Gateway(...)`."""
 
     def __init__(self, config: Union[GatewayConfig, str, pathlib.Path], *,
@@ -38,6 +40,9 @@ class Gateway:
         self.ascii: Optional[AsciiGateway] = None
         self._ascii_thread: Optional[BackgroundGateway] = None
         self.mqtt: Optional[Any] = None
+        self.remote_access: Optional[RemoteAccessServer] = None
+        #: where the remote-access server serves ("serial PATH (BAUD Bd)", "tcp HOST:PORT")
+        self.remote_access_on: List[str] = []
         self._started = False
 
     @property
@@ -52,6 +57,9 @@ class Gateway:
             self._open_lines()
             self._start_endpoints()
             self._watch_nodes()
+            # last: its manager watches every node-id, the configured ones
+            # keep the settings _watch_nodes gave them
+            self._start_remote_access()
         except BaseException:
             self.close()
             raise
@@ -99,6 +107,54 @@ class Gateway:
                                      heartbeat_timeout_ms=cfg.heartbeat_timeout_ms)
             self.nodes[(cfg.net, cfg.node_id)] = node
 
+    def _start_remote_access(self) -> None:
+        ra = self.config.remote_access
+        if ra is None:
+            return
+        known: Dict[int, Dict[int, Any]] = {}
+        for node in ra.known:
+            line = self.lines.get(node.net)
+            if line is None:
+                raise GatewayConfigError(f"[remote_access] known node {node.net}.{node.node_id}:"
+                                         f" the gateway has no line {node.net}",
+                                         self.config.path, node.line)
+            known.setdefault(node.net, {})[node.node_id] = self._known_od(node, line.mode)
+        try:
+            server = RemoteAccessServer(self.lines, crc=ra.crc, max_payload=ra.max_payload,
+                                        control=ra.manager, heartbeat_ms=ra.heartbeat_ms,
+                                        known=known)
+        except CanopenFDError as exc:
+            raise GatewayConfigError(f"[remote_access] {exc}", self.config.path,
+                                     ra.line) from None
+        self.remote_access = server
+        try:
+            if ra.serial is not None:
+                server.serve_serial(ra.serial, ra.baud)
+                self.remote_access_on.append(f"serial {ra.serial} ({ra.baud} Bd)")
+            if ra.tcp is not None:
+                port = server.serve_tcp(ra.tcp, ra.host)
+                self.remote_access_on.append(f"tcp {ra.host}:{port}")
+        except CanopenFDError as exc:
+            if not ra.line:      # not from a file: the error names what failed
+                raise
+            raise GatewayConfigError(f"[remote_access] {exc}", self.config.path,
+                                     ra.line) from None
+
+    def _known_od(self, node: KnownNodeConfig, mode: str) -> Any:
+        kind = node.od.lower()
+        if kind.startswith("builtin:"):
+            if kind[len("builtin:"):] not in ("fd", "classic"):
+                raise GatewayConfigError(f"[remote_access] known node {node.net}."
+                                         f"{node.node_id}: {node.od!r}: the built-in "
+                                         "dictionaries are builtin:fd and builtin:classic",
+                                         self.config.path, node.line)
+            return demo_od(kind[len("builtin:"):])
+        try:
+            return import_od(node.od, node_id=node.node_id)
+        except (OdFileError, OSError) as exc:
+            raise GatewayConfigError(f"[remote_access] known node {node.net}.{node.node_id}: "
+                                     f"{exc}", self.config.path, node.line) from None
+
     def status(self) -> str:
         """One line: each network's line and its nodes' states, each endpoint."""
         parts: List[str] = []
@@ -121,9 +177,17 @@ class Gateway:
             parts.append(f"mqtt {'connected' if self.mqtt.connected else 'reconnecting'} "
                          f"(published {stats['published']}, dropped {stats['dropped']}, "
                          f"commands {stats['commands']})")
+        if self.remote_access is not None:
+            stats = self.remote_access.stats
+            parts.append(f"remote access on {', '.join(self.remote_access_on)} "
+                         f"({len(self.remote_access.connections)} hosts, "
+                         f"{stats.get('frames', 0)} frames, {stats.get('busy', 0)} busy)")
         return f"gateway {self.name}: " + "; ".join(parts)
 
     def close(self) -> None:
+        if self.remote_access is not None:
+            self.remote_access.close()
+            self.remote_access = None
         if self._ascii_thread is not None:
             self._ascii_thread.close()
             self._ascii_thread = None

@@ -61,6 +61,7 @@ class MinimalManager:
         self._status: Dict[int, int] = {}
         self._nodes: Dict[int, RemoteNode] = {}
         self._own_timeouts: Dict[int, int] = {}   # the application's, left alone
+        self._created: Set[int] = set()           # nodes start() added: stop() removes them
         self._heard_pdos: Set[Tuple[int, int]] = set()   # (node, TPDO number) heard
         self._pdo_callbacks: List[Tuple[PdoMap, Callable[[PdoMap], None]]] = []
         self._stopped = False
@@ -80,6 +81,8 @@ class MinimalManager:
             if node_id == own:
                 continue
             od = self._known.get(node_id)
+            if node_id not in line.nodes:
+                self._created.add(node_id)
             node = line.add_node(node_id, od=od) if od is not None else line.add_node(node_id)
             self._nodes[node_id] = node
             self._own_timeouts[node_id] = node.heartbeat_timeout_ms
@@ -92,23 +95,32 @@ class MinimalManager:
         self._thread.start()
 
     def stop(self) -> None:
-        """End the automation: no more NMT commands or indications, the
-        heartbeat monitoring HB_RECEIVE_ALL switched on is undone, PDO
-        callbacks removed (the nodes stay on the line, watched)."""
+        """End the automation and give the line back as start() found it: no
+        more NMT commands or indications, PDO callbacks removed, the nodes it
+        added removed, the application's own nodes back to their heartbeat
+        timeouts (their callbacks cannot be removed: they are silenced)."""
         with self._lock:
             if self._stopped:
                 return
             self._stopped = True
-            hb_on = bool(self.control & ra.ManagerControl.HB_RECEIVE_ALL)
             self.control = 0
             callbacks, self._pdo_callbacks = self._pdo_callbacks, []
-        if hb_on:
-            self._apply_heartbeat()
         for pdo_map, callback in callbacks:
             pdo_map.remove_callback(callback)
         self._scans.put(None)
         if self._thread is not None:
             self._thread.join(5.0)
+        for node_id, node in list(self._nodes.items()):
+            try:
+                if node_id in self._created:
+                    if self.line.nodes.get(node_id) is node:
+                        self.line.remove_node(node_id)
+                elif node.heartbeat_timeout_ms != self._own_timeouts.get(node_id, 0):
+                    node.heartbeat_timeout_ms = self._own_timeouts.get(node_id, 0)
+            except CanopenFDError as exc:    # the line closed meanwhile
+                log.info("remote access manager: node %d left as it is: %s", node_id, exc)
+        self._nodes.clear()
+        self._created.clear()
 
     # ------------------------------------------------------------ [5F01h,04h] / [5F01h,08h]
     def control_word(self) -> int:
@@ -190,6 +202,8 @@ class MinimalManager:
         self._indicate(ra.NewData(node_id, ra.NODE_STATE_INDEX, node_id, bytes((status,))))
 
     def _bootup(self, node_id: int) -> None:
+        if self._stopped:
+            return
         self.report(node_id, ra.NodeStatus.BOOT)
         if self._on(ra.ManagerControl.KEEP_OP):
             self.line.nmt.start(node_id)
@@ -197,6 +211,8 @@ class MinimalManager:
             self._scans.put(node_id)
 
     def _state(self, node_id: int, state: NmtState) -> None:
+        if self._stopped:
+            return
         if state == NmtState.INITIALISING:
             return      # the boot-up reported it
         self.report(node_id, node_status_of(state))
@@ -205,6 +221,8 @@ class MinimalManager:
             self.line.nmt.start(node_id)
 
     def _lost(self, node_id: int) -> None:
+        if self._stopped:
+            return
         self.report(node_id, ra.NodeStatus.HB_LOST)
         if self._on(ra.ManagerControl.HB_RECEIVE_ALL):
             # the seed's automated recovery: reset the lost node
@@ -250,6 +268,8 @@ class MinimalManager:
         self.report(node_id, ra.NodeStatus.SCAN_COMPLETE)
 
     def _pdo_received(self, node_id: int, pdo_map: PdoMap) -> None:
+        if self._stopped:
+            return
         for variable in pdo_map:
             if variable.is_dummy:
                 continue

@@ -103,6 +103,7 @@ class _Served:
         self.manager = manager
         self.hw = ra.HwStatus.INIT | (ra.HwStatus.CAN_FD if line.mode == "fd" else 0)
         self._hooked_local: Optional[LocalNode] = None
+        self._hooked = False    # unhook() ends the local node's callbacks (not removable)
 
     @property
     def local(self) -> Optional[LocalNode]:
@@ -115,13 +116,15 @@ class _Served:
 
     def hook(self) -> None:
         """Subscribe to what the indications report."""
+        self._hooked = True
         self.line.on_comm_event(self._comm_event)
         self.line.on_emcy(self._emcy, nodes=[n for n in range(1, 128) if n != self.own_id])
         self.hook_local()
 
     def unhook(self) -> None:
-        """Undo hook() where the line can (the EMCY callback); the comm-event
-        and local-node callbacks stay, told nothing once the server closed."""
+        """Undo hook(): the line consumes only the EMCYs it consumed before."""
+        self._hooked = False
+        self.line.remove_comm_event_callback(self._comm_event)
         self.line.remove_emcy_callback(self._emcy)
 
     def hook_local(self) -> None:
@@ -135,6 +138,8 @@ class _Served:
 
     # ------------------------------------------------------------ indications
     def _object_changed(self, value: LocalValue, origin: str) -> None:
+        if not self._hooked:
+            return
         var = value.variable
         try:
             data = value.data
@@ -144,6 +149,8 @@ class _Served:
         self.server.indicate(self.net, ra.NewData(0, var.index, var.subindex, data))
 
     def _own_state(self, old: NmtState, new: NmtState) -> None:
+        if not self._hooked:
+            return
         self.server.indicate(self.net, ra.NewData(self.own_id, ra.STATUS_INDEX, 2,
                                                   bytes((node_status_of(new),))))
 
@@ -451,7 +458,8 @@ class RemoteAccessServer:
     serve() raises ConfigurationError).
 
     Create the lines' local nodes first: the server watches every other
-    node-id of each line (line.add_node), and they stay watched after close()."""
+    node-id of each line (line.add_node) and consumes their EMCYs until
+    close(), which gives each line back as the server found it."""
 
     def __init__(self, networks: Mapping[int, Line], *, crc: Union[str, ra.CrcVariant] = "seed",
                  max_payload: int = ra.SEED_MAX_PAYLOAD, sdo_timeout: float = 1.0,
@@ -576,8 +584,8 @@ class RemoteAccessServer:
         for connection in connections:
             connection.close()
         for served in self.served.values():
-            served.unhook()
             served.manager.stop()
+            served.unhook()
 
     # ------------------------------------------------------------ indications
     def indicate(self, net: int, indication: ra.NewData) -> None:

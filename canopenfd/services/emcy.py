@@ -32,7 +32,7 @@ from .._binding.runtime import Event, decode_emcy
 from .._callbacks import CallbackList, chain
 from .._checks import check_node_id
 from ..decode.emcy import emcy_code_text, emcy_status_text, error_register_text
-from ..errors import ConfigurationError
+from ..errors import ClosedError, ConfigurationError
 from .served_od import ServedDictionary
 from .views import LocalNodeView, NodeView
 
@@ -374,7 +374,10 @@ class LineEmcy:
     def __init__(self, context: LineContext) -> None:
         self._context = context
         self._callbacks = CallbackList(f"{context.where} EMCY")
-        self._nodes: Set[int] = set()        # consumed for on_emcy(nodes=...)
+        self._nodes: Dict[int, int] = {}     # node-id: on_emcy(nodes=...) calls asking for it
+        # each on_emcy(nodes=...) call: its callback and the nodes it asked
+        # for, released again by remove_callback
+        self._asked: List[Tuple[Callable[[Emcy], None], Tuple[int, ...]]] = []
         self._consumers: Dict[int, Callable[[Emcy], Callable[[], None]]] = {}
         self._consuming: Set[int] = set()    # nodes whose consumer is in use
         context.subscribe(EventKind.EMCY, self._event)
@@ -384,16 +387,42 @@ class LineEmcy:
         """line.on_emcy: callback(Emcy) for every EMCY consumed; start
         consuming those of `nodes`."""
         context = self._context
-        for node_id in (nodes or ()):
-            node_id = check_node_id(node_id, f"on_emcy on {context.where}")
-            context.runtime.emcy_watch(context.index, node_id, True,
-                                       f"EMCY of node {node_id} on {context.where}")
-            self._nodes.add(node_id)
-        return self._callbacks.add(callback)
+        wanted = tuple(check_node_id(node_id, f"on_emcy on {context.where}")
+                       for node_id in (nodes or ()))
+        self._callbacks.add(callback)    # checks it is callable before anything is watched
+        with context.cond:
+            for node_id in wanted:
+                if node_id not in self._nodes and node_id not in self._consuming:
+                    context.runtime.emcy_watch(context.index, node_id, True,
+                                               f"EMCY of node {node_id} on {context.where}")
+                self._nodes[node_id] = self._nodes.get(node_id, 0) + 1
+            self._asked.append((callback, wanted))
+        return callback
 
     def remove_callback(self, callback: Callable[[Emcy], None]) -> None:
-        """Undo add_callback (the nodes it asked for stay consumed)."""
+        """Undo add_callback: the nodes it asked for are no longer consumed
+        unless another on_emcy call or a node's consumer still needs them."""
         self._callbacks.remove(callback)
+        context = self._context
+        with context.cond:
+            for position, (asked, wanted) in enumerate(self._asked):
+                if asked == callback:
+                    del self._asked[position]
+                    break
+            else:
+                return
+            for node_id in wanted:
+                left = self._nodes[node_id] - 1
+                if left:
+                    self._nodes[node_id] = left
+                    continue
+                del self._nodes[node_id]
+                if node_id not in self._consuming:
+                    try:
+                        context.runtime.emcy_watch(context.index, node_id, False,
+                                                   f"EMCY of node {node_id} on {context.where}")
+                    except ClosedError:
+                        pass    # the network closed first: nothing is consumed any more
 
     def add_consumer(self, node_id: int, record: Callable[[Emcy], Callable[[], None]]) -> None:
         """A remote node's consumer: gets its node's EMCYs once `consume` ran."""
@@ -405,7 +434,8 @@ class LineEmcy:
         context = self._context
         with context.cond:
             if node_id not in self._consuming:
-                context.runtime.emcy_watch(context.index, node_id, True, what)
+                if node_id not in self._nodes:
+                    context.runtime.emcy_watch(context.index, node_id, True, what)
                 self._consuming.add(node_id)
 
     def release(self, node_id: int, what: str) -> None:

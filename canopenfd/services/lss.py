@@ -5,6 +5,8 @@ their LSS address (0x1018:01..04), find them by fast scan or by ranges.
     line.lss.inquire("node_id")                       # -> 5
     found = line.lss.fast_scan([10, 11, 12])          # every unconfigured device
     found = await line.lss.afast_scan([10, 11, 12])   # the same, awaited
+    device = line.lss.fast_scan_identify()            # one, left in configuration
+    found = line.lss.fast_scan([10], match={"vendor_id": 0x1234}, skip=["revision"])
 
 One request at a time per line, run by the runtime's C master; each call
 blocks until it ends (or is awaited with the `a...` form).
@@ -14,8 +16,8 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import (Any, Callable, Dict, Generator, Generic, List, NamedTuple, Optional,
-                    Sequence, Tuple, TypeVar)
+from typing import (Any, Callable, Dict, Generator, Generic, List, Mapping, NamedTuple,
+                    Optional, Sequence, Tuple, TypeVar)
 
 from .._binding.constants import EventKind, LssRequest, LssStatus
 from .._binding.context import Deferred, LineContext
@@ -33,6 +35,9 @@ _STATES = {"waiting": 0, "configuration": 1}
 _INQUIRE = {"vendor_id": 0x5A, "product_code": 0x5B, "revision": 0x5C, "serial": 0x5D,
             "node_id": 0x5E}
 _U32 = (1 << 32) - 1
+# fast scan filters per part of the address (co_lss_fastscan_filter_t)
+_PARTS = ("vendor_id", "product_code", "revision", "serial")
+FS_SCAN, FS_SKIP, FS_MATCH = 0, 1, 2
 T = TypeVar("T")
 Result = Dict[str, int]
 
@@ -217,21 +222,51 @@ class LssMaster:
                            f"lss.identify_non_configured() on {self._where}",
                            _answers).result()
 
-    def start_fast_scan(self, node_ids: Sequence[int]) -> "_Request[List[LssDevice]]":
+    def start_fast_scan(self, node_ids: Sequence[int], *,
+                        match: Optional[Mapping[str, int]] = None,
+                        skip: Sequence[str] = ()) -> "_Request[List[LssDevice]]":
         where = f"lss.fast_scan({list(node_ids)!r}) on {self._where}"
         ids = list(node_ids)
         if not 1 <= len(ids) <= 127 or any(isinstance(i, bool) or not isinstance(i, int) or
                                            not 1 <= i <= 127 for i in ids):
             raise ConfigurationError(f"{where}: node_ids must be 1..127 ints, 1 to 127 of them")
-        return self._start(LssRequest.FASTSCAN, [], ids, where, _found)
+        return self._start(LssRequest.FASTSCAN, [], ids, where, _found,
+                           _fastscan_filter(match, skip, where))
 
-    def fast_scan(self, node_ids: Sequence[int]) -> List[LssDevice]:
+    def fast_scan(self, node_ids: Sequence[int], *, match: Optional[Mapping[str, int]] = None,
+                  skip: Sequence[str] = ()) -> List[LssDevice]:
         """Find every device without a node-id, give each the next of node_ids
-        and switch it back to waiting (it resets communication with it)."""
-        return self.start_fast_scan(node_ids).result()
+        and switch it back to waiting (it resets communication with it).
+        Filters (CiA 305): `match` {part: value} checks a part of the LSS
+        address ('vendor_id', 'product_code', 'revision', 'serial') with one
+        frame, only devices with that value are found; `skip` parts are not
+        looked at (reported 0; not 'vendor_id')."""
+        return self.start_fast_scan(node_ids, match=match, skip=skip).result()
 
-    async def afast_scan(self, node_ids: Sequence[int]) -> List[LssDevice]:
-        return await self.start_fast_scan(node_ids)
+    async def afast_scan(self, node_ids: Sequence[int], *,
+                         match: Optional[Mapping[str, int]] = None,
+                         skip: Sequence[str] = ()) -> List[LssDevice]:
+        return await self.start_fast_scan(node_ids, match=match, skip=skip)
+
+    def start_fast_scan_identify(self, *, match: Optional[Mapping[str, int]] = None,
+                                 skip: Sequence[str] = ()
+                                 ) -> "_Request[Optional[LssDevice]]":
+        where = f"lss.fast_scan_identify() on {self._where}"
+        return self._start(LssRequest.FASTSCAN, [], [], where, _identified,
+                           _fastscan_filter(match, skip, where))
+
+    def fast_scan_identify(self, *, match: Optional[Mapping[str, int]] = None,
+                           skip: Sequence[str] = ()) -> Optional[LssDevice]:
+        """Find one device without a node-id by fast scan (filters as
+        fast_scan) and leave it selected in the configuration state, its
+        node-id untouched: the next configure_node_id, store or inquire
+        goes to it; switch_global('waiting') lets it go. None when no device
+        (passing the filters) is unconfigured. Its node_id is 0."""
+        return self.start_fast_scan_identify(match=match, skip=skip).result()
+
+    async def afast_scan_identify(self, *, match: Optional[Mapping[str, int]] = None,
+                                  skip: Sequence[str] = ()) -> Optional[LssDevice]:
+        return await self.start_fast_scan_identify(match=match, skip=skip)
 
     def scan(self, vendor_id: int, product_code: int, revisions: Tuple[int, int] = (0, _U32),
              serials: Tuple[int, int] = (0, _U32)) -> List[LssDevice]:
@@ -252,7 +287,7 @@ class LssMaster:
 
     # ---------------------------------------------------------------- plumbing
     def _runtime_start(self, kind: int, values: List[int], node_ids: List[int],
-                       where: str) -> None:
+                       where: str, fastscan_filter: Sequence[Tuple[int, int]] = ()) -> None:
         if isinstance(self.timeout_ms, bool) or not isinstance(self.timeout_ms, int) or \
                 not 0 <= self.timeout_ms <= 60000:
             raise ConfigurationError(f"{where}: lss.timeout_ms must be an int 0..60000, got "
@@ -264,10 +299,11 @@ class LssMaster:
                                      f"{self.timeout_ms or 100} (lss.timeout_ms), got "
                                      f"{settle!r}")
         self._context.runtime.lss_start(self._context.index, kind, values, node_ids,
-                                        self.timeout_ms, where, settle or 0)
+                                        self.timeout_ms, where, settle or 0, fastscan_filter)
 
     def _start(self, kind: LssRequest, values: List[int], node_ids: List[int], where: str,
-               finish: Callable[[Result, List[LssDevice], str], T]) -> "_Request[T]":
+               finish: Callable[[Result, List[LssDevice], str], T],
+               fastscan_filter: Sequence[Tuple[int, int]] = ()) -> "_Request[T]":
         request: _Request[T] = _Request(self._context, kind, where,
                                         lambda r, d: finish(r, d, where))
         with self._context.cond:
@@ -276,7 +312,7 @@ class LssMaster:
                                          "(one LSS request at a time per line)")
             self._running = request
         try:
-            self._runtime_start(int(kind), values, node_ids, where)
+            self._runtime_start(int(kind), values, node_ids, where, fastscan_filter)
         except BaseException:
             with self._context.cond:
                 self._running = None
@@ -292,6 +328,30 @@ class LssMaster:
         result, devices = self._context.runtime.lss_result(self._context.index, request.what)
         found = [LssDevice(*address, node_id) for address, node_id in devices]
         return request.ended((result, found))
+
+
+def _fastscan_filter(match: Optional[Mapping[str, int]], skip: Sequence[str], where: str
+                     ) -> List[Tuple[int, int]]:
+    """(kind, value) per part of the address, for the runtime."""
+    parts = [(FS_SCAN, 0)] * 4
+    if isinstance(skip, str):
+        raise ConfigurationError(f"{where}: skip must be a list of part names, got {skip!r}")
+    for name, value in dict(match or {}).items():
+        if name not in _PARTS:
+            raise ConfigurationError(f"{where}: match {name!r}: the parts are "
+                                     f"{', '.join(_PARTS)}")
+        parts[_PARTS.index(name)] = (FS_MATCH, _check_u32(value, f"match[{name!r}]", where))
+    for name in skip:
+        if name not in _PARTS:
+            raise ConfigurationError(f"{where}: skip {name!r}: the parts are "
+                                     f"{', '.join(_PARTS)}")
+        if name == "vendor_id":
+            raise ConfigurationError(f"{where}: the vendor_id cannot be skipped (every fast "
+                                     "scan starts with it)")
+        if parts[_PARTS.index(name)][0] == FS_MATCH:
+            raise ConfigurationError(f"{where}: {name} is both matched and skipped")
+        parts[_PARTS.index(name)] = (FS_SKIP, 0)
+    return parts
 
 
 # What each request gives back, from the C result.
@@ -345,6 +405,12 @@ def _found(result: Result, devices: List[LssDevice], where: str) -> List[LssDevi
         error.found = devices   # type: ignore[attr-defined]
         raise error
     return devices
+
+
+def _identified(result: Result, devices: List[LssDevice], where: str
+                ) -> Optional[LssDevice]:
+    _confirmed(result, devices, where)
+    return devices[0] if devices else None
 
 
 # ---------------------------------------------------------------- the local node's slave

@@ -138,26 +138,60 @@ static void fastscan_reset(co_lss_master_t *m)
     send_and_wait(m, FS_RESET, data, CO_LSS_CS_IDENTIFY_ANSWER);
 }
 
+/* The part after `sub` the filter does not skip; 0 (the vendor-ID) after
+ * the last one: a slave told so with its part matched is selected. */
+static uint8_t fastscan_next_part(const co_lss_master_t *m, uint8_t sub)
+{
+    for (uint8_t next = (uint8_t)(sub + 1u); next < 4u; next++) {
+        if (m->filter.kind[next] != CO_LSS_FS_SKIP) {
+            return next;
+        }
+    }
+    return 0;
+}
+
 /* Check the bits bit..31 of the current part, bit `bit` as 0. The check of
  * bit 0 already names the next part: a slave whose whole part matches moves
  * on with it, which saves the confirmation when bit 0 is 0. */
 static void fastscan_bit(co_lss_master_t *m, uint8_t step)
 {
-    uint8_t next = m->bit == 0u ? (uint8_t)((m->sub + 1u) & 3u) : m->sub;
+    uint8_t next = m->bit == 0u ? fastscan_next_part(m, m->sub) : m->sub;
     uint8_t data[8];
     co_lss_encode_fastscan(data, m->id.part[m->sub], m->bit, m->sub, next);
     send_and_wait(m, step, data, CO_LSS_CS_IDENTIFY_ANSWER);
 }
 
+/* Start finding part m->sub: bit by bit, or its given value at once (the
+ * confirmation step: slaves with another value stay silent). */
+static void fastscan_part(co_lss_master_t *m)
+{
+    if (m->filter.kind[m->sub] == CO_LSS_FS_MATCH) {
+        m->id.part[m->sub] = m->filter.match[m->sub];
+        m->bit = 0;
+        fastscan_bit(m, FS_CONFIRM);
+        return;
+    }
+    m->bit = 31;
+    fastscan_bit(m, FS_BIT);
+}
+
 static void fastscan_part_done(co_lss_master_t *m)
 {
-    m->sub++;
-    if (m->sub < 4u) {
-        m->bit = 31;
-        fastscan_bit(m, FS_BIT);
+    uint8_t next = fastscan_next_part(m, m->sub);
+    if (next != 0u) {
+        m->sub = next;
+        fastscan_part(m);
         return;
     }
     /* The slave is in the configuration state now. */
+    if (m->node_id_count == 0u) {
+        /* identify only: it stays selected for the caller */
+        m->devices[0].address = m->id;
+        m->devices[0].node_id = 0;
+        m->found = 1;
+        finish(m, CO_LSS_OK, 0);
+        return;
+    }
     uint8_t data[8];
     co_lss_encode_bytes(data, CO_LSS_CS_CONFIGURE_NODE_ID, m->node_ids[m->found], 0);
     send_and_wait(m, FS_CONFIGURE, data, CO_LSS_CS_CONFIGURE_NODE_ID);
@@ -199,15 +233,14 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
         if (!answered) {
             /* after a restart: the slave that failed to confirm is gone */
             finish(m, m->restarts ? CO_LSS_LOST : CO_LSS_OK, 0);
-        } else if (m->found >= m->node_id_count) {
+        } else if (m->node_id_count != 0u && m->found >= m->node_id_count) {
             finish(m, CO_LSS_NO_NODE_ID, 0);
         } else if (m->found >= m->capacity) {
             finish(m, CO_LSS_FULL, 0);
         } else {
             memset(&m->id, 0, sizeof m->id);
             m->sub = 0;
-            m->bit = 31;
-            fastscan_bit(m, FS_BIT);
+            fastscan_part(m);
         }
         break;
     case FS_BIT:
@@ -226,6 +259,10 @@ static void fastscan_step_end(co_lss_master_t *m, bool answered)
     case FS_CONFIRM:
         if (answered) {
             fastscan_part_done(m);
+        } else if (m->filter.kind[m->sub] == CO_LSS_FS_MATCH) {
+            /* no slave left has the value asked for: the others stay
+             * unconfigured, the scan is over (nobody was selected) */
+            finish(m, CO_LSS_OK, 0);
         } else {
             fastscan_restart(m);
         }
@@ -566,7 +603,18 @@ bool co_lss_master_identify_non_configured(co_lss_master_t *master)
 bool co_lss_master_fastscan(co_lss_master_t *master, const uint8_t *node_ids, uint32_t count,
                             co_lss_device_t *devices, uint32_t capacity)
 {
-    if (node_ids == NULL || devices == NULL || count == 0u || capacity == 0u) {
+    if (count == 0u) {
+        return false;
+    }
+    return co_lss_master_fastscan_filtered(master, NULL, node_ids, count, devices, capacity);
+}
+
+bool co_lss_master_fastscan_filtered(co_lss_master_t *master,
+                                     const co_lss_fastscan_filter_t *filter,
+                                     const uint8_t *node_ids, uint32_t count,
+                                     co_lss_device_t *devices, uint32_t capacity)
+{
+    if ((count != 0u && node_ids == NULL) || devices == NULL || capacity == 0u) {
         return false;
     }
     for (uint32_t i = 0; i < count; i++) {
@@ -574,8 +622,23 @@ bool co_lss_master_fastscan(co_lss_master_t *master, const uint8_t *node_ids, ui
             return false;
         }
     }
+    if (filter != NULL) {
+        if (filter->kind[0] == CO_LSS_FS_SKIP) {
+            return false;
+        }
+        for (int i = 0; i < 4; i++) {
+            if (filter->kind[i] > CO_LSS_FS_MATCH) {
+                return false;
+            }
+        }
+    }
     if (!begin(master, CO_LSS_REQ_FASTSCAN)) {
         return false;
+    }
+    if (filter != NULL) {
+        master->filter = *filter;
+    } else {
+        memset(&master->filter, 0, sizeof master->filter);
     }
     master->node_ids = node_ids;
     master->node_id_count = count;

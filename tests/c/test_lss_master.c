@@ -1,7 +1,8 @@
 /* LSS master against LSS slaves on an in-process bus: the bytes of every
  * request, results, timeouts on the fake clock, answers counted, fast scan
  * over 1, 2, 8 and 32 non-configured slaves with adversarial addresses,
- * slaves sharing one address, scan by identify remote slave.
+ * slaves sharing one address, scan by identify remote slave, the fast
+ * scan's filters (match, skip) and its identify-only form.
  *
  * The bus here is the test's own (co_membus carries at most 32 lines; the
  * master plus 32 slaves are 33): each round processes every line, then hands
@@ -13,7 +14,7 @@
 
 #include <stdio.h>
 
-enum { MAX_SLAVES = 33, TIMEOUT_MS = 10, LOG_MAX = 64 };
+enum { MAX_SLAVES = 33, TIMEOUT_MS = 10, LOG_MAX = 160 };
 
 typedef struct sim {
     tu_line_t master_line;
@@ -734,6 +735,195 @@ static void test_identify_counts_late_answers(void **state)
     sim_free(s);
 }
 
+/* ------------------------------------------- fast scan: identify, filters */
+
+/* The frames CiA 305 prescribes to find `a` when it is the only slave that
+ * takes part, written out independently of the master: the reset, then per
+ * part not skipped the checks of bit 31 down to 0 (the bits found so far,
+ * the checked bit as 0; a slave answers when its bits from the checked one
+ * up match), the bit-0 check naming the next part, and a confirmation when
+ * the last bit is 1 (nobody answered its 0). A matched part is checked with
+ * its whole value at once. Returns the count written to out. */
+static uint32_t expected_fastscan(co_lss_address_t a, const co_lss_fastscan_filter_t *f,
+                                  uint8_t out[][8], uint32_t max)
+{
+    uint32_t n = 0;
+    co_lss_encode_fastscan(out[n++], 0, CO_LSS_FASTSCAN_CONFIRM, 0, 0);
+    for (uint8_t p = 0; p < 4u; p++) {
+        if (f->kind[p] == CO_LSS_FS_SKIP) {
+            continue;
+        }
+        uint8_t next = 0;
+        for (uint8_t q = (uint8_t)(p + 1u); q < 4u; q++) {
+            if (f->kind[q] != CO_LSS_FS_SKIP) {
+                next = q;
+                break;
+            }
+        }
+        if (f->kind[p] == CO_LSS_FS_MATCH) {
+            assert_true(n < max);
+            co_lss_encode_fastscan(out[n++], f->match[p], 0, p, next);
+            continue;
+        }
+        for (int bit = 31; bit >= 0; bit--) {
+            uint32_t above = bit == 31 ? 0u : a.part[p] & (UINT32_MAX << (bit + 1));
+            assert_true(n < max);
+            co_lss_encode_fastscan(out[n++], above, (uint8_t)bit, p, bit == 0 ? next : p);
+        }
+        if (a.part[p] & 1u) {
+            assert_true(n < max);
+            co_lss_encode_fastscan(out[n++], a.part[p], 0, p, next);
+        }
+    }
+    return n;
+}
+
+static void assert_log(sim_t *s, uint8_t expected[][8], uint32_t n)
+{
+    assert_int_equal(s->log_count, n);
+    for (uint32_t i = 0; i < n; i++) {
+        assert_request(&s->log[i], expected[i]);
+    }
+}
+
+/* Identify only: the slave with the lowest address among the unconfigured
+ * ones is found bit by bit and left selected in the configuration state,
+ * its node-id untouched; no configure, no switch back to waiting. */
+static void test_fastscan_identify(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    co_lss_address_t low = addr(0x12345678u, 0x9ABCDEF1u, 0x00010002u, 0x80000007u);
+    co_lss_slave_t *first = sim_add(s, low, CO_LSS_NODE_ID_UNCONFIGURED);
+    co_lss_slave_t *second = sim_add(s, addr(0x12345678u, 0x9ABCDEF1u, 0x00010003u, 0),
+                                     CO_LSS_NODE_ID_UNCONFIGURED);
+    co_lss_slave_t *configured = sim_add(s, addr(0, 0, 0, 0), 9);
+    co_lss_device_t found[1];
+    sim_log_clear(s);
+    uint64_t t0 = s->now;
+    assert_true(co_lss_master_fastscan_filtered(&s->master, NULL, NULL, 0, found, 1));
+    co_lss_master_result_t r = sim_wait(s);
+    assert_int_equal(r.request, CO_LSS_REQ_FASTSCAN);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 1);
+    assert_memory_equal(&found[0].address, &low, sizeof low);
+    assert_int_equal(found[0].node_id, 0);
+    co_lss_fastscan_filter_t all = {{0}, {0}};
+    uint8_t expected[LOG_MAX][8];
+    uint32_t n = expected_fastscan(low, &all, expected, LOG_MAX);
+    assert_int_equal(n, 1u + 128u + 2u);    /* the product and serial end with a 1-bit */
+    assert_int_equal(r.frames, n);
+    assert_log(s, expected, n);
+    assert_int_equal(co_lss_slave_state(first), CO_LSS_STATE_CONFIGURATION);
+    assert_int_equal(co_lss_slave_pending_node_id(first), CO_LSS_NODE_ID_UNCONFIGURED);
+    assert_int_equal(co_lss_slave_state(second), CO_LSS_STATE_WAITING);
+    assert_int_equal(co_lss_slave_state(configured), CO_LSS_STATE_WAITING);
+    /* every unanswered check waited its whole timeout */
+    assert_true(s->done_at - t0 >= (uint64_t)co_lss_master_stats(&s->master)->timeouts *
+                                       TIMEOUT_MS * 1000u);
+    /* the caller goes on with the selected slave: it answers as the one */
+    assert_true(co_lss_master_configure_node_id(&s->master, 42));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.answers, 1);
+    assert_int_equal(co_lss_slave_pending_node_id(first), 42);
+
+    /* Its node resets communication: node-id 42 is active, `second` is the
+     * one left to find; once it has a node-id too, nobody: the reset only. */
+    assert_true(co_lss_master_switch_global(&s->master, CO_LSS_STATE_WAITING));
+    sim_step(s, s->now);
+    assert_int_equal(co_lss_slave_reset_communication(first), 42);
+    assert_true(co_lss_master_fastscan_filtered(&s->master, NULL, NULL, 0, found, 1));
+    r = sim_wait(s);
+    assert_int_equal(r.found, 1);
+    assert_int_equal(found[0].address.part[2], 0x00010003u);
+    assert_int_equal(co_lss_slave_state(second), CO_LSS_STATE_CONFIGURATION);
+    assert_true(co_lss_master_configure_node_id(&s->master, 43));
+    (void)sim_wait(s);
+    assert_true(co_lss_master_switch_global(&s->master, CO_LSS_STATE_WAITING));
+    sim_step(s, s->now);
+    assert_int_equal(co_lss_slave_reset_communication(second), 43);
+    sim_log_clear(s);
+    assert_true(co_lss_master_fastscan_filtered(&s->master, NULL, NULL, 0, found, 1));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 0);
+    assert_int_equal(r.frames, 1);
+    sim_free(s);
+}
+
+/* Filters: a matched vendor-ID is checked with one frame; a skipped part
+ * is jumped over (the part before names the one after it); a match nobody
+ * has ends the scan at once, OK with nothing found. */
+static void test_fastscan_filters(void **state)
+{
+    (void)state;
+    sim_t *s = sim_new();
+    co_lss_address_t want = addr(0x22u, 0x0000F00Du, 0x00050001u, 0x00000300u);
+    co_lss_slave_t *other = sim_add(s, addr(0x11u, 0x0000F00Du, 0x00050001u, 0x00000100u),
+                                    CO_LSS_NODE_ID_UNCONFIGURED);
+    co_lss_slave_t *wanted = sim_add(s, want, CO_LSS_NODE_ID_UNCONFIGURED);
+    co_lss_fastscan_filter_t filter = {{CO_LSS_FS_MATCH, CO_LSS_FS_SCAN, CO_LSS_FS_SKIP,
+                                        CO_LSS_FS_SCAN}, {0x22u, 0, 0, 0}};
+    co_lss_device_t found[1];
+    sim_log_clear(s);
+    assert_true(co_lss_master_fastscan_filtered(&s->master, &filter, NULL, 0, found, 1));
+    co_lss_master_result_t r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 1);
+    co_lss_address_t seen = {{0x22u, 0x0000F00Du, 0, 0x00000300u}};   /* revision skipped */
+    assert_memory_equal(&found[0].address, &seen, sizeof seen);
+    uint8_t expected[LOG_MAX][8];
+    uint32_t n = expected_fastscan(want, &filter, expected, LOG_MAX);
+    assert_int_equal(n, 1u + 1u + 64u + 1u);     /* reset, vendor, 2 x 32 bits, product's 1 */
+    assert_log(s, expected, n);
+    /* the vendor's one frame: its value, bit 0, part 0, next part 1 */
+    const uint8_t vendor[8] = {0x51, 0x22, 0, 0, 0, 0, 0, 1};
+    assert_request(&s->log[1], vendor);
+    /* the product's bit-0 check names the serial (3): the revision is skipped */
+    const uint8_t product_bit0[8] = {0x51, 0x0C, 0xF0, 0, 0, 0, 1, 3};
+    assert_request(&s->log[33], product_bit0);
+    assert_int_equal(co_lss_slave_state(wanted), CO_LSS_STATE_CONFIGURATION);
+    assert_int_equal(co_lss_slave_state(other), CO_LSS_STATE_WAITING);
+
+    /* A vendor nobody has: reset (answered by both), the match (silent), done. */
+    assert_true(co_lss_master_switch_global(&s->master, CO_LSS_STATE_WAITING));
+    sim_step(s, s->now);
+    filter.match[0] = 0x33u;
+    sim_log_clear(s);
+    assert_true(co_lss_master_fastscan_filtered(&s->master, &filter, NULL, 0, found, 1));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 0);
+    assert_int_equal(r.frames, 2);
+    const uint8_t vendor33[8] = {0x51, 0x33, 0, 0, 0, 0, 0, 1};
+    assert_request(&s->log[1], vendor33);
+
+    /* With node-ids: every slave of vendor 0x11 or 0x22 ... only 0x11 here:
+     * it is configured, 0x22's slave (configured by nobody) stays as it is. */
+    filter.match[0] = 0x11u;
+    uint8_t ids[] = {5, 6};
+    co_lss_device_t devices[2];
+    assert_true(co_lss_master_fastscan_filtered(&s->master, &filter, ids, 2, devices, 2));
+    r = sim_wait(s);
+    assert_int_equal(r.status, CO_LSS_OK);
+    assert_int_equal(r.found, 1);
+    assert_int_equal(devices[0].node_id, 5);
+    assert_int_equal(co_lss_slave_pending_node_id(other), 5);
+    assert_int_equal(co_lss_slave_pending_node_id(wanted), CO_LSS_NODE_ID_UNCONFIGURED);
+
+    /* Bad filters: the vendor-ID cannot be skipped, kinds are 0..2. */
+    filter.kind[0] = CO_LSS_FS_SKIP;
+    assert_false(co_lss_master_fastscan_filtered(&s->master, &filter, NULL, 0, found, 1));
+    filter.kind[0] = CO_LSS_FS_SCAN;
+    filter.kind[3] = 3;
+    assert_false(co_lss_master_fastscan_filtered(&s->master, &filter, NULL, 0, found, 1));
+    assert_false(co_lss_master_fastscan_filtered(&s->master, NULL, NULL, 0, found, 0));
+    assert_false(co_lss_master_fastscan_filtered(&s->master, NULL, NULL, 1, found, 1));
+    assert_false(co_lss_master_busy(&s->master));
+    sim_free(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -752,6 +942,8 @@ int main(void)
         cmocka_unit_test(test_fastscan_slave_later_than_settle),
         cmocka_unit_test(test_fastscan_restarts),
         cmocka_unit_test(test_identify_counts_late_answers),
+        cmocka_unit_test(test_fastscan_identify),
+        cmocka_unit_test(test_fastscan_filters),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -6,7 +6,8 @@
  * - fast scan: finds every non-configured slave bit by bit (vendor, product,
  *   revision, serial: 32 checks each), gives each a node-id from the
  *   caller's list and switches it back to waiting, until no slave answers
- *   the scan's reset;
+ *   the scan's reset; filters match or skip parts of the address, and
+ *   without node-ids it identifies one slave and leaves it selected;
  * - scan: finds configured or not, every slave of one vendor and product
  *   inside a revision and serial range, by halving the ranges with
  *   "identify remote slave".
@@ -70,7 +71,19 @@ typedef struct co_lss_master_result {
 } co_lss_master_result_t;
 /* cffi:end */
 
-/* A slave a search found. node_id: what fast scan gave it (0 for scan). */
+/* Fast scan filters, per part of the LSS address (vendor, product,
+ * revision, serial), as CiA 305 lets the master choose: find the part bit
+ * by bit, skip it (the slaves move past it, its value stays unknown: 0 in
+ * the result; not the vendor-ID, where every scan starts), or check a
+ * given value with one frame (only slaves with that value go on). */
+enum { CO_LSS_FS_SCAN = 0, CO_LSS_FS_SKIP = 1, CO_LSS_FS_MATCH = 2 };
+typedef struct co_lss_fastscan_filter {
+    uint8_t kind[4];               /* CO_LSS_FS_* per part */
+    uint32_t match[4];             /* CO_LSS_FS_MATCH: the value */
+} co_lss_fastscan_filter_t;
+
+/* A slave a search found. node_id: what fast scan gave it (0 for scan and
+ * an identifying fast scan). */
 typedef struct co_lss_device {
     co_lss_address_t address;
     uint8_t node_id;
@@ -118,6 +131,7 @@ struct co_lss_master {
     uint8_t bit;
     uint32_t reset_answers;        /* fast scan: slaves that answered the last reset */
     uint8_t restarts;              /* fast scan: started over since the last slave found */
+    co_lss_fastscan_filter_t filter; /* fast scan: how each part is found */
     uint32_t vendor, product;      /* scan: the fixed parts */
     uint32_t revision_low, revision_high;
     uint32_t serial;               /* scan: the serial number pinned down */
@@ -167,6 +181,16 @@ bool co_lss_master_identify_non_configured(co_lss_master_t *master);
  * the slaves found, whose addresses go to devices (capacity entries). */
 bool co_lss_master_fastscan(co_lss_master_t *master, const uint8_t *node_ids, uint32_t count,
                             co_lss_device_t *devices, uint32_t capacity);
+/* Fast scan with filters (NULL: find every part): count node-ids as
+ * above; count 0 identifies only: the first non-configured slave that
+ * passes the filter is found, its address goes to devices[0] (found = 1,
+ * none: found = 0, status OK) and it stays selected in the configuration
+ * state (configure it, or switch every slave back to waiting). False for a
+ * filter that skips the vendor-ID or a kind above CO_LSS_FS_MATCH. */
+bool co_lss_master_fastscan_filtered(co_lss_master_t *master,
+                                     const co_lss_fastscan_filter_t *filter,
+                                     const uint8_t *node_ids, uint32_t count,
+                                     co_lss_device_t *devices, uint32_t capacity);
 /* Scan by identify remote slave: every slave of vendor/product whose
  * revision and serial lie in the ranges (inclusive). */
 bool co_lss_master_scan(co_lss_master_t *master, uint32_t vendor, uint32_t product,

@@ -565,7 +565,12 @@ typedef struct co_rt_lss_request {
      * revision high, serial low, serial high */
     uint32_t value[6];
     uint8_t node_ids[127];     /* FASTSCAN: node-ids to give, in order */
-    int node_id_count;
+    int node_id_count;         /* FASTSCAN: 0 identifies one slave only (left selected) */
+    /* FASTSCAN: per part (vendor, product, revision, serial) 0 find it bit
+     * by bit, 1 skip it (not the vendor), 2 check fs_match at once; all 0:
+     * no filter (co_lss_fastscan_filter_t) */
+    uint8_t fs_kind[4];
+    uint32_t fs_match[4];
     int timeout_ms;            /* per step, 0 = 100 */
     /* how long a step several slaves may answer stays open after its first
      * answer, for slower slaves' answers (co_lss_master_set_settle); at most

@@ -67,9 +67,20 @@ static int check_request(co_rt_t *rt, int line, const co_rt_lss_request_t *r)
         }
         return CO_RT_OK;
     case CO_LSS_REQ_FASTSCAN:
-        if (r->node_id_count < 1 || r->node_id_count > 127) {
-            return rt_argument_error(rt, "line %d: LSS fast scan with %d node-ids: 1..127",
-                                     line, r->node_id_count);
+        if (r->node_id_count < 0 || r->node_id_count > 127) {
+            return rt_argument_error(rt, "line %d: LSS fast scan with %d node-ids: 0..127 "
+                                     "(0: identify one device only)", line, r->node_id_count);
+        }
+        if (r->fs_kind[0] == CO_LSS_FS_SKIP) {
+            return rt_argument_error(rt, "line %d: LSS fast scan: the vendor-ID cannot be "
+                                     "skipped (every scan starts with it)", line);
+        }
+        for (int i = 0; i < 4; i++) {
+            if (r->fs_kind[i] > CO_LSS_FS_MATCH) {
+                return rt_argument_error(rt, "line %d: LSS fast scan filter %u for part %d: "
+                                         "0 scan, 1 skip, 2 match", line,
+                                         (unsigned)r->fs_kind[i], i);
+            }
         }
         for (int i = 0; i < r->node_id_count; i++) {
             if (r->node_ids[i] < 1u || r->node_ids[i] > 127u) {
@@ -111,10 +122,15 @@ static bool start(rt_line_t *l, co_lss_master_t *m, const co_rt_lss_request_t *r
         return co_lss_master_identify_remote(m, v[0], v[1], v[2], v[3], v[4], v[5]);
     case CO_LSS_REQ_IDENTIFY_NON_CONFIGURED:
         return co_lss_master_identify_non_configured(m);
-    case CO_LSS_REQ_FASTSCAN:
+    case CO_LSS_REQ_FASTSCAN: {
+        co_lss_fastscan_filter_t filter;
+        memcpy(filter.kind, r->fs_kind, sizeof filter.kind);
+        memcpy(filter.match, r->fs_match, sizeof filter.match);
         memcpy(l->lss.node_ids, r->node_ids, (size_t)r->node_id_count);
-        return co_lss_master_fastscan(m, l->lss.node_ids, (uint32_t)r->node_id_count,
-                                      l->lss.devices, 127);
+        return co_lss_master_fastscan_filtered(m, &filter, l->lss.node_ids,
+                                               (uint32_t)r->node_id_count, l->lss.devices,
+                                               r->node_id_count ? 127u : 1u);
+    }
     case CO_LSS_REQ_SCAN:
     default:
         return co_lss_master_scan(m, v[0], v[1], v[2], v[3], v[4], v[5], l->lss.devices, 127);
