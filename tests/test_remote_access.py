@@ -660,11 +660,12 @@ def test_closed_server_leaves_the_bus_alone(net: canopenfd.Network, bus_name: st
     finally:
         host.close()
         w.server.close()
-    assert w.line[DEV].heartbeat_timeout_ms == 0
+    assert DEV not in w.line.nodes     # the node the manager added is given back
+    node = w.line.add_node(DEV)
     # the state change reaches the gateway line's callbacks: ours comes after
     # the manager's (registered first), so once it ran the manager had its turn
     seen = Recorder()
-    w.line[DEV].on_state_change(seen)
+    node.on_state_change(seen)
     before = len(nmt_frames(bus))
     w.dev.apply("PRE_OPERATIONAL")
     seen.wait_value(canopenfd.NmtState.PRE_OPERATIONAL)
@@ -860,9 +861,10 @@ def test_a_server_that_cannot_start_leaves_nothing_running(net: canopenfd.Networ
     other.close()
     with pytest.raises(canopenfd.errors.CanopenFDError):
         RemoteAccessServer({1: first, 2: second}, control=int(ra.ManagerControl.KEEP_OP))
-    first[DEV].wait_for_state("OPERATIONAL", timeout=scaled(2))   # KEEP_OP started it
+    node = first.add_node(DEV)      # the stopped manager gave its node back
+    node.wait_for_state("OPERATIONAL", timeout=scaled(2))   # KEEP_OP started it
     seen = Recorder()
-    first[DEV].on_state_change(seen)
+    node.on_state_change(seen)
     before = len(nmt_frames(bus))
     dev.apply("PRE_OPERATIONAL")
     seen.wait_value(canopenfd.NmtState.PRE_OPERATIONAL)

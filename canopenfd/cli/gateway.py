@@ -19,7 +19,7 @@ from ..gateway.config import (AsciiConfig, GatewayConfig, GatewayConfigError, Kn
                               MqttConfig, RemoteAccessConfig, load_config)
 from ..gateway import remote_access as ra
 from ..gateway.gateway import Gateway
-from .common import (EXIT_OK, Printer, UsageError, add_line_options, builtin_od_kind,
+from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
                      command_line, ms_arg, node_id_arg)
 
 
@@ -257,7 +257,10 @@ def remote_access_config(args: argparse.Namespace, net: int) -> RemoteAccessConf
         if not sep or not path or not 1 <= node <= 127:
             raise UsageError(f"--remote-access-node {spec!r}: expected NODE=FILE with a "
                              "node-id 1..127")
-        known.append(KnownNodeConfig(net, node, path))
+        # loaded here, so a file that cannot be read names the option
+        mode = "classic" if args.classic else "fd"
+        known.append(KnownNodeConfig(net, node, od_arg(path, mode, node,
+                                                       f"--remote-access-node {node_text}:")))
     return RemoteAccessConfig(args.serial, args.baud, args.remote_access_tcp,
                               args.remote_access_host, args.remote_access_crc,
                               args.remote_access_max_payload, control, heartbeat, known)

@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import pathlib
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Set, Tuple, Union
+from typing import Any, Dict, List, Optional, Set, Tuple, Union
 
 from ..errors import ConfigurationError
 from ..od.errors import OdFileError
@@ -122,7 +122,7 @@ class MqttConfig:
 class KnownNodeConfig:
     net: int
     node_id: int
-    od: str            # a file, or builtin:fd / builtin:classic
+    od: Any            # a file, builtin:fd / builtin:classic, or an ObjectDictionary
     line: int = 0      # where it is written, for messages
 
 

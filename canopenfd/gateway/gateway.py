@@ -141,6 +141,8 @@ class Gateway:
                                      ra.line) from None
 
     def _known_od(self, node: KnownNodeConfig, mode: str) -> Any:
+        if not isinstance(node.od, str):      # loaded by the caller (the CLI)
+            return node.od
         kind = node.od.lower()
         if kind.startswith("builtin:"):
             if kind[len("builtin:"):] not in ("fd", "classic"):
