@@ -133,6 +133,53 @@ static void on_answer(co_line_t *line, const co_frame_t *f, void *user)
     c->state = SDO_CONNECTED;
 }
 
+/* An answer the target line's own SDO client did not take (it is not
+ * talking to that node): the connection waiting for it relays it. */
+static bool on_idle_answer(co_sdo_client_t *client, const co_frame_t *f, void *user)
+{
+    co_gateway_port_t *to = user;
+    co_gateway_t *gw = to->gw;
+    (void)client;
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        co_gateway_sdo_t *c = &gw->sdo[i];
+        if (c->from != NULL && c->to == to &&
+            (uint32_t)SDO_RESPONSE_BASE + c->target == f->id) {
+            on_answer(line_of(to), f, c);
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Receive the target's answers: on a CAN-ID of our own, or through the
+ * idle tap of the target line's SDO client when its 0x581..0x5FF receiver
+ * holds the CAN-ID (a manager's or tool's client beside the gateway). False
+ * when another receiver holds it, or that client talks to the node now. */
+static bool listen(co_gateway_sdo_t *c, co_gateway_port_t *to, uint8_t target)
+{
+    co_line_t *line = line_of(to);
+    uint32_t id = (uint32_t)SDO_RESPONSE_BASE + target;
+    co_sdo_client_t *own = co_stack_sdo_client(to->stack);
+    if (!co_line_id_taken(line, id)) {
+        return co_line_subscribe(line, id, id, on_answer, c);
+    }
+    if (own == NULL || !co_sdo_client_holds(own, id) || co_sdo_client_receives(own, id)) {
+        return false;
+    }
+    co_sdo_client_set_idle_tap(own, on_idle_answer, to);
+    return true;
+}
+
+static bool target_taken(const co_gateway_t *gw, const co_gateway_port_t *to, uint8_t target)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        if (gw->sdo[i].from != NULL && gw->sdo[i].to == to && gw->sdo[i].target == target) {
+            return true;
+        }
+    }
+    return false;
+}
+
 static void arm(co_gateway_sdo_t *c)
 {
     co_line_t *line = line_of(c->to);
@@ -188,9 +235,7 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
     c = find_free(gw);
-    if (c == NULL || co_line_id_taken(line_of(to), SDO_RESPONSE_BASE + target) ||
-        !co_line_subscribe(line_of(to), SDO_RESPONSE_BASE + target, SDO_RESPONSE_BASE + target,
-                           on_answer, c)) {
+    if (c == NULL || target_taken(gw, to, target) || !listen(c, to, target)) {
         /* no connection free, or another client already talks to the target */
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
@@ -266,5 +311,8 @@ void co_gateway_sdo_unhook(co_gateway_port_t *port)
     if (port->sdo_server != NULL) {
         co_sdo_server_set_filter(port->sdo_server, NULL, NULL);
         port->sdo_server = NULL;
+    }
+    if (co_stack_sdo_client(port->stack) != NULL) {
+        co_sdo_client_clear_idle_tap(co_stack_sdo_client(port->stack), on_idle_answer, port);
     }
 }

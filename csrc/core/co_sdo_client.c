@@ -1099,7 +1099,38 @@ static void on_range_frame(co_line_t *line, const co_frame_t *f, void *user)
             return;
         }
     }
+    if (c->idle_tap != NULL && c->idle_tap(c, f, c->idle_user)) {
+        return;
+    }
     c->stats.rx_idle++;
+}
+
+void co_sdo_client_set_idle_tap(co_sdo_client_t *c, co_sdo_client_idle_fn fn, void *user)
+{
+    c->idle_tap = fn;
+    c->idle_user = fn != NULL ? user : NULL;
+}
+
+void co_sdo_client_clear_idle_tap(co_sdo_client_t *c, co_sdo_client_idle_fn fn, void *user)
+{
+    if (c->idle_tap == fn && c->idle_user == user) {
+        co_sdo_client_set_idle_tap(c, NULL, NULL);
+    }
+}
+
+bool co_sdo_client_holds(const co_sdo_client_t *c, uint32_t id)
+{
+    return c->line != NULL && in_range(id) && co_line_id_taken_by(c->line, id, on_range_frame, c);
+}
+
+bool co_sdo_client_receives(const co_sdo_client_t *c, uint32_t id)
+{
+    for (uint8_t i = 0; i < c->channel_count; i++) {
+        if (is_busy(&c->channels[i]) && c->channels[i].rx_id == id) {
+            return true;
+        }
+    }
+    return false;
 }
 
 /* A channel's own CAN-ID (outside the range). */

@@ -295,14 +295,10 @@ static void test_refusals(void **state)
     expect(&fx->a, 0x581, 2, (const uint8_t[]){0x80, NET_A, 0, 7, 0x23, 0x00, 0x0A, 0x06});
     request(fx, (const uint8_t[]){0xE0, NET_C, 0, 0, 0, 0, 0, 0});
     expect(&fx->a, 0x581, 3, (const uint8_t[]){0x80, NET_C, 0, 0, 0x30, 0x00, 0x09, 0x06});
-    co_stack_client_config_t cc = {.sessions = 2};
-    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
-    request(fx, IND_3_5);
-    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x80, NET_C, 0, DEV, 0x23, 0x00, 0x0A, 0x06});
-    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 5);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 4);
     /* still served by the gateway itself */
     request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
-    expect(&fx->a, 0x581, 5, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
+    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
     assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);
     fx_free(fx);
 }
@@ -392,6 +388,68 @@ static void routed_upload(fx_t *fx, upload_t *u, uint8_t network, uint8_t node, 
     assert_true(u->done);
 }
 
+static void own_upload(fx_t *fx, upload_t *u, uint16_t index)
+{
+    memset(u, 0, sizeof *u);
+    u->sink.data = u->data;
+    u->sink.capacity = sizeof u->data;
+    u->req = (co_sdo_request_t){.server = DEV, .index = index, .upload = true,
+                                .sink = co_sdo_buffer_sink, .ctx = &u->sink,
+                                .done = upload_done, .user = u, .timeout_ms = 50};
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->gw_c.stack), &u->req), 0);
+}
+
+/* The gateway device runs an SDO client of its own on the target line (a
+ * manager, a CiA 309 gateway does), whose receiver holds 0x581..0x5FF. The
+ * seed refuses a connection only while that client is busy: while it talks
+ * to the target node the indication is refused (0x060A0023); otherwise the
+ * connection stands, the target's answers reach the relay through the
+ * client's idle tap, and the client's own transfers keep their answers. */
+static void test_relay_beside_the_gateways_own_client(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    upload_t own;
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
+    const co_sdo_client_stats_t *cs = &co_stack_sdo_client(&fx->gw_c.stack)->stats;
+    /* the client talks to node 5 (its answer lost): busy */
+    fx->drop_answer = true;
+    own_upload(fx, &own, 0x2000);
+    settle(fx);
+    assert_false(own.done);
+    request(fx, IND_3_5);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, NET_C, 0, DEV, 0x23, 0x00, 0x0A, 0x06});
+    advance(fx, fx->a.now + 60 * TU_MS);
+    assert_true(own.done);
+    assert_int_equal(own.req.abort, CO_ABORT_TIMEOUT);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    /* idle now: the connection stands and the relay gets the answers */
+    connect_3_5(fx);
+    const uint8_t up[8] = {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0};
+    const uint8_t up_ok[8] = {0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12};
+    uint32_t idle = cs->rx_idle;
+    request(fx, up);
+    expect(&fx->c, 0x605, 0, up);
+    expect(&fx->c, 0x585, 0, up_ok);
+    expect(&fx->a, 0x581, 0, up_ok);
+    assert_int_equal(cs->rx_idle, idle);   /* taken by the relay, not "idle" */
+    /* the client's own transfer to node 5 meanwhile gets its answer */
+    own_upload(fx, &own, 0x2001);
+    advance(fx, fx->a.now + 10 * TU_MS);
+    assert_true(own.done);
+    assert_int_equal(own.req.abort, 0);
+    assert_memory_equal(own.data, "hello gateway!", 14);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);   /* nothing of it relayed */
+    /* the relay still works after it */
+    request(fx, up);
+    expect(&fx->a, 0x581, 1, up_ok);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_answers, 2);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 0);
+    fx_free(fx);
+}
+
 /* co_sdo_client with (network, node): the indication goes first, once per
  * connection; network 0 brings the gateway back to its own OD; a refusal
  * ends the request with the gateway's abort. */
@@ -448,6 +506,7 @@ int main(void)
         cmocka_unit_test(test_back_to_the_gateways_own_server),
         cmocka_unit_test(test_indication_forwarded_to_the_next_gateway),
         cmocka_unit_test(test_client_reaches_a_node_through_the_gateway),
+        cmocka_unit_test(test_relay_beside_the_gateways_own_client),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
