@@ -14,12 +14,14 @@
 
 #include <stdlib.h>
 
-enum { GW = 1, DEV = 5, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3, TIMEOUT_MS = 100 };
+enum { GW = 1, DEV = 5, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3, TIMEOUT_MS = 100,
+       BIG = 700 /* a block download of 100 segments: the last one's byte 0 is 0xE4 */ };
 
 static const tu_od_row_t gateway_rows[] = {
     {0x1000, 0, VAR, U32, RO, 0, 4, 0x00000302, NULL, 0, 0},
     {0x1001, 0, VAR, U8, RO, 0, 1, 0, NULL, 0, 0},
     {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
+    {0x2100, 0, VAR, CO_TYPE_OCTET_STRING, RW, 0, BIG, 0, "-", 0, 0},
 };
 
 static const tu_od_row_t device_rows[] = {
@@ -28,6 +30,7 @@ static const tu_od_row_t device_rows[] = {
     {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
     {0x2000, 0, VAR, U32, RW, 0, 4, 0x12345678, NULL, 0, 0},
     {0x2001, 0, VAR, VS, RO, 0, 14, 0, "hello gateway!", 0, 0},
+    {0x2100, 0, VAR, CO_TYPE_OCTET_STRING, RW, 0, BIG, 0, "-", 0, 0},
 };
 
 #define ROWS(r) (sizeof(r) / sizeof((r)[0]))
@@ -36,7 +39,7 @@ typedef struct node {
     tu_line_t line;
     co_od_t od;
     co_od_entry_t entries[16];
-    uint8_t pool[512];
+    uint8_t pool[2048];
     co_od_subscription_t subs[CO_STACK_OD_SUBSCRIPTIONS + 4];
     co_stack_t stack;
     co_stack_arena_t arena;
@@ -450,6 +453,68 @@ static void test_relay_beside_the_gateways_own_client(void **state)
     fx_free(fx);
 }
 
+/* A block download whose last segment has a sequence number of 96..127:
+ * its byte 0 (0x80 | seqno) is 0xE0..0xFF, the same top bits as a network
+ * indication. It is a segment, not an indication: to the gateway's own
+ * server (no connection) and relayed to the device (connected). */
+static void flag_done(co_sdo_request_t *req)
+{
+    *(bool *)req->user = true;
+}
+
+static void block_download(fx_t *fx, uint8_t network, uint8_t node, uint32_t *abort)
+{
+    static uint8_t data[BIG];
+    co_sdo_buffer_t src = {.data = data, .size = BIG};
+    bool done = false;
+    for (uint32_t i = 0; i < BIG; i++) {
+        data[i] = (uint8_t)(i * 7u + network);
+    }
+    co_sdo_request_t req = {.server = GW, .index = 0x2100, .mode = CO_SDO_MODE_BLOCK,
+                            .size = BIG, .source = co_sdo_buffer_source, .ctx = &src,
+                            .done = flag_done, .user = &done, .network = network,
+                            .network_node = node, .timeout_ms = 50};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &req), 0);
+    settle(fx);
+    advance(fx, fx->a.now + 200 * TU_MS);
+    assert_true(done);
+    *abort = req.abort;
+}
+
+static void test_block_download_last_segment_is_no_indication(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    uint32_t abort = 1;
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    block_download(fx, 0, 0, &abort);
+    assert_int_equal(abort, 0);
+    assert_true(tu_log_find_id(&fx->a, 0x601, 0) >= 0);
+    const co_od_entry_t *e = co_od_find(&fx->gw_a.od, 0x2100, 0);
+    assert_non_null(e);
+    assert_int_equal(e->length, BIG);
+    assert_int_equal(co_od_value(&fx->gw_a.od, e)[BIG - 1], (uint8_t)((BIG - 1) * 7u));
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 0);
+    /* relayed: the same transfer to device 5 on network 3 */
+    block_download(fx, NET_C, DEV, &abort);
+    assert_int_equal(abort, 0);
+    e = co_od_find(&fx->dev.od, 0x2100, 0);
+    assert_int_equal(e->length, BIG);
+    assert_int_equal(co_od_value(&fx->dev.od, e)[BIG - 1], (uint8_t)((BIG - 1) * 7u + NET_C));
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 0);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_connects, 1);
+    /* and the connection still relays afterwards */
+    block_download(fx, NET_C, DEV, &abort);
+    assert_int_equal(abort, 0);
+    fx_free(fx);
+}
+
 /* co_sdo_client with (network, node): the indication goes first, once per
  * connection; network 0 brings the gateway back to its own OD; a refusal
  * ends the request with the gateway's abort. */
@@ -507,6 +572,7 @@ int main(void)
         cmocka_unit_test(test_indication_forwarded_to_the_next_gateway),
         cmocka_unit_test(test_client_reaches_a_node_through_the_gateway),
         cmocka_unit_test(test_relay_beside_the_gateways_own_client),
+        cmocka_unit_test(test_block_download_last_segment_is_no_indication),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
