@@ -515,6 +515,65 @@ static void test_block_download_last_segment_is_no_indication(void **state)
     fx_free(fx);
 }
 
+/* A routed request cancelled while its network indication is out: the
+ * gateway may well have switched its connection already, so the client
+ * must not keep assuming the old one (its next request would reach the
+ * wrong node, or the gateway's own OD). */
+static void test_cancel_during_indication_forgets_the_connection(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    co_sdo_client_t *client = co_stack_sdo_client(&fx->tool);
+    upload_t u;
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    /* back to the gateway's own OD: the indication goes, then the cancel */
+    memset(&u, 0, sizeof u);
+    u.sink.data = u.data;
+    u.sink.capacity = sizeof u.data;
+    u.req = (co_sdo_request_t){.server = GW, .index = 0x1000, .upload = true,
+                               .sink = co_sdo_buffer_sink, .ctx = &u.sink,
+                               .done = upload_done, .user = &u};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(client, &u.req), 0);
+    assert_true(co_sdo_client_cancel(client, &u.req, 0));
+    settle(fx);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_connects, 2);   /* it did switch */
+    /* device 5 again: the indication must go first, the answer is the device's */
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(tu_le_get(u.data, 4), 0x12345678);
+    expect(&fx->a, 0x601, 0, IND_3_5);
+    /* the other way round: to device 5, cancelled while its indication is
+     * out (the gateway connects); a request for the gateway's own OD then
+     * sends the indication of network 0 first and reads the gateway's */
+    routed_upload(fx, &u, 0, 0, 0x1000);
+    assert_int_equal(tu_le_get(u.data, 4), 0x302);
+    memset(&u, 0, sizeof u);
+    u.sink.data = u.data;
+    u.sink.capacity = sizeof u.data;
+    u.req = (co_sdo_request_t){.server = GW, .index = 0x2000, .upload = true,
+                               .sink = co_sdo_buffer_sink, .ctx = &u.sink,
+                               .done = upload_done, .user = &u, .network = NET_C,
+                               .network_node = DEV};
+    assert_int_equal(co_sdo_client_start(client, &u.req), 0);
+    assert_true(co_sdo_client_cancel(client, &u.req, 0));
+    settle(fx);
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, 0, 0, 0x1000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(tu_le_get(u.data, 4), 0x302);   /* not device 5's 0x191 */
+    expect(&fx->a, 0x601, 0, (const uint8_t[]){0xE0, 0, 0, 0, 0, 0, 0, 0});
+    fx_free(fx);
+}
+
 /* co_sdo_client with (network, node): the indication goes first, once per
  * connection; network 0 brings the gateway back to its own OD; a refusal
  * ends the request with the gateway's abort. */
@@ -573,6 +632,7 @@ int main(void)
         cmocka_unit_test(test_client_reaches_a_node_through_the_gateway),
         cmocka_unit_test(test_relay_beside_the_gateways_own_client),
         cmocka_unit_test(test_block_download_last_segment_is_no_indication),
+        cmocka_unit_test(test_cancel_during_indication_forgets_the_connection),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -270,7 +270,8 @@ struct co_sdo_client {
     uint64_t timeout_us;
     uint32_t block_threshold;
     /* SDO networking: per server node-id, the connection its gateway holds
-     * for us (network | node << 8; 0 = its own OD, or not known) */
+     * for us (network | node << 8; 0 = its own OD; 0xFFFF = not known: an
+     * indication ended unanswered, the next request sends one) */
     uint16_t routed[128];
     co_sdo_client_stats_t stats;
 };
