@@ -62,7 +62,9 @@ static co_gateway_route_kind_t walk(co_gateway_t *gw, const uint16_t *routes, ui
             return CO_GATEWAY_LOOP;
         }
         seen[net / 8] |= (uint8_t)(1u << (net % 8));
-        if (routes[net] == 0) {
+        if (routes[net] == 0 || (routes[net] >> 8) < 1 || (routes[net] >> 8) > 127) {
+            /* no route, or one loaded unchecked whose node byte is no
+             * node-id: node 0 would read as "attached to the via network" */
             return CO_GATEWAY_UNKNOWN;
         }
         /* the first hop is the gateway toward the via network: the nearest
@@ -208,9 +210,9 @@ static uint32_t on_check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entr
     }
     if (sub == 0 && length == 1) {
         /* enabling a mapping: every entry it will use */
-        for (uint8_t k = 1; k <= value[0]; k++) {
+        for (uint16_t k = 1; k <= value[0]; k++) {   /* 16 bits: 255 must not wrap */
             uint32_t mapping, abort;
-            if (!co_od_get_u32(od, index, k, &mapping)) {
+            if (!co_od_get_u32(od, index, (uint8_t)k, &mapping)) {
                 return 0;   /* the PDO service refuses a missing entry */
             }
             abort = check_mapping(port, mapping);

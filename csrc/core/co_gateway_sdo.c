@@ -20,7 +20,11 @@ enum co_gateway_sdo_state {
 };
 
 enum { SDO_FRAME = 8, SDO_REQUEST_BASE = 0x600, SDO_RESPONSE_BASE = 0x580,
-       SDO_CCS_ABORT = 0x80 };
+       SDO_CCS_ABORT = 0x80,
+       /* block download: the client's initiate (ccs 6, cs 0) and the
+        * server's end response (scs 5, ss 1), as byte 0 masks */
+       SDO_BLOCK_DOWN_MASK = 0xE1, SDO_BLOCK_DOWN_INITIATE = 0xC0,
+       SDO_BLOCK_DOWN_END_RSP = 0xA1 };
 
 #define SDO_TIMEOUT 0x05040000u   /* CiA 301: SDO protocol timed out */
 
@@ -89,6 +93,7 @@ static void release(co_gateway_sdo_t *c)
     c->from = NULL;
     c->to = NULL;
     c->state = 0;
+    c->block_down = false;
 }
 
 /* No answer from the target: both sides hear an abort (the target so it
@@ -102,6 +107,7 @@ static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
     c->gw->stats.sdo_timeouts++;
     send_abort(c->gw, line_of(c->from), c->reply_id, c->mux, SDO_TIMEOUT);
     send_abort(c->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux, SDO_TIMEOUT);
+    c->block_down = false;
     if (connecting) {
         release(c);   /* never connected: the next gateway has nothing open */
     } else {
@@ -120,6 +126,9 @@ static void on_answer(co_line_t *line, const co_frame_t *f, void *user)
     co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
     c->gw->stats.sdo_answers++;
     send8(c->gw, line_of(c->from), c->reply_id, f->data);
+    if (f->data[0] == SDO_BLOCK_DOWN_END_RSP || f->data[0] == SDO_CCS_ABORT) {
+        c->block_down = false;   /* the block download ended */
+    }
     if (c->state == SDO_CONNECTING) {
         if (f->data[0] == CO_GATEWAY_SDO_NETWORK_IND) {
             c->state = SDO_CONNECTED;
@@ -131,6 +140,53 @@ static void on_answer(co_line_t *line, const co_frame_t *f, void *user)
         return;
     }
     c->state = SDO_CONNECTED;
+}
+
+/* An answer the target line's own SDO client did not take (it is not
+ * talking to that node): the connection waiting for it relays it. */
+static bool on_idle_answer(co_sdo_client_t *client, const co_frame_t *f, void *user)
+{
+    co_gateway_port_t *to = user;
+    co_gateway_t *gw = to->gw;
+    (void)client;
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        co_gateway_sdo_t *c = &gw->sdo[i];
+        if (c->from != NULL && c->to == to &&
+            (uint32_t)SDO_RESPONSE_BASE + c->target == f->id) {
+            on_answer(line_of(to), f, c);
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Receive the target's answers: on a CAN-ID of our own, or through the
+ * idle tap of the target line's SDO client when its 0x581..0x5FF receiver
+ * holds the CAN-ID (a manager's or tool's client beside the gateway). False
+ * when another receiver holds it, or that client talks to the node now. */
+static bool listen(co_gateway_sdo_t *c, co_gateway_port_t *to, uint8_t target)
+{
+    co_line_t *line = line_of(to);
+    uint32_t id = (uint32_t)SDO_RESPONSE_BASE + target;
+    co_sdo_client_t *own = co_stack_sdo_client(to->stack);
+    if (!co_line_id_taken(line, id)) {
+        return co_line_subscribe(line, id, id, on_answer, c);
+    }
+    if (own == NULL || !co_sdo_client_holds(own, id) || co_sdo_client_receives(own, id)) {
+        return false;
+    }
+    co_sdo_client_set_idle_tap(own, on_idle_answer, to);
+    return true;
+}
+
+static bool target_taken(const co_gateway_t *gw, const co_gateway_port_t *to, uint8_t target)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        if (gw->sdo[i].from != NULL && gw->sdo[i].to == to && gw->sdo[i].target == target) {
+            return true;
+        }
+    }
+    return false;
 }
 
 static void arm(co_gateway_sdo_t *c)
@@ -188,9 +244,7 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
     c = find_free(gw);
-    if (c == NULL || co_line_id_taken(line_of(to), SDO_RESPONSE_BASE + target) ||
-        !co_line_subscribe(line_of(to), SDO_RESPONSE_BASE + target, SDO_RESPONSE_BASE + target,
-                           on_answer, c)) {
+    if (c == NULL || target_taken(gw, to, target) || !listen(c, to, target)) {
         /* no connection free, or another client already talks to the target */
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
@@ -221,12 +275,15 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
                        const co_frame_t *f, void *user)
 {
     co_gateway_port_t *from = user;
-    co_gateway_sdo_t *c;
-    (void)server;
-    if ((f->data[0] & 0xE0u) == CO_GATEWAY_SDO_NETWORK_IND) {
+    co_gateway_sdo_t *c = find(from->gw, from, channel);
+    /* a block download segment's byte 0 (0x80 | seqno 96..127) looks like
+     * an indication: not while one runs, relayed or to our own server */
+    bool segment = c != NULL ? c->block_down
+                             : channel < server->channel_count &&
+                                   server->channels[channel].state == CO_SDO_CH_BLOCK_DOWNLOAD;
+    if (!segment && (f->data[0] & 0xE0u) == CO_GATEWAY_SDO_NETWORK_IND) {
         return indication(from, channel, tx_id, f->data);
     }
-    c = find(from->gw, from, channel);
     if (c == NULL) {
         return false;   /* not connected: the gateway's own server answers */
     }
@@ -239,7 +296,11 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
     if (f->data[0] == SDO_CCS_ABORT) {
         co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
         c->state = SDO_CONNECTED;   /* an abort is not answered */
+        c->block_down = false;
         return true;
+    }
+    if (!c->block_down && (f->data[0] & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE) {
+        c->block_down = true;
     }
     memcpy(c->mux, f->data + 1, 3);
     c->state = SDO_WAITING;
@@ -266,5 +327,8 @@ void co_gateway_sdo_unhook(co_gateway_port_t *port)
     if (port->sdo_server != NULL) {
         co_sdo_server_set_filter(port->sdo_server, NULL, NULL);
         port->sdo_server = NULL;
+    }
+    if (co_stack_sdo_client(port->stack) != NULL) {
+        co_sdo_client_clear_idle_tap(co_stack_sdo_client(port->stack), on_idle_answer, port);
     }
 }

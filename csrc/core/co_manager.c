@@ -330,6 +330,11 @@ static uint32_t load_concise(co_manager_t *m, uint8_t node_id, uint32_t *length)
         if (last) {
             break;
         }
+        if (abort == 0 && n == 0) {
+            /* a reader that gives nothing and does not end would keep
+             * this loop (and the runtime thread) here for ever */
+            abort = CO_ABORT_GENERAL;
+        }
     }
     if (abort == CO_OD_SPLIT) {
         abort = CO_ABORT_DATA_STATE;   /* an application that answers later: not here */

@@ -49,6 +49,10 @@ enum {
     NETWORK_IND = 0xE0   /* SDO networking: ccs/scs 7 (docs/protocol-notes.md) */
 };
 
+/* routed[]: the gateway's connection is not known (an indication went
+ * unanswered): the next request of any kind sends one first */
+#define ROUTED_UNKNOWN 0xFFFFu
+
 #define COB_RESERVED 0x3FFFF800u    /* bits 11..29 of a valid COB-ID: 11-bit CAN-IDs only */
 #define RANGE_FIRST (CO_SDO_RESPONSE_BASE + 1u)
 #define RANGE_LAST (CO_SDO_RESPONSE_BASE + NODE_MAX)
@@ -143,6 +147,11 @@ static void stop_waiting(co_sdo_client_channel_t *ch)
  * stays untouched. */
 static void release(co_sdo_client_channel_t *ch)
 {
+    if (ch->state == CO_SDO_CLIENT_NET_IND && ch->req != NULL) {
+        /* ended before the gateway's answer (cancel, reconfiguration,
+         * deinit): it may have switched already, so assume nothing */
+        ch->client->routed[ch->req->server] = ROUTED_UNKNOWN;
+    }
     co_timer_cancel(timers_of(ch), &ch->timer);
     co_timer_cancel(timers_of(ch), &ch->pace);
     stop_waiting(ch);
@@ -1099,7 +1108,38 @@ static void on_range_frame(co_line_t *line, const co_frame_t *f, void *user)
             return;
         }
     }
+    if (c->idle_tap != NULL && c->idle_tap(c, f, c->idle_user)) {
+        return;
+    }
     c->stats.rx_idle++;
+}
+
+void co_sdo_client_set_idle_tap(co_sdo_client_t *c, co_sdo_client_idle_fn fn, void *user)
+{
+    c->idle_tap = fn;
+    c->idle_user = fn != NULL ? user : NULL;
+}
+
+void co_sdo_client_clear_idle_tap(co_sdo_client_t *c, co_sdo_client_idle_fn fn, void *user)
+{
+    if (c->idle_tap == fn && c->idle_user == user) {
+        co_sdo_client_set_idle_tap(c, NULL, NULL);
+    }
+}
+
+bool co_sdo_client_holds(const co_sdo_client_t *c, uint32_t id)
+{
+    return c->line != NULL && in_range(id) && co_line_id_taken_by(c->line, id, on_range_frame, c);
+}
+
+bool co_sdo_client_receives(const co_sdo_client_t *c, uint32_t id)
+{
+    for (uint8_t i = 0; i < c->channel_count; i++) {
+        if (is_busy(&c->channels[i]) && c->channels[i].rx_id == id) {
+            return true;
+        }
+    }
+    return false;
 }
 
 /* A channel's own CAN-ID (outside the range). */
@@ -1126,7 +1166,7 @@ static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
     }
     ch->client->stats.timeouts++;
     if (ch->state == CO_SDO_CLIENT_NET_IND) {
-        ch->client->routed[ch->req->server] = 0;   /* the gateway's state is unknown */
+        ch->client->routed[ch->req->server] = ROUTED_UNKNOWN;   /* the gateway's state */
     }
     fail(ch, CO_ABORT_TIMEOUT);
 }

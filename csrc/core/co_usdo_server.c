@@ -374,6 +374,8 @@ static void on_bulk_ack(co_usdo_server_t *s, co_usdo_session_t *ses, const co_us
         return;
     }
     ses->acked = k;
+    /* touch replaces a pending resume's timer: this call streams instead */
+    ses->tx_resume = false;
     touch(ses);
     if (!ses->tx_wait) {
         bulk_stream(ses);

@@ -511,6 +511,36 @@ static void test_routes_and_loops(void **state)
     fx_free(fx);
 }
 
+/* Values loaded without the checks whose node byte is no node-id (0, or
+ * above 127): such a route leads nowhere. Resolving it must not name the
+ * via network as if the target network were attached to it (node 0) nor a
+ * hop no node can be. */
+static void test_loaded_route_without_a_node_leads_nowhere(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_stack_t *line = NULL;
+    uint8_t node = 0xFF;
+    uint8_t no_node[4] = {NET_B, 0, 0, 0}, big_node[4] = {NET_B, 200, 0, 0};
+    uint8_t behind[4] = {8, 9, 0, 0};
+    assert_int_equal(co_od_put(&fx->a.od, 0x1F2C, 8, no_node, 4), 0);
+    assert_int_equal(co_od_put(&fx->a.od, 0x1F2C, 9, big_node, 4), 0);
+    assert_int_equal(co_od_put(&fx->a.od, 0x1F2C, 10, behind, 4), 0);   /* 10 via 8 */
+    assert_int_equal(co_gateway_resolve(&fx->gw, 8, &line, &node), CO_GATEWAY_UNKNOWN);
+    assert_null(line);
+    assert_int_equal(node, 0);
+    assert_int_equal(co_gateway_resolve(&fx->gw, 9, &line, &node), CO_GATEWAY_UNKNOWN);
+    assert_null(line);
+    assert_int_equal(co_gateway_resolve(&fx->gw, 10, &line, &node), CO_GATEWAY_UNKNOWN);
+    assert_null(line);
+    /* a valid route still resolves */
+    assert_int_equal(co_gateway_set_route(&fx->gw, 8, NET_B, 7), 0);
+    assert_int_equal(co_gateway_resolve(&fx->gw, 10, &line, &node), CO_GATEWAY_VIA);
+    assert_ptr_equal(line, &fx->b.stack);
+    assert_int_equal(node, 7);
+    fx_free(fx);
+}
+
 static void test_ports_refused(void **state)
 {
     (void)state;
@@ -542,6 +572,7 @@ int main(void)
         cmocka_unit_test(test_emcy_routed_both_ways),
         cmocka_unit_test(test_emcy_route_api),
         cmocka_unit_test(test_routes_and_loops),
+        cmocka_unit_test(test_loaded_route_without_a_node_leads_nowhere),
         cmocka_unit_test(test_ports_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

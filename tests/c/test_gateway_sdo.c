@@ -14,12 +14,14 @@
 
 #include <stdlib.h>
 
-enum { GW = 1, DEV = 5, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3, TIMEOUT_MS = 100 };
+enum { GW = 1, DEV = 5, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3, TIMEOUT_MS = 100,
+       BIG = 700 /* a block download of 100 segments: the last one's byte 0 is 0xE4 */ };
 
 static const tu_od_row_t gateway_rows[] = {
     {0x1000, 0, VAR, U32, RO, 0, 4, 0x00000302, NULL, 0, 0},
     {0x1001, 0, VAR, U8, RO, 0, 1, 0, NULL, 0, 0},
     {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
+    {0x2100, 0, VAR, CO_TYPE_OCTET_STRING, RW, 0, BIG, 0, "-", 0, 0},
 };
 
 static const tu_od_row_t device_rows[] = {
@@ -28,6 +30,7 @@ static const tu_od_row_t device_rows[] = {
     {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
     {0x2000, 0, VAR, U32, RW, 0, 4, 0x12345678, NULL, 0, 0},
     {0x2001, 0, VAR, VS, RO, 0, 14, 0, "hello gateway!", 0, 0},
+    {0x2100, 0, VAR, CO_TYPE_OCTET_STRING, RW, 0, BIG, 0, "-", 0, 0},
 };
 
 #define ROWS(r) (sizeof(r) / sizeof((r)[0]))
@@ -36,7 +39,7 @@ typedef struct node {
     tu_line_t line;
     co_od_t od;
     co_od_entry_t entries[16];
-    uint8_t pool[512];
+    uint8_t pool[2048];
     co_od_subscription_t subs[CO_STACK_OD_SUBSCRIPTIONS + 4];
     co_stack_t stack;
     co_stack_arena_t arena;
@@ -295,14 +298,10 @@ static void test_refusals(void **state)
     expect(&fx->a, 0x581, 2, (const uint8_t[]){0x80, NET_A, 0, 7, 0x23, 0x00, 0x0A, 0x06});
     request(fx, (const uint8_t[]){0xE0, NET_C, 0, 0, 0, 0, 0, 0});
     expect(&fx->a, 0x581, 3, (const uint8_t[]){0x80, NET_C, 0, 0, 0x30, 0x00, 0x09, 0x06});
-    co_stack_client_config_t cc = {.sessions = 2};
-    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
-    request(fx, IND_3_5);
-    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x80, NET_C, 0, DEV, 0x23, 0x00, 0x0A, 0x06});
-    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 5);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 4);
     /* still served by the gateway itself */
     request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
-    expect(&fx->a, 0x581, 5, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
+    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
     assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);
     fx_free(fx);
 }
@@ -392,6 +391,189 @@ static void routed_upload(fx_t *fx, upload_t *u, uint8_t network, uint8_t node, 
     assert_true(u->done);
 }
 
+static void own_upload(fx_t *fx, upload_t *u, uint16_t index)
+{
+    memset(u, 0, sizeof *u);
+    u->sink.data = u->data;
+    u->sink.capacity = sizeof u->data;
+    u->req = (co_sdo_request_t){.server = DEV, .index = index, .upload = true,
+                                .sink = co_sdo_buffer_sink, .ctx = &u->sink,
+                                .done = upload_done, .user = u, .timeout_ms = 50};
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->gw_c.stack), &u->req), 0);
+}
+
+/* The gateway device runs an SDO client of its own on the target line (a
+ * manager, a CiA 309 gateway does), whose receiver holds 0x581..0x5FF. The
+ * seed refuses a connection only while that client is busy: while it talks
+ * to the target node the indication is refused (0x060A0023); otherwise the
+ * connection stands, the target's answers reach the relay through the
+ * client's idle tap, and the client's own transfers keep their answers. */
+static void test_relay_beside_the_gateways_own_client(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    upload_t own;
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
+    const co_sdo_client_stats_t *cs = &co_stack_sdo_client(&fx->gw_c.stack)->stats;
+    /* the client talks to node 5 (its answer lost): busy */
+    fx->drop_answer = true;
+    own_upload(fx, &own, 0x2000);
+    settle(fx);
+    assert_false(own.done);
+    request(fx, IND_3_5);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, NET_C, 0, DEV, 0x23, 0x00, 0x0A, 0x06});
+    advance(fx, fx->a.now + 60 * TU_MS);
+    assert_true(own.done);
+    assert_int_equal(own.req.abort, CO_ABORT_TIMEOUT);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    /* idle now: the connection stands and the relay gets the answers */
+    connect_3_5(fx);
+    const uint8_t up[8] = {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0};
+    const uint8_t up_ok[8] = {0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12};
+    uint32_t idle = cs->rx_idle;
+    request(fx, up);
+    expect(&fx->c, 0x605, 0, up);
+    expect(&fx->c, 0x585, 0, up_ok);
+    expect(&fx->a, 0x581, 0, up_ok);
+    assert_int_equal(cs->rx_idle, idle);   /* taken by the relay, not "idle" */
+    /* the client's own transfer to node 5 meanwhile gets its answer */
+    own_upload(fx, &own, 0x2001);
+    advance(fx, fx->a.now + 10 * TU_MS);
+    assert_true(own.done);
+    assert_int_equal(own.req.abort, 0);
+    assert_memory_equal(own.data, "hello gateway!", 14);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);   /* nothing of it relayed */
+    /* the relay still works after it */
+    request(fx, up);
+    expect(&fx->a, 0x581, 1, up_ok);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_answers, 2);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 0);
+    fx_free(fx);
+}
+
+/* A block download whose last segment has a sequence number of 96..127:
+ * its byte 0 (0x80 | seqno) is 0xE0..0xFF, the same top bits as a network
+ * indication. It is a segment, not an indication: to the gateway's own
+ * server (no connection) and relayed to the device (connected). */
+static void flag_done(co_sdo_request_t *req)
+{
+    *(bool *)req->user = true;
+}
+
+static void block_download(fx_t *fx, uint8_t network, uint8_t node, uint32_t *abort)
+{
+    static uint8_t data[BIG];
+    co_sdo_buffer_t src = {.data = data, .size = BIG};
+    bool done = false;
+    for (uint32_t i = 0; i < BIG; i++) {
+        data[i] = (uint8_t)(i * 7u + network);
+    }
+    co_sdo_request_t req = {.server = GW, .index = 0x2100, .mode = CO_SDO_MODE_BLOCK,
+                            .size = BIG, .source = co_sdo_buffer_source, .ctx = &src,
+                            .done = flag_done, .user = &done, .network = network,
+                            .network_node = node, .timeout_ms = 50};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &req), 0);
+    settle(fx);
+    advance(fx, fx->a.now + 200 * TU_MS);
+    assert_true(done);
+    *abort = req.abort;
+}
+
+static void test_block_download_last_segment_is_no_indication(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    uint32_t abort = 1;
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    block_download(fx, 0, 0, &abort);
+    assert_int_equal(abort, 0);
+    assert_true(tu_log_find_id(&fx->a, 0x601, 0) >= 0);
+    const co_od_entry_t *e = co_od_find(&fx->gw_a.od, 0x2100, 0);
+    assert_non_null(e);
+    assert_int_equal(e->length, BIG);
+    assert_int_equal(co_od_value(&fx->gw_a.od, e)[BIG - 1], (uint8_t)((BIG - 1) * 7u));
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 0);
+    /* relayed: the same transfer to device 5 on network 3 */
+    block_download(fx, NET_C, DEV, &abort);
+    assert_int_equal(abort, 0);
+    e = co_od_find(&fx->dev.od, 0x2100, 0);
+    assert_int_equal(e->length, BIG);
+    assert_int_equal(co_od_value(&fx->dev.od, e)[BIG - 1], (uint8_t)((BIG - 1) * 7u + NET_C));
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_refused, 0);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_connects, 1);
+    /* and the connection still relays afterwards */
+    block_download(fx, NET_C, DEV, &abort);
+    assert_int_equal(abort, 0);
+    fx_free(fx);
+}
+
+/* A routed request cancelled while its network indication is out: the
+ * gateway may well have switched its connection already, so the client
+ * must not keep assuming the old one (its next request would reach the
+ * wrong node, or the gateway's own OD). */
+static void test_cancel_during_indication_forgets_the_connection(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    co_sdo_client_t *client = co_stack_sdo_client(&fx->tool);
+    upload_t u;
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    /* back to the gateway's own OD: the indication goes, then the cancel */
+    memset(&u, 0, sizeof u);
+    u.sink.data = u.data;
+    u.sink.capacity = sizeof u.data;
+    u.req = (co_sdo_request_t){.server = GW, .index = 0x1000, .upload = true,
+                               .sink = co_sdo_buffer_sink, .ctx = &u.sink,
+                               .done = upload_done, .user = &u};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(client, &u.req), 0);
+    assert_true(co_sdo_client_cancel(client, &u.req, 0));
+    settle(fx);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_connects, 2);   /* it did switch */
+    /* device 5 again: the indication must go first, the answer is the device's */
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(tu_le_get(u.data, 4), 0x12345678);
+    expect(&fx->a, 0x601, 0, IND_3_5);
+    /* the other way round: to device 5, cancelled while its indication is
+     * out (the gateway connects); a request for the gateway's own OD then
+     * sends the indication of network 0 first and reads the gateway's */
+    routed_upload(fx, &u, 0, 0, 0x1000);
+    assert_int_equal(tu_le_get(u.data, 4), 0x302);
+    memset(&u, 0, sizeof u);
+    u.sink.data = u.data;
+    u.sink.capacity = sizeof u.data;
+    u.req = (co_sdo_request_t){.server = GW, .index = 0x2000, .upload = true,
+                               .sink = co_sdo_buffer_sink, .ctx = &u.sink,
+                               .done = upload_done, .user = &u, .network = NET_C,
+                               .network_node = DEV};
+    assert_int_equal(co_sdo_client_start(client, &u.req), 0);
+    assert_true(co_sdo_client_cancel(client, &u.req, 0));
+    settle(fx);
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, 0, 0, 0x1000);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(tu_le_get(u.data, 4), 0x302);   /* not device 5's 0x191 */
+    expect(&fx->a, 0x601, 0, (const uint8_t[]){0xE0, 0, 0, 0, 0, 0, 0, 0});
+    fx_free(fx);
+}
+
 /* co_sdo_client with (network, node): the indication goes first, once per
  * connection; network 0 brings the gateway back to its own OD; a refusal
  * ends the request with the gateway's abort. */
@@ -448,6 +630,9 @@ int main(void)
         cmocka_unit_test(test_back_to_the_gateways_own_server),
         cmocka_unit_test(test_indication_forwarded_to_the_next_gateway),
         cmocka_unit_test(test_client_reaches_a_node_through_the_gateway),
+        cmocka_unit_test(test_relay_beside_the_gateways_own_client),
+        cmocka_unit_test(test_block_download_last_segment_is_no_indication),
+        cmocka_unit_test(test_cancel_during_indication_forgets_the_connection),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -51,6 +51,7 @@ typedef struct fx {
     /* 0x1F22 concise DCFs the managers serve, per node-id (DOMAIN data) */
     uint8_t dcf[128][32];
     uint32_t dcf_len[128];
+    bool dcf_stall;        /* the reader gives nothing and does not end */
 } fx_t;
 
 static void od_add(od_store_t *d, uint16_t index, uint8_t sub, uint8_t object_code, uint8_t type,
@@ -97,6 +98,11 @@ static uint32_t dcf_read(co_od_t *od, const co_od_entry_t *e, uint32_t offset, u
     fx_t *fx = user;
     uint8_t sub = co_od_entry_sub(e);
     uint32_t left = fx->dcf_len[sub] - offset;
+    if (fx->dcf_stall) {
+        *n = 0;
+        *last = false;
+        return 0;
+    }
     *n = left < cap ? left : cap;
     memcpy(buf, fx->dcf[sub] + offset, *n);
     *last = offset + *n == fx->dcf_len[sub];
@@ -589,6 +595,41 @@ static void test_config_request_refused_entry_reports_j(void **state)
     fx_free(fx);
 }
 
+/* A 0x1F22 reader that gives no byte and does not end (an application
+ * bug, a stalled source): the manager must not loop on it forever; the
+ * request ends with J naming 0x1F22:n, nothing is sent to the slave, and
+ * the next request works again. */
+static void test_config_request_stalled_dcf_reader(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    const uint32_t assign[6] = {0, 0, 0x05};
+    station_t *m = fx_manager(fx, 1, CO_MANAGER_STARTUP_MANAGER, assign, NULL);
+    assert_int_equal(co_stack_boot(&m->stack), CO_STACK_OK);
+    (void)fx_slave(fx, 2, 0);
+    const uint8_t dcf2[] = {1, 0, 0, 0, 0x17, 0x10, 0x00, 2, 0, 0, 0, 0xC8, 0x00};
+    memcpy(fx->dcf[2], dcf2, sizeof dcf2);
+    fx->dcf_len[2] = sizeof dcf2;
+    fx->dcf_stall = true;
+    tu_run_until(&fx->tb, 10 * TU_MS);
+    tu_log_clear(&fx->tb);
+    tool_write(fx, 1, 0x1F25, 2, CO_MANAGER_CONFIG_SIGNATURE, 4);
+    tu_step(&fx->tb, fx->tb.now);
+    assert_write_ok(last_answer(fx, 1), 0x1F25, 2);
+    const co_manager_report_t *done = last_event(m, CO_MANAGER_EV_CONFIGURED);
+    assert_non_null(done);
+    assert_int_equal(done->error, CO_BOOT_ERR_J);
+    assert_int_equal(done->boot.index, 0x1F22);
+    assert_int_equal(done->boot.sub, 2);
+    assert_int_equal(done->boot.abort, CO_ABORT_GENERAL);
+    assert_int_equal(count_frames(&fx->tb, 0x602, NULL, 0), 0);
+    fx->dcf_stall = false;
+    tool_write(fx, 1, 0x1F25, 2, CO_MANAGER_CONFIG_SIGNATURE, 4);
+    tu_step(&fx->tb, fx->tb.now);
+    assert_int_equal(last_event(m, CO_MANAGER_EV_CONFIGURED)->error, CO_BOOT_OK);
+    fx_free(fx);
+}
+
 /* ------------------------------------------------------------ flying master */
 
 static void flyma_start(station_t *st, uint8_t priority)
@@ -664,6 +705,7 @@ int main(void)
         cmocka_unit_test(test_request_guarding_refused_on_fd),
         cmocka_unit_test(test_config_request_downloads_the_concise_dcf),
         cmocka_unit_test(test_config_request_refused_entry_reports_j),
+        cmocka_unit_test(test_config_request_stalled_dcf_reader),
         cmocka_unit_test(test_flying_master_runs_only_the_winners_manager),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -3059,6 +3059,50 @@ static void test_bulk_upload_waits_for_tx_room(void **state)
     assert_int_equal(fx->srv.stats.bulk_uploads, 1);
 }
 
+/* An acknowledgement that arrives in the same processing round as the
+ * tx-space indication streams at once and re-arms the idle timeout: the
+ * pending "resume" must not survive it, or the next idle timeout is taken
+ * for a resume and the abort comes a whole timeout late. */
+static void test_bulk_upload_ack_with_tx_space_keeps_the_timeout(void **state)
+{
+    fx_t *fx = *state;
+    uint32_t room = co_line_tx_room(fx->a);
+    uint8_t window = (uint8_t)(room + 2u);
+    co_usdo_session_t *ses = NULL;
+    uint8_t b[8];
+    uint64_t t_ack;
+    uint32_t i;
+    assert_true(room + 2u <= 255u);
+    fx->dom_len = (window + 10u) * 60u;
+    mux(b, ID_S, BUL_REQ, 1, 0x2009, 0);
+    b[6] = window;
+    b[7] = 0;
+    /* the request reaches the server, which streams until its tx queue is full */
+    assert_true(co_line_send(fx->b, 0x600u + C1, b, 8));
+    (void)co_membus_transfer(&fx->tb.bus, NULL, NULL);
+    (void)co_line_process(fx->a, fx->tb.now);
+    for (i = 0; i < NSES; i++)
+        if (fx->ses[i].state == CO_USDO_SESSION_BULK_UPLOAD)
+            ses = &fx->ses[i];
+    assert_non_null(ses);
+    assert_true(ses->tx_wait);
+    /* the acknowledgement of segment 0 travels with the drain of that queue */
+    b[1] = BUL_ACK;
+    b[2] = 1;
+    b[3] = 0;
+    assert_true(co_line_send(fx->b, 0x600u + C1, b, 4));
+    tu_step(&fx->tb, fx->tb.now);
+    t_ack = fx->tb.now;
+    assert_false(ses->tx_wait);
+    assert_int_equal(ses->sent - ses->acked, window);   /* stopped by the window */
+    /* the client goes silent: the abort comes one timeout after its last frame */
+    tu_run_until(&fx->tb, t_ack + MS(999));
+    assert_int_equal(fx->srv.stats.timeouts, 0);
+    tu_run_until(&fx->tb, t_ack + MS(1000));
+    assert_int_equal(fx->srv.stats.timeouts, 1);
+    assert_int_equal(co_usdo_server_active(&fx->srv), 0);
+}
+
 /* A split before_read: the 0x36 and the stream start with the
  * application's answer. */
 static void test_bulk_upload_split(void **state)
@@ -3251,6 +3295,7 @@ static void test_random_garbage_never_wedges(void **state)
         T(test_bulk_upload_refusals), \
         T(test_bulk_upload_aborts), \
         T(test_bulk_upload_waits_for_tx_room), \
+        T(test_bulk_upload_ack_with_tx_space_keeps_the_timeout), \
         T(test_bulk_upload_split), \
         T(test_short_segments_accepted_and_counted),
 

@@ -20,6 +20,7 @@ ACTIONS = {
     "services": ["nmt", "nmt_master", "emcy", "time", "watch", "watch", "odw", "odput", "store"],
     "stack": ["start", "cancel", "split", "resume", "nmt", "nmt_master", "odw", "odput",
               "trigger", "emcy", "time", "watch", "store", "led"],
+    "gateway": ["switch", "tool", "own", "route", "timeout"],
 }
 # Frame CAN-ID tables (index = p of a FRAME record), as in fuzz_*.c.
 IDS = {
@@ -32,6 +33,7 @@ IDS = {
                  0x0FF],
     "stack": [0x000, 0x080, 0x100, 0x085, 0x185, 0x205, 0x305, 0x585, 0x605, 0x609, 0x705,
               0x703, 0x6A5, 0x081],
+    "gateway": [0x601, 0x585, 0x589, 0x605, 0x609, 0x581, 0x600, 0x67F],
 }
 # Client targets (fuzz_world.c targets[]) and configuration keys (config_keys[]).
 T = {"id": 0, "devtype": 1, "hb": 2, "u8": 3, "u16": 4, "u32": 5, "i64": 6, "lim": 7,
@@ -346,6 +348,49 @@ def concise_dcf_seeds():
     }
 
 
+def gateway_seeds():
+    """SDO networking through the gateway (fuzz_gateway.c): raw indications
+    and relayed transfers, a route via node 9 answered by hand, the tool's
+    routed requests, the gateway's own client beside the relay, timeouts."""
+    def S():
+        return Seq("gateway")
+    ind = lambda net, node: [0xE0, net, 0, node, 0, 0, 0, 0]
+    up = [0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0]
+    up_ok = [0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12]
+    seeds = {}
+    seeds["attached-relay"] = (S().frame(0x601, ind(3, 5)).process().frame(0x601, up).time(5)
+                               .frame(0x601, [0x23, 0x00, 0x20, 0x00, 1, 2, 3, 4]).time(5)
+                               .frame(0x601, [0x80, 0x00, 0x20, 0x00, 0, 0, 0, 5]).time(5)
+                               .frame(0x601, ind(0, 0)).time(5))
+    seeds["via-next-gateway"] = (S().frame(0x601, ind(7, 5)).process()
+                                 .frame(0x589, ind(7, 5), other=True).process()
+                                 .frame(0x601, up).process()
+                                 .frame(0x589, up_ok, other=True).time(5)
+                                 .frame(0x601, up).time(450))
+    seeds["via-refused"] = (S().frame(0x601, ind(7, 5)).process()
+                            .frame(0x589, [0x80, 7, 0, 5, 0x23, 0, 0x0A, 6], other=True).time(5)
+                            .frame(0x601, ind(7, 5)).time(450))
+    seeds["both-clients"] = (S().frame(0x601, ind(3, 5)).act("switch").frame(0x601, ind(3, 5))
+                             .frame(0x601, ind(1, 9)).act("switch").frame(0x601, up).time(5)
+                             .act("switch").frame(0x601, ind(2, 7)).time(5))
+    seeds["tool-routed"] = (S().act("tool", 3, 5, 0x40).time(20).act("tool", 3, 5, 0x41).time(20)
+                            .act("tool", 0, 0, 0x00).time(20).act("tool", 9, 5, 0x40).time(20)
+                            .act("tool", 7, 5, 0x46).process()
+                            .frame(0x589, ind(7, 5), other=True).time(450))
+    seeds["own-client-beside"] = (S().act("own", 5, 0x00).frame(0x601, ind(3, 5)).time(5)
+                                  .act("own", 5, 0x04).frame(0x601, up).time(5)
+                                  .act("own", 9, 0x00).time(400))
+    seeds["routes-timeout"] = (S().act("route", 8, 3, 9).act("route", 9, 8, 9)
+                               .act("route", 8, 9, 9).act("timeout", 10, 0)
+                               .frame(0x601, ind(9, 5)).time(20).frame(0x601, ind(8, 5))
+                               .time(20).settle())
+    seeds["garbage"] = (S().frame(0x601, [0xE0, 3, 0, 5], length=4)
+                        .frame(0x601, [0xE0, 0xFF, 0xFF, 200, 0, 0, 0, 0])
+                        .frame(0x601, [0xFF] * 8).frame(0x605, up, raw_flags=0x04)
+                        .frame(0x601, up, raw_flags=0x02, length=8).time(5))
+    return seeds
+
+
 def main():
     for h in ("usdo_server", "sdo_server"):
         write(h, {k: v.b for k, v in server_seeds(h, h.startswith("sdo")).items()})
@@ -356,6 +401,7 @@ def main():
     write("stack", {k: v.b for k, v in stack_seeds().items()})
     write("store", store_seeds())
     write("concise_dcf", concise_dcf_seeds())
+    write("gateway", {k: v.b for k, v in gateway_seeds().items()})
 
 
 if __name__ == "__main__":

@@ -106,6 +106,9 @@ typedef struct co_gateway_sdo {
     uint8_t node;
     uint8_t state;                   /* co_gateway_sdo_state in co_gateway_sdo.c */
     uint8_t mux[3];                  /* bytes 1..3 of the last relayed request */
+    bool block_down;                 /* a relayed block download runs: the client's
+                                        segments (0x80 | seqno may be 0xE0..0xFF)
+                                        are no network indications */
     co_timer_t timer;
 } co_gateway_sdo_t;
 

@@ -251,8 +251,16 @@ typedef struct co_sdo_client_stats {
     uint32_t config_refused;        /* COB-IDs that cannot be used (29-bit, taken, restricted) */
 } co_sdo_client_stats_t;
 
+/* Sees the frames of 0x581..0x5FF no channel with a transfer takes; true =
+ * taken (not counted idle). The gateway's SDO networking relays answers of
+ * nodes this client is not talking to through it. */
+typedef bool (*co_sdo_client_idle_fn)(co_sdo_client_t *client, const co_frame_t *frame,
+                                      void *user);
+
 struct co_sdo_client {
     co_line_t *line;                /* NULL when not initialised */
+    co_sdo_client_idle_fn idle_tap; /* NULL: none */
+    void *idle_user;
     co_od_t *od;                    /* NULL: no OD-bound channels */
     co_sdo_client_channel_t *channels;
     uint8_t channel_count;
@@ -262,7 +270,8 @@ struct co_sdo_client {
     uint64_t timeout_us;
     uint32_t block_threshold;
     /* SDO networking: per server node-id, the connection its gateway holds
-     * for us (network | node << 8; 0 = its own OD, or not known) */
+     * for us (network | node << 8; 0 = its own OD; 0xFFFF = not known: an
+     * indication ended unanswered, the next request sends one) */
     uint16_t routed[128];
     co_sdo_client_stats_t stats;
 };
@@ -320,6 +329,15 @@ uint32_t co_sdo_client_start(co_sdo_client_t *c, co_sdo_request_t *req);
 bool co_sdo_client_cancel(co_sdo_client_t *c, co_sdo_request_t *req, uint32_t code);
 /* Channels with a transfer. */
 uint8_t co_sdo_client_active(const co_sdo_client_t *c);
+/* Set the one idle-frame tap (fn NULL: clear). */
+void co_sdo_client_set_idle_tap(co_sdo_client_t *c, co_sdo_client_idle_fn fn, void *user);
+/* Clear the tap only when it is fn with user (another user's stays). */
+void co_sdo_client_clear_idle_tap(co_sdo_client_t *c, co_sdo_client_idle_fn fn, void *user);
+/* Whether CAN-ID `id` reaches this client's 0x581..0x5FF receiver (so its
+ * idle tap sees it when no transfer uses it). */
+bool co_sdo_client_holds(const co_sdo_client_t *c, uint32_t id);
+/* Whether a channel with a transfer receives on CAN-ID `id`. */
+bool co_sdo_client_receives(const co_sdo_client_t *c, uint32_t id);
 bool co_sdo_client_running(const co_sdo_client_t *c, const co_sdo_request_t *req);
 /* The mode AUTO resolves to for a download of `size` bytes with this block
  * threshold (0 = the default): 1..4 bytes expedited, from the threshold on
