@@ -179,10 +179,12 @@ static bool on_remote(co_usdo_server_t *server, uint8_t client, co_usdo_decode_r
         /* segmented / bulk routed transfers are not forwarded */
         return refuse(gw, from, client, m, CO_USDO_ABORT_COMMAND);
     }
-    if (m->src_net != from->network_id || m->src_node != client) {
+    /* source network 0: a client that does not know its network-id (the
+     * answer echoes the 0); another network than this port's is refused */
+    if ((m->src_net != 0 && m->src_net != from->network_id) || m->src_node != client) {
         return refuse(gw, from, client, m,
-                      m->src_net != from->network_id ? CO_USDO_ABORT_SOURCE_NETWORK
-                                                     : CO_USDO_ABORT_SOURCE_NODE);
+                      m->src_node == client ? CO_USDO_ABORT_SOURCE_NETWORK
+                                            : CO_USDO_ABORT_SOURCE_NODE);
     }
     if (m->dst_node < 1 || m->dst_node > 127) {
         return refuse(gw, from, client, m, CO_USDO_ABORT_DEST_NODE);
