@@ -6,8 +6,10 @@
  * gateway's USDO client; the answer goes back routed. Every frame is
  * checked byte for byte on both buses: expedited download and upload, an
  * abort of the target, the client's abort, a silent target, an unknown
- * network, a busy gateway client, a wrong source network, a segmented
- * request (refused), and the route through a next gateway. */
+ * network, a busy gateway client, a wrong source network, a bulk request
+ * (refused), the route through a next gateway; a segmented download and
+ * upload of 130 bytes (collected whole, then sent on), a client silent in
+ * the middle of one. */
 #include "test_od_util.h"
 
 #include "canopenfd/co_gateway.h"
@@ -30,6 +32,9 @@ static const tu_od_row_t device_rows[] = {
     {0x1017, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
     {0x2000, 0, VAR, U32, RW, 0, 4, 0x12345678, NULL, 0, 0},
     {0x2001, 0, VAR, VS, RO, 0, 14, 0, "hello gateway!", 0, 0},
+    {0x2002, 0, VAR, VS, RW, 0, 130, 0,
+     "................................................................."
+     ".................................................................", 0, 0},
 };
 
 #define ROWS(r) (sizeof(r) / sizeof((r)[0]))
@@ -378,8 +383,8 @@ static void test_refusals(void **state)
     static const uint8_t a3[11] = {CLIENT, 0xFF, 0x22, NET_A, CLIENT, NET_A, 3, 0x00, 0x00, 0x20,
                                    0x19};
     expect(&fx->a, 0x580 + GW, 2, a3, 11);
-    /* a routed segmented download: not forwarded, 0x13 */
-    static const uint8_t seg[16] = {GW, 0x82, 0x23, NET_B, DEV, NET_A, CLIENT, 0x00, 0x00, 0x20,
+    /* a routed bulk download: not forwarded, 0x13 */
+    static const uint8_t seg[16] = {GW, 0x86, 0x23, NET_B, DEV, NET_A, CLIENT, 0x00, 0x00, 0x20,
                                     0x0F, 0x00, 100, 0, 0, 0};
     client_sends(fx, seg, 16);
     static const uint8_t a4[11] = {CLIENT, 0xFF, 0x23, NET_A, CLIENT, NET_B, DEV, 0x00, 0x00,
@@ -442,6 +447,93 @@ static void test_without_gateway_still_0x13(void **state)
     expect(&fx->b, 0x580 + DEV, 0, a, 7);
 }
 
+static void test_segmented_download_and_upload_forwarded(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t value[130];
+    for (size_t i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)('A' + i % 26);
+    }
+    /* the client's segmented download: initiate (size 130), 60 + 60 + 10 */
+    static const uint8_t init[16] = {GW, 0x82, 0x60, NET_B, DEV, NET_A, CLIENT, 0x00,
+                                     0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    client_sends(fx, init, 16);
+    static const uint8_t init_rsp[10] = {CLIENT, 0xA2, 0x60, NET_A, CLIENT, NET_B, DEV,
+                                         0x00, 0x02, 0x20};
+    expect(&fx->a, 0x580 + GW, 0, init_rsp, 10);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 0);   /* collected first */
+    for (uint8_t k = 0; k < 2; k++) {
+        uint8_t seg[64] = {GW, 0x83, 0x60, k};
+        memcpy(seg + 4, value + 60 * k, 60);
+        client_sends(fx, seg, 64);
+        uint8_t ack[4] = {CLIENT, 0xA3, 0x60, k};
+        expect(&fx->a, 0x580 + GW, 1 + k, ack, 4);
+    }
+    uint8_t last[14] = {GW, 0x84, 0x60, 10};
+    memcpy(last + 4, value + 120, 10);
+    client_sends(fx, last, 14);
+    /* on B: a local segmented download of the whole value */
+    uint8_t sid = logged(&fx->b, 0x600 + GW, 0)[2];
+    uint8_t b_init[12] = {DEV, 0x02, sid, 0x00, 0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    expect(&fx->b, 0x600 + GW, 0, b_init, 12);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 4);   /* init, 2 segments, last */
+    static const uint8_t end[3] = {CLIENT, 0xA4, 0x60};
+    expect(&fx->a, 0x580 + GW, 3, end, 3);
+    uint8_t held[130];
+    uint32_t got = 0;
+    assert_int_equal(co_od_get(&fx->dev.od, 0x2002, 0, held, sizeof held, &got), 0);
+    assert_int_equal(got, 130);
+    assert_memory_equal(held, value, 130);
+    tu_log_clear(&fx->a);
+
+    /* the upload: fetched whole, then served in segments the client asks */
+    static const uint8_t up[10] = {GW, 0x91, 0x61, NET_B, DEV, NET_A, CLIENT, 0x00, 0x02, 0x20};
+    client_sends(fx, up, 10);
+    static const uint8_t up_init[16] = {CLIENT, 0xB2, 0x61, NET_A, CLIENT, NET_B, DEV, 0x00,
+                                        0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    expect(&fx->a, 0x580 + GW, 0, up_init, 16);
+    for (uint8_t k = 0; k < 3; k++) {
+        uint8_t ask[4] = {GW, 0x93, 0x61, k};
+        client_sends(fx, ask, 4);
+        if (k < 2) {
+            uint8_t seg[64] = {CLIENT, 0xB3, 0x61, k};
+            memcpy(seg + 4, value + 60 * k, 60);
+            expect(&fx->a, 0x580 + GW, 1 + k, seg, 64);
+        } else {
+            uint8_t fin[14] = {CLIENT, 0xB4, 0x61, 10};
+            memcpy(fin + 4, value + 120, 10);
+            expect(&fx->a, 0x580 + GW, 3, fin, 14);
+        }
+    }
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_answered, 2);
+    /* the relay is free: a further segment request is stray */
+    uint8_t again[4] = {GW, 0x93, 0x61, 3};
+    client_sends(fx, again, 4);
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_stray, 1);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 4);
+}
+
+static void test_client_silent_in_a_segmented_download(void **state)
+{
+    fx_t *fx = *state;
+    static const uint8_t init[16] = {GW, 0x82, 0x62, NET_B, DEV, NET_A, CLIENT, 0x00,
+                                     0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    client_sends(fx, init, 16);
+    advance(fx, fx->a.now + (TIMEOUT_MS + 5) * 1000u);
+    static const uint8_t abort_a[11] = {CLIENT, 0xFF, 0x62, NET_A, CLIENT, NET_B, DEV,
+                                        0x00, 0x02, 0x20, 0x12};
+    expect(&fx->a, 0x580 + GW, 1, abort_a, 11);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 0);
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_timeouts, 1);
+    /* a value above CO_GATEWAY_USDO_VALUE_MAX: 0x16 at once */
+    static const uint8_t big[16] = {GW, 0x82, 0x63, NET_B, DEV, NET_A, CLIENT, 0x00,
+                                    0x02, 0x20, 0x09, 0x00, 0x01, 0x04, 0, 0};
+    client_sends(fx, big, 16);
+    static const uint8_t abort_big[11] = {CLIENT, 0xFF, 0x63, NET_A, CLIENT, NET_B, DEV,
+                                          0x00, 0x02, 0x20, 0x16};
+    expect(&fx->a, 0x580 + GW, 2, abort_big, 11);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -456,6 +548,10 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_busy_gateway_client, setup, teardown),
         cmocka_unit_test_setup_teardown(test_through_the_next_gateway, setup, teardown),
         cmocka_unit_test_setup_teardown(test_without_gateway_still_0x13, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_segmented_download_and_upload_forwarded, setup,
+                                        teardown),
+        cmocka_unit_test_setup_teardown(test_client_silent_in_a_segmented_download, setup,
+                                        teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -23,10 +23,11 @@
  *     indication (0xE0, network LE16, node) on a classic port's SDO server
  *     connects it to a node of another network; its frames then go to that
  *     node (or the next gateway) and the answers back, unchanged;
- *   - forwards remote USDO (co_gateway_usdo.c): a routed request (cs 0x81 /
- *     0x91, CiA 1301) to its node on an fd port is carried out with the
- *     target line's USDO client (store and forward) and answered with the
- *     routed response (0xA1 / 0xB1) or a routed abort (0xFF).
+ *   - forwards remote USDO (co_gateway_usdo.c): a routed request (cs | 0x80,
+ *     CiA 1301; expedited or segmented, values up to
+ *     CO_GATEWAY_USDO_VALUE_MAX bytes) to its node on an fd port is carried
+ *     out with the target line's USDO client (store and forward) and
+ *     answered with the routed response or a routed abort (0xFF).
  *
  * Layouts of 0x1F2C / 0x1F2F and their evidence: docs/protocol-notes.md
  * "Gateway". No global state, no allocation: the caller owns co_gateway_t. */
@@ -48,7 +49,8 @@ enum {
      * CO_STACK_OD_SUBSCRIPTIONS (mapping checks, 0x1F2C) */
     CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
     CO_GATEWAY_SDO_TIMEOUT_MS = 1000, /* default wait for the target's answer */
-    CO_GATEWAY_USDO_RELAYS = 4       /* remote USDO requests forwarded at once */
+    CO_GATEWAY_USDO_RELAYS = 4,      /* remote USDO requests forwarded at once */
+    CO_GATEWAY_USDO_VALUE_MAX = 1024 /* largest value a remote USDO request moves (0x16 above) */
 };
 
 /* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
@@ -83,6 +85,7 @@ typedef struct co_gateway_stats {
     uint32_t usdo_client_aborts; /* a client's routed abort: the forwarded request cancelled */
     uint32_t usdo_stray;         /* routed aborts / frames for no forwarded request */
     uint32_t usdo_tx_failed;     /* an answer the client's line refused (tx queue full) */
+    uint32_t usdo_timeouts;      /* a client stopped in the middle of a segmented transfer */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -131,9 +134,15 @@ typedef struct co_gateway_usdo {
     uint8_t src_net;                 /* the client's network (from its request) */
     uint8_t net;                     /* the target it asked for */
     uint8_t node;
+    uint8_t state;                   /* co_gateway_usdo_state in co_gateway_usdo.c */
+    uint8_t counter;                 /* segmented with the client: next counter */
+    uint8_t type;                    /* the value's data type byte */
+    uint32_t size;                   /* the value's size (download: announced) */
+    uint32_t offset;                 /* segmented with the client: bytes moved */
+    co_timer_t timer;                /* segmented with the client: its silence */
     co_usdo_request_t req;           /* on `to`'s USDO client */
     co_buffer_t buf;
-    uint8_t data[CO_USDO_REMOTE_EXPEDITED_MAX];
+    uint8_t data[CO_GATEWAY_USDO_VALUE_MAX];
 } co_gateway_usdo_t;
 
 typedef void (*co_gateway_event_fn)(co_gateway_t *gw, co_gateway_event_t event, uint8_t net,
