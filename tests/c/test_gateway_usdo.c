@@ -56,6 +56,9 @@ typedef struct fx {
     tu_line_t client;   /* raw frames on network 1 */
     tu_line_t peer;     /* raw frames on network 2: node 9 */
     co_gateway_t gw;
+    co_stack_t tool;    /* a USDO client (node 7) on the client's line */
+    co_stack_arena_t tool_arena;
+    unsigned char tool_memory[32 * 1024];
 } fx_t;
 
 static void node_init(tu_bus_t *tb, node_t *n, uint8_t node_id, const tu_od_row_t *rows,
@@ -136,6 +139,9 @@ static int teardown(void **state)
 {
     fx_t *fx = *state;
     co_gateway_deinit(&fx->gw);
+    if (co_stack_line(&fx->tool) != NULL) {
+        co_stack_deinit(&fx->tool);
+    }
     co_stack_deinit(&fx->gw_a.stack);
     co_stack_deinit(&fx->gw_b.stack);
     co_stack_deinit(&fx->dev.stack);
@@ -534,6 +540,109 @@ static void test_client_silent_in_a_segmented_download(void **state)
     expect(&fx->a, 0x580 + GW, 2, abort_big, 11);
 }
 
+typedef struct routed {
+    co_usdo_request_t req;
+    co_buffer_t buf;
+    uint8_t data[200];
+    bool done;
+} routed_t;
+
+static void routed_done(co_usdo_request_t *req)
+{
+    ((routed_t *)req->user)->done = true;
+}
+
+/* One request of the co_usdo_client on line A to (network, node) through
+ * the gateway, run to its end. */
+static void routed_run(fx_t *fx, routed_t *u, bool upload, uint8_t network, uint16_t index,
+                       const uint8_t *value, uint32_t size, uint8_t mode)
+{
+    memset(u, 0, sizeof *u);
+    u->buf.data = u->data;
+    u->buf.capacity = sizeof u->data;
+    if (!upload) {
+        memcpy(u->data, value, size);
+        u->buf.size = size;
+    }
+    u->req = (co_usdo_request_t){.server = GW, .index = index, .upload = upload,
+                                 .mode = mode, .type = index == 0x2000 ? 0x07 : 0x09,
+                                 .size = upload ? 0 : size,
+                                 .source = upload ? NULL : co_usdo_buffer_source,
+                                 .sink = upload ? co_usdo_buffer_sink : NULL,
+                                 .ctx = &u->buf, .done = routed_done, .user = u,
+                                 .network = network, .network_node = DEV,
+                                 .source_network = NET_A};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_usdo_client_start(co_stack_usdo_client(&fx->tool), &u->req), 0);
+    advance(fx, fx->a.now + 20 * TU_MS);
+    assert_true(u->done);
+}
+
+/* co_usdo_client with (network, network_node, source_network): routed
+ * frames out, routed answers taken, segmented both ways. */
+static void test_usdo_client_through_the_gateway(void **state)
+{
+    fx_t *fx = *state;
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .node_id = CLIENT, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    uint8_t value[130];
+    for (size_t i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)('a' + i % 26);
+    }
+    routed_t u;
+    routed_run(fx, &u, false, NET_B, 0x2002, value, 130, CO_USDO_MODE_AUTO);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(u.req.result_mode, CO_USDO_MODE_SEGMENTED);   /* above 52 bytes */
+    uint8_t sid = logged(&fx->a, 0x600 + CLIENT, 0)[2];
+    uint8_t init[16] = {GW, 0x82, sid, NET_B, DEV, NET_A, CLIENT, 0x00, 0x02, 0x20, 0x09, 0x00,
+                        130, 0, 0, 0};
+    expect(&fx->a, 0x600 + CLIENT, 0, init, 16);
+    uint8_t seg0[64] = {GW, 0x83, sid, 0};
+    memcpy(seg0 + 4, value, 60);
+    expect(&fx->a, 0x600 + CLIENT, 1, seg0, 64);
+    uint8_t held[130];
+    uint32_t got = 0;
+    assert_int_equal(co_od_get(&fx->dev.od, 0x2002, 0, held, sizeof held, &got), 0);
+    assert_memory_equal(held, value, 130);
+    /* read back: segmented from the gateway */
+    routed_run(fx, &u, true, NET_B, 0x2002, NULL, 0, CO_USDO_MODE_AUTO);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(u.buf.size, 130);
+    assert_memory_equal(u.data, value, 130);
+    /* expedited both ways: 4 bytes */
+    static const uint8_t four[4] = {1, 2, 3, 4};
+    routed_run(fx, &u, false, NET_B, 0x2000, four, 4, CO_USDO_MODE_AUTO);
+    assert_int_equal(u.req.abort, 0);
+    assert_int_equal(u.req.result_mode, CO_USDO_MODE_EXPEDITED);
+    routed_run(fx, &u, true, NET_B, 0x2000, NULL, 0, CO_USDO_MODE_AUTO);
+    assert_int_equal(u.req.abort, 0);
+    assert_memory_equal(u.data, four, 4);
+    /* a network no route reaches: the gateway's routed abort */
+    routed_run(fx, &u, true, 9, 0x2000, NULL, 0, CO_USDO_MODE_AUTO);
+    assert_int_equal(u.req.abort, CO_USDO_ABORT_DEST_NETWORK);
+    assert_true(u.req.abort_from_server);
+    /* refused at the start: bulk, no gateway, expedited above 52 bytes */
+    u.req.mode = CO_USDO_MODE_BULK;
+    u.req.upload = false;
+    u.req.size = 100;
+    u.req.source = co_usdo_buffer_source;
+    u.req.network = NET_B;
+    assert_int_equal(co_usdo_client_start(co_stack_usdo_client(&fx->tool), &u.req),
+                     CO_USDO_ABORT_UNKNOWN);
+    u.req.mode = CO_USDO_MODE_EXPEDITED;
+    u.req.size = 53;
+    assert_int_equal(co_usdo_client_start(co_stack_usdo_client(&fx->tool), &u.req),
+                     CO_USDO_ABORT_DLC);
+    u.req.size = 4;
+    u.req.server = 0;
+    assert_int_equal(co_usdo_client_start(co_stack_usdo_client(&fx->tool), &u.req),
+                     CO_USDO_ABORT_UNKNOWN);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -552,6 +661,7 @@ int main(void)
                                         teardown),
         cmocka_unit_test_setup_teardown(test_client_silent_in_a_segmented_download, setup,
                                         teardown),
+        cmocka_unit_test_setup_teardown(test_usdo_client_through_the_gateway, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
