@@ -252,3 +252,33 @@ def test_remote_usdo_reaches_a_node_of_another_fd_network(net):
     assert refused.value.from_server
     with pytest.raises(UsdoAbortError, match="0x34|0x33"):
         device.upload(0x1017, 0x77)
+
+
+def test_remote_usdo_segmented_both_ways(net):
+    """A 300-byte value through the gateway: the client's routed segmented
+    download (0x82, then 0x83 / 0x84 without the extension) is collected by
+    the gateway and sent on; the upload comes back routed and segmented
+    (0xB2, 0xB3 ..., 0xB4)."""
+    n = next(_buses)
+    a, b = f"mem:routing-usdo-seg-a-{n}", f"mem:routing-usdo-seg-b-{n}"
+    for bus, network_id in ((a, 1), (b, 2)):
+        gateway = net.open_line(bus, mode="fd")
+        gateway.create_local_node(GW, od=demo_od("fd"))
+        gateway.network_id = network_id
+    target = net.open_line(b, mode="fd").create_local_node(5, od=demo_od("fd"))
+    seen_a = Recorder()
+    net.open_line(a, mode="fd", monitor=True).on_frame(seen_a)
+    client = net.open_line(a, mode="fd")
+    value = bytes(range(256)) + bytes(44)
+    device = client.usdo.remote(network=2, node=5, gateway=GW)
+    device.download(0x200F, 0, value)
+    assert target[0x200F].raw == value
+    assert device.upload(0x200F) == value
+
+    def both(calls):
+        found = {(f.id, f.data[1]) for f in calls if f.id in (0x67F, 0x580 + GW)}
+        return found if (0x581, 0xB4) in found else None
+    commands = seen_a.wait_for(both, 5.0, "the routed frames")
+    assert {(0x67F, 0x82), (0x67F, 0x83), (0x67F, 0x84), (0x67F, 0x91), (0x67F, 0x93)} <= commands
+    assert {(0x581, 0xA2), (0x581, 0xA3), (0x581, 0xA4), (0x581, 0xB2), (0x581, 0xB3)} <= commands
+    assert net.routing.stats["usdo_answered"] == 2
