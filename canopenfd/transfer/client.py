@@ -476,8 +476,9 @@ class TransferClient:
         CiA 302-7 style (a network indication, then the gateway relays every
         frame). USDO (fd lines): remote USDO, CiA 1301 (each request carries
         the target network and node; the gateway carries it out and answers;
-        expedited only: values up to 52 bytes, the line needs its
-        network_id). Its upload/download work as this client's."""
+        values up to 52 bytes expedited, larger ones segmented, bulk not
+        routed; the source network is this line's network_id, 0 when
+        unset). Its upload/download work as this client's."""
         what = f"{self.PROTOCOL} remote(network={network!r}, node={node!r})"
         for name, value in (("network", network), ("node", node), ("gateway", gateway)):
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 127:
