@@ -282,3 +282,5 @@ def test_remote_usdo_segmented_both_ways(net):
     assert {(0x67F, 0x82), (0x67F, 0x83), (0x67F, 0x84), (0x67F, 0x91), (0x67F, 0x93)} <= commands
     assert {(0x581, 0xA2), (0x581, 0xA3), (0x581, 0xA4), (0x581, 0xB2), (0x581, 0xB3)} <= commands
     assert net.routing.stats["usdo_answered"] == 2
+    with pytest.raises(ConfigurationError, match="bulk transfers are not routed"):
+        device.download(0x200F, 0, value, mode="bulk")

@@ -338,6 +338,11 @@ static int check_request(co_rt_t *rt, const rt_line_t *l, const co_rt_transfer_r
                                  "node %u)", l->index, q->server, (unsigned)q->network,
                                  (unsigned)q->network_node);
     }
+    if (q->network != 0 && fd && q->mode == CO_USDO_MODE_BULK) {
+        return rt_argument_error(rt, "line %d: node %u of network %u: bulk transfers are not "
+                                 "routed (remote USDO is expedited or segmented)", l->index,
+                                 (unsigned)q->network_node, (unsigned)q->network);
+    }
     return CO_RT_OK;
 }
 
