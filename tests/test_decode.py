@@ -236,7 +236,9 @@ def test_usdo_frames(frame, text):
     (usdo(0x605, 3, 0x01, pad=False), "USDO 5 malformed: 2 bytes, expected at least 3 (03 01)"),
     (usdo(0x605, 3, 0x55, 7), "USDO 5->3 sid 7 unknown command 0x55"),
     (usdo(0x605, 3, 0x05, 7, 0, 0, 0x20), "USDO 5->3 sid 7 unknown command 0x05"),  # multi sub
-    (usdo(0x583, 5, 0xFF, 7, 0, 0, 0x20, 0x10), "USDO 3->5 sid 7 unknown command 0xFF"),
+    # a routed abort (0x7F | 0x80) too short for its extension and mux
+    (usdo(0x583, 5, 0xFF, 7, 0, 0, 0x20, 0x10),
+     "USDO 3->5 sid 7 routed 32:16->0:0 ABORT malformed: 3 bytes, expected 7"),
     (usdo(0x605, 3, 0x01, 7, 0x01, 0x00, pad=False),
      "USDO 5->3 sid 7 download expedited malformed: 5 bytes, expected 8 or more"),
     (usdo(0x605, 3, 0x01, 7, 0x01, 0x00, 0x20, pad=False),          # mux there, no type/N
@@ -348,7 +350,7 @@ def test_usdo_tables_match_the_c_codec():
 
     commands = _c_enum("CO_USDO_CS_")
     assert commands, "no command specifiers found in co_usdo.h"
-    unsupported = {commands.pop("REMOTE_ABORT")}       # remote USDO: no layout in the codec
+    unsupported = {commands.pop("REMOTE_ABORT")}       # remote: 0x7F | 0x80, decoded as 0x7F
     assert set(USDO_COMMANDS) == set(commands.values())
     assert not unsupported & set(USDO_COMMANDS)
 
@@ -404,8 +406,8 @@ if hypothesis is not None:
         assert isinstance(text, str) and isinstance(line, str) and "\n" not in text
         if fd_frame:
             assert text.startswith("USDO ")
-            if len(data) >= 3 and data[1] not in USDO_COMMANDS:
-                assert f"unknown command 0x{data[1]:02X}" in text
+            if len(data) >= 3 and data[1] & 0x7F not in USDO_COMMANDS:
+                assert f"unknown command 0x{data[1]:02X}" in text   # routed: 0x80 set
         else:
             assert text.startswith("SDO ")              # classic: CiA 301 SDO
             if len(data) != 8:
@@ -982,3 +984,24 @@ if hypothesis is not None:
                 assert "block segment #" in text
             assert d.transfer(node) in (None, "block download", "block upload")
             assert isinstance(d.describe(frame), str)
+
+
+def test_usdo_remote_frames_decoded():
+    """Routed USDO frames (layout UNCONFIRMED, docs/protocol-notes.md): the
+    route (source -> destination network:node), then the local frame."""
+    from canopenfd.decode.usdo import usdo_text
+
+    request = bytes([1, 0x81, 0x11, 2, 5, 1, 7, 0x00, 0x00, 0x20, 0x07, 0x04,
+                     0xEF, 0xBE, 0xAD, 0xDE])
+    assert usdo_text(0x607, request) == \
+        "USDO 7->1 sid 17 routed 1:7->2:5 download expedited 0x2000:00 U32 N=4 EF BE AD DE"
+    answer = bytes([7, 0xFF, 0x11, 1, 7, 2, 5, 0x00, 0x00, 0x20, 0x1A, 0])
+    assert usdo_text(0x581, answer).startswith(
+        "USDO 1->7 sid 17 routed 2:5->1:7 ABORT 0x2000:00 0x1A")
+    segment = bytes([1, 0x93, 0x03, 0x09])
+    assert usdo_text(0x607, segment) == "USDO 7->1 sid 3 routed upload segment request #9"
+    assert usdo_text(0x607, bytes([1, 0x91, 3, 2, 5])) == \
+        "USDO 7->1 sid 3 routed upload request malformed: 5 bytes, expected 7 or more"
+    assert usdo_text(0x607, bytes([1, 0x85, 3, 2, 5, 1, 7])) == \
+        "USDO 7->1 sid 3 routed unknown command 0x85"
+

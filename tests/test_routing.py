@@ -13,7 +13,7 @@ import itertools
 
 import pytest
 
-from canopenfd import ConfigurationError, SdoAbortError
+from canopenfd import ConfigurationError, SdoAbortError, UsdoAbortError
 from canopenfd.od import DataType, ODArray, ODVariable, demo_od
 from canopenfd.services.routing import GatewayRouteKind
 from helpers import Recorder
@@ -203,3 +203,84 @@ def test_sdo_networking_reaches_a_node_of_another_network(net):
     assert refused.value.from_server
     with pytest.raises(ConfigurationError, match="network must be 1..127"):
         client.sdo.remote(network=0, node=5, gateway=GW)
+
+
+def test_remote_usdo_reaches_a_node_of_another_fd_network(net):
+    """A USDO client on fd network 1 reads and writes device 5 of fd network
+    2 through the gateway (node 1 on both lines): each request is a routed
+    frame (cs | 0x80, destination network and node, source network and
+    node) the gateway carries out with its own USDO client on network 2."""
+    n = next(_buses)
+    a, b = f"mem:routing-usdo-a-{n}", f"mem:routing-usdo-b-{n}"
+    for bus, network_id in ((a, 1), (b, 2)):
+        gateway = net.open_line(bus, mode="fd")
+        gateway.create_local_node(GW, od=demo_od("fd"))
+        gateway.network_id = network_id
+    target = net.open_line(b, mode="fd").create_local_node(5, od=demo_od("fd"))
+    seen_a, seen_b = Recorder(), Recorder()
+    net.open_line(a, mode="fd", monitor=True).on_frame(seen_a)
+    net.open_line(b, mode="fd", monitor=True).on_frame(seen_b)
+    client = net.open_line(a, mode="fd")
+
+    device = client.usdo.remote(network=2, node=5, gateway=GW)
+    value = int(target[0x1017].raw).to_bytes(2, "little")
+    assert device.upload(0x1017) == value
+    device.download(0x1017, 0, (250).to_bytes(2, "little"))
+    assert target[0x1017].raw == 250
+    # on network 1: the routed upload request, addressed to the gateway;
+    # the client's line has no network-id: source network 0
+    requests = seen_a.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x67F] or None, 5.0, "client requests")
+    first = requests[0].data
+    assert first[0:2] == bytes([GW, 0x91])
+    assert first[3:10] == bytes([2, 5, 0, 0x7F, 0x00, 0x17, 0x10])
+    answers = seen_a.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x580 + GW] or None, 5.0, "answers")
+    assert answers[0].data[0:2] == bytes([0x7F, 0xB1])
+    assert answers[0].data[3:10] == bytes([0, 0x7F, 2, 5, 0x00, 0x17, 0x10])
+    assert answers[0].data[11:14] == bytes([2]) + value
+    # on network 2: a local upload from the gateway's node to device 5
+    forwarded = seen_b.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x600 + GW] or None, 5.0, "forwarded")
+    assert forwarded[0].data[0:2] == bytes([5, 0x11])
+    assert forwarded[0].data[3:6] == bytes([0x00, 0x17, 0x10])
+    stats = net.routing.stats
+    assert stats["usdo_forwarded"] == 2 and stats["usdo_answered"] == 2
+
+    with pytest.raises(UsdoAbortError, match="0x1A") as refused:
+        client.usdo.remote(network=9, node=5, gateway=GW).upload(0x1017)
+    assert refused.value.from_server
+    with pytest.raises(UsdoAbortError, match="0x34|0x33"):
+        device.upload(0x1017, 0x77)
+
+
+def test_remote_usdo_segmented_both_ways(net):
+    """A 300-byte value through the gateway: the client's routed segmented
+    download (0x82, then 0x83 / 0x84 without the extension) is collected by
+    the gateway and sent on; the upload comes back routed and segmented
+    (0xB2, 0xB3 ..., 0xB4)."""
+    n = next(_buses)
+    a, b = f"mem:routing-usdo-seg-a-{n}", f"mem:routing-usdo-seg-b-{n}"
+    for bus, network_id in ((a, 1), (b, 2)):
+        gateway = net.open_line(bus, mode="fd")
+        gateway.create_local_node(GW, od=demo_od("fd"))
+        gateway.network_id = network_id
+    target = net.open_line(b, mode="fd").create_local_node(5, od=demo_od("fd"))
+    seen_a = Recorder()
+    net.open_line(a, mode="fd", monitor=True).on_frame(seen_a)
+    client = net.open_line(a, mode="fd")
+    value = bytes(range(256)) + bytes(44)
+    device = client.usdo.remote(network=2, node=5, gateway=GW)
+    device.download(0x200F, 0, value)
+    assert target[0x200F].raw == value
+    assert device.upload(0x200F) == value
+
+    def both(calls):
+        found = {(f.id, f.data[1]) for f in calls if f.id in (0x67F, 0x580 + GW)}
+        return found if (0x581, 0xB4) in found else None
+    commands = seen_a.wait_for(both, 5.0, "the routed frames")
+    assert {(0x67F, 0x82), (0x67F, 0x83), (0x67F, 0x84), (0x67F, 0x91), (0x67F, 0x93)} <= commands
+    assert {(0x581, 0xA2), (0x581, 0xA3), (0x581, 0xA4), (0x581, 0xB2), (0x581, 0xB3)} <= commands
+    assert net.routing.stats["usdo_answered"] == 2
+    with pytest.raises(ConfigurationError, match="bulk transfers are not routed"):
+        device.download(0x200F, 0, value, mode="bulk")

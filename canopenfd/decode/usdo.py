@@ -104,8 +104,42 @@ def usdo_text(can_id: int, data: bytes) -> str:
     if len(data) < 3:
         return (f"USDO {sender} malformed: {len(data)} bytes, expected at least 3"
                 + (f" ({hex_bytes(data)})" if data else ""))
+    if data[1] & _REMOTE_BIT:
+        return _remote_text(sender, data)
+    return _local_text(sender, data, "")
+
+
+# Remote (routed) USDO, layout UNCONFIRMED (docs/protocol-notes.md "Remote
+# USDO"): cs | 0x80; the frames with a multiplexer carry 4 bytes after the
+# session-ID (destination network, node, source network, node), the local
+# layout follows shifted by 4.
+_REMOTE_BIT = 0x80
+_REMOTE_EXT = 4
+
+
+def _remote_text(sender: int, data: bytes) -> str:
+    """'USDO 7->1 sid 17 routed 1:7->2:5 download expedited 0x2000:00 ...'
+    (source network:node -> destination network:node)."""
+    cs = data[1] & ~_REMOTE_BIT
+    command = USDO_COMMANDS.get(cs)
+    if command is None:
+        dest = "bcast" if data[0] == 0 else str(data[0])
+        return f"USDO {sender}->{dest} sid {data[2]} routed unknown command 0x{data[1]:02X}"
+    if command[1] not in _HAS_MUX:
+        return _local_text(sender, bytes([data[0], cs]) + data[2:], " routed")
+    if len(data) < 3 + _REMOTE_EXT:
+        dest = "bcast" if data[0] == 0 else str(data[0])
+        return (f"USDO {sender}->{dest} sid {data[2]} routed {command[0]} malformed: "
+                f"{len(data)} bytes, expected {3 + _REMOTE_EXT} or more")
+    route = f" routed {data[5]}:{data[6]}->{data[3]}:{data[4]}"
+    return _local_text(sender, bytes([data[0], cs, data[2]]) + data[3 + _REMOTE_EXT:], route)
+
+
+def _local_text(sender: int, data: bytes, routed: str) -> str:
+    """A local frame (routed: the remote frame without its extension; lengths
+    in messages are then those of the local layout)."""
     dest = "bcast" if data[0] == 0 else str(data[0])
-    head = f"USDO {sender}->{dest} sid {data[2]}"
+    head = f"USDO {sender}->{dest} sid {data[2]}{routed}"
     cs = data[1]
     command = USDO_COMMANDS.get(cs)
     if command is None:

@@ -472,13 +472,14 @@ class TransferClient:
 
     def remote(self, network: int, node: int, *, gateway: int) -> "RoutedNode":
         """Node `node` of network `network`, reached through the gateway
-        node `gateway` on this line (SDO networking, CiA 302-7 style: the
-        client sends the gateway a network indication, then the gateway
-        relays every frame). Its upload/download work as this client's."""
+        node `gateway` on this line. SDO (classic lines): SDO networking,
+        CiA 302-7 style (a network indication, then the gateway relays every
+        frame). USDO (fd lines): remote USDO, CiA 1301 (each request carries
+        the target network and node; the gateway carries it out and answers;
+        values up to 52 bytes expedited, larger ones segmented, bulk not
+        routed; the source network is this line's network_id, 0 when
+        unset). Its upload/download work as this client's."""
         what = f"{self.PROTOCOL} remote(network={network!r}, node={node!r})"
-        if self.PROTOCOL != "SDO":
-            raise ConfigurationError(f"{what}: remote USDO (routed requests on fd lines) is "
-                                     "not implemented; SDO networking runs on classic lines")
         for name, value in (("network", network), ("node", node), ("gateway", gateway)):
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 127:
                 raise ConfigurationError(f"{what}: {name} must be 1..127, got {value!r}")

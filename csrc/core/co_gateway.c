@@ -391,6 +391,7 @@ static void unhook(co_gateway_port_t *p)
 {
     co_od_t *od = co_stack_od(p->stack);
     co_gateway_sdo_unhook(p);
+    co_gateway_usdo_unhook(p);
     if (p->od_hooked && od != NULL) {
         co_od_unsubscribe(od, &gateway_handler, p);
     }
@@ -453,6 +454,7 @@ co_gateway_status_t co_gateway_add_port(co_gateway_t *gw, co_stack_t *stack,
     }
     co_emcy_consumer_set_tap(co_stack_emcy_consumer(stack), on_emcy, p);
     co_gateway_sdo_hook(p);
+    co_gateway_usdo_hook(p);
     return CO_GATEWAY_OK;
 }
 

@@ -313,7 +313,7 @@ static co_usdo_decode_result_t decode_bulk_request(const uint8_t *in, size_t len
 
 /* ------------------------------------------------------------ dispatch */
 
-co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_msg_t *out)
+static co_usdo_decode_result_t decode_local(const uint8_t *data, size_t len, co_usdo_msg_t *out)
 {
     memset(out, 0, sizeof *out);
     if (data == NULL || len < HEAD_LEN) {
@@ -364,7 +364,7 @@ co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_
     }
 }
 
-size_t co_usdo_encode(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX])
+static size_t encode_local(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX])
 {
     size_t n;
     memset(out, 0, CO_USDO_FRAME_MAX);
@@ -410,6 +410,89 @@ size_t co_usdo_encode(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX])
         memset(out, 0, CO_USDO_FRAME_MAX);
     }
     return n;
+}
+
+/* ------------------------------------------------------------ remote frames
+ * A remote (routed) frame is the local frame with bit 7 of the command
+ * specifier set; the frames that carry the multiplexer (the first frame of
+ * each direction, and the abort) have the 4-byte addressing extension
+ * inserted after the session-ID, the rest of the local layout follows
+ * shifted by 4. Layout UNCONFIRMED (docs/protocol-notes.md "Remote USDO"). */
+
+enum { P_EXT = 3 };
+
+static bool mux_of_cs(uint8_t cs)
+{
+    return co_usdo_layout_has_mux(co_usdo_layout_of((uint8_t)(cs & ~CO_USDO_REMOTE_BIT)));
+}
+
+co_usdo_decode_result_t co_usdo_decode(const uint8_t *data, size_t len, co_usdo_msg_t *out)
+{
+    uint8_t local[CO_USDO_FRAME_MAX];
+    size_t n;
+    size_t shift;
+    co_usdo_decode_result_t r;
+    if (data == NULL || len < HEAD_LEN || !(data[P_CS] & CO_USDO_REMOTE_BIT)) {
+        return decode_local(data, len, out);
+    }
+    if (len > CO_USDO_FRAME_MAX) {
+        len = CO_USDO_FRAME_MAX;   /* nothing of a USDO frame lies beyond 64 bytes */
+    }
+    shift = mux_of_cs(data[P_CS]) ? CO_USDO_REMOTE_EXT : 0;
+    if (len < HEAD_LEN + shift) {
+        memset(out, 0, sizeof *out);
+        out->dest = data[P_DEST];
+        out->cs = (uint8_t)(data[P_CS] & ~CO_USDO_REMOTE_BIT);
+        out->session = data[P_SESSION];
+        out->remote = true;
+        return CO_USDO_DECODE_SHORT;
+    }
+    /* the local frame: header, then what follows the extension */
+    memcpy(local, data, HEAD_LEN);
+    local[P_CS] = (uint8_t)(data[P_CS] & ~CO_USDO_REMOTE_BIT);
+    n = len - shift;
+    memcpy(local + HEAD_LEN, data + HEAD_LEN + shift, n - HEAD_LEN);
+    r = decode_local(local, n, out);
+    if (out->data != NULL) {
+        out->data = data + (out->data - local) + shift;   /* into the caller's buffer */
+    }
+    out->remote = true;
+    if (shift != 0) {
+        out->dst_net = data[P_EXT];
+        out->dst_node = data[P_EXT + 1];
+        out->src_net = data[P_EXT + 2];
+        out->src_node = data[P_EXT + 3];
+    }
+    return r;
+}
+
+size_t co_usdo_encode(const co_usdo_msg_t *msg, uint8_t out[CO_USDO_FRAME_MAX])
+{
+    uint8_t local[CO_USDO_FRAME_MAX];
+    co_usdo_msg_t m;
+    size_t n;
+    size_t shift;
+    if (!msg->remote) {
+        return encode_local(msg, out);
+    }
+    m = *msg;
+    m.cs = (uint8_t)(msg->cs & ~CO_USDO_REMOTE_BIT);
+    shift = mux_of_cs(m.cs) ? CO_USDO_REMOTE_EXT : 0;
+    n = encode_local(&m, local);
+    memset(out, 0, CO_USDO_FRAME_MAX);
+    if (n == 0 || n + shift > CO_USDO_FRAME_MAX) {
+        return 0;   /* e.g. an expedited value above 52 bytes */
+    }
+    memcpy(out, local, HEAD_LEN);
+    out[P_CS] = (uint8_t)(m.cs | CO_USDO_REMOTE_BIT);
+    if (shift != 0) {
+        out[P_EXT] = msg->dst_net;
+        out[P_EXT + 1] = msg->dst_node;
+        out[P_EXT + 2] = msg->src_net;
+        out[P_EXT + 3] = msg->src_node;
+    }
+    memcpy(out + HEAD_LEN + shift, local + HEAD_LEN, n - HEAD_LEN);
+    return n + shift;
 }
 
 /* ------------------------------------------------------------ abort codes

@@ -121,6 +121,14 @@ static void session_msg(const co_usdo_client_session_t *ses, uint8_t dest, uint8
     m->session = ses->session_id;
     m->index = ses->req->index;
     m->sub = ses->req->sub;
+    if (ses->req->network != 0) {
+        /* remote: the server (a gateway) forwards it to (network, node) */
+        m->remote = true;
+        m->dst_net = ses->req->network;
+        m->dst_node = ses->req->network_node;
+        m->src_net = ses->req->source_network;
+        m->src_node = ses->client->node_id;
+    }
 }
 
 static void send_abort(co_usdo_client_session_t *ses, uint8_t dest, uint8_t code)
@@ -526,12 +534,28 @@ static bool running(const co_usdo_client_t *c, const co_usdo_request_t *req)
 }
 
 /* Why a request cannot start (0 = it can). */
+/* Remote downloads: AUTO is expedited up to 52 bytes (the extension takes
+ * 4 of the 56), segmented above; bulk is not routed (refused). */
+static co_usdo_mode_t download_mode(const co_usdo_request_t *req)
+{
+    if (req->network != 0 && req->mode == CO_USDO_MODE_AUTO) {
+        return req->size <= CO_USDO_REMOTE_EXPEDITED_MAX ? CO_USDO_MODE_EXPEDITED
+                                                         : CO_USDO_MODE_SEGMENTED;
+    }
+    return co_usdo_client_choose_mode(req->mode, req->size);
+}
+
 static uint8_t check_request(const co_usdo_client_t *c, const co_usdo_request_t *req)
 {
     co_usdo_mode_t mode;
     if (c->line == NULL || req == NULL || req->done == NULL || req->server > NODE_MAX ||
         req->server == c->node_id || running(c, req)) {
         return CO_USDO_ABORT_UNKNOWN;
+    }
+    if (req->network != 0 &&
+        (req->network > NODE_MAX || req->network_node < 1 || req->network_node > NODE_MAX ||
+         req->server == CO_USDO_BROADCAST || req->mode == CO_USDO_MODE_BULK)) {
+        return CO_USDO_ABORT_UNKNOWN;   /* remote: one node through one gateway, no bulk */
     }
     if (req->upload) {
         if (req->mode > CO_USDO_MODE_BULK ||
@@ -545,9 +569,9 @@ static uint8_t check_request(const co_usdo_client_t *c, const co_usdo_request_t 
         (req->size > 0 && req->source == NULL)) {
         return CO_USDO_ABORT_UNKNOWN;
     }
-    mode = co_usdo_client_choose_mode(req->mode, req->size);
+    mode = download_mode(req);
     if ((mode == CO_USDO_MODE_EXPEDITED || req->server == CO_USDO_BROADCAST) &&
-        req->size > CO_USDO_EXPEDITED_MAX) {
+        req->size > (req->network != 0 ? CO_USDO_REMOTE_EXPEDITED_MAX : CO_USDO_EXPEDITED_MAX)) {
         return CO_USDO_ABORT_DLC;
     }
     if (req->server == CO_USDO_BROADCAST && mode != CO_USDO_MODE_EXPEDITED) {
@@ -577,7 +601,10 @@ static uint8_t open_session(co_usdo_client_t *c, co_usdo_request_t *req, const u
         return CO_USDO_ABORT_BUSY;
     }
     mode = req->upload ? co_usdo_client_choose_upload_mode(req->mode, req->size)
-                       : co_usdo_client_choose_mode(req->mode, req->size);
+                       : download_mode(req);
+    if (req->upload && req->network != 0) {
+        mode = CO_USDO_MODE_AUTO;   /* remote: a plain upload (0x91) */
+    }
     if (req->upload && mode == CO_USDO_MODE_BULK &&
         (req->server == CO_USDO_BROADCAST || !bulk_rx_fits(c))) {
         if (req->mode == CO_USDO_MODE_BULK) {
@@ -628,7 +655,7 @@ uint8_t co_usdo_client_start(co_usdo_client_t *c, co_usdo_request_t *req)
     }
     code = check_request(c, req);
     if (code == 0 && !req->upload && req->size > 0 &&
-        co_usdo_client_choose_mode(req->mode, req->size) == CO_USDO_MODE_EXPEDITED) {
+        download_mode(req) == CO_USDO_MODE_EXPEDITED) {
         /* read before anything changes here (the source may call into the
          * client), so a failing source refuses the start and sends nothing */
         if (req->source(req->ctx, 0, data, req->size) != req->size) {
@@ -901,6 +928,16 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
     ses = find(c, node, m.session);
     if (ses == NULL) {
         c->stats.rx_no_session++;
+        return;
+    }
+    if (m.remote != (ses->req->network != 0) ||
+        (m.remote && co_usdo_layout_has_mux(co_usdo_layout_of(m.cs)) &&
+         r != CO_USDO_DECODE_SHORT &&
+         (m.src_net != ses->req->network || m.src_node != ses->req->network_node ||
+          m.dst_node != c->node_id))) {
+        /* a local answer to a routed request (or the reverse), or a routed
+         * answer from another node than the one asked */
+        c->stats.rx_unexpected++;
         return;
     }
     if (ses->state == CO_USDO_CLIENT_BROADCAST) {

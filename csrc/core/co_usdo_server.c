@@ -676,8 +676,18 @@ static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
         s->stats.rx_other_dest++;
         return;
     }
-    if (m.cs == CO_USDO_CS_REMOTE_ABORT) {
-        s->stats.rx_remote_abort++;
+    if (m.remote) {
+        /* routed requests belong to a gateway (co_gateway_usdo.c); without
+         * one there is no routing here: 0x13, as for any unknown command */
+        if (s->remote_fn != NULL && s->remote_fn(s, client, r, &m, s->remote_user)) {
+            return;
+        }
+        if (m.cs == CO_USDO_CS_ABORT) {
+            s->stats.rx_remote_abort++;
+            return;
+        }
+        s->stats.rx_unknown_command++;
+        send_abort(s, client, m.session, 0, 0, CO_USDO_ABORT_COMMAND);
         return;
     }
     co_usdo_session_t *ses = find(s, client, m.session);
@@ -853,4 +863,11 @@ uint8_t co_usdo_server_active(const co_usdo_server_t *server)
         }
     }
     return n;
+}
+
+void co_usdo_server_set_remote_handler(co_usdo_server_t *server, co_usdo_remote_fn fn,
+                                       void *user)
+{
+    server->remote_fn = fn;
+    server->remote_user = user;
 }

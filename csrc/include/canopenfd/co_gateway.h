@@ -22,7 +22,12 @@
  *   - relays SDO networking (co_gateway_sdo.c): a client's network
  *     indication (0xE0, network LE16, node) on a classic port's SDO server
  *     connects it to a node of another network; its frames then go to that
- *     node (or the next gateway) and the answers back, unchanged.
+ *     node (or the next gateway) and the answers back, unchanged;
+ *   - forwards remote USDO (co_gateway_usdo.c): a routed request (cs | 0x80,
+ *     CiA 1301; expedited or segmented, values up to
+ *     CO_GATEWAY_USDO_VALUE_MAX bytes) to its node on an fd port is carried
+ *     out with the target line's USDO client (store and forward) and
+ *     answered with the routed response or a routed abort (0xFF).
  *
  * Layouts of 0x1F2C / 0x1F2F and their evidence: docs/protocol-notes.md
  * "Gateway". No global state, no allocation: the caller owns co_gateway_t. */
@@ -43,7 +48,9 @@ enum {
     /* OD handler subscriptions a joined node's OD needs besides
      * CO_STACK_OD_SUBSCRIPTIONS (mapping checks, 0x1F2C) */
     CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
-    CO_GATEWAY_SDO_TIMEOUT_MS = 1000 /* default wait for the target's answer */
+    CO_GATEWAY_SDO_TIMEOUT_MS = 1000, /* default wait for the target's answer */
+    CO_GATEWAY_USDO_RELAYS = 4,      /* remote USDO requests forwarded at once */
+    CO_GATEWAY_USDO_VALUE_MAX = 1024 /* largest value a remote USDO request moves (0x16 above) */
 };
 
 /* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
@@ -72,6 +79,13 @@ typedef struct co_gateway_stats {
     uint32_t sdo_answers;        /* target answers relayed to a client */
     uint32_t sdo_timeouts;       /* no answer from the target: aborted both ways */
     uint32_t sdo_tx_failed;      /* a relayed frame the line refused (tx queue full) */
+    uint32_t usdo_forwarded;     /* remote USDO requests started on the target line */
+    uint32_t usdo_answered;      /* ... answered to the client (a response or an abort) */
+    uint32_t usdo_refused;       /* remote requests refused at once (routed abort sent) */
+    uint32_t usdo_client_aborts; /* a client's routed abort: the forwarded request cancelled */
+    uint32_t usdo_stray;         /* routed aborts / frames for no forwarded request */
+    uint32_t usdo_tx_failed;     /* an answer the client's line refused (tx queue full) */
+    uint32_t usdo_timeouts;      /* a client stopped in the middle of a segmented transfer */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -112,6 +126,28 @@ typedef struct co_gateway_sdo {
     co_timer_t timer;
 } co_gateway_sdo_t;
 
+/* One remote USDO request being carried out: the client's request on
+ * `from`, the gateway's own request on `to` (store and forward). */
+typedef struct co_gateway_usdo {
+    co_gateway_t *gw;
+    struct co_gateway_port *from;    /* NULL: free */
+    struct co_gateway_port *to;
+    uint8_t client;                  /* client node-id on `from` */
+    uint8_t session;                 /* its session-ID */
+    uint8_t src_net;                 /* the client's network (from its request) */
+    uint8_t net;                     /* the target it asked for */
+    uint8_t node;
+    uint8_t state;                   /* co_gateway_usdo_state in co_gateway_usdo.c */
+    uint8_t counter;                 /* segmented with the client: next counter */
+    uint8_t type;                    /* the value's data type byte */
+    uint32_t size;                   /* the value's size (download: announced) */
+    uint32_t offset;                 /* segmented with the client: bytes moved */
+    co_timer_t timer;                /* segmented with the client: its silence */
+    co_usdo_request_t req;           /* on `to`'s USDO client */
+    co_buffer_t buf;
+    uint8_t data[CO_GATEWAY_USDO_VALUE_MAX];
+} co_gateway_usdo_t;
+
 typedef void (*co_gateway_event_fn)(co_gateway_t *gw, co_gateway_event_t event, uint8_t net,
                                     uint32_t code, void *user);
 
@@ -122,6 +158,7 @@ typedef struct co_gateway_port {
     bool od_hooked;              /* mapping / 0x1F2C handlers on the line's OD */
     co_pdo_t *pdo;               /* tapped PDO service, or NULL */
     co_sdo_server_t *sdo_server; /* filtered SDO server (classic lines), or NULL */
+    co_usdo_server_t *usdo_server; /* USDO server whose remote requests we take, or NULL */
     /* 0x1F2F of lines without one in their OD (co_gateway_set_emcy_route) */
     uint32_t emcy_routes[CO_GATEWAY_NETWORKS];
 } co_gateway_port_t;
@@ -132,6 +169,7 @@ struct co_gateway {
     uint16_t routes[CO_GATEWAY_NETWORKS];   /* via network | node << 8, 0 = none */
     bool syncing;                /* copying a route into the other ODs */
     co_gateway_sdo_t sdo[CO_GATEWAY_SDO_CONNECTIONS];
+    co_gateway_usdo_t usdo[CO_GATEWAY_USDO_RELAYS];
     uint32_t sdo_timeout_us;
     co_gateway_event_fn on_event;
     void *user;
@@ -180,6 +218,10 @@ void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms);
 /* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
 void co_gateway_sdo_hook(struct co_gateway_port *port);
 void co_gateway_sdo_unhook(struct co_gateway_port *port);
+/* co_gateway_usdo.c, for co_gateway.c: the same for a port's USDO server
+ * (unhook cancels the requests forwarded from or to the port). */
+void co_gateway_usdo_hook(struct co_gateway_port *port);
+void co_gateway_usdo_unhook(struct co_gateway_port *port);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
 {

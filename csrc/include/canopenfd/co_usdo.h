@@ -22,7 +22,14 @@ enum {
     CO_USDO_EXPEDITED_MAX = 56,      /* data bytes of an expedited frame (64 - 8) */
     CO_USDO_SEGMENT_DATA = 60,       /* data bytes of a segment frame (64 - 4) */
     CO_USDO_SEGMENT_MIN = 5,         /* shortest segment accepted: 4 header bytes + 1 */
-    CO_USDO_FRAME_MAX = 64
+    CO_USDO_FRAME_MAX = 64,
+    /* Remote (routed) USDO, layout UNCONFIRMED (docs/protocol-notes.md):
+     * command specifier | 0x80; the frames with a multiplexer carry 4 bytes
+     * after the session-ID: destination network, destination node, source
+     * network, source node. */
+    CO_USDO_REMOTE_BIT = 0x80,
+    CO_USDO_REMOTE_EXT = 4,
+    CO_USDO_REMOTE_EXPEDITED_MAX = 52  /* 64 - 8 - 4 */
 };
 
 /* Command specifiers (byte 1). Bit 5 = response, bit 4 = upload direction;
@@ -55,7 +62,7 @@ typedef enum co_usdo_cs {
     CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP = 0x37,  /* 60 data bytes, not confirmed one by one */
     CO_USDO_CS_BULK_UPLOAD_LAST_RSP = 0x38,     /* last 0..60 bytes: the transfer ends */
     CO_USDO_CS_ABORT = 0x7F,
-    CO_USDO_CS_REMOTE_ABORT = 0xFF             /* remote (routed) USDO: not supported */
+    CO_USDO_CS_REMOTE_ABORT = 0xFF             /* the abort of a remote transfer (0x7F | 0x80) */
 } co_usdo_cs_t;
 
 /* One-byte USDO abort codes (byte 6 of the abort frame). */
@@ -141,6 +148,14 @@ typedef struct co_usdo_msg {
                               acknowledged (0 is invalid: the server refuses it) */
     uint8_t length;        /* EXPEDITED: N, SEGMENT: 60 (sent; 1..60 received), LAST: n */
     const uint8_t *data;   /* decode: points into the decoded buffer; encode: source */
+    /* Remote (routed) frames: `cs` above is the local command specifier, the
+     * wire carries cs | 0x80. The addressing extension is read and written
+     * only for the layouts with a multiplexer (0 in the others). */
+    bool remote;
+    uint8_t dst_net;       /* network-id of the addressed server */
+    uint8_t dst_node;      /* its node-id */
+    uint8_t src_net;       /* network-id of the client */
+    uint8_t src_node;      /* its node-id */
 } co_usdo_msg_t;
 
 typedef enum co_usdo_decode_result {

@@ -116,6 +116,14 @@ struct co_usdo_request {            /* caller-owned; must live until done() */
     void *user;
     uint32_t timeout_ms;            /* per frame; broadcast: the collection window;
                                        0 = client default */
+    /* Remote (routed) USDO: network != 0 sends the request to the gateway
+     * `server` as a remote request (cs | 0x80) for node `network_node` of
+     * network `network`; `source_network` is the network-id of our own
+     * line (written in the request, the gateway checks it). Downloads up to
+     * 52 bytes go expedited, larger ones segmented; bulk is refused. */
+    uint8_t network;
+    uint8_t network_node;
+    uint8_t source_network;
     /* results (written by the client) */
     uint8_t abort;                  /* 0 = ok, else USDO abort code */
     bool abort_from_server;         /* true when the server sent the abort */

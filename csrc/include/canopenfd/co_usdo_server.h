@@ -105,8 +105,17 @@ typedef struct co_usdo_server_stats {
 } co_usdo_server_stats_t;
 /* cffi:end */
 
+/* A remote (routed) request or abort addressed to this server's node (the
+ * frame decoded: m->remote, m->cs the local command specifier, r the
+ * decode result). True when taken (a gateway relays it), false: the server
+ * answers a request 0x13 and counts an abort. */
+typedef bool (*co_usdo_remote_fn)(co_usdo_server_t *server, uint8_t client,
+                                  co_usdo_decode_result_t r, const co_usdo_msg_t *m, void *user);
+
 struct co_usdo_server {
     co_line_t *line;
+    co_usdo_remote_fn remote_fn;  /* co_usdo_server_set_remote_handler */
+    void *remote_user;
     co_od_t *od;
     co_usdo_session_t *sessions;
     uint8_t session_count;
@@ -146,6 +155,10 @@ void co_usdo_server_deinit(co_usdo_server_t *server);
  * no session waits on xfer (unknown xfer, called from inside the handler,
  * or the session was abandoned: then it is freed here, nothing is sent). */
 bool co_usdo_server_resume(co_usdo_server_t *server, co_od_xfer_t *xfer, uint32_t abort);
+
+/* Route remote requests (cs 0x8x, 0xFF) to fn (NULL: none, answered 0x13). */
+void co_usdo_server_set_remote_handler(co_usdo_server_t *server, co_usdo_remote_fn fn,
+                                       void *user);
 
 /* Sessions not FREE. */
 uint8_t co_usdo_server_active(const co_usdo_server_t *server);

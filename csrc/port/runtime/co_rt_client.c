@@ -331,18 +331,17 @@ static int check_request(co_rt_t *rt, const rt_line_t *l, const co_rt_transfer_r
         return rt_argument_error(rt, "line %d: a broadcast upload collects answers in memory",
                                  l->index);
     }
-    if (q->network != 0 && fd) {
-        return rt_argument_error(rt, "line %d: node %u of network %u: remote USDO (routed "
-                                 "requests on fd lines) is not implemented; SDO networking "
-                                 "runs on classic lines", l->index, (unsigned)q->network_node,
-                                 (unsigned)q->network);
-    }
     if (q->network != 0 && (q->server == 0 || q->network > 127 || q->network_node < 1 ||
                             q->network_node > 127)) {
         return rt_argument_error(rt, "line %d: a routed request names its gateway (1..127), "
                                  "network 1..127 and node 1..127 (got gateway %d, network %u, "
                                  "node %u)", l->index, q->server, (unsigned)q->network,
                                  (unsigned)q->network_node);
+    }
+    if (q->network != 0 && fd && q->mode == CO_USDO_MODE_BULK) {
+        return rt_argument_error(rt, "line %d: node %u of network %u: bulk transfers are not "
+                                 "routed (remote USDO is expedited or segmented)", l->index,
+                                 (unsigned)q->network_node, (unsigned)q->network);
     }
     return CO_RT_OK;
 }
@@ -364,6 +363,10 @@ static void prepare_usdo(rt_req_t *r, const co_rt_transfer_request_t *q)
     req->answer = on_answer;
     req->sink = q->upload ? usdo_sink : NULL;
     req->source = (!q->upload && q->size > 0) ? usdo_source : NULL;
+    /* remote (routed) USDO: `server` is the gateway */
+    req->network = q->network;
+    req->network_node = q->network_node;
+    req->source_network = r->line != NULL ? r->line->network_id : 0;
 }
 
 static void prepare_sdo(rt_req_t *r, const co_rt_transfer_request_t *q)

@@ -45,6 +45,10 @@ int rt_gateway_rebuild(co_rt_t *rt)
         if (l->network_id == 0) {
             continue;
         }
+        if (co_line_mode(&l->line) == CO_MODE_FD && co_line_node_id(&l->line) != 0) {
+            /* remote USDO requests are carried out by the line's USDO client */
+            (void)rt_client_ready(rt, l);
+        }
         co_gateway_status_t s = co_gateway_add_port(gw, &l->stack, l->network_id);
         if (s == CO_GATEWAY_ERR_FULL) {
             rt_set_error(rt, "line %d: a gateway joins at most %d lines", i,
