@@ -8,9 +8,14 @@
  *             segmented: the segments are collected in the gateway's buffer
  *             (each answered at once), the last one is answered only when
  *             the USDO download of the whole value has ended;
- *   upload    the initiate starts a USDO upload into the buffer; its end
- *             answers the initiate (expedited for 1..4 bytes, else with the
- *             size) and the segments are then served from the buffer.
+ *   upload    the initiate starts a USDO upload into the buffer. As soon as
+ *             the device has announced a size above 4 bytes the initiate is
+ *             answered with it and the client's segment requests are served
+ *             from the buffer while the data still arrives (a request the
+ *             data has not reached yet waits for it; the last one waits for
+ *             the end of the USDO transfer), so the client never waits for
+ *             the whole value. 1..4 bytes (expedited answer) and a size the
+ *             device does not announce wait for the end of the transfer.
  *
  * Aborts map both ways (co_usdo_abort_from_co / _to_co); a USDO transfer
  * that times out reaches the client as 0x05040000, a client silent in the
@@ -73,13 +78,7 @@ static void finish(co_gateway_sdo_t *c)
         c->gw->sdo_buf_owner = NULL;
     }
     c->xstate = X_IDLE;
-}
-
-static void fail(co_gateway_sdo_t *c, uint32_t code)
-{
-    c->gw->stats.sdo_translate_failed++;
-    abort_client(c, code);
-    finish(c);
+    c->seg_pending = false;
 }
 
 /* Stop a running USDO transfer with the client's (mapped) code. */
@@ -87,10 +86,23 @@ static void cancel_usdo(co_gateway_sdo_t *c, uint32_t co_code)
 {
     co_usdo_client_t *uc = co_stack_usdo_client(c->to->stack);
     c->xstate = X_IDLE;   /* done() below finds nothing to answer */
+    c->usdo_running = false;
     if (uc != NULL && co_usdo_client_running(uc, &c->req)) {
         uint8_t code = co_usdo_abort_from_co(co_code);
         (void)co_usdo_client_cancel(uc, &c->req, code ? code : CO_USDO_ABORT_UNKNOWN);
     }
+}
+
+/* The transfer fails: the client hears `code`, a USDO transfer still
+ * running is stopped with the same code (mapped). */
+static void fail(co_gateway_sdo_t *c, uint32_t code)
+{
+    if (c->usdo_running) {
+        cancel_usdo(c, code);
+    }
+    c->gw->stats.sdo_translate_failed++;
+    abort_client(c, code);
+    finish(c);
 }
 
 static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
@@ -120,11 +132,80 @@ static bool take_buffer(co_gateway_sdo_t *c, uint32_t need)
     return true;
 }
 
+/* Answer the client's segment request (toggle already checked) when the
+ * data it needs is in the buffer, else keep it pending. The last segment
+ * also waits for the end of the USDO transfer. */
+static void serve_segment(co_gateway_sdo_t *c)
+{
+    uint32_t left = c->size - c->offset;
+    uint32_t n = left < SEG_DATA ? left : SEG_DATA;
+    bool last = n == left;
+    if (c->data.size < c->offset + n || (last && c->usdo_running)) {
+        c->seg_pending = true;   /* the device's data decides: its timeout applies */
+        co_timer_cancel(co_line_timers(client_line(c)), &c->timer);
+        return;
+    }
+    c->seg_pending = false;
+    uint8_t f[FRAME] = {(uint8_t)(c->toggle << 4 | (SEG_DATA - n) << 1 | (last ? 1u : 0u)), 0,
+                        0, 0, 0, 0, 0, 0};
+    memcpy(f + 1, c->data.data + c->offset, n);
+    c->offset += n;
+    send_client(c, f);
+    if (last) {
+        c->gw->stats.sdo_translated++;
+        finish(c);
+        return;
+    }
+    c->toggle ^= 1u;
+    arm(c);
+}
+
+/* Answer the upload initiate with the size: segments are served from now on. */
+static void answer_segmented(co_gateway_sdo_t *c, uint32_t n)
+{
+    uint8_t f[FRAME] = {0x41, c->mux[0], c->mux[1], c->mux[2], (uint8_t)n, (uint8_t)(n >> 8),
+                        (uint8_t)(n >> 16), (uint8_t)(n >> 24)};
+    c->size = n;
+    c->offset = 0;
+    c->toggle = 0;
+    c->seg_pending = false;
+    c->xstate = X_UL_SEG;
+    send_client(c, f);
+    arm(c);
+}
+
+/* The USDO upload's sink: the buffer, and the client's answers as data comes. */
+static uint8_t sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len, uint32_t total)
+{
+    co_gateway_sdo_t *c = ctx;
+    if (len == 0) {
+        if (total != 0xFFFFFFFFu && total > c->data.capacity) {
+            return CO_USDO_ABORT_OUT_OF_MEMORY;
+        }
+        c->data.size = 0;
+        if (c->xstate == X_UL_WAIT && total > 4 && total != 0xFFFFFFFFu) {
+            answer_segmented(c, total);   /* the client starts while the data comes */
+        }
+        return 0;
+    }
+    if (offset > c->data.capacity || len > c->data.capacity - offset) {
+        return CO_USDO_ABORT_OUT_OF_MEMORY;
+    }
+    memcpy(c->data.data + offset, data, len);
+    c->data.size = offset + len;
+    if (c->xstate == X_UL_SEG && c->seg_pending) {
+        serve_segment(c);
+    }
+    return 0;
+}
+
 static void usdo_done(co_usdo_request_t *req)
 {
     co_gateway_sdo_t *c = req->user;
     uint8_t state = c->xstate;
-    if (state != X_DL_WAIT && state != X_UL_WAIT) {
+    bool live = c->usdo_running;
+    c->usdo_running = false;
+    if (!live || (state != X_DL_WAIT && state != X_UL_WAIT && state != X_UL_SEG)) {
         return;   /* cancelled by the client or the connection's end */
     }
     if (req->abort != 0) {
@@ -140,27 +221,25 @@ static void usdo_done(co_usdo_request_t *req)
         finish(c);
         return;
     }
+    if (state == X_UL_SEG) {   /* streamed: the announced size must have come */
+        if (c->data.size != c->size) {
+            fail(c, c->data.size > c->size ? CO_ABORT_LENGTH_HIGH : CO_ABORT_LENGTH_LOW);
+        } else if (c->seg_pending) {
+            serve_segment(c);
+        }
+        return;
+    }
     uint32_t n = c->data.size;
-    uint8_t f[FRAME] = {0, c->mux[0], c->mux[1], c->mux[2], 0, 0, 0, 0};
     if (n >= 1 && n <= 4) {
-        f[0] = (uint8_t)(0x43u | (4u - n) << 2);   /* expedited, size indicated */
+        uint8_t f[FRAME] = {(uint8_t)(0x43u | (4u - n) << 2), c->mux[0], c->mux[1], c->mux[2],
+                            0, 0, 0, 0};   /* expedited, size indicated */
         memcpy(f + 4, c->data.data, n);
         c->gw->stats.sdo_translated++;
         send_client(c, f);
         finish(c);
         return;
     }
-    f[0] = 0x41;   /* segmented, size indicated (0 bytes: one empty segment) */
-    f[4] = (uint8_t)n;
-    f[5] = (uint8_t)(n >> 8);
-    f[6] = (uint8_t)(n >> 16);
-    f[7] = (uint8_t)(n >> 24);
-    c->size = n;
-    c->offset = 0;
-    c->toggle = 0;
-    c->xstate = X_UL_SEG;
-    send_client(c, f);
-    arm(c);
+    answer_segmented(c, n);   /* size not announced, or 0 bytes (one empty segment) */
 }
 
 static void start_usdo(co_gateway_sdo_t *c, bool upload, const co_buffer_t *data)
@@ -179,15 +258,17 @@ static void start_usdo(co_gateway_sdo_t *c, bool upload, const co_buffer_t *data
         .mode = CO_USDO_MODE_AUTO,
         .size = upload ? 0 : data->size,
         .source = upload ? NULL : co_usdo_buffer_source,
-        .sink = upload ? co_usdo_buffer_sink : NULL,
-        .ctx = &c->data,
+        .sink = upload ? sink : NULL,
+        .ctx = upload ? (void *)c : (void *)&c->data,
         .done = usdo_done,
         .user = c,
         .timeout_ms = timeout_ms};
     co_timer_cancel(co_line_timers(client_line(c)), &c->timer);
     c->xstate = upload ? X_UL_WAIT : X_DL_WAIT;
+    c->usdo_running = true;
     uint8_t refused = uc != NULL ? co_usdo_client_start(uc, &c->req) : CO_USDO_ABORT_BUSY;
     if (refused != 0) {
+        c->usdo_running = false;
         fail(c, co_usdo_abort_to_co(refused));
     }
 }
@@ -263,25 +344,14 @@ static void upload_initiate(co_gateway_sdo_t *c, const uint8_t *d)
 static void upload_segment(co_gateway_sdo_t *c, const uint8_t *d)
 {
     uint8_t t = (d[0] >> 4) & 1u;
+    if (c->seg_pending) {
+        return;   /* the client repeats itself while the data is on its way */
+    }
     if (t != c->toggle) {
         fail(c, CO_ABORT_TOGGLE);
         return;
     }
-    uint32_t left = c->size - c->offset;
-    uint32_t n = left < SEG_DATA ? left : SEG_DATA;
-    bool last = n == left;
-    uint8_t f[FRAME] = {(uint8_t)(t << 4 | (SEG_DATA - n) << 1 | (last ? 1u : 0u)), 0, 0, 0,
-                        0, 0, 0, 0};
-    memcpy(f + 1, c->data.data + c->offset, n);
-    c->offset += n;
-    send_client(c, f);
-    if (last) {
-        c->gw->stats.sdo_translated++;
-        finish(c);
-        return;
-    }
-    c->toggle ^= 1u;
-    arm(c);
+    serve_segment(c);
 }
 
 void co_gateway_sdo_fd_open(co_gateway_sdo_t *c)
@@ -296,14 +366,14 @@ bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *d)
     uint8_t ccs = d[0] >> 5;
     c->gw->stats.sdo_relayed++;
     if (ccs == 4) {   /* the client's abort: the target's transfer ends with it */
-        if (c->xstate == X_DL_WAIT || c->xstate == X_UL_WAIT) {
+        if (c->usdo_running) {
             cancel_usdo(c, get_u32(d + 4));
         }
         finish(c);
         return true;
     }
     if (ccs == 1 || ccs == 2) {   /* a new initiate ends an open transfer */
-        if (c->xstate == X_DL_WAIT || c->xstate == X_UL_WAIT) {
+        if (c->usdo_running) {
             cancel_usdo(c, CO_ABORT_GENERAL);
         }
         finish(c);
@@ -334,7 +404,7 @@ bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *d)
 
 void co_gateway_sdo_fd_close(co_gateway_sdo_t *c)
 {
-    if (c->xstate == X_DL_WAIT || c->xstate == X_UL_WAIT) {
+    if (c->usdo_running) {
         cancel_usdo(c, CO_ABORT_GENERAL);
     }
     finish(c);

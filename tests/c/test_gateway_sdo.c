@@ -58,6 +58,7 @@ typedef struct fx {
     tu_line_t peer;              /* raw frames on network 3 (the "next gateway") */
     co_gateway_t gw;
     bool drop_answer;
+    bool drop_fd_segments;       /* the fd device's 0x33 / 0x34 answers are lost */
     co_stack_t tool;             /* an SDO client on the client's line */
     co_stack_arena_t tool_arena;
     unsigned char tool_memory[32 * 1024];
@@ -88,6 +89,15 @@ static uint8_t drop_answer(const co_frame_t *frame, void *user)
         return 0;
     }
     return 1;
+}
+
+static uint8_t drop_fd_segments(const co_frame_t *frame, void *user)
+{
+    fx_t *fx = user;
+    return fx->drop_fd_segments && frame->id == 0x580 + FDEV &&
+                   (frame->data[1] == 0x33 || frame->data[1] == 0x34)
+               ? 0
+               : 1;
 }
 
 static void step_all(fx_t *fx, uint64_t t)
@@ -458,6 +468,7 @@ static void fd_setup(fx_t *fx)
     assert_int_equal(co_stack_client_init(&fx->gw_b.stack, &cc), CO_STACK_OK);
     node_init(&fx->b, &fx->fdev, CO_MODE_FD, FDEV, device_rows, ROWS(device_rows));
     co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, sizeof fx->fd_buffer);
+    co_membus_set_fault(&fx->b.bus, drop_fd_segments, fx);
     settle(fx);
     tu_log_clear(&fx->a);
     tu_log_clear(&fx->b);
@@ -707,6 +718,59 @@ static void test_fd_upload_larger_than_the_buffer(void **state)
     fx_free(fx);
 }
 
+/* A 100-byte upload the device sends segmented (0x32 size 100, then 0x33 /
+ * 0x34 on the gateway's 0x13 requests): the client's initiate is answered
+ * with the size as soon as the device announced it, before the data came;
+ * the client's segments carry the value. Then the device goes silent after
+ * announcing: the client's segment request waits, the USDO timeout stops
+ * the device (0x12) and the client hears 0x05040000. */
+static void test_fd_upload_streamed(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    uint8_t big[100];
+    co_gateway_set_sdo_buffer(&fx->gw, big, sizeof big);
+    uint8_t value[100];
+    for (unsigned i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)(0x20 + i);
+    }
+    assert_int_equal(co_od_put(&fx->fdev.od, 0x2003, 0, value, sizeof value), 0);
+    connect_2_6(fx);
+    fx->drop_fd_segments = true;   /* hold the data back: only the announcement passes */
+    request(fx, (const uint8_t[]){0x40, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    expect_fd(&fx->b, 0x580 + FDEV, 0,
+              (const uint8_t[]){GW, 0x32, 0, 0x00, 0x03, 0x20, 0x09, 0, 100, 0, 0, 0}, 12);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);   /* waits for the data */
+    advance(fx, fx->a.now + (TIMEOUT_MS + 5) * TU_MS);
+    expect_fd(&fx->b, 0x600 + GW, 2, (const uint8_t[]){FDEV, 0x7F, 0, 0x00, 0x03, 0x20, 0x12}, 7);
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05});
+
+    fx->drop_fd_segments = false;
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->b);
+    request(fx, (const uint8_t[]){0x40, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    uint8_t toggle = 0;
+    for (unsigned off = 0; off < sizeof value; off += 7) {
+        unsigned n = sizeof value - off < 7 ? sizeof value - off : 7;
+        bool last = off + n == sizeof value;
+        request(fx, (const uint8_t[]){(uint8_t)(0x60 | toggle << 4), 0, 0, 0, 0, 0, 0, 0});
+        uint8_t seg[8] = {(uint8_t)(toggle << 4 | (7 - n) << 1 | (last ? 1 : 0))};
+        memcpy(seg + 1, value + off, n);
+        expect(&fx->a, 0x581, 1 + off / 7, seg);
+        toggle ^= 1;
+    }
+    /* the device's side: 0x11, 0x32, then 0x13 / 0x33 and the last 0x34 */
+    expect_fd(&fx->b, 0x600 + GW, 1, (const uint8_t[]){FDEV, 0x13, 0, 0}, 4);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translated, 1);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 16);
+    fx_free(fx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -723,6 +787,7 @@ int main(void)
         cmocka_unit_test(test_fd_timeouts_and_aborts_mapped),
         cmocka_unit_test(test_fd_buffer_limits_busy_and_block),
         cmocka_unit_test(test_fd_upload_larger_than_the_buffer),
+        cmocka_unit_test(test_fd_upload_streamed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

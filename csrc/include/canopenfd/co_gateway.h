@@ -120,6 +120,8 @@ typedef struct co_gateway_sdo {
     uint8_t xstate;                  /* co_gateway_sdo_fd.c's transfer state */
     uint8_t toggle;                  /* segmented: toggle expected next */
     bool size_known;                 /* segmented download: the client gave its size */
+    bool usdo_running;               /* the USDO transfer has not ended yet */
+    bool seg_pending;                /* upload: a segment request waits for data */
     uint32_t size;                   /* announced (download) / held (upload) bytes */
     uint32_t offset;                 /* bytes moved to / from the client so far */
     uint8_t small[4];                /* an expedited download's data (no buffer needed) */
