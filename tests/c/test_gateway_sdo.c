@@ -299,8 +299,9 @@ static void test_silent_target_and_lost_answer(void **state)
 }
 
 /* Refusals, each an abort with the indication's bytes 1..3: a network no
- * route reaches (0x08000000), an fd network whose line has no USDO client (0x060A0023: it cannot be
- * relayed there), the client's own line (0x060A0023), a bad node-id
+ * route reaches (0x08000000), an fd network whose line has no USDO client
+ * (0x060A0023: nothing to translate with), the client's own line
+ * (0x060A0023), a bad node-id
  * (0x06090030), the gateway's SDO client on the target line holding the
  * answer CAN-IDs (busy: 0x060A0023). A refused client stays with the
  * gateway's own server. */
