@@ -1,29 +1,96 @@
 #!/usr/bin/env python3
-"""SDO through the gateway (SDO networking, issue 16) as a share of direct SDO,
-over in-process classic lines of one Network (no kernel, no VM):
+"""SDO through the gateway (SDO networking, issue 16) as a share of direct SDO:
 
     python3 bench/routing_bench.py [-t SECONDS] [--sizes 4,4096,65536]
+    python3 bench/routing_bench.py --vcan OFFICE,MACHINE,CELL [-t ...] [--sizes ...]
 
-Direct: a client line on network 3 reads device 5 (demo OD, a DOMAIN at
-0x2100 served from memory). Routed: a client line on network 1 reads the same
-device through the gateway (node 1 on both lines, the C core relaying every
-frame in the runtime thread). Each row runs uploads back to back for a time
-budget and prints transfers/s and kB/s side by side with routed/direct. The
-issue's target (routed >= 80 % of direct) is for the vcan setup; here both
-sides share one runtime thread, so the relay's cost shows in full. Figures
-are printed, nothing is asserted.
+Direct: a classic client line on the device's bus reads classic device 5
+(demo OD plus one memory DOMAIN per size at 0x2110 + k). Routed: a classic client
+line on network 1 ("office") reads the same device through the gateway (node
+1 on every line, the C core relaying every frame) on network 3 ("machine");
+"routed fd": the same client reads fd device 6 (the same DOMAINs) on the fd
+network 2 ("cell") through the gateway, which translates the client's SDO
+transfer into USDO (co_gateway_sdo_fd.c). Both routed rows are given as a
+share of the direct classic row: what reaching the device through the
+gateway costs the client. "direct USDO" (an fd client reading device 6 on
+its own bus) is printed for reference.
+
+Without --vcan every line is an in-process mem: bus of one Network (one
+runtime thread: the relay's cost shows in full). With --vcan the three
+interfaces (OFFICE and MACHINE classic, CELL with MTU 72) are real SocketCAN,
+the gateway runs in its own process and the two devices in another, as on a
+real bus (the client's process holds only client lines). Each size above 4
+bytes is read twice: segmented (the client's default) and "block" (a size
+hint: AUTO asks for a block upload; the fd translation refuses it with
+0x05040001 and the client goes segmented). Figures are printed, nothing is
+asserted.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
 import time
 
 import canopenfd
-from canopenfd.od import demo_od
+from canopenfd.od import DataType, ODVariable, demo_od
 
-DEVICE, GATEWAY = 5, 1
-U32, DOMAIN = 0x1000, 0x2100
+DEVICE, FD_DEVICE, GATEWAY = 5, 6, 1
+U32, DOMAIN = 0x1018, 0x2110   # U32: identity, vendor-ID (sub 1); DOMAIN + k: size k
+OFFICE, CELL, MACHINE = 1, 2, 3      # network-ids
+
+
+def open_gateway(network, office: str, machine: str, cell: str) -> None:
+    """The gateway's node 1 on the three lines, joined with their network-ids."""
+    for bus, mode, network_id in ((office, "classic", OFFICE), (machine, "classic", MACHINE),
+                                  (cell, "fd", CELL)):
+        line = network.open_line(bus, mode=mode)
+        line.create_local_node(GATEWAY, od=demo_od(mode))
+        line.network_id = network_id
+
+
+def open_devices(network, machine: str, cell: str, sizes: list) -> None:
+    """Classic device 5 and fd device 6, DOMAIN + k holding pattern(sizes[k])."""
+    for bus, mode, node in ((machine, "classic", DEVICE), (cell, "fd", FD_DEVICE)):
+        od = demo_od(mode)
+        for k, size in enumerate(sizes):
+            od.add_object(ODVariable(f"Bench {size}", DOMAIN + k, 0, DataType.DOMAIN, "rw",
+                                     max_length=max(size, 1)))
+        device = network.open_line(bus, mode=mode).create_local_node(node, od=od, boot=False)
+        for k, size in enumerate(sizes):
+            device.serve_domain(DOMAIN + k, max(size, 1))
+        device.boot()
+        for k, size in enumerate(sizes):
+            device[DOMAIN + k].data = pattern(size)
+
+
+def serve(role: str, lines: list, sizes: list) -> None:
+    """--process: the gateway or the devices alone, until our stdin closes."""
+    office, machine, cell = lines
+    with canopenfd.Network() as network:
+        if role == "gateway":
+            open_gateway(network, office, machine, cell)
+        else:
+            open_devices(network, machine, cell, sizes)
+        print("ready", flush=True)
+        sys.stdin.read()
+        if role == "gateway":
+            print("gateway counters:", {k: v for k, v in network.routing.stats.items()
+                                        if k.startswith("sdo_") and v}, flush=True)
+
+
+def spawn(role: str, lines: str, sizes: str) -> subprocess.Popen:
+    env = dict(os.environ)
+    here = os.path.dirname(os.path.dirname(os.path.abspath(canopenfd.__file__)))
+    env["PYTHONPATH"] = here + os.pathsep + env.get("PYTHONPATH", "")
+    proc = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--process", role,
+                             "--vcan", lines, "--sizes", sizes],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == "ready", f"the {role} process failed"
+    return proc
 
 
 def pattern(size: int) -> bytes:
@@ -47,34 +114,59 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-t", type=float, default=2.0, help="seconds per row")
     parser.add_argument("--sizes", default="4,4096,65536",
-                        help="upload sizes in bytes (4 = the expedited 0x1000)")
+                        help="upload sizes in bytes (4 = the expedited 0x1018 sub 1)")
+    parser.add_argument("--vcan", metavar="OFFICE,MACHINE,CELL",
+                        help="three SocketCAN interfaces (CELL CAN FD); the gateway and the "
+                             "devices in their own processes, instead of in-process mem: lines")
+    parser.add_argument("--process", choices=("gateway", "devices"),
+                        help="(internal, with --vcan) run only the gateway or the devices")
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
+    if args.process:
+        serve(args.process, args.vcan.split(","), sizes)
+        return
+    if args.vcan:
+        office, machine, cell = args.vcan.split(",")
+    else:
+        office, machine, cell = "mem:bench-office", "mem:bench-machine", "mem:bench-cell"
+    helpers = []
     with canopenfd.Network() as network:
-        for bus, network_id in (("mem:bench-office", 1), ("mem:bench-machine", 3)):
-            gateway = network.open_line(bus, mode="classic")
-            gateway.create_local_node(GATEWAY, od=demo_od("classic"))
-            gateway.network_id = network_id
-        device = network.open_line("mem:bench-machine", mode="classic").create_local_node(
-            DEVICE, od=demo_od("classic"))
-        device.serve_domain(DOMAIN, max(sizes))
-        direct = network.open_line("mem:bench-machine", mode="classic").sdo
-        routed = network.open_line("mem:bench-office", mode="classic").sdo.remote(
-            network=3, node=DEVICE, gateway=GATEWAY)
-        print(f"{'upload':>10} | {'direct /s':>10} {'kB/s':>9} | {'routed /s':>10} {'kB/s':>9}"
-              f" | routed/direct")
-        for size in sizes:
-            if size != 4:
-                device[DOMAIN].data = pattern(size)
-                key = (DOMAIN, 0)
-            else:
-                key = (U32, 0)
-            d = run(lambda: direct.upload(DEVICE, *key), args.t, size)
-            r = run(lambda: routed.upload(*key), args.t, size)
-            print(f"{size:>9}B | {d[0]:>10.0f} {d[1]:>9.1f} | {r[0]:>10.0f} {r[1]:>9.1f} |"
-                  f" {r[1] / d[1]:>7.0%}")
-        print("gateway counters:", {k: v for k, v in network.routing.stats.items()
-                                    if k.startswith("sdo_")})
+        if args.vcan:
+            helpers = [spawn(role, args.vcan, args.sizes) for role in ("gateway", "devices")]
+        else:
+            open_gateway(network, office, machine, cell)
+            open_devices(network, machine, cell, sizes)
+        direct = network.open_line(machine, mode="classic").sdo
+        direct_usdo = network.open_line(cell, mode="fd").usdo
+        client = network.open_line(office, mode="classic").sdo
+        routed = client.remote(network=MACHINE, node=DEVICE, gateway=GATEWAY)
+        routed_fd = client.remote(network=CELL, node=FD_DEVICE, gateway=GATEWAY)
+        print(f"{'upload':>16} | {'direct /s':>10} {'kB/s':>9} | {'routed /s':>10} {'kB/s':>9}"
+              f" {'share':>5} | {'routed fd /s':>12} {'kB/s':>9} {'share':>5} |"
+              f" {'direct USDO kB/s':>16}")
+        for k, size in enumerate(sizes):
+            key = (U32, 1) if size == 4 else (DOMAIN + k, 0)
+            for label, options in (("segmented", {}), ("block", {"size_hint": size})):
+                if size == 4 and options:
+                    continue
+                d = run(lambda: direct.upload(DEVICE, *key, **options), args.t, size)
+                r = run(lambda: routed.upload(*key, **options), args.t, size)
+                f = run(lambda: routed_fd.upload(*key, **options), args.t, size)
+                u = run(lambda: direct_usdo.upload(FD_DEVICE, *key), args.t, size)
+                name = f"{size}B " + ("expedited" if size == 4 else label)
+                print(f"{name:>16} | {d[0]:>10.0f} {d[1]:>9.1f} | {r[0]:>10.0f} {r[1]:>9.1f}"
+                      f" {r[1] / d[1]:>5.0%} | {f[0]:>12.0f} {f[1]:>9.1f} {f[1] / d[1]:>5.0%} |"
+                      f" {u[1]:>16.1f}", flush=True)
+        if not args.vcan:
+            print("gateway counters:", {k: v for k, v in network.routing.stats.items()
+                                        if k.startswith("sdo_") and v})
+    for proc in helpers:
+        assert proc.stdin is not None and proc.stdout is not None
+        proc.stdin.close()
+        tail = proc.stdout.read().strip()
+        if tail:
+            print(tail)
+        proc.wait(timeout=30)
 
 
 if __name__ == "__main__":

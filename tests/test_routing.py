@@ -284,3 +284,54 @@ def test_remote_usdo_segmented_both_ways(net):
     assert net.routing.stats["usdo_answered"] == 2
     with pytest.raises(ConfigurationError, match="bulk transfers are not routed"):
         device.download(0x200F, 0, value, mode="bulk")
+
+
+def test_sdo_networking_reaches_a_node_of_an_fd_network(net):
+    """A classic client on network 1 reads and writes device 6 of the fd
+    network 2: the gateway serves the client's SDO transfer and moves the
+    value with a USDO transfer on the fd bus (checked on both buses); a
+    value of 3000 bytes goes segmented (the client's block initiate is
+    refused 0x05040001, it falls back), and a device abort comes back
+    mapped to its CiA 301 code."""
+    n = next(_buses)
+    a, b = f"mem:routing-sdofd-a-{n}", f"mem:routing-sdofd-b-{n}"
+    for bus, mode, network_id in ((a, "classic", 1), (b, "fd", 2)):
+        gateway = net.open_line(bus, mode=mode)
+        gateway.create_local_node(GW, od=demo_od(mode))
+        gateway.network_id = network_id
+    od = demo_od("fd")
+    od.add_object(ODVariable("Blob", 0x2400, 0, DataType.OCTET_STRING, "rw",
+                             default=b"", max_length=3000))
+    target = net.open_line(b, mode="fd").create_local_node(6, od=od)
+    seen_a, seen_b = Recorder(), Recorder()
+    net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
+    net.open_line(b, mode="fd", monitor=True).on_frame(seen_b)
+    client = net.open_line(a, mode="classic")
+
+    device = client.sdo.remote(network=2, node=6, gateway=GW)
+    assert int.from_bytes(device.upload(0x1017), "little") == target[0x1017].raw
+    # on the fd bus: the gateway's USDO upload (client node-id 1) of 0x1017
+    usdo = seen_b.wait_for(lambda calls: [f for f in calls if f.id == 0x601] or None,
+                           5.0, "the gateway's USDO request")
+    assert usdo[0].data[:2] == bytes([6, 0x11]) and usdo[0].data[3:6] == bytes([0, 0x17, 0x10])
+    device.download(0x1017, 0, (250).to_bytes(2, "little"))
+    assert target[0x1017].raw == 250
+    usdo = seen_b.wait_for(lambda calls: [f for f in calls if f.id == 0x601][1:] or None,
+                           5.0, "the gateway's USDO download")
+    assert usdo[0].data[:2] == bytes([6, 0x01])
+    assert usdo[0].data[3:10] == bytes([0, 0x17, 0x10, 0x0F, 2, 250, 0])
+
+    blob = bytes(range(256)) * 11 + bytes(184)
+    device.download(0x2400, 0, blob)
+    assert target[0x2400].data == blob
+    assert device.upload(0x2400) == blob
+    refused = seen_a.wait_for(
+        lambda calls: [f for f in calls if f.id == 0x581 and f.data[0] == 0x80] or None,
+        5.0, "the refused block initiate")
+    assert refused[0].data[4:] == bytes([0x01, 0x00, 0x04, 0x05])
+
+    with pytest.raises(SdoAbortError, match="0x06020000"):
+        device.upload(0x2FFF)
+    stats = net.routing.stats
+    assert stats["sdo_connects"] == 1 and stats["sdo_translated"] == 4
+    assert stats["sdo_translate_failed"] == 2    # the block initiate, 0x2FFF

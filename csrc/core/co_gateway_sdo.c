@@ -6,9 +6,11 @@
  * indication first) and the target's answers back, until the client names
  * another network. No answer within the timeout aborts both sides.
  *
- * Frames are relayed as they are (8 bytes, classic lines on both sides), so
+ * Frames to a classic line are relayed as they are (8 bytes), so
  * expedited, segmented and block transfers all pass; the gateway only reads
- * byte 0 (the indication, aborts) and bytes 1..3 (for its own aborts). */
+ * byte 0 (the indication, aborts) and bytes 1..3 (for its own aborts). A
+ * node of an attached fd line is reached by translation instead
+ * (co_gateway_sdo_fd.c). */
 #include "canopenfd/co_gateway.h"
 
 #include <string.h>
@@ -88,8 +90,12 @@ static void release(co_gateway_sdo_t *c)
     if (c->from == NULL) {
         return;
     }
-    co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
-    co_line_unsubscribe(line_of(c->to), on_answer, c);
+    if (c->fd) {
+        co_gateway_sdo_fd_close(c);
+    } else {
+        co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
+        co_line_unsubscribe(line_of(c->to), on_answer, c);
+    }
     c->from = NULL;
     c->to = NULL;
     c->state = 0;
@@ -237,14 +243,17 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
         }
     }
     uint8_t target = kind == CO_GATEWAY_VIA ? hop : node;
-    if (to == NULL || to == from || co_line_mode(line_of(to)) != CO_MODE_CLASSIC ||
-        target == co_line_node_id(line_of(to))) {
-        /* relaying needs SDO on both sides; the line it came on, or our own
-         * node there, would loop */
+    bool fd = to != NULL && co_line_mode(line_of(to)) != CO_MODE_CLASSIC;
+    co_usdo_client_t *uc = to != NULL ? co_stack_usdo_client(to->stack) : NULL;
+    if (to == NULL || to == from || target == co_line_node_id(line_of(to)) ||
+        (fd && (kind != CO_GATEWAY_ATTACHED || uc == NULL || target == uc->node_id))) {
+        /* the line it came on, or our own node there, would loop; an fd
+         * line is reached by translation only when attached (no remote
+         * USDO) and through a USDO client of another node-id */
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
     c = find_free(gw);
-    if (c == NULL || target_taken(gw, to, target) || !listen(c, to, target)) {
+    if (c == NULL || target_taken(gw, to, target) || (!fd && !listen(c, to, target))) {
         /* no connection free, or another client already talks to the target */
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
@@ -257,7 +266,12 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
     c->net = (uint8_t)net;
     c->node = node;
     memcpy(c->mux, data + 1, 3);
-    co_timer_init(&c->timer, on_timeout, c);
+    c->fd = false;
+    if (fd) {
+        co_gateway_sdo_fd_open(c);
+    } else {
+        co_timer_init(&c->timer, on_timeout, c);
+    }
     if (kind == CO_GATEWAY_VIA) {
         /* the next gateway connects on: it confirms or aborts */
         c->state = SDO_CONNECTING;
@@ -290,6 +304,9 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
     if (c->state == SDO_CONNECTING) {
         send_abort(from->gw, line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
         return true;
+    }
+    if (c->fd) {
+        return co_gateway_sdo_fd_request(c, f->data);
     }
     from->gw->stats.sdo_relayed++;
     send8(from->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, f->data);

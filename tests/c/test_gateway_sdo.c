@@ -6,7 +6,11 @@
  * download, an abort of the device, an abort of the client); faults: a
  * silent target, a lost answer (both sides aborted with 0x05040000), the
  * gateway's client busy, an unknown or fd network; a route through a next
- * gateway forwards the indication and relays its confirmation or refusal. */
+ * gateway forwards the indication and relays its confirmation or refusal.
+ * A node of the fd network 2 is reached by translation: the gateway serves
+ * the client's SDO transfer and moves the value with its USDO client (exact
+ * bytes on both buses; faults: silent target, aborts of either side, the
+ * buffer busy or too small, block transfer refused, a silent client). */
 #include "test_od_util.h"
 
 #include "canopenfd/co_gateway.h"
@@ -14,7 +18,8 @@
 
 #include <stdlib.h>
 
-enum { GW = 1, DEV = 5, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3, TIMEOUT_MS = 100,
+enum { GW = 1, DEV = 5, FDEV = 6, NEXT_GW = 9, NET_A = 1, NET_B = 2, NET_C = 3,
+       TIMEOUT_MS = 100, FD_BUFFER = 64,
        BIG = 700 /* a block download of 100 segments: the last one's byte 0 is 0xE4 */ };
 
 static const tu_od_row_t gateway_rows[] = {
@@ -31,6 +36,7 @@ static const tu_od_row_t device_rows[] = {
     {0x2000, 0, VAR, U32, RW, 0, 4, 0x12345678, NULL, 0, 0},
     {0x2001, 0, VAR, VS, RO, 0, 14, 0, "hello gateway!", 0, 0},
     {0x2100, 0, VAR, CO_TYPE_OCTET_STRING, RW, 0, BIG, 0, "-", 0, 0},
+    {0x2003, 0, VAR, VS, RW, 0, 100, 0, "-", 0, 0},
 };
 
 #define ROWS(r) (sizeof(r) / sizeof((r)[0]))
@@ -49,10 +55,13 @@ typedef struct node {
 typedef struct fx {
     tu_bus_t a, b, c;
     node_t gw_a, gw_b, gw_c, dev;
+    node_t fdev;                 /* fd device 6 on network 2 (fd_setup) */
+    uint8_t fd_buffer[FD_BUFFER];
     tu_line_t client;            /* raw frames on network 1 */
     tu_line_t peer;              /* raw frames on network 3 (the "next gateway") */
     co_gateway_t gw;
     bool drop_answer;
+    bool drop_fd_segments;       /* the fd device's 0x33 / 0x34 answers are lost */
     co_stack_t tool;             /* an SDO client on the client's line */
     co_stack_arena_t tool_arena;
     unsigned char tool_memory[32 * 1024];
@@ -83,6 +92,15 @@ static uint8_t drop_answer(const co_frame_t *frame, void *user)
         return 0;
     }
     return 1;
+}
+
+static uint8_t drop_fd_segments(const co_frame_t *frame, void *user)
+{
+    fx_t *fx = user;
+    return fx->drop_fd_segments && frame->id == 0x580 + FDEV &&
+                   (frame->data[1] == 0x33 || frame->data[1] == 0x34)
+               ? 0
+               : 1;
 }
 
 static void step_all(fx_t *fx, uint64_t t)
@@ -150,6 +168,9 @@ static void fx_free(fx_t *fx)
     co_stack_deinit(&fx->gw_b.stack);
     co_stack_deinit(&fx->gw_c.stack);
     co_stack_deinit(&fx->dev.stack);
+    if (co_stack_line(&fx->fdev.stack) != NULL) {
+        co_stack_deinit(&fx->fdev.stack);
+    }
     free(fx);
 }
 
@@ -281,8 +302,9 @@ static void test_silent_target_and_lost_answer(void **state)
 }
 
 /* Refusals, each an abort with the indication's bytes 1..3: a network no
- * route reaches (0x08000000), an fd network (0x060A0023: SDO cannot be
- * relayed there), the client's own line (0x060A0023), a bad node-id
+ * route reaches (0x08000000), an fd network whose line has no USDO client
+ * (0x060A0023: nothing to translate with), the client's own line
+ * (0x060A0023), a bad node-id
  * (0x06090030), the gateway's SDO client on the target line holding the
  * answer CAN-IDs (busy: 0x060A0023). A refused client stays with the
  * gateway's own server. */
@@ -619,6 +641,319 @@ static void test_client_reaches_a_node_through_the_gateway(void **state)
     fx_free(fx);
 }
 
+/* ------------------------------------------------------- into an fd network */
+
+/* The gateway's fd line gets a USDO client (node-id GW), the fd device 6
+ * joins network 2, and the gateway a buffer of FD_BUFFER bytes. */
+static void fd_setup(fx_t *fx)
+{
+    co_stack_client_config_t cc = {.sessions = 2, .node_id = GW, .timeout_ms = TIMEOUT_MS};
+    assert_int_equal(co_stack_client_init(&fx->gw_b.stack, &cc), CO_STACK_OK);
+    node_init(&fx->b, &fx->fdev, CO_MODE_FD, FDEV, device_rows, ROWS(device_rows));
+    co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, sizeof fx->fd_buffer);
+    co_membus_set_fault(&fx->b.bus, drop_fd_segments, fx);
+    settle(fx);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->b);
+    tu_log_clear(&fx->c);
+}
+
+/* The k-th fd frame with `id` must be exactly these bytes, byte 2 (the
+ * session-ID the USDO client picked, never 0) taken from the frame. */
+static void expect_fd(const tu_bus_t *tb, uint32_t id, size_t k, const uint8_t *data, uint8_t len)
+{
+    long i = tu_log_find_id(tb, id, k);
+    uint8_t want[64];
+    assert_true(i >= 0);
+    assert_true(len <= sizeof want);
+    memcpy(want, data, len);
+    want[2] = tb->log[i].frame.data[2];
+    assert_int_not_equal(want[2], 0);
+    tu_assert_logged(tb, i, id, want, len);
+}
+
+static const uint8_t IND_2_6[8] = {0xE0, NET_B, 0x00, FDEV, 0, 0, 0, 0};
+
+static void connect_2_6(fx_t *fx)
+{
+    request(fx, IND_2_6);
+    expect(&fx->a, 0x581, 0, IND_2_6);
+    assert_int_equal(fx->b.log_count, 0);   /* attached: nothing sent */
+    tu_log_clear(&fx->a);
+}
+
+/* Expedited both ways: the client's upload initiate becomes a USDO upload
+ * (0x11), the device's answer an expedited SDO answer; the client's
+ * expedited download a USDO expedited download (0x01, DOMAIN, 4 bytes),
+ * answered 0x60 once the device confirmed (0x21). */
+static void test_fd_expedited_translated(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    connect_2_6(fx);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect_fd(&fx->b, 0x600 + GW, 0, (const uint8_t[]){FDEV, 0x11, 0, 0x00, 0x00, 0x20}, 6);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x580 + FDEV), 1);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12});
+    request(fx, (const uint8_t[]){0x23, 0x00, 0x20, 0x00, 0xBE, 0xBA, 0xFE, 0xCA});
+    expect_fd(&fx->b, 0x600 + GW, 1,
+              (const uint8_t[]){FDEV, 0x01, 0, 0x00, 0x00, 0x20, 0x0F, 4, 0xBE, 0xBA, 0xFE, 0xCA},
+              12);
+    expect_fd(&fx->b, 0x580 + FDEV, 1, (const uint8_t[]){GW, 0x21, 0, 0x00, 0x00, 0x20}, 6);
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    uint32_t v = 0;
+    assert_true(co_od_get_u32(&fx->fdev.od, 0x2000, 0, &v));
+    assert_int_equal(v, 0xCAFEBABE);
+    /* two bytes, size indicated (n = 2) */
+    request(fx, (const uint8_t[]){0x2B, 0x17, 0x10, 0x00, 0xF4, 0x01, 0, 0});
+    expect_fd(&fx->b, 0x600 + GW, 2,
+              (const uint8_t[]){FDEV, 0x01, 0, 0x00, 0x17, 0x10, 0x0F, 2, 0xF4, 0x01, 0, 0},
+              12);   /* 10 bytes padded to the fd length 12 */
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x60, 0x17, 0x10, 0x00, 0, 0, 0, 0});
+    const co_gateway_stats_t *st = co_gateway_stats(&fx->gw);
+    assert_int_equal(st->sdo_translated, 3);
+    assert_int_equal(st->sdo_translate_failed, 0);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);   /* nothing left armed */
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 3);
+    fx_free(fx);
+}
+
+/* Segmented on the client's side: a 14-byte upload is served from the
+ * buffer after one USDO upload; a 100-byte download (buffer 100 bytes)
+ * is collected, then sent as a USDO segmented download (0x02 size 100,
+ * 0x03 with 60 bytes, 0x04 with 40), and the client's last segment is
+ * answered once the device confirmed it. */
+static void test_fd_segmented_translated(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    uint8_t big[100];
+    co_gateway_set_sdo_buffer(&fx->gw, big, sizeof big);
+    connect_2_6(fx);
+    request(fx, (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0});
+    expect_fd(&fx->b, 0x600 + GW, 0, (const uint8_t[]){FDEV, 0x11, 0, 0x00, 0x01, 0x20}, 6);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x01, 0x20, 0x00, 14, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x00, 'h', 'e', 'l', 'l', 'o', ' ', 'g'});
+    request(fx, (const uint8_t[]){0x70, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x11, 'a', 't', 'e', 'w', 'a', 'y', '!'});
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 1);   /* one USDO transfer */
+
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->b);
+    uint8_t value[100];
+    for (unsigned i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)('A' + i % 26);
+    }
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    uint8_t toggle = 0;
+    for (unsigned off = 0; off < sizeof value; off += 7) {
+        unsigned n = sizeof value - off < 7 ? sizeof value - off : 7;
+        bool last = off + n == sizeof value;
+        uint8_t seg[8] = {(uint8_t)(toggle << 4 | (7 - n) << 1 | (last ? 1 : 0))};
+        memcpy(seg + 1, value + off, n);
+        request(fx, seg);
+        if (!last) {
+            expect(&fx->a, 0x581, 1 + off / 7,
+                   (const uint8_t[]){(uint8_t)(0x20 | toggle << 4), 0, 0, 0, 0, 0, 0, 0});
+        }
+        toggle ^= 1;
+    }
+    expect_fd(&fx->b, 0x600 + GW, 0,
+              (const uint8_t[]){FDEV, 0x02, 0, 0x00, 0x03, 0x20, 0x0F, 0, 100, 0, 0, 0}, 12);
+    uint8_t seg1[64] = {FDEV, 0x03, 0, 1};   /* counter of the first segment: 1 */
+    memcpy(seg1 + 4, value, 60);
+    long i1 = tu_log_find_id(&fx->b, 0x600 + GW, 1);
+    assert_true(i1 >= 0);
+    seg1[3] = fx->b.log[i1].frame.data[3];
+    expect_fd(&fx->b, 0x600 + GW, 1, seg1, 64);
+    uint8_t seg2[48] = {FDEV, 0x04, 0, 40};
+    memcpy(seg2 + 4, value + 60, 40);
+    long i2 = tu_log_find_id(&fx->b, 0x600 + GW, 2);
+    assert_true(i2 >= 0);
+    assert_true(fx->b.log[i2].frame.len >= 44);   /* 44 bytes, padded to an fd length */
+    assert_int_equal(fx->b.log[i2].frame.data[0], FDEV);
+    assert_int_equal(fx->b.log[i2].frame.data[1], 0x04);
+    assert_memory_equal(fx->b.log[i2].frame.data + 3, seg2 + 3, 41);
+    /* 15 segments: the last one (toggle 0) answered after the device's 0x24 */
+    expect(&fx->a, 0x581, 15, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 16);
+    uint8_t got[100];
+    uint32_t got_len = 0;
+    assert_int_equal(co_od_get(&fx->fdev.od, 0x2003, 0, got, sizeof got, &got_len), 0);
+    assert_int_equal(got_len, 100);
+    assert_memory_equal(got, value, 100);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translated, 2);
+    fx_free(fx);
+}
+
+/* A silent fd target: the USDO client's timeout aborts it (0x12 on the fd
+ * bus) and the client hears 0x05040000; the client's own abort while the
+ * USDO upload runs reaches the target mapped (0x05040000 -> 0x12 is the
+ * same code here, so a read-only abort 0x06010002 -> 0x32 is used) and no
+ * answer follows; the target's abort (no such object, 0x33) reaches the
+ * client as 0x06020000. */
+static void test_fd_timeouts_and_aborts_mapped(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    const uint8_t ind_2_7[8] = {0xE0, NET_B, 0x00, 7, 0, 0, 0, 0};
+    request(fx, ind_2_7);
+    tu_log_clear(&fx->a);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    uint64_t sent = fx->a.now;
+    advance(fx, sent + (TIMEOUT_MS - 1) * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 0);   /* not before the timeout */
+    advance(fx, sent + (TIMEOUT_MS + 5) * TU_MS);
+    expect_fd(&fx->b, 0x600 + GW, 1, (const uint8_t[]){7, 0x7F, 0, 0x00, 0x00, 0x20, 0x12}, 7);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05});
+
+    /* the client aborts while the target is silent: the USDO transfer ends
+     * with the mapped code, nothing more reaches the client */
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x80, 0x00, 0x20, 0x00, 0x02, 0x00, 0x01, 0x06});
+    expect_fd(&fx->b, 0x600 + GW, 3, (const uint8_t[]){7, 0x7F, 0, 0x00, 0x00, 0x20, 0x32}, 7);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 4);
+
+    /* the target's abort, mapped back */
+    request(fx, IND_2_6);
+    tu_log_clear(&fx->a);
+    request(fx, (const uint8_t[]){0x40, 0xFF, 0x2F, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0xFF, 0x2F, 0x00, 0x00, 0x00, 0x02, 0x06});
+    const co_gateway_stats_t *st = co_gateway_stats(&fx->gw);
+    assert_int_equal(st->sdo_translate_failed, 2);
+    assert_int_equal(st->sdo_translated, 0);
+    fx_free(fx);
+}
+
+/* The buffer (64 bytes): a download announced larger is refused at once,
+ * an upload larger is stopped (the gateway's USDO abort 0x16 on the fd
+ * bus) and both reach the client as 0x05040005; while a segmented
+ * transfer of one client holds the buffer, a client of another line is
+ * told busy (0x060A0023); a client silent mid-transfer is aborted with
+ * 0x05040000 and the buffer is free again; a block initiate is refused
+ * with 0x05040001 (a client then goes segmented). */
+static void test_fd_buffer_limits_busy_and_block(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    connect_2_6(fx);
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x05, 0x00, 0x04, 0x05});
+    assert_int_equal(fx->b.log_count, 0);
+    co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, 100);
+    request(fx, (const uint8_t[]){0x23, 0x03, 0x20, 0x00, 'a', 'b', 'c', 'd'});   /* "abcd" */
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, 3);
+    tu_log_clear(&fx->b);
+    request(fx, (const uint8_t[]){0x40, 0x03, 0x20, 0x00, 0, 0, 0, 0});   /* 4 bytes > 3 */
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x05, 0x00, 0x04, 0x05});
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_too_big, 2);
+    co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, sizeof fx->fd_buffer);
+
+    /* client 1 holds the buffer (segmented download begun) */
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 20, 0, 0, 0});
+    expect(&fx->a, 0x581, 3, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    /* a client on network 3 connects to the same device and uploads */
+    assert_true(co_line_send(&fx->peer.line, 0x600 + GW, IND_2_6, 8));
+    settle(fx);
+    expect(&fx->c, 0x581, 0, IND_2_6);
+    assert_true(co_line_send(&fx->peer.line, 0x600 + GW,
+                             (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0}, 8));
+    settle(fx);
+    expect(&fx->c, 0x581, 1, (const uint8_t[]){0x80, 0x01, 0x20, 0x00, 0x23, 0x00, 0x0A, 0x06});
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_buffer_busy, 1);
+    /* client 1 goes silent: aborted after the timeout, the buffer freed */
+    advance(fx, fx->a.now + (TIMEOUT_MS + 1) * TU_MS);
+    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05});
+    assert_true(co_line_send(&fx->peer.line, 0x600 + GW,
+                             (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0}, 8));
+    settle(fx);
+    expect(&fx->c, 0x581, 2, (const uint8_t[]){0x41, 0x01, 0x20, 0x00, 14, 0, 0, 0});
+
+    /* block download initiate: not translated */
+    request(fx, (const uint8_t[]){0xC6, 0x03, 0x20, 0x00, 20, 0, 0, 0});
+    expect(&fx->a, 0x581, 5, (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x01, 0x00, 0x04, 0x05});
+    fx_free(fx);
+}
+
+/* The gateway's upload into a too-small buffer, seen on the fd bus: the
+ * device announces 14 bytes, the gateway's USDO client stops it (0x16). */
+static void test_fd_upload_larger_than_the_buffer(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, 10);
+    connect_2_6(fx);
+    request(fx, (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x01, 0x20, 0x00, 0x05, 0x00, 0x04, 0x05});
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_too_big, 1);
+    expect_fd(&fx->b, 0x600 + GW, 0, (const uint8_t[]){FDEV, 0x11, 0, 0x00, 0x01, 0x20}, 6);
+    expect_fd(&fx->b, 0x600 + GW, 1, (const uint8_t[]){FDEV, 0x7F, 0, 0x00, 0x01, 0x20, 0x16}, 7);
+    fx_free(fx);
+}
+
+/* A 100-byte upload the device sends segmented (0x32 size 100, then 0x33 /
+ * 0x34 on the gateway's 0x13 requests): the client's initiate is answered
+ * with the size as soon as the device announced it, before the data came;
+ * the client's segments carry the value. Then the device goes silent after
+ * announcing: the client's segment request waits, the USDO timeout stops
+ * the device (0x12) and the client hears 0x05040000. */
+static void test_fd_upload_streamed(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    uint8_t big[100];
+    co_gateway_set_sdo_buffer(&fx->gw, big, sizeof big);
+    uint8_t value[100];
+    for (unsigned i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)(0x20 + i);
+    }
+    assert_int_equal(co_od_put(&fx->fdev.od, 0x2003, 0, value, sizeof value), 0);
+    connect_2_6(fx);
+    fx->drop_fd_segments = true;   /* hold the data back: only the announcement passes */
+    request(fx, (const uint8_t[]){0x40, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    expect_fd(&fx->b, 0x580 + FDEV, 0,
+              (const uint8_t[]){GW, 0x32, 0, 0x00, 0x03, 0x20, 0x09, 0, 100, 0, 0, 0}, 12);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);   /* waits for the data */
+    advance(fx, fx->a.now + (TIMEOUT_MS + 5) * TU_MS);
+    expect_fd(&fx->b, 0x600 + GW, 2, (const uint8_t[]){FDEV, 0x7F, 0, 0x00, 0x03, 0x20, 0x12}, 7);
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05});
+
+    fx->drop_fd_segments = false;
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->b);
+    request(fx, (const uint8_t[]){0x40, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    uint8_t toggle = 0;
+    for (unsigned off = 0; off < sizeof value; off += 7) {
+        unsigned n = sizeof value - off < 7 ? sizeof value - off : 7;
+        bool last = off + n == sizeof value;
+        request(fx, (const uint8_t[]){(uint8_t)(0x60 | toggle << 4), 0, 0, 0, 0, 0, 0, 0});
+        uint8_t seg[8] = {(uint8_t)(toggle << 4 | (7 - n) << 1 | (last ? 1 : 0))};
+        memcpy(seg + 1, value + off, n);
+        expect(&fx->a, 0x581, 1 + off / 7, seg);
+        toggle ^= 1;
+    }
+    /* the device's side: 0x11, 0x32, then 0x13 / 0x33 and the last 0x34 */
+    expect_fd(&fx->b, 0x600 + GW, 1, (const uint8_t[]){FDEV, 0x13, 0, 0}, 4);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translated, 1);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 16);
+    fx_free(fx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -633,6 +968,12 @@ int main(void)
         cmocka_unit_test(test_relay_beside_the_gateways_own_client),
         cmocka_unit_test(test_block_download_last_segment_is_no_indication),
         cmocka_unit_test(test_cancel_during_indication_forgets_the_connection),
+        cmocka_unit_test(test_fd_expedited_translated),
+        cmocka_unit_test(test_fd_segmented_translated),
+        cmocka_unit_test(test_fd_timeouts_and_aborts_mapped),
+        cmocka_unit_test(test_fd_buffer_limits_busy_and_block),
+        cmocka_unit_test(test_fd_upload_larger_than_the_buffer),
+        cmocka_unit_test(test_fd_upload_streamed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -22,7 +22,11 @@
  *   - relays SDO networking (co_gateway_sdo.c): a client's network
  *     indication (0xE0, network LE16, node) on a classic port's SDO server
  *     connects it to a node of another network; its frames then go to that
- *     node (or the next gateway) and the answers back, unchanged;
+ *     node (or the next gateway) and the answers back, unchanged; a node of
+ *     an attached fd network is reached by translation instead
+ *     (co_gateway_sdo_fd.c): the gateway serves the client's SDO transfer
+ *     itself and moves the whole value with the fd line's USDO client
+ *     through a buffer the caller gives (co_gateway_set_sdo_buffer);
  *   - forwards remote USDO (co_gateway_usdo.c): a routed request (cs | 0x80,
  *     CiA 1301; expedited or segmented, values up to
  *     CO_GATEWAY_USDO_VALUE_MAX bytes) to its node on an fd port is carried
@@ -86,6 +90,10 @@ typedef struct co_gateway_stats {
     uint32_t usdo_stray;         /* routed aborts / frames for no forwarded request */
     uint32_t usdo_tx_failed;     /* an answer the client's line refused (tx queue full) */
     uint32_t usdo_timeouts;      /* a client stopped in the middle of a segmented transfer */
+    uint32_t sdo_translated;     /* transfers to an fd node completed through USDO */
+    uint32_t sdo_translate_failed; /* ... ended with an abort (either side, timeouts) */
+    uint32_t sdo_too_big;        /* ... refused: larger than the gateway's buffer */
+    uint32_t sdo_buffer_busy;    /* ... refused: another connection holds the buffer */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -124,6 +132,19 @@ typedef struct co_gateway_sdo {
                                         segments (0x80 | seqno may be 0xE0..0xFF)
                                         are no network indications */
     co_timer_t timer;
+    /* translation to an fd target (co_gateway_sdo_fd.c) */
+    bool fd;                         /* the target is on an fd line */
+    uint8_t xstate;                  /* co_gateway_sdo_fd.c's transfer state */
+    uint8_t toggle;                  /* segmented: toggle expected next */
+    bool size_known;                 /* segmented download: the client gave its size */
+    bool usdo_running;               /* the USDO transfer has not ended yet */
+    bool seg_pending;                /* upload: a segment request waits for data */
+    uint32_t size;                   /* announced (download) / held (upload) bytes */
+    uint32_t offset;                 /* bytes moved to / from the client so far */
+    uint8_t small[4];                /* an expedited download's data (no buffer needed) */
+    uint8_t answer[8];               /* the client's answer once the USDO transfer is done */
+    co_buffer_t data;                /* the transfer's view of the gateway's buffer */
+    co_usdo_request_t req;           /* the USDO transfer to the target */
 } co_gateway_sdo_t;
 
 /* One remote USDO request being carried out: the client's request on
@@ -171,6 +192,9 @@ struct co_gateway {
     co_gateway_sdo_t sdo[CO_GATEWAY_SDO_CONNECTIONS];
     co_gateway_usdo_t usdo[CO_GATEWAY_USDO_RELAYS];
     uint32_t sdo_timeout_us;
+    uint8_t *sdo_buf;            /* translation buffer (caller memory), NULL: none */
+    uint32_t sdo_buf_size;
+    co_gateway_sdo_t *sdo_buf_owner; /* the connection using it, NULL: free */
     co_gateway_event_fn on_event;
     void *user;
     co_gateway_stats_t stats;
@@ -215,6 +239,14 @@ bool co_gateway_set_emcy_route(co_gateway_t *gw, co_stack_t *stack, uint8_t node
  * CO_GATEWAY_SDO_TIMEOUT_MS). */
 void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms);
 
+/* SDO networking into fd networks: the buffer one translated segmented
+ * transfer at a time goes through (a value larger than `size` is refused
+ * with 0x05040005; a second transfer while one holds it with 0x060A0023).
+ * NULL / 0: none (expedited downloads of 1..4 bytes still pass). The fd
+ * line's stack needs a USDO client (co_stack_client_init) whose node-id
+ * is not the target's. */
+void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size);
+
 /* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
 void co_gateway_sdo_hook(struct co_gateway_port *port);
 void co_gateway_sdo_unhook(struct co_gateway_port *port);
@@ -222,6 +254,11 @@ void co_gateway_sdo_unhook(struct co_gateway_port *port);
  * (unhook cancels the requests forwarded from or to the port). */
 void co_gateway_usdo_hook(struct co_gateway_port *port);
 void co_gateway_usdo_unhook(struct co_gateway_port *port);
+/* co_gateway_sdo_fd.c, for co_gateway_sdo.c: a connected client's request
+ * to an fd target (always taken), and the end of the connection. */
+void co_gateway_sdo_fd_open(co_gateway_sdo_t *c);
+bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *data);
+void co_gateway_sdo_fd_close(co_gateway_sdo_t *c);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
 {

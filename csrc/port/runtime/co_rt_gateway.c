@@ -2,7 +2,10 @@
  * lines join with a network-id; the core then routes EMCYs and forwards
  * 0xB000..0xBFFF PDO objects between their local nodes inside the runtime
  * thread (no Python per frame). The ports are rebuilt whenever a joined
- * line's local node appears, since the core hooks the node's OD and PDOs. */
+ * line's local node appears, since the core hooks the node's OD and PDOs.
+ * A joined fd line gets its USDO client (the line's node-id as client) so
+ * classic clients reach its nodes by SDO networking, through the runtime's
+ * RT_GATEWAY_SDO_BUFFER bytes. */
 #include "co_rt_internal.h"
 
 #include <string.h>
@@ -40,13 +43,15 @@ int rt_gateway_rebuild(co_rt_t *rt)
     co_gateway_init(gw, on_gateway_event, rt);
     memcpy(gw->routes, routes, sizeof routes);
     gw->stats = stats;
+    co_gateway_set_sdo_buffer(gw, rt->gateway_sdo_buf, sizeof rt->gateway_sdo_buf);
     for (int i = 0; i < count; i++) {
         rt_line_t *l = rt->lines[i];
         if (l->network_id == 0) {
             continue;
         }
         if (co_line_mode(&l->line) == CO_MODE_FD && co_line_node_id(&l->line) != 0) {
-            /* remote USDO requests are carried out by the line's USDO client */
+            /* remote USDO requests and SDO networking into this fd line are
+             * carried out by the line's USDO client */
             (void)rt_client_ready(rt, l);
         }
         co_gateway_status_t s = co_gateway_add_port(gw, &l->stack, l->network_id);

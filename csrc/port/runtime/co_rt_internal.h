@@ -53,6 +53,9 @@ enum {
     RT_TRANSFER_ROUNDS = 16,
     RT_EPOLL_BATCH = 32,
     RT_ERROR_SIZE = 256,
+    /* the gateway's buffer for SDO transfers into fd networks: the largest
+     * value a classic client moves through it */
+    RT_GATEWAY_SDO_BUFFER = 64 * 1024,
     RT_CHANNEL_SIZE = 64,
     RT_INDICATIONS = 16,          /* key ranges with Python indications */
     RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
@@ -332,6 +335,9 @@ struct co_rt {
     rt_mailbox_t mail;
     rt_events_t events;
     co_gateway_t gateway;  /* between the joined lines (co_rt_gateway.c), under lock */
+    /* SDO networking into fd networks: one translated transfer at a time
+     * goes through it (co_gateway_set_sdo_buffer) */
+    uint8_t gateway_sdo_buf[RT_GATEWAY_SDO_BUFFER];
     /* Client transfers that ended: done_gen counts them, done_ready wakes
      * threads blocked in co_rt_transfer_wait (own lock: never waits for a
      * turn of the runtime thread). */
