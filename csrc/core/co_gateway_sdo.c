@@ -253,7 +253,7 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
     c = find_free(gw);
-    if (c == NULL || target_taken(gw, to, target) || (!fd && !listen(c, to, target))) {
+    if (c == NULL || (!fd && (target_taken(gw, to, target) || !listen(c, to, target)))) {
         /* no connection free, or another client already talks to the target */
         return refuse(gw, line, reply_id, data + 1, CO_GATEWAY_ABORT_BUSY);
     }
