@@ -29,11 +29,25 @@ class Sniffer(can.Listener):
 
     def __init__(self) -> None:
         self.frames: List[can.Message] = []
-        self._lock = threading.Lock()
+        self._lock = threading.Condition()
 
     def on_message_received(self, msg: can.Message) -> None:
         with self._lock:
             self.frames.append(msg)
+            self._lock.notify_all()
+
+    def wait(self, can_id: int, found, what: str, timeout: float = 5.0) -> List[bytes]:
+        """The frames of can_id once found(frames) holds (the bus's notifier
+        delivers after the stacks acted on a frame)."""
+        deadline = time.monotonic() + scaled(timeout)
+        with self._lock:
+            while True:
+                frames = [bytes(m.data) for m in self.frames if m.arbitration_id == can_id]
+                if found(frames):
+                    return frames
+                left = deadline - time.monotonic()
+                assert left > 0, f"timed out waiting for {what}: {frames[-5:]}"
+                self._lock.wait(left)
 
     def of(self, can_id: int) -> List[bytes]:
         with self._lock:
@@ -84,8 +98,10 @@ def test_three_instances_agree_then_survive_the_master(candidates):
     networks[1].close()                       # the active master dies
     assert nodes[0].flying_master.wait_for("master", timeout=scaled(5)) == 10
     assert nodes[2].flying_master.wait_for("slave", timeout=scaled(5)) == 10
-    assert bytes([0x82, 0x00]) in sniffer.of(0x000)[mark:]   # the network reset
-    assert sniffer.of(0x71)[-1] == bytes([0x01, 10])
+    sniffer.wait(0x000, lambda frames: bytes([0x82, 0x00]) in frames[mark:],
+                 "the network reset")
+    sniffer.wait(0x71, lambda frames: frames and frames[-1] == bytes([0x01, 10]),
+                 "node 10's announcement")
     assert nodes[2].flying_master.stats["rx_bad_length"] == 0
 
 

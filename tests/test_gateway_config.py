@@ -62,6 +62,7 @@ def test_a_good_file_is_read(tmp_path: pathlib.Path) -> None:
     ("[line 1]\nchannel = can0\nnode_id = 200\n", 3, "node_id = 200 is not 1..127"),
     ("[line 1]\nchannel = can0\nnode_id = five\n", 3, "not a number"),
     ("[line 1]\nmode = fd\n", 1, "channel is missing"),
+    ("[line 1]\nchanel = can0\n", 2, "unknown key 'chanel'"),
     ("[line 0]\nchannel = can0\n", 1, "network-id 0 is not 1..127"),
     ("[line 1]\nchannel = can0\n[line 1]\nchannel = can1\n", 3, "appears again"),
     ("[line 1]\nchannel = can0\nchannel = can1\n", 3, "duplicate key"),

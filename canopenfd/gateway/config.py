@@ -243,14 +243,15 @@ def parse_config(data: Union[bytes, str], path: str = "<config>") -> GatewayConf
             net = _number(tail, 1, 127, reader, "network-id")
             if net in nets:
                 raise reader.error(f"network {net} is configured twice")
-            channel = reader.text("channel")
-            if channel is None:
-                raise reader.error("channel is missing (e.g. channel = can0)")
-            nets[net] = LineConfig(
-                net, channel, reader.choice("mode", "fd", _MODES),
+            line_config = LineConfig(
+                net, reader.text("channel") or "", reader.choice("mode", "fd", _MODES),
                 reader.number("node_id", None, 1, 127), reader.path_value("od"),
                 reader.number("heartbeat_ms", 0, 0, 65535) or 0,
                 reader.choice("routing", "on", ("on", "off")) == "on")
+            reader.finish()      # a misspelt key ("chanel") before the missing one
+            if not line_config.channel:
+                raise reader.error("channel is missing (e.g. channel = can0)")
+            nets[net] = line_config
         elif kind == "routes" and not tail:
             for key in section.keys.values():
                 config.routes.append(_route(key, reader))

@@ -282,6 +282,45 @@ static void answer_upload(co_usdo_session_t *ses)
 
 /* ------------------------------------------------------------ bulk upload */
 
+/* The next upload segment, read from the OD: `cs_last` with the rest (the
+ * session then ends) or `cs_segment` with 60 bytes and the session's
+ * counter. False when the transfer ended (last segment sent, or the OD
+ * failed and the client was aborted). Segmented and bulk uploads share it. */
+static bool send_upload_segment(co_usdo_session_t *ses, uint8_t cs_segment, uint8_t cs_last)
+{
+    co_usdo_server_t *s = ses->server;
+    uint8_t data[CO_USDO_SEGMENT_DATA];
+    uint32_t n = 0;
+    bool last = false;
+    co_usdo_msg_t out;
+    uint32_t r = fill(ses, data, CO_USDO_SEGMENT_DATA, &n, &last);
+    if (r != 0) {
+        od_fail(ses, r);
+        return false;
+    }
+    memset(&out, 0, sizeof out);
+    out.dest = ses->client;
+    out.session = ses->session_id;
+    out.data = data;
+    if (last) {
+        out.cs = cs_last;
+        out.length = (uint8_t)n;
+        send_msg(s, &out);
+        s->stats.uploads++;
+        if (cs_last == CO_USDO_CS_BULK_UPLOAD_LAST_RSP) {
+            s->stats.bulk_uploads++;
+        }
+        release(ses);
+        return false;
+    }
+    out.cs = cs_segment;
+    out.counter = ses->counter;
+    out.length = CO_USDO_SEGMENT_DATA;
+    send_msg(s, &out);
+    ses->counter = co_usdo_next_counter(ses->counter);
+    return true;
+}
+
 /* Stream segments while the client's window and the tx queue have room:
  * 0x37 with 60 bytes, 0x38 with the rest (a multiple of 60 ends with a full
  * 0x38, as segmented uploads do). Out of window: wait for the client's 0x17
@@ -292,11 +331,6 @@ static void bulk_stream(co_usdo_session_t *ses)
     co_usdo_server_t *s = ses->server;
     while (ses->state == CO_USDO_SESSION_BULK_UPLOAD &&
            ses->sent - ses->acked < ses->window) {
-        uint8_t data[CO_USDO_SEGMENT_DATA];
-        uint32_t n = 0;
-        bool last = false;
-        co_usdo_msg_t out;
-        uint32_t r;
         if (co_line_tx_room(s->line) == 0) {
             if (!ses->tx_wait) {
                 s->stats.tx_deferred++;
@@ -304,29 +338,10 @@ static void bulk_stream(co_usdo_session_t *ses)
             ses->tx_wait = true;
             return;
         }
-        r = fill(ses, data, CO_USDO_SEGMENT_DATA, &n, &last);
-        if (r != 0) {
-            od_fail(ses, r);
+        if (!send_upload_segment(ses, CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP,
+                                 CO_USDO_CS_BULK_UPLOAD_LAST_RSP)) {
             return;
         }
-        memset(&out, 0, sizeof out);
-        out.dest = ses->client;
-        out.session = ses->session_id;
-        out.data = data;
-        if (last) {
-            out.cs = CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
-            out.length = (uint8_t)n;
-            send_msg(s, &out);
-            s->stats.uploads++;
-            s->stats.bulk_uploads++;
-            release(ses);
-            return;
-        }
-        out.cs = CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP;
-        out.counter = ses->counter;
-        out.length = CO_USDO_SEGMENT_DATA;
-        send_msg(s, &out);
-        ses->counter = co_usdo_next_counter(ses->counter);
         ses->sent++;
     }
     ses->tx_wait = false;
@@ -611,11 +626,6 @@ static void on_download_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uin
 static void on_upload_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uint8_t client,
                               const co_usdo_msg_t *m)
 {
-    uint8_t data[CO_USDO_SEGMENT_DATA];
-    uint32_t n = 0;
-    bool last = false;
-    uint32_t r;
-    co_usdo_msg_t out;
     if (!segment_session_ok(s, ses, client, m, CO_USDO_SESSION_UPLOAD)) {
         return;
     }
@@ -624,28 +634,7 @@ static void on_upload_segment(co_usdo_server_t *s, co_usdo_session_t *ses, uint8
         close_session(ses, CO_USDO_ABORT_COUNTER, true);
         return;
     }
-    r = fill(ses, data, CO_USDO_SEGMENT_DATA, &n, &last);
-    if (r != 0) {
-        od_fail(ses, r);
-        return;
-    }
-    memset(&out, 0, sizeof out);
-    out.dest = ses->client;
-    out.session = ses->session_id;
-    out.data = data;
-    if (last) {
-        out.cs = CO_USDO_CS_UPLOAD_LAST_RSP;
-        out.length = (uint8_t)n;
-        send_msg(s, &out);
-        s->stats.uploads++;
-        release(ses);
-        return;
-    }
-    out.cs = CO_USDO_CS_UPLOAD_SEGMENT_RSP;
-    out.counter = m->counter;
-    out.length = CO_USDO_SEGMENT_DATA;
-    send_msg(s, &out);
-    ses->counter = co_usdo_next_counter(ses->counter);
+    (void)send_upload_segment(ses, CO_USDO_CS_UPLOAD_SEGMENT_RSP, CO_USDO_CS_UPLOAD_LAST_RSP);
 }
 
 static void on_frame(co_line_t *line, const co_frame_t *f, void *user)
