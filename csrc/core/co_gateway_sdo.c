@@ -9,8 +9,10 @@
  * Frames to a classic line are relayed as they are (8 bytes), so
  * expedited, segmented and block transfers all pass; the gateway only reads
  * byte 0 (the indication, aborts) and bytes 1..3 (for its own aborts). A
- * node of an attached fd line is reached by translation instead
- * (co_gateway_sdo_fd.c). */
+ * node of an attached line is reached through the gateway's buffer instead
+ * where it can be (co_gateway_sdo_fd.c): always for an fd line, segmented
+ * downloads and uploads for a classic line whose SDO client the gateway can
+ * use (so the two hops run side by side). */
 #include "canopenfd/co_gateway.h"
 
 #include <string.h>
@@ -90,9 +92,11 @@ static void release(co_gateway_sdo_t *c)
     if (c->from == NULL) {
         return;
     }
-    if (c->fd) {
+    bool relayed = !c->fd;
+    if (c->buffered) {
         co_gateway_sdo_fd_close(c);
-    } else {
+    }
+    if (relayed) {
         co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
         co_line_unsubscribe(line_of(c->to), on_answer, c);
     }
@@ -185,6 +189,15 @@ static bool listen(co_gateway_sdo_t *c, co_gateway_port_t *to, uint8_t target)
     return true;
 }
 
+/* A classic target the gateway's buffer can serve: the target line's SDO
+ * client receives its answers (it holds 0x581..0x5FF). */
+static bool can_buffer(const co_gateway_t *gw, const co_gateway_port_t *to, uint8_t target)
+{
+    co_sdo_client_t *own = co_stack_sdo_client(to->stack);
+    return gw->sdo_buf != NULL && own != NULL &&
+           co_sdo_client_holds(own, (uint32_t)SDO_RESPONSE_BASE + target);
+}
+
 static bool target_taken(const co_gateway_t *gw, const co_gateway_port_t *to, uint8_t target)
 {
     for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
@@ -267,10 +280,12 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
     c->node = node;
     memcpy(c->mux, data + 1, 3);
     c->fd = false;
-    if (fd) {
-        co_gateway_sdo_fd_open(c);
-    } else {
+    c->buffered = false;
+    if (!fd) {
         co_timer_init(&c->timer, on_timeout, c);
+    }
+    if (fd || (kind == CO_GATEWAY_ATTACHED && can_buffer(gw, to, target))) {
+        co_gateway_sdo_fd_open(c, fd);
     }
     if (kind == CO_GATEWAY_VIA) {
         /* the next gateway connects on: it confirms or aborts */
@@ -305,24 +320,29 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
         send_abort(from->gw, line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
         return true;
     }
-    if (c->fd) {
-        return co_gateway_sdo_fd_request(c, f->data);
+    if (c->buffered && co_gateway_sdo_fd_request(c, f->data)) {
+        return true;
     }
-    from->gw->stats.sdo_relayed++;
-    send8(from->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, f->data);
-    if (f->data[0] == SDO_CCS_ABORT) {
+    co_gateway_sdo_relay(c, f->data);
+    return true;
+}
+
+void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data)
+{
+    c->gw->stats.sdo_relayed++;
+    send8(c->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, data);
+    if (data[0] == SDO_CCS_ABORT) {
         co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
         c->state = SDO_CONNECTED;   /* an abort is not answered */
         c->block_down = false;
-        return true;
+        return;
     }
-    if (!c->block_down && (f->data[0] & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE) {
+    if (!c->block_down && (data[0] & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE) {
         c->block_down = true;
     }
-    memcpy(c->mux, f->data + 1, 3);
+    memcpy(c->mux, data + 1, 3);
     c->state = SDO_WAITING;
     arm(c);
-    return true;
 }
 
 void co_gateway_sdo_hook(co_gateway_port_t *port)

@@ -1,27 +1,40 @@
-/* co_gateway SDO networking into an fd network: classic SDO frames cannot
- * be relayed to a USDO server, so for a connection whose target is on an
- * attached fd line the gateway is the SDO server the client talks to and
- * moves the value with the fd line's USDO client, one whole transfer at a
- * time:
+/* co_gateway SDO networking, buffered: the gateway is the SDO server the
+ * client talks to and moves the value with its own client on the target
+ * line, one whole transfer at a time. Two kinds of target use it:
  *
- *   download  expedited: the 1..4 bytes go out at once as a USDO download;
+ *   a node of an attached fd line: always (classic SDO frames cannot be
+ *             relayed to a USDO server); the fd line's USDO client moves
+ *             the value;
+ *   a node of an attached classic line: for segmented downloads and for
+ *             uploads, when the buffer and the line's SDO client are free
+ *             (else the frames are relayed, co_gateway_sdo.c). The client's
+ *             segments are then answered by the gateway while its own SDO
+ *             client works the target, so the two hops run side by side
+ *             instead of one frame after the other (a relay doubles every
+ *             segment's round trip). Downloads go to the target by block
+ *             transfer when it takes one (once refused, segmented for the
+ *             rest of the connection); expedited downloads and block
+ *             transfers of the client are relayed as they are.
+ *
+ *   download  expedited (fd only): the 1..4 bytes go out at once;
  *             segmented: the segments are collected in the gateway's buffer
  *             (each answered at once), the last one is answered only when
- *             the USDO download of the whole value has ended;
- *   upload    the initiate starts a USDO upload into the buffer. As soon as
- *             the device has announced a size above 4 bytes the initiate is
+ *             the download of the whole value to the target has ended;
+ *   upload    the initiate starts an upload into the buffer. As soon as
+ *             the target has announced a size above 4 bytes the initiate is
  *             answered with it and the client's segment requests are served
  *             from the buffer while the data still arrives (a request the
  *             data has not reached yet waits for it; the last one waits for
- *             the end of the USDO transfer), so the client never waits for
- *             the whole value. 1..4 bytes (expedited answer) and a size the
- *             device does not announce wait for the end of the transfer.
+ *             the end of the target's transfer), so the client never waits
+ *             for the whole value. 1..4 bytes (expedited answer) and a size
+ *             the target does not announce wait for the end of the transfer.
  *
- * Aborts map both ways (co_usdo_abort_from_co / _to_co); a USDO transfer
- * that times out reaches the client as 0x05040000, a client silent in the
- * middle of a segmented transfer is aborted with 0x05040000 after the
- * gateway's SDO timeout. Block transfers are refused with 0x05040001 (a
- * client then goes segmented). Choices: docs/protocol-notes.md "Gateway". */
+ * Aborts pass both ways (USDO codes mapped: co_usdo_abort_from_co / _to_co);
+ * a target transfer that times out reaches the client as 0x05040000, a
+ * client silent in the middle of a segmented transfer is aborted with
+ * 0x05040000 after the gateway's SDO timeout. Block transfers into an fd
+ * network are refused with 0x05040001 (a client then goes segmented).
+ * Choices: docs/protocol-notes.md "Gateway". */
 #include "canopenfd/co_gateway.h"
 
 #include <string.h>
@@ -67,13 +80,13 @@ static void arm(co_gateway_sdo_t *c)
     co_line_t *line = client_line(c);
     uint64_t us = c->gw->sdo_timeout_us != 0 ? c->gw->sdo_timeout_us
                                              : (uint64_t)CO_GATEWAY_SDO_TIMEOUT_MS * 1000u;
-    co_timer_start(co_line_timers(line), &c->timer, co_line_now(line) + us);
+    co_timer_start(co_line_timers(line), &c->xtimer, co_line_now(line) + us);
 }
 
 /* The transfer ends (the connection stays): timer off, buffer given back. */
 static void finish(co_gateway_sdo_t *c)
 {
-    co_timer_cancel(co_line_timers(client_line(c)), &c->timer);
+    co_timer_cancel(co_line_timers(client_line(c)), &c->xtimer);
     if (c->gw->sdo_buf_owner == c) {
         c->gw->sdo_buf_owner = NULL;
     }
@@ -81,15 +94,22 @@ static void finish(co_gateway_sdo_t *c)
     c->seg_pending = false;
 }
 
-/* Stop a running USDO transfer with the client's (mapped) code. */
-static void cancel_usdo(co_gateway_sdo_t *c, uint32_t co_code)
+/* Stop the target's running transfer with the client's code (mapped for USDO). */
+static void cancel_fetch(co_gateway_sdo_t *c, uint32_t co_code)
 {
-    co_usdo_client_t *uc = co_stack_usdo_client(c->to->stack);
-    c->xstate = X_IDLE;   /* done() below finds nothing to answer */
-    c->usdo_running = false;
-    if (uc != NULL && co_usdo_client_running(uc, &c->req)) {
-        uint8_t code = co_usdo_abort_from_co(co_code);
-        (void)co_usdo_client_cancel(uc, &c->req, code ? code : CO_USDO_ABORT_UNKNOWN);
+    c->xstate = X_IDLE;   /* fetched() below finds nothing to answer */
+    c->fetch_running = false;
+    if (c->fd) {
+        co_usdo_client_t *uc = co_stack_usdo_client(c->to->stack);
+        if (uc != NULL && co_usdo_client_running(uc, &c->fetch.usdo)) {
+            uint8_t code = co_usdo_abort_from_co(co_code);
+            (void)co_usdo_client_cancel(uc, &c->fetch.usdo, code ? code : CO_USDO_ABORT_UNKNOWN);
+        }
+        return;
+    }
+    co_sdo_client_t *sc = co_stack_sdo_client(c->to->stack);
+    if (sc != NULL && co_sdo_client_running(sc, &c->fetch.sdo)) {
+        (void)co_sdo_client_cancel(sc, &c->fetch.sdo, co_code);
     }
 }
 
@@ -97,8 +117,8 @@ static void cancel_usdo(co_gateway_sdo_t *c, uint32_t co_code)
  * running is stopped with the same code (mapped). */
 static void fail(co_gateway_sdo_t *c, uint32_t code)
 {
-    if (c->usdo_running) {
-        cancel_usdo(c, code);
+    if (c->fetch_running) {
+        cancel_fetch(c, code);
     }
     c->gw->stats.sdo_translate_failed++;
     abort_client(c, code);
@@ -140,9 +160,9 @@ static void serve_segment(co_gateway_sdo_t *c)
     uint32_t left = c->size - c->offset;
     uint32_t n = left < SEG_DATA ? left : SEG_DATA;
     bool last = n == left;
-    if (c->data.size < c->offset + n || (last && c->usdo_running)) {
+    if (c->data.size < c->offset + n || (last && c->fetch_running)) {
         c->seg_pending = true;   /* the device's data decides: its timeout applies */
-        co_timer_cancel(co_line_timers(client_line(c)), &c->timer);
+        co_timer_cancel(co_line_timers(client_line(c)), &c->xtimer);
         return;
     }
     c->seg_pending = false;
@@ -174,45 +194,70 @@ static void answer_segmented(co_gateway_sdo_t *c, uint32_t n)
     arm(c);
 }
 
-/* The USDO upload's sink: the buffer, and the client's answers as data comes. */
-static uint8_t sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len, uint32_t total)
+/* Data from the target's upload: into the buffer, and the client's answers
+ * as it comes. `total` is announced with len 0 before any data. False: more
+ * than the buffer holds. */
+static bool accept(co_gateway_sdo_t *c, uint32_t offset, const uint8_t *data, uint32_t len,
+                   uint32_t total, uint32_t unknown)
 {
-    co_gateway_sdo_t *c = ctx;
     if (len == 0) {
-        if (total != 0xFFFFFFFFu && total > c->data.capacity) {
-            return CO_USDO_ABORT_OUT_OF_MEMORY;
+        if (total != unknown && total > c->data.capacity) {
+            return false;
         }
         c->data.size = 0;
-        if (c->xstate == X_UL_WAIT && total > 4 && total != 0xFFFFFFFFu) {
+        if (c->xstate == X_UL_WAIT && total > 4 && total != unknown) {
             answer_segmented(c, total);   /* the client starts while the data comes */
         }
-        return 0;
+        return true;
     }
     if (offset > c->data.capacity || len > c->data.capacity - offset) {
-        return CO_USDO_ABORT_OUT_OF_MEMORY;
+        return false;
     }
     memcpy(c->data.data + offset, data, len);
     c->data.size = offset + len;
     if (c->xstate == X_UL_SEG && c->seg_pending) {
         serve_segment(c);
     }
-    return 0;
+    return true;
 }
 
-static void usdo_done(co_usdo_request_t *req)
+static uint8_t usdo_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
+                         uint32_t total)
 {
-    co_gateway_sdo_t *c = req->user;
+    return accept(ctx, offset, data, len, total, 0xFFFFFFFFu) ? 0 : CO_USDO_ABORT_OUT_OF_MEMORY;
+}
+
+static uint32_t sdo_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
+                         uint32_t total)
+{
+    return accept(ctx, offset, data, len, total, CO_SDO_CLIENT_SIZE_UNKNOWN)
+               ? 0
+               : (uint32_t)CO_ABORT_OUT_OF_MEMORY;
+}
+
+/* The target's transfer ended: `abort` is a CiA 301 code (0 = done);
+ * `own_refusal` when our sink refused (larger than the buffer). */
+static void fetched(co_gateway_sdo_t *c, uint32_t abort, bool own_refusal)
+{
     uint8_t state = c->xstate;
-    bool live = c->usdo_running;
-    c->usdo_running = false;
+    bool live = c->fetch_running;
+    c->fetch_running = false;
     if (!live || (state != X_DL_WAIT && state != X_UL_WAIT && state != X_UL_SEG)) {
         return;   /* cancelled by the client or the connection's end */
     }
-    if (req->abort != 0) {
-        if (req->abort == CO_USDO_ABORT_OUT_OF_MEMORY && !req->abort_from_server) {
-            c->gw->stats.sdo_too_big++;   /* our sink refused: larger than the buffer */
+    if (abort != 0 && own_refusal && !c->fd && state == X_UL_WAIT) {
+        /* a classic target's value larger than the buffer: the client's
+         * initiate goes to the target as it came, relayed from now on */
+        finish(c);
+        const uint8_t initiate[FRAME] = {0x40, c->mux[0], c->mux[1], c->mux[2], 0, 0, 0, 0};
+        co_gateway_sdo_relay(c, initiate);
+        return;
+    }
+    if (abort != 0) {
+        if (own_refusal) {
+            c->gw->stats.sdo_too_big++;
         }
-        fail(c, co_usdo_abort_to_co(req->abort));
+        fail(c, abort);
         return;
     }
     if (state == X_DL_WAIT) {
@@ -242,34 +287,68 @@ static void usdo_done(co_usdo_request_t *req)
     answer_segmented(c, n);   /* size not announced, or 0 bytes (one empty segment) */
 }
 
-static void start_usdo(co_gateway_sdo_t *c, bool upload, const co_buffer_t *data)
+static void usdo_done(co_usdo_request_t *req)
 {
-    co_usdo_client_t *uc = co_stack_usdo_client(c->to->stack);
-    uint32_t timeout_ms = (uint32_t)((c->gw->sdo_timeout_us != 0
-                                          ? c->gw->sdo_timeout_us
-                                          : (uint64_t)CO_GATEWAY_SDO_TIMEOUT_MS * 1000u) /
-                                     1000u);
+    fetched(req->user, co_usdo_abort_to_co(req->abort),
+            req->abort == CO_USDO_ABORT_OUT_OF_MEMORY && !req->abort_from_server);
+}
+
+static void sdo_done(co_sdo_request_t *req)
+{
+    co_gateway_sdo_t *c = req->user;
+    if (req->fell_back) {
+        c->no_block = true;   /* the target refused block: segmented from now on */
+    }
+    fetched(c, req->abort, req->abort == CO_ABORT_OUT_OF_MEMORY && !req->abort_from_server);
+}
+
+static uint32_t fetch_timeout_ms(const co_gateway_sdo_t *c)
+{
+    return (uint32_t)((c->gw->sdo_timeout_us != 0 ? c->gw->sdo_timeout_us
+                                                   : (uint64_t)CO_GATEWAY_SDO_TIMEOUT_MS * 1000u) /
+                      1000u);
+}
+
+/* Start the target's transfer with the line's client; a CiA 301 code when
+ * the client refuses it at once. */
+static uint32_t start_fetch(co_gateway_sdo_t *c, bool upload, const co_buffer_t *data)
+{
+    uint16_t index = (uint16_t)(c->mux[0] | c->mux[1] << 8);
     c->data = *data;
-    c->req = (co_usdo_request_t){
-        .server = c->target,
-        .index = (uint16_t)(c->mux[0] | c->mux[1] << 8),
-        .sub = c->mux[2],
-        .upload = upload,
-        .mode = CO_USDO_MODE_AUTO,
-        .size = upload ? 0 : data->size,
-        .source = upload ? NULL : co_usdo_buffer_source,
-        .sink = upload ? sink : NULL,
-        .ctx = upload ? (void *)c : (void *)&c->data,
-        .done = usdo_done,
-        .user = c,
-        .timeout_ms = timeout_ms};
-    co_timer_cancel(co_line_timers(client_line(c)), &c->timer);
+    if (c->fd) {
+        co_usdo_client_t *uc = co_stack_usdo_client(c->to->stack);
+        c->fetch.usdo = (co_usdo_request_t){
+            .server = c->target, .index = index, .sub = c->mux[2], .upload = upload,
+            .mode = CO_USDO_MODE_AUTO, .size = upload ? 0 : data->size,
+            .source = upload ? NULL : co_usdo_buffer_source, .sink = upload ? usdo_sink : NULL,
+            .ctx = upload ? (void *)c : (void *)&c->data, .done = usdo_done, .user = c,
+            .timeout_ms = fetch_timeout_ms(c)};
+        uint8_t refused = uc != NULL ? co_usdo_client_start(uc, &c->fetch.usdo)
+                                     : CO_USDO_ABORT_BUSY;
+        return refused != 0 ? co_usdo_abort_to_co(refused) : 0;
+    }
+    /* uploads: a normal upload, so a small value costs one round trip as
+     * when relayed; downloads: block unless the target refused it before */
+    c->fetch.sdo = (co_sdo_request_t){
+        .server = c->target, .index = index, .sub = c->mux[2], .upload = upload,
+        .mode = upload ? CO_SDO_MODE_SEGMENTED : CO_SDO_MODE_AUTO, .size = upload ? 0 : data->size,
+        .source = upload ? NULL : co_sdo_buffer_source, .sink = upload ? sdo_sink : NULL,
+        .ctx = upload ? (void *)c : (void *)&c->data, .done = sdo_done, .user = c,
+        .timeout_ms = fetch_timeout_ms(c),
+        .block_threshold = c->no_block ? CO_SDO_CLIENT_NO_BLOCK : 1u};
+    return co_sdo_client_start(co_stack_sdo_client(c->to->stack), &c->fetch.sdo);
+}
+
+/* Start the target's transfer; the client hears the refusal when there is one. */
+static void start_or_fail(co_gateway_sdo_t *c, bool upload, const co_buffer_t *data)
+{
+    co_timer_cancel(co_line_timers(client_line(c)), &c->xtimer);
     c->xstate = upload ? X_UL_WAIT : X_DL_WAIT;
-    c->usdo_running = true;
-    uint8_t refused = uc != NULL ? co_usdo_client_start(uc, &c->req) : CO_USDO_ABORT_BUSY;
+    c->fetch_running = true;
+    uint32_t refused = start_fetch(c, upload, data);
     if (refused != 0) {
-        c->usdo_running = false;
-        fail(c, co_usdo_abort_to_co(refused));
+        c->fetch_running = false;
+        fail(c, refused);
     }
 }
 
@@ -284,7 +363,7 @@ static void download_initiate(co_gateway_sdo_t *c, const uint8_t *d)
         uint32_t n = sized ? 4u - ((d[0] >> 2) & 3u) : 4u;
         memcpy(c->small, d + 4, n);
         co_buffer_t b = {.data = c->small, .size = n, .capacity = sizeof c->small};
-        start_usdo(c, false, &b);
+        start_or_fail(c, false, &b);
         return;
     }
     c->size_known = sized;
@@ -328,7 +407,7 @@ static void download_segment(co_gateway_sdo_t *c, const uint8_t *d)
     }
     memcpy(c->answer, ack, FRAME);   /* sent when the target has the value */
     co_buffer_t b = {.data = c->data.data, .size = c->offset, .capacity = c->data.capacity};
-    start_usdo(c, false, &b);
+    start_or_fail(c, false, &b);
 }
 
 static void upload_initiate(co_gateway_sdo_t *c, const uint8_t *d)
@@ -338,7 +417,7 @@ static void upload_initiate(co_gateway_sdo_t *c, const uint8_t *d)
         return;
     }
     co_buffer_t b = {.data = c->gw->sdo_buf, .size = 0, .capacity = c->gw->sdo_buf_size};
-    start_usdo(c, true, &b);
+    start_or_fail(c, true, &b);
 }
 
 static void upload_segment(co_gateway_sdo_t *c, const uint8_t *d)
@@ -354,27 +433,55 @@ static void upload_segment(co_gateway_sdo_t *c, const uint8_t *d)
     serve_segment(c);
 }
 
-void co_gateway_sdo_fd_open(co_gateway_sdo_t *c)
+void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd)
 {
-    c->fd = true;
+    c->fd = fd;
+    c->buffered = true;
+    c->no_block = false;
     c->xstate = X_IDLE;
-    co_timer_init(&c->timer, on_timeout, c);
+    co_timer_init(&c->xtimer, on_timeout, c);
 }
 
+/* A classic target's transfer the gateway buffers: a segmented download,
+ * or an upload, while the buffer and the line's SDO client are free. The
+ * client's block transfers and expedited downloads are relayed as they are. */
+static bool buffers(const co_gateway_sdo_t *c, const uint8_t *d)
+{
+    uint8_t ccs = d[0] >> 5;
+    co_sdo_client_t *sc = co_stack_sdo_client(c->to->stack);
+    bool segmented_download = ccs == 1 && (d[0] & 0x02u) == 0;
+    bool fits = !segmented_download || (d[0] & 0x01u) == 0 || get_u32(d + 4) <= c->gw->sdo_buf_size;
+    return (segmented_download || ccs == 2) && fits && sc != NULL &&
+           (c->gw->sdo_buf_owner == NULL || c->gw->sdo_buf_owner == c) &&
+           c->gw->sdo_buf != NULL && !co_sdo_client_receives(sc, 0x580u + c->target);
+}
+
+/* The client's request on a buffered connection. False: a classic target's
+ * frame to relay (no buffered transfer runs and this one does not start one;
+ * one that ran is ended first when the client starts another kind). */
 bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *d)
 {
     uint8_t ccs = d[0] >> 5;
+    if (!c->fd && !buffers(c, d) && (c->xstate == X_IDLE || ccs == 1 || ccs == 2 || ccs >= 5)) {
+        if (c->xstate != X_IDLE) {   /* the client started anew, relayed this time */
+            if (c->fetch_running) {
+                cancel_fetch(c, CO_ABORT_GENERAL);
+            }
+            finish(c);
+        }
+        return false;
+    }
     c->gw->stats.sdo_relayed++;
     if (ccs == 4) {   /* the client's abort: the target's transfer ends with it */
-        if (c->usdo_running) {
-            cancel_usdo(c, get_u32(d + 4));
+        if (c->fetch_running) {
+            cancel_fetch(c, get_u32(d + 4));
         }
         finish(c);
         return true;
     }
     if (ccs == 1 || ccs == 2) {   /* a new initiate ends an open transfer */
-        if (c->usdo_running) {
-            cancel_usdo(c, CO_ABORT_GENERAL);
+        if (c->fetch_running) {
+            cancel_fetch(c, CO_ABORT_GENERAL);
         }
         finish(c);
         if (ccs == 1) {
@@ -404,11 +511,12 @@ bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *d)
 
 void co_gateway_sdo_fd_close(co_gateway_sdo_t *c)
 {
-    if (c->usdo_running) {
-        cancel_usdo(c, CO_ABORT_GENERAL);
+    if (c->fetch_running) {
+        cancel_fetch(c, CO_ABORT_GENERAL);
     }
     finish(c);
     c->fd = false;
+    c->buffered = false;
 }
 
 void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size)

@@ -954,6 +954,179 @@ static void test_fd_upload_streamed(void **state)
     fx_free(fx);
 }
 
+/* ------------------------------------------- buffered, into a classic network */
+
+enum { PEER = 7 };   /* a node on network 3 answered by hand (fx->peer) */
+
+/* The gateway's classic line 3 gets an SDO client (holding 0x581..0x5FF) and
+ * the gateway a buffer of `size` bytes: transfers to nodes of network 3 go
+ * through the buffer where they can. */
+static uint8_t classic_buffer[BIG + 100];
+
+static void classic_setup(fx_t *fx, uint32_t size)
+{
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = TIMEOUT_MS};
+    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
+    co_gateway_set_sdo_buffer(&fx->gw, classic_buffer, size);
+    settle(fx);
+    connect_3_5(fx);
+}
+
+/* The client reads the 14-byte string of device 5: the gateway's own client
+ * uploads it from the device (normal upload, its segments requested at
+ * once, before the client asks for any); the client's initiate is answered
+ * with the size the device announced and its segments from the buffer. An
+ * expedited value costs one exchange on each side, as relayed. */
+static void test_classic_upload_buffered(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    classic_setup(fx, sizeof classic_buffer);
+    request(fx, (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x605, 0, (const uint8_t[]){0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x585, 0, (const uint8_t[]){0x41, 0x01, 0x20, 0x00, 14, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x01, 0x20, 0x00, 14, 0, 0, 0});
+    /* the device's segments are already in the gateway */
+    expect(&fx->c, 0x605, 1, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->c, 0x605, 2, (const uint8_t[]){0x70, 0, 0, 0, 0, 0, 0, 0});
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);
+    request(fx, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x00, 'h', 'e', 'l', 'l', 'o', ' ', 'g'});
+    request(fx, (const uint8_t[]){0x70, 0, 0, 0, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x11, 'a', 't', 'e', 'w', 'a', 'y', '!'});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 3);   /* nothing more to the device */
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x585, 3, (const uint8_t[]){0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12});
+    expect(&fx->a, 0x581, 3, (const uint8_t[]){0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12});
+    /* an object the device lacks: its abort reaches the client */
+    request(fx, (const uint8_t[]){0x40, 0xFF, 0x2F, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 4, (const uint8_t[]){0x80, 0xFF, 0x2F, 0x00, 0x00, 0x00, 0x02, 0x06});
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translated, 2);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translate_failed, 1);
+    fx_free(fx);
+}
+
+/* The client writes 20 bytes segmented: the gateway answers the initiate
+ * and every segment at once, nothing reaches the device until the last
+ * one; then the gateway downloads the value by block transfer (0xC6, size
+ * and CRC offered) and answers the last segment only after the device's
+ * block end response (0xA1). */
+static void test_classic_download_buffered_by_block(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    classic_setup(fx, sizeof classic_buffer);
+    const char *text = "twenty bytes written";
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 20, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    uint8_t seg[8] = {0x00};
+    memcpy(seg + 1, text, 7);
+    request(fx, seg);
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
+    seg[0] = 0x10;
+    memcpy(seg + 1, text + 7, 7);
+    request(fx, seg);
+    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x30, 0, 0, 0, 0, 0, 0, 0});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);   /* collected, not sent yet */
+    uint8_t last[8] = {0x00 | (7 - 6) << 1 | 1};
+    memcpy(last + 1, text + 14, 6);
+    request(fx, last);
+    advance(fx, fx->a.now + 10 * TU_MS);
+    expect(&fx->c, 0x605, 0, (const uint8_t[]){0xC6, 0x03, 0x20, 0x00, 20, 0, 0, 0});
+    long end = tu_log_find_id(&fx->c, 0x585, 2);   /* initiate rsp, ack, end rsp */
+    assert_true(end >= 0);
+    assert_int_equal(fx->c.log[end].frame.data[0], 0xA1);
+    expect(&fx->a, 0x581, 3, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
+    uint8_t got[32];
+    uint32_t n = 0;
+    assert_int_equal(co_od_get(&fx->dev.od, 0x2003, 0, got, sizeof got, &n), 0);
+    assert_int_equal(n, 20);
+    assert_memory_equal(got, text, 20);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translated, 1);
+    fx_free(fx);
+}
+
+/* A node that refuses block transfers (node 7, answered by hand): the
+ * gateway's download goes segmented after the refusal, and the next
+ * download on the connection goes segmented at once. */
+static void test_classic_block_refused_then_segmented(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_membus_set_fault(&fx->c.bus, NULL, NULL);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = TIMEOUT_MS};
+    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
+    co_gateway_set_sdo_buffer(&fx->gw, classic_buffer, sizeof classic_buffer);
+    request(fx, (const uint8_t[]){0xE0, NET_C, 0x00, PEER, 0, 0, 0, 0});
+    tu_log_clear(&fx->a);
+    for (int round = 0; round < 2; round++) {
+        tu_log_clear(&fx->c);
+        request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 5, 0, 0, 0});
+        request(fx, (const uint8_t[]){0x05, 'a', 'b', 'c', 'd', 'e', 0, 0});   /* last, 5 bytes */
+        size_t k = 0;
+        if (round == 0) {
+            expect(&fx->c, 0x600 + PEER, k++, (const uint8_t[]){0xC6, 0x03, 0x20, 0x00, 5, 0, 0, 0});
+            assert_true(co_line_send(&fx->peer.line, 0x580 + PEER,
+                                     (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x01, 0x00, 0x04, 0x05}, 8));
+            settle(fx);
+        }
+        expect(&fx->c, 0x600 + PEER, k++, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 5, 0, 0, 0});
+        assert_true(co_line_send(&fx->peer.line, 0x580 + PEER,
+                                 (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0}, 8));
+        settle(fx);
+        expect(&fx->c, 0x600 + PEER, k, (const uint8_t[]){0x05, 'a', 'b', 'c', 'd', 'e', 0, 0});
+        assert_int_equal(tu_log_count_id(&fx->a, 0x581), 2 * round + 1);   /* last one waits */
+        assert_true(co_line_send(&fx->peer.line, 0x580 + PEER,
+                                 (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0}, 8));
+        settle(fx);
+        expect(&fx->a, 0x581, 2 * (size_t)round + 1, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
+    }
+    fx_free(fx);
+}
+
+/* What the buffer does not take is relayed byte for byte: an expedited
+ * download, the client's block upload, an upload larger than the buffer
+ * (the gateway's own upload stopped with 0x05040005, the client's
+ * initiate then relayed), a sized download larger than the buffer. */
+static void test_classic_relayed_beside_the_buffer(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    classic_setup(fx, 64);
+    const co_sdo_client_stats_t *cs = &co_stack_sdo_client(&fx->gw_c.stack)->stats;
+    const uint8_t exp_dl[8] = {0x23, 0x00, 0x20, 0x00, 0xBE, 0xBA, 0xFE, 0xCA};
+    request(fx, exp_dl);
+    expect(&fx->c, 0x605, 0, exp_dl);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    assert_int_equal(cs->started, 0);
+    const uint8_t block_up[8] = {0xA4, 0x00, 0x21, 0x00, 10, 0, 0, 0};
+    request(fx, block_up);
+
+    expect(&fx->c, 0x605, 1, block_up);
+    assert_int_equal(fx->c.log[tu_log_find_id(&fx->c, 0x585, 1)].frame.data[0] & 0xE3, 0xC2);
+    request(fx, (const uint8_t[]){0x80, 0x00, 0x21, 0x00, 0, 0, 0, 0x08});   /* client aborts it */
+    assert_int_equal(cs->started, 0);
+    static uint8_t value[BIG];
+    memset(value, 0x5A, sizeof value);
+    assert_int_equal(co_od_put(&fx->dev.od, 0x2100, 0, value, sizeof value), 0);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0});   /* 700 > 64 bytes */
+    expect(&fx->c, 0x605, 0, (const uint8_t[]){0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0});
+    expect(&fx->c, 0x605, 1, (const uint8_t[]){0x80, 0x00, 0x21, 0x00, 0x05, 0x00, 0x04, 0x05});
+    expect(&fx->c, 0x605, 2, (const uint8_t[]){0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x41, 0x00, 0x21, 0x00, 0xBC, 0x02, 0, 0});
+    request(fx, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});   /* relayed segments */
+    expect(&fx->c, 0x605, 3, (const uint8_t[]){0x60, 0, 0, 0, 0, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x80, 0x00, 0x21, 0x00, 0, 0, 0, 0x08});
+    tu_log_clear(&fx->c);
+    const uint8_t big_dl[8] = {0x21, 0x00, 0x21, 0x00, 0xBC, 0x02, 0, 0};
+    request(fx, big_dl);
+    expect(&fx->c, 0x605, 0, big_dl);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_too_big, 0);
+    fx_free(fx);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -974,6 +1147,10 @@ int main(void)
         cmocka_unit_test(test_fd_buffer_limits_busy_and_block),
         cmocka_unit_test(test_fd_upload_larger_than_the_buffer),
         cmocka_unit_test(test_fd_upload_streamed),
+        cmocka_unit_test(test_classic_upload_buffered),
+        cmocka_unit_test(test_classic_download_buffered_by_block),
+        cmocka_unit_test(test_classic_block_refused_then_segmented),
+        cmocka_unit_test(test_classic_relayed_beside_the_buffer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -132,19 +132,26 @@ typedef struct co_gateway_sdo {
                                         segments (0x80 | seqno may be 0xE0..0xFF)
                                         are no network indications */
     co_timer_t timer;
-    /* translation to an fd target (co_gateway_sdo_fd.c) */
+    /* buffered transfers (co_gateway_sdo_fd.c): every transfer to an fd
+     * target, segmented ones and uploads to a classic target */
     bool fd;                         /* the target is on an fd line */
+    bool buffered;                   /* transfers may go through the buffer */
+    bool no_block;                   /* the classic target refused a block download */
     uint8_t xstate;                  /* co_gateway_sdo_fd.c's transfer state */
     uint8_t toggle;                  /* segmented: toggle expected next */
     bool size_known;                 /* segmented download: the client gave its size */
-    bool usdo_running;               /* the USDO transfer has not ended yet */
+    bool fetch_running;              /* the target's transfer has not ended yet */
     bool seg_pending;                /* upload: a segment request waits for data */
     uint32_t size;                   /* announced (download) / held (upload) bytes */
     uint32_t offset;                 /* bytes moved to / from the client so far */
     uint8_t small[4];                /* an expedited download's data (no buffer needed) */
-    uint8_t answer[8];               /* the client's answer once the USDO transfer is done */
+    uint8_t answer[8];               /* the client's answer once the target has the value */
     co_buffer_t data;                /* the transfer's view of the gateway's buffer */
-    co_usdo_request_t req;           /* the USDO transfer to the target */
+    co_timer_t xtimer;               /* the client's silence during a buffered transfer */
+    union {                          /* the gateway's transfer with the target */
+        co_usdo_request_t usdo;      /* fd line: its USDO client */
+        co_sdo_request_t sdo;        /* classic line: its SDO client */
+    } fetch;
 } co_gateway_sdo_t;
 
 /* One remote USDO request being carried out: the client's request on
@@ -254,10 +261,13 @@ void co_gateway_sdo_unhook(struct co_gateway_port *port);
  * (unhook cancels the requests forwarded from or to the port). */
 void co_gateway_usdo_hook(struct co_gateway_port *port);
 void co_gateway_usdo_unhook(struct co_gateway_port *port);
-/* co_gateway_sdo_fd.c, for co_gateway_sdo.c: a connected client's request
- * to an fd target (always taken), and the end of the connection. */
-void co_gateway_sdo_fd_open(co_gateway_sdo_t *c);
+/* co_gateway_sdo_fd.c, for co_gateway_sdo.c: buffered transfers on a
+ * connection (to an fd target: all of them), a connected client's request
+ * (false: a classic target's frame to relay), and the end of the connection. */
+void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd);
 bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *data);
+/* co_gateway_sdo.c, for co_gateway_sdo_fd.c: relay a request to the target. */
+void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data);
 void co_gateway_sdo_fd_close(co_gateway_sdo_t *c);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)

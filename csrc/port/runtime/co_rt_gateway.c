@@ -5,7 +5,8 @@
  * line's local node appears, since the core hooks the node's OD and PDOs.
  * A joined fd line gets its USDO client (the line's node-id as client) so
  * classic clients reach its nodes by SDO networking, through the runtime's
- * RT_GATEWAY_SDO_BUFFER bytes. */
+ * RT_GATEWAY_SDO_BUFFER bytes; a joined classic line its SDO client, so
+ * the gateway can buffer transfers to its nodes instead of relaying them. */
 #include "co_rt_internal.h"
 
 #include <string.h>
@@ -19,6 +20,21 @@ static rt_line_t *line_of_stack(co_rt_t *rt, const co_stack_t *stack)
         }
     }
     return NULL;
+}
+
+/* A classic line's SDO client receives 0x581..0x5FF: none of them taken
+ * by someone else (or the client is there already). */
+static bool sdo_client_possible(rt_line_t *l)
+{
+    if (l->client != NULL) {
+        return true;
+    }
+    for (uint32_t id = 0x581; id <= 0x5FF; id++) {
+        if (co_line_id_taken(&l->line, id)) {
+            return false;
+        }
+    }
+    return true;
 }
 
 /* Route loops and refusals go to Python on the first joined line. */
@@ -49,9 +65,12 @@ int rt_gateway_rebuild(co_rt_t *rt)
         if (l->network_id == 0) {
             continue;
         }
-        if (co_line_mode(&l->line) == CO_MODE_FD && co_line_node_id(&l->line) != 0) {
-            /* remote USDO requests and SDO networking into this fd line are
-             * carried out by the line's USDO client */
+        if (co_line_mode(&l->line) == CO_MODE_FD ? co_line_node_id(&l->line) != 0
+                                                 : sdo_client_possible(l)) {
+            /* remote USDO requests and SDO networking into an fd line are
+             * carried out by the line's USDO client; on a classic line the
+             * SDO client lets the gateway buffer transfers (without it,
+             * when 0x581..0x5FF are taken, its frames are relayed) */
             (void)rt_client_ready(rt, l);
         }
         co_gateway_status_t s = co_gateway_add_port(gw, &l->stack, l->network_id);
