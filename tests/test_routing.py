@@ -205,6 +205,48 @@ def test_sdo_networking_reaches_a_node_of_another_network(net):
         client.sdo.remote(network=0, node=5, gateway=GW)
 
 
+def test_sdo_networking_buffers_segmented_transfers_into_a_classic_network(net):
+    """A 300-byte value written and read segmented through the gateway into
+    classic network 3: buffered (the gateway's own client works device 5:
+    block download, then a normal upload whose segment requests run ahead),
+    then the same with routing.sdo_buffering off: every frame relayed."""
+    n = next(_buses)
+    a, c = f"mem:routing-buf-a-{n}", f"mem:routing-buf-c-{n}"
+    for bus, network_id in ((a, 1), (c, 3)):
+        gateway = net.open_line(bus, mode="classic")
+        gateway.create_local_node(GW, od=demo_od("classic"))
+        gateway.network_id = network_id
+    od = demo_od("classic")
+    od.add_object(ODVariable("Blob", 0x2400, 0, DataType.OCTET_STRING, "rw",
+                             default=b"", max_length=300))
+    target = net.open_line(c, mode="classic").create_local_node(5, od=od)
+    seen_c = Recorder()
+    net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
+    client = net.open_line(a, mode="classic")
+    device = client.sdo.remote(network=3, node=5, gateway=GW)
+    assert net.routing.sdo_buffering is True
+
+    blob = bytes(range(256)) + bytes(44)
+    device.download(0x2400, 0, blob, mode="segmented")
+    assert target[0x2400].data == blob
+    assert device.upload(0x2400, mode="segmented") == blob
+    to_device = seen_c.wait_for(
+        lambda calls: [f.data for f in calls if f.id == 0x605] or None, 5.0, "requests")
+    assert to_device[0] == bytes([0xC6, 0x00, 0x24, 0x00, 44, 1, 0, 0])   # block download
+    assert net.routing.stats["sdo_translated"] == 2
+
+    net.routing.sdo_buffering = False
+    start = len(seen_c)
+    device.download(0x2400, 0, blob[::-1], mode="segmented")
+    assert target[0x2400].data == blob[::-1]
+    relayed = seen_c.wait_for(
+        lambda calls: [f.data for f in calls[start:] if f.id == 0x605] or None, 5.0, "relayed")
+    assert relayed[0] == bytes([0x21, 0x00, 0x24, 0x00, 44, 1, 0, 0])    # the client's own
+    assert net.routing.stats["sdo_translated"] == 2
+    with pytest.raises(ConfigurationError, match="True or False"):
+        net.routing.sdo_buffering = 1
+
+
 def test_remote_usdo_reaches_a_node_of_another_fd_network(net):
     """A USDO client on fd network 1 reads and writes device 5 of fd network
     2 through the gateway (node 1 on both lines): each request is a routed

@@ -673,6 +673,9 @@ class Runtime:
     def gateway_emcy_route(self, line: int, node_id: int, networks: int, what: str) -> None:
         self._call(what, lib.co_rt_gateway_emcy_route, line, node_id, networks)
 
+    def gateway_sdo_buffering(self, on: bool, what: str) -> None:
+        self._call(what, lib.co_rt_gateway_sdo_buffering, on)
+
     def gateway_stats(self, what: str) -> Dict[str, int]:
         out = ffi.new("co_gateway_stats_t *")
         self._call(what, lib.co_rt_gateway_stats, out)

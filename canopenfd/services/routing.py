@@ -7,6 +7,7 @@ co_gateway): `line.network_id` and `network.routing`.
     network.routing.resolve(3)                  # Route(VIA, <line fd>, 7)
     network.routing.emcy_route(classic, node=5, networks=[2])   # 0x1F2F without an OD
     network.routing.add_callback(print)         # RoutingNotice: loops, refusals
+    network.routing.sdo_buffering = False       # relay every SDO frame (default True)
 
 The C core does the per-frame work in the runtime thread: EMCYs of the nodes
 0x1F2F names are re-sent on the target networks' lines (re-encoded classic
@@ -70,6 +71,7 @@ class RoutingService:
         self._runtime = runtime
         self._line_of = line_of
         self._callbacks = CallbackList("routing notice")
+        self._sdo_buffering = True
 
     def attach(self, context: LineContext) -> None:
         """Hear the gateway's reports on this line (the network calls it for
@@ -125,6 +127,22 @@ class RoutingService:
                     f"{what}: EMCY routes name networks 1..{_EMCY_NETWORKS}, got {net!r}")
             mask |= 1 << (net - 1)
         self._runtime.gateway_emcy_route(line.index, node, mask, what)
+
+    # ---------------------------------------------------------------- SDO networking
+    @property
+    def sdo_buffering(self) -> bool:
+        """True (the default): segmented SDO transfers into an attached
+        classic network are served from the gateway's buffer while its own
+        client works the node (the two hops overlap); False: every frame is
+        relayed as it came. fd networks are always reached by translation."""
+        return self._sdo_buffering
+
+    @sdo_buffering.setter
+    def sdo_buffering(self, on: bool) -> None:
+        if not isinstance(on, bool):
+            raise ConfigurationError(f"routing.sdo_buffering is True or False, got {on!r}")
+        self._runtime.gateway_sdo_buffering(on, "routing.sdo_buffering")
+        self._sdo_buffering = on
 
     @property
     def stats(self) -> Dict[str, int]:

@@ -451,7 +451,7 @@ static bool buffers(const co_gateway_sdo_t *c, const uint8_t *d)
     co_sdo_client_t *sc = co_stack_sdo_client(c->to->stack);
     bool segmented_download = ccs == 1 && (d[0] & 0x02u) == 0;
     bool fits = !segmented_download || (d[0] & 0x01u) == 0 || get_u32(d + 4) <= c->gw->sdo_buf_size;
-    return (segmented_download || ccs == 2) && fits && sc != NULL &&
+    return (segmented_download || ccs == 2) && fits && sc != NULL && !c->gw->sdo_relay_only &&
            (c->gw->sdo_buf_owner == NULL || c->gw->sdo_buf_owner == c) &&
            c->gw->sdo_buf != NULL && !co_sdo_client_receives(sc, 0x580u + c->target);
 }
@@ -517,6 +517,11 @@ void co_gateway_sdo_fd_close(co_gateway_sdo_t *c)
     finish(c);
     c->fd = false;
     c->buffered = false;
+}
+
+void co_gateway_set_sdo_buffering(co_gateway_t *gw, bool on)
+{
+    gw->sdo_relay_only = !on;
 }
 
 void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size)

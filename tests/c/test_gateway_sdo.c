@@ -1124,6 +1124,14 @@ static void test_classic_relayed_beside_the_buffer(void **state)
     request(fx, big_dl);
     expect(&fx->c, 0x605, 0, big_dl);
     assert_int_equal(co_gateway_stats(&fx->gw)->sdo_too_big, 0);
+    /* buffering off: a small upload is relayed too */
+    co_gateway_set_sdo_buffering(&fx->gw, false);
+    request(fx, (const uint8_t[]){0x80, 0x00, 0x21, 0x00, 0, 0, 0, 0x08});
+    uint32_t started = cs->started;
+    const uint8_t up[8] = {0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0};
+    request(fx, up);
+    expect(&fx->c, 0x605, 2, up);
+    assert_int_equal(cs->started, started);
     fx_free(fx);
 }
 

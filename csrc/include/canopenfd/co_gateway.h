@@ -202,6 +202,7 @@ struct co_gateway {
     uint8_t *sdo_buf;            /* translation buffer (caller memory), NULL: none */
     uint32_t sdo_buf_size;
     co_gateway_sdo_t *sdo_buf_owner; /* the connection using it, NULL: free */
+    bool sdo_relay_only;         /* classic targets: every frame relayed, never buffered */
     co_gateway_event_fn on_event;
     void *user;
     co_gateway_stats_t stats;
@@ -253,6 +254,10 @@ void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms);
  * line's stack needs a USDO client (co_stack_client_init) whose node-id
  * is not the target's. */
 void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size);
+/* Buffered transfers into classic networks on (the default) or off: off,
+ * every frame of a classic target's connection is relayed as it came (fd
+ * targets are always translated). Takes effect at the next transfer. */
+void co_gateway_set_sdo_buffering(co_gateway_t *gw, bool on);
 
 /* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
 void co_gateway_sdo_hook(struct co_gateway_port *port);

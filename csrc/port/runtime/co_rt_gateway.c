@@ -53,12 +53,14 @@ int rt_gateway_rebuild(co_rt_t *rt)
     co_gateway_t *gw = &rt->gateway;
     uint16_t routes[CO_GATEWAY_NETWORKS];
     co_gateway_stats_t stats = gw->stats;
+    bool relay_only = gw->sdo_relay_only;
     int count = rt_atomic_load_acquire(&rt->line_count);
     memcpy(routes, gw->routes, sizeof routes);
     co_gateway_deinit(gw);
     co_gateway_init(gw, on_gateway_event, rt);
     memcpy(gw->routes, routes, sizeof routes);
     gw->stats = stats;
+    co_gateway_set_sdo_buffering(gw, !relay_only);
     co_gateway_set_sdo_buffer(gw, rt->gateway_sdo_buf, sizeof rt->gateway_sdo_buf);
     for (int i = 0; i < count; i++) {
         rt_line_t *l = rt->lines[i];
@@ -204,6 +206,14 @@ int co_rt_gateway_stats(co_rt_t *rt, co_gateway_stats_t *out)
     }
     rt_mutex_lock(&rt->lock);
     *out = *co_gateway_stats(&rt->gateway);
+    rt_mutex_unlock(&rt->lock);
+    return CO_RT_OK;
+}
+
+int co_rt_gateway_sdo_buffering(co_rt_t *rt, bool on)
+{
+    rt_mutex_lock(&rt->lock);
+    co_gateway_set_sdo_buffering(&rt->gateway, on);
     rt_mutex_unlock(&rt->lock);
     return CO_RT_OK;
 }
