@@ -4,16 +4,19 @@
     python3 bench/routing_bench.py [-t SECONDS] [--sizes 4,4096,65536]
     python3 bench/routing_bench.py --vcan OFFICE,MACHINE,CELL [-t ...] [--sizes ...]
 
-Direct: a classic client line on the device's bus reads classic device 5
-(demo OD plus one memory DOMAIN per size at 0x2110 + k). Routed: a classic client
-line on network 1 ("office") reads the same device through the gateway (node
-1 on every line, the C core relaying every frame) on network 3 ("machine");
-"routed fd": the same client reads fd device 6 (the same DOMAINs) on the fd
-network 2 ("cell") through the gateway, which translates the client's SDO
-transfer into USDO (co_gateway_sdo_fd.c). Both routed rows are given as a
-share of the direct classic row: what reaching the device through the
-gateway costs the client. "direct USDO" (an fd client reading device 6 on
-its own bus) is printed for reference.
+Direct: a classic client line on the device's bus reads (and writes)
+classic device 5 (demo OD plus one memory DOMAIN per size at 0x2110 + k).
+Through the gateway (node 1 on every line) a classic client line on network
+1 ("office") reaches the same device on network 3 ("machine") twice:
+"relayed" with routing.sdo_buffering off (the C core relays every frame),
+"buffered" with it on (the default: the gateway answers the client's
+segments from its buffer while its own SDO client works the device,
+co_gateway_sdo_fd.c); "routed fd": the same client reaches fd device 6 (the
+same DOMAINs) on the fd network 2 ("cell"), the gateway translating the
+client's SDO transfer into USDO. Every routed column is given as a share of
+the direct classic one: what reaching the device through the gateway costs
+the client. "direct USDO" (an fd client on device 6's own bus, uploads) is
+printed for reference.
 
 Without --vcan every line is an in-process mem: bus of one Network (one
 runtime thread: the relay's cost shows in full). With --vcan the three
@@ -21,9 +24,9 @@ interfaces (OFFICE and MACHINE classic, CELL with MTU 72) are real SocketCAN,
 the gateway runs in its own process and the two devices in another, as on a
 real bus (the client's process holds only client lines). Each size above 4
 bytes is read twice: segmented (the client's default) and "block" (a size
-hint: AUTO asks for a block upload; the fd translation refuses it with
-0x05040001 and the client goes segmented). Figures are printed, nothing is
-asserted.
+hint: AUTO asks for a block upload, which the gateway relays; the fd
+translation refuses it with 0x05040001 and the client goes segmented), then
+written segmented. Figures are printed, nothing is asserted.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from canopenfd.od import DataType, ODVariable, demo_od
 
 DEVICE, FD_DEVICE, GATEWAY = 5, 6, 1
 U32, DOMAIN = 0x1018, 0x2110   # U32: identity, vendor-ID (sub 1); DOMAIN + k: size k
+U32_RW = 0x2007                 # the demo OD's writable UNSIGNED32
 OFFICE, CELL, MACHINE = 1, 2, 3      # network-ids
 
 
@@ -75,7 +79,10 @@ def serve(role: str, lines: list, sizes: list) -> None:
         else:
             open_devices(network, machine, cell, sizes)
         print("ready", flush=True)
-        sys.stdin.read()
+        for command in sys.stdin:   # "buffer on|off" from the client's process
+            if role == "gateway" and command.startswith("buffer "):
+                network.routing.sdo_buffering = command.split()[1] == "on"
+            print("ok", flush=True)
         if role == "gateway":
             print("gateway counters:", {k: v for k, v in network.routing.stats.items()
                                         if k.startswith("sdo_") and v}, flush=True)
@@ -97,15 +104,17 @@ def pattern(size: int) -> bytes:
     return bytes((i * 7 + (i >> 8)) & 0xFF for i in range(size))
 
 
-def run(read, budget_s: float, size: int) -> tuple:
+def run(transfer, budget_s: float, size: int) -> tuple:
+    """Transfers/s and kB/s of `transfer` (an upload returning the value, or
+    a download returning None) repeated for budget_s."""
     count, moved = 0, 0
     end = time.monotonic() + budget_s
     start = time.monotonic()
     while time.monotonic() < end:
-        data = read()
-        assert len(data) == size, f"read {len(data)} bytes, expected {size}"
+        data = transfer()
+        assert data is None or len(data) == size, f"read {len(data)} bytes, expected {size}"
         count += 1
-        moved += len(data)
+        moved += size
     elapsed = time.monotonic() - start
     return count / elapsed, moved / elapsed / 1000
 
@@ -141,21 +150,49 @@ def main() -> None:
         client = network.open_line(office, mode="classic").sdo
         routed = client.remote(network=MACHINE, node=DEVICE, gateway=GATEWAY)
         routed_fd = client.remote(network=CELL, node=FD_DEVICE, gateway=GATEWAY)
-        print(f"{'upload':>16} | {'direct /s':>10} {'kB/s':>9} | {'routed /s':>10} {'kB/s':>9}"
-              f" {'share':>5} | {'routed fd /s':>12} {'kB/s':>9} {'share':>5} |"
+        def buffering(on: bool) -> None:
+            if args.vcan:
+                gateway = helpers[0]
+                assert gateway.stdin is not None and gateway.stdout is not None
+                gateway.stdin.write(f"buffer {'on' if on else 'off'}\n")
+                gateway.stdin.flush()
+                assert gateway.stdout.readline().strip() == "ok"
+            else:
+                network.routing.sdo_buffering = on
+
+        print(f"{'transfer':>19} | {'direct kB/s':>11} | {'relayed kB/s':>12} {'share':>5} |"
+              f" {'buffered kB/s':>13} {'share':>5} | {'routed fd kB/s':>14} {'share':>5} |"
               f" {'direct USDO kB/s':>16}")
         for k, size in enumerate(sizes):
             key = (U32, 1) if size == 4 else (DOMAIN + k, 0)
-            for label, options in (("segmented", {}), ("block", {"size_hint": size})):
-                if size == 4 and options:
+            value = pattern(size)
+            rows = [("upload segmented", "upload", {}),
+                    ("upload block", "upload", {"size_hint": size}),
+                    ("download segmented", "download", {"mode": "segmented"})]
+            for label, kind, options in rows:
+                if size == 4 and kind == "upload" and options:
                     continue
-                d = run(lambda: direct.upload(DEVICE, *key, **options), args.t, size)
-                r = run(lambda: routed.upload(*key, **options), args.t, size)
-                f = run(lambda: routed_fd.upload(*key, **options), args.t, size)
-                u = run(lambda: direct_usdo.upload(FD_DEVICE, *key), args.t, size)
-                name = f"{size}B " + ("expedited" if size == 4 else label)
-                print(f"{name:>16} | {d[0]:>10.0f} {d[1]:>9.1f} | {r[0]:>10.0f} {r[1]:>9.1f}"
-                      f" {r[1] / d[1]:>5.0%} | {f[0]:>12.0f} {f[1]:>9.1f} {f[1] / d[1]:>5.0%} |"
+                if size == 4:
+                    label = f"{kind} expedited"
+                    options = {}
+
+                def transfer(node, *target):
+                    if kind == "upload":
+                        return lambda: node.upload(*target, *key, **options)
+                    where = (U32_RW, 0) if size == 4 else key
+                    return lambda: node.download(*target, *where, value, **options)
+
+                d = run(transfer(direct, DEVICE), args.t, size)
+                buffering(False)
+                r = run(transfer(routed), args.t, size)
+                buffering(True)
+                b = run(transfer(routed), args.t, size)
+                f = run(transfer(routed_fd), args.t, size)
+                u = run(transfer(direct_usdo, FD_DEVICE), args.t, size) \
+                    if kind == "upload" else (0.0, float("nan"))
+                name = f"{size}B {label}"
+                print(f"{name:>19} | {d[1]:>11.1f} | {r[1]:>12.1f} {r[1] / d[1]:>5.0%} |"
+                      f" {b[1]:>13.1f} {b[1] / d[1]:>5.0%} | {f[1]:>14.1f} {f[1] / d[1]:>5.0%} |"
                       f" {u[1]:>16.1f}", flush=True)
         if not args.vcan:
             print("gateway counters:", {k: v for k, v in network.routing.stats.items()
