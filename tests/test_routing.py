@@ -205,11 +205,13 @@ def test_sdo_networking_reaches_a_node_of_another_network(net):
         client.sdo.remote(network=0, node=5, gateway=GW)
 
 
-def test_sdo_networking_buffers_segmented_transfers_into_a_classic_network(net):
+def test_sdo_networking_overlaps_the_hops_into_a_classic_network(net):
     """A 300-byte value written and read segmented through the gateway into
-    classic network 3: buffered (the gateway's own client works device 5:
-    block download, then a normal upload whose segment requests run ahead),
-    then the same with routing.sdo_buffering off: every frame relayed."""
+    classic network 3. Download: device 5 sees the client's own frames, the
+    gateway answers the client's segments ahead of the device (pipelined);
+    upload: the gateway's own client reads the device (its segment requests
+    run ahead of the client's). Then routing.sdo_buffering off: every frame
+    relayed, nothing answered ahead."""
     n = next(_buses)
     a, c = f"mem:routing-buf-a-{n}", f"mem:routing-buf-c-{n}"
     for bus, network_id in ((a, 1), (c, 3)):
@@ -229,20 +231,25 @@ def test_sdo_networking_buffers_segmented_transfers_into_a_classic_network(net):
     blob = bytes(range(256)) + bytes(44)
     device.download(0x2400, 0, blob, mode="segmented")
     assert target[0x2400].data == blob
-    assert device.upload(0x2400, mode="segmented") == blob
     to_device = seen_c.wait_for(
-        lambda calls: [f.data for f in calls if f.id == 0x605] or None, 5.0, "requests")
-    assert to_device[0] == bytes([0xC6, 0x00, 0x24, 0x00, 44, 1, 0, 0])   # block download
-    assert net.routing.stats["sdo_translated"] == 2
+        lambda calls: [f.data for f in calls if f.id == 0x605][43:] and
+        [f.data for f in calls if f.id == 0x605], 5.0, "the 44 requests")
+    assert to_device[0] == bytes([0x21, 0x00, 0x24, 0x00, 44, 1, 0, 0])   # the client's own
+    assert to_device[1][0] == 0x00 and to_device[1][1:] == blob[:7]
+    assert net.routing.stats["sdo_pipelined"] == 42     # 43 segments, the last one waits
+    assert device.upload(0x2400, mode="segmented") == blob
+    assert net.routing.stats["sdo_translated"] == 1
 
     net.routing.sdo_buffering = False
     start = len(seen_c)
     device.download(0x2400, 0, blob[::-1], mode="segmented")
     assert target[0x2400].data == blob[::-1]
-    relayed = seen_c.wait_for(
-        lambda calls: [f.data for f in calls[start:] if f.id == 0x605] or None, 5.0, "relayed")
-    assert relayed[0] == bytes([0x21, 0x00, 0x24, 0x00, 44, 1, 0, 0])    # the client's own
-    assert net.routing.stats["sdo_translated"] == 2
+    assert device.upload(0x2400, mode="segmented") == blob[::-1]
+    initiate = bytes([0x21, 0x00, 0x24, 0x00, 44, 1, 0, 0])
+    seen_c.wait_for(lambda calls: [f for f in calls[start:] if f.id == 0x605 and
+                                   f.data == initiate] or None, 5.0, "the relayed initiate")
+    stats = net.routing.stats
+    assert stats["sdo_pipelined"] == 42 and stats["sdo_translated"] == 1
     with pytest.raises(ConfigurationError, match="True or False"):
         net.routing.sdo_buffering = 1
 

@@ -131,10 +131,12 @@ class RoutingService:
     # ---------------------------------------------------------------- SDO networking
     @property
     def sdo_buffering(self) -> bool:
-        """True (the default): segmented SDO transfers into an attached
-        classic network are served from the gateway's buffer while its own
-        client works the node (the two hops overlap); False: every frame is
-        relayed as it came. fd networks are always reached by translation."""
+        """True (the default): segmented SDO transfers into a classic network
+        keep the two hops running side by side (downloads pipelined: the
+        gateway answers the client's segments ahead of the node; uploads
+        read ahead by the gateway's own client into its buffer); False:
+        every frame relayed as it came, each waiting for the node. fd
+        networks are always reached by translation."""
         return self._sdo_buffering
 
     @sdo_buffering.setter

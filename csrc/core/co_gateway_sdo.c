@@ -9,10 +9,10 @@
  * Frames to a classic line are relayed as they are (8 bytes), so
  * expedited, segmented and block transfers all pass; the gateway only reads
  * byte 0 (the indication, aborts) and bytes 1..3 (for its own aborts). A
- * node of an attached line is reached through the gateway's buffer instead
- * where it can be (co_gateway_sdo_fd.c): always for an fd line, segmented
- * downloads and uploads for a classic line whose SDO client the gateway can
- * use (so the two hops run side by side). */
+ * node of an attached fd line is reached by translation instead
+ * (co_gateway_sdo_fd.c). Segmented transfers to classic targets keep the two
+ * hops running side by side: downloads pipelined (co_gateway_sdo_pipe.c),
+ * uploads read ahead by the gateway's own client (co_gateway_sdo_fd.c). */
 #include "canopenfd/co_gateway.h"
 
 #include <string.h>
@@ -28,6 +28,8 @@ enum { SDO_FRAME = 8, SDO_REQUEST_BASE = 0x600, SDO_RESPONSE_BASE = 0x580,
        /* block download: the client's initiate (ccs 6, cs 0) and the
         * server's end response (scs 5, ss 1), as byte 0 masks */
        SDO_BLOCK_DOWN_MASK = 0xE1, SDO_BLOCK_DOWN_INITIATE = 0xC0,
+       /* block upload: the client's initiate (ccs 5, cs 0) */
+       SDO_BLOCK_UP_MASK = 0xE3, SDO_BLOCK_UP_INITIATE = 0xA0,
        SDO_BLOCK_DOWN_END_RSP = 0xA1 };
 
 #define SDO_TIMEOUT 0x05040000u   /* CiA 301: SDO protocol timed out */
@@ -93,6 +95,7 @@ static void release(co_gateway_sdo_t *c)
         return;
     }
     bool relayed = !c->fd;
+    co_gateway_sdo_pipe_close(c);
     if (c->buffered) {
         co_gateway_sdo_fd_close(c);
     }
@@ -115,6 +118,7 @@ static void on_timeout(co_timer_t *timer, uint64_t now_us, void *user)
     (void)timer;
     (void)now_us;
     c->gw->stats.sdo_timeouts++;
+    co_gateway_sdo_pipe_close(c);
     send_abort(c->gw, line_of(c->from), c->reply_id, c->mux, SDO_TIMEOUT);
     send_abort(c->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux, SDO_TIMEOUT);
     c->block_down = false;
@@ -134,6 +138,12 @@ static void on_answer(co_line_t *line, const co_frame_t *f, void *user)
         return;
     }
     co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
+    if (c->pipe != 0 && c->state == SDO_WAITING) {
+        c->state = SDO_CONNECTED;
+        if (co_gateway_sdo_pipe_answer(c, f->data)) {
+            return;
+        }
+    }
     c->gw->stats.sdo_answers++;
     send8(c->gw, line_of(c->from), c->reply_id, f->data);
     if (f->data[0] == SDO_BLOCK_DOWN_END_RSP || f->data[0] == SDO_CCS_ABORT) {
@@ -320,11 +330,26 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
         send_abort(from->gw, line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
         return true;
     }
+    if (c->pipe != 0 && f->data[0] >> 5 != 0) {
+        co_gateway_sdo_pipe_close(c);   /* a new transfer or an abort ends it */
+    }
     if (c->buffered && co_gateway_sdo_fd_request(c, f->data)) {
-        return true;
+        return true;   /* fd targets; classic: uploads */
+    }
+    if (co_gateway_sdo_pipe_request(c, f->data)) {
+        return true;   /* classic: segmented downloads */
     }
     co_gateway_sdo_relay(c, f->data);
     return true;
+}
+
+/* A request that names its object in bytes 1..3: a download or upload
+ * initiate, a block download or block upload initiate. */
+static bool is_initiate(uint8_t b0)
+{
+    uint8_t ccs = b0 >> 5;
+    return ccs == 1 || ccs == 2 || (b0 & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE ||
+           (b0 & SDO_BLOCK_UP_MASK) == SDO_BLOCK_UP_INITIATE;
 }
 
 void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data)
@@ -340,7 +365,9 @@ void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data)
     if (!c->block_down && (data[0] & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE) {
         c->block_down = true;
     }
-    memcpy(c->mux, data + 1, 3);
+    if (is_initiate(data[0])) {
+        memcpy(c->mux, data + 1, 3);   /* a segment's bytes 1..3 are data */
+    }
     c->state = SDO_WAITING;
     arm(c);
 }

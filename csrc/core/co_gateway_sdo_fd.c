@@ -5,18 +5,15 @@
  *   a node of an attached fd line: always (classic SDO frames cannot be
  *             relayed to a USDO server); the fd line's USDO client moves
  *             the value;
- *   a node of an attached classic line: for segmented downloads and for
- *             uploads, when the buffer and the line's SDO client are free
- *             (else the frames are relayed, co_gateway_sdo.c). The client's
- *             segments are then answered by the gateway while its own SDO
- *             client works the target, so the two hops run side by side
- *             instead of one frame after the other (a relay doubles every
- *             segment's round trip). Downloads go to the target by block
- *             transfer when it takes one (once refused, segmented for the
- *             rest of the connection); expedited downloads and block
- *             transfers of the client are relayed as they are.
+ *   a node of an attached classic line: uploads, when the buffer and the
+ *             line's SDO client are free (else relayed, co_gateway_sdo.c):
+ *             the client's segment requests are served from the buffer
+ *             while the gateway's own client reads ahead, so the two hops
+ *             run side by side instead of one frame after the other (a
+ *             relay doubles every segment's round trip). Downloads to a
+ *             classic target: co_gateway_sdo_pipe.c.
  *
- *   download  expedited (fd only): the 1..4 bytes go out at once;
+ *   download  (fd targets) expedited: the 1..4 bytes go out at once;
  *             segmented: the segments are collected in the gateway's buffer
  *             (each answered at once), the last one is answered only when
  *             the download of the whole value to the target has ended;
@@ -295,11 +292,7 @@ static void usdo_done(co_usdo_request_t *req)
 
 static void sdo_done(co_sdo_request_t *req)
 {
-    co_gateway_sdo_t *c = req->user;
-    if (req->fell_back) {
-        c->no_block = true;   /* the target refused block: segmented from now on */
-    }
-    fetched(c, req->abort, req->abort == CO_ABORT_OUT_OF_MEMORY && !req->abort_from_server);
+    fetched(req->user, req->abort, req->abort == CO_ABORT_OUT_OF_MEMORY && !req->abort_from_server);
 }
 
 static uint32_t fetch_timeout_ms(const co_gateway_sdo_t *c)
@@ -327,15 +320,12 @@ static uint32_t start_fetch(co_gateway_sdo_t *c, bool upload, const co_buffer_t 
                                      : CO_USDO_ABORT_BUSY;
         return refused != 0 ? co_usdo_abort_to_co(refused) : 0;
     }
-    /* uploads: a normal upload, so a small value costs one round trip as
-     * when relayed; downloads: block unless the target refused it before */
+    /* classic targets: uploads only (downloads: co_gateway_sdo_pipe.c); a
+     * normal upload, so a small value costs one exchange as when relayed */
     c->fetch.sdo = (co_sdo_request_t){
-        .server = c->target, .index = index, .sub = c->mux[2], .upload = upload,
-        .mode = upload ? CO_SDO_MODE_SEGMENTED : CO_SDO_MODE_AUTO, .size = upload ? 0 : data->size,
-        .source = upload ? NULL : co_sdo_buffer_source, .sink = upload ? sdo_sink : NULL,
-        .ctx = upload ? (void *)c : (void *)&c->data, .done = sdo_done, .user = c,
-        .timeout_ms = fetch_timeout_ms(c),
-        .block_threshold = c->no_block ? CO_SDO_CLIENT_NO_BLOCK : 1u};
+        .server = c->target, .index = index, .sub = c->mux[2], .upload = true,
+        .mode = CO_SDO_MODE_SEGMENTED, .sink = sdo_sink, .ctx = c, .done = sdo_done, .user = c,
+        .timeout_ms = fetch_timeout_ms(c)};
     return co_sdo_client_start(co_stack_sdo_client(c->to->stack), &c->fetch.sdo);
 }
 
@@ -437,21 +427,17 @@ void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd)
 {
     c->fd = fd;
     c->buffered = true;
-    c->no_block = false;
     c->xstate = X_IDLE;
     co_timer_init(&c->xtimer, on_timeout, c);
 }
 
-/* A classic target's transfer the gateway buffers: a segmented download,
- * or an upload, while the buffer and the line's SDO client are free. The
- * client's block transfers and expedited downloads are relayed as they are. */
+/* A classic target's transfer the gateway buffers: an upload, while the
+ * buffer and the line's SDO client are free (downloads: co_gateway_sdo_pipe.c;
+ * the client's block transfers are relayed as they are). */
 static bool buffers(const co_gateway_sdo_t *c, const uint8_t *d)
 {
-    uint8_t ccs = d[0] >> 5;
     co_sdo_client_t *sc = co_stack_sdo_client(c->to->stack);
-    bool segmented_download = ccs == 1 && (d[0] & 0x02u) == 0;
-    bool fits = !segmented_download || (d[0] & 0x01u) == 0 || get_u32(d + 4) <= c->gw->sdo_buf_size;
-    return (segmented_download || ccs == 2) && fits && sc != NULL && !c->gw->sdo_relay_only &&
+    return d[0] >> 5 == 2 && sc != NULL && !c->gw->sdo_relay_only &&
            (c->gw->sdo_buf_owner == NULL || c->gw->sdo_buf_owner == c) &&
            c->gw->sdo_buf != NULL && !co_sdo_client_receives(sc, 0x580u + c->target);
 }

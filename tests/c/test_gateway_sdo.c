@@ -1006,80 +1006,129 @@ static void test_classic_upload_buffered(void **state)
     fx_free(fx);
 }
 
-/* The client writes 20 bytes segmented: the gateway answers the initiate
- * and every segment at once, nothing reaches the device until the last
- * one; then the gateway downloads the value by block transfer (0xC6, size
- * and CRC offered) and answers the last segment only after the device's
- * block end response (0xA1). */
-static void test_classic_download_buffered_by_block(void **state)
+/* A segmented download to node 7 (answered by hand): the initiate is relayed
+ * and the node's 0x60 too; from then on the gateway answers each client
+ * segment at once and hands the segments to the node one by one as it
+ * confirms them (the node sees the client's frames byte for byte); the
+ * client's last segment is answered by the node's own confirmation. */
+static void peer_answers(fx_t *fx, const uint8_t *data)
+{
+    assert_true(co_line_send(&fx->peer.line, 0x580 + PEER, data, 8));
+    settle(fx);
+}
+
+static void connect_3_peer(fx_t *fx)
+{
+    co_membus_set_fault(&fx->c.bus, NULL, NULL);
+    request(fx, (const uint8_t[]){0xE0, NET_C, 0x00, PEER, 0, 0, 0, 0});
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+}
+
+static void test_classic_download_pipelined(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    classic_setup(fx, sizeof classic_buffer);
-    const char *text = "twenty bytes written";
-    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 20, 0, 0, 0});
+    connect_3_peer(fx);
+    const uint8_t init[8] = {0x21, 0x03, 0x20, 0x00, 20, 0, 0, 0};
+    const uint8_t seg1[8] = {0x00, 't', 'w', 'e', 'n', 't', 'y', ' '};
+    const uint8_t seg2[8] = {0x10, 'b', 'y', 't', 'e', 's', ' ', 'w'};
+    const uint8_t seg3[8] = {0x03, 'r', 'i', 't', 't', 'e', 'n', 0};   /* last, 6 bytes */
+    const uint8_t ack0[8] = {0x20}, ack1[8] = {0x30};
+    request(fx, init);
+    expect(&fx->c, 0x607, 0, init);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 0);   /* the node decides */
+    peer_answers(fx, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
     expect(&fx->a, 0x581, 0, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
-    uint8_t seg[8] = {0x00};
-    memcpy(seg + 1, text, 7);
-    request(fx, seg);
-    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
-    seg[0] = 0x10;
-    memcpy(seg + 1, text + 7, 7);
-    request(fx, seg);
-    expect(&fx->a, 0x581, 2, (const uint8_t[]){0x30, 0, 0, 0, 0, 0, 0, 0});
-    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);   /* collected, not sent yet */
-    uint8_t last[8] = {0x00 | (7 - 6) << 1 | 1};
-    memcpy(last + 1, text + 14, 6);
-    request(fx, last);
-    advance(fx, fx->a.now + 10 * TU_MS);
-    expect(&fx->c, 0x605, 0, (const uint8_t[]){0xC6, 0x03, 0x20, 0x00, 20, 0, 0, 0});
-    long end = tu_log_find_id(&fx->c, 0x585, 2);   /* initiate rsp, ack, end rsp */
-    assert_true(end >= 0);
-    assert_int_equal(fx->c.log[end].frame.data[0], 0xA1);
-    expect(&fx->a, 0x581, 3, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
-    uint8_t got[32];
-    uint32_t n = 0;
-    assert_int_equal(co_od_get(&fx->dev.od, 0x2003, 0, got, sizeof got, &n), 0);
-    assert_int_equal(n, 20);
-    assert_memory_equal(got, text, 20);
-    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_translated, 1);
+    request(fx, seg1);
+    expect(&fx->a, 0x581, 1, ack0);   /* answered by the gateway */
+    expect(&fx->c, 0x607, 1, seg1);
+    request(fx, seg2);
+    expect(&fx->a, 0x581, 2, ack1);   /* at once, though the node has not confirmed seg1 */
+    assert_int_equal(tu_log_count_id(&fx->c, 0x607), 2);   /* seg2 waits for the node */
+    peer_answers(fx, ack0);
+    expect(&fx->c, 0x607, 2, seg2);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 3);   /* the node's 0x20 is not relayed */
+    request(fx, seg3);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 3);   /* the last one: the node answers */
+    assert_int_equal(tu_log_count_id(&fx->c, 0x607), 3);
+    peer_answers(fx, ack1);
+    expect(&fx->c, 0x607, 3, seg3);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 3);
+    peer_answers(fx, ack0);
+    expect(&fx->a, 0x581, 3, ack0);   /* the node's confirmation of the value */
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_pipelined, 2);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 0);
     fx_free(fx);
 }
 
-/* A node that refuses block transfers (node 7, answered by hand): the
- * gateway's download goes segmented after the refusal, and the next
- * download on the connection goes segmented at once. */
-static void test_classic_block_refused_then_segmented(void **state)
+/* At most CO_GATEWAY_SDO_PIPE_DEPTH segments wait in the gateway: the next
+ * client segment's answer is held until the node confirms one. The node's
+ * abort reaches the client at once and ends the pipeline; a silent node is
+ * aborted on both sides by the relay's timeout. */
+static void test_classic_download_pipeline_depth_abort_timeout(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_membus_set_fault(&fx->c.bus, NULL, NULL);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = TIMEOUT_MS};
-    assert_int_equal(co_stack_client_init(&fx->gw_c.stack, &cc), CO_STACK_OK);
-    co_gateway_set_sdo_buffer(&fx->gw, classic_buffer, sizeof classic_buffer);
-    request(fx, (const uint8_t[]){0xE0, NET_C, 0x00, PEER, 0, 0, 0, 0});
+    connect_3_peer(fx);
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    peer_answers(fx, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    uint8_t seg[8] = {0};
+    for (unsigned k = 0; k <= CO_GATEWAY_SDO_PIPE_DEPTH; k++) {
+        seg[0] = (uint8_t)((k & 1u) << 4);
+        seg[1] = (uint8_t)k;
+        request(fx, seg);
+    }
+    /* seg 0 went to the node, 1..8 wait: the 9th segment's answer is held */
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1 + CO_GATEWAY_SDO_PIPE_DEPTH);
+    assert_int_equal(tu_log_count_id(&fx->c, 0x607), 2);
+    peer_answers(fx, (const uint8_t[8]){0x20});
+    expect(&fx->a, 0x581, 1 + CO_GATEWAY_SDO_PIPE_DEPTH, (const uint8_t[8]){0x20});
+    expect(&fx->c, 0x607, 2, (const uint8_t[]){0x10, 1, 0, 0, 0, 0, 0, 0});
+    const uint8_t no_space[8] = {0x80, 0x03, 0x20, 0x00, 0x00, 0x00, 0x07, 0x06};
+    peer_answers(fx, no_space);
+    expect(&fx->a, 0x581, 2 + CO_GATEWAY_SDO_PIPE_DEPTH, no_space);   /* at once */
+    assert_int_equal(tu_log_count_id(&fx->c, 0x607), 3);   /* the waiting ones are dropped */
+
     tu_log_clear(&fx->a);
-    for (int round = 0; round < 2; round++) {
-        tu_log_clear(&fx->c);
-        request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 5, 0, 0, 0});
-        request(fx, (const uint8_t[]){0x05, 'a', 'b', 'c', 'd', 'e', 0, 0});   /* last, 5 bytes */
-        size_t k = 0;
-        if (round == 0) {
-            expect(&fx->c, 0x600 + PEER, k++, (const uint8_t[]){0xC6, 0x03, 0x20, 0x00, 5, 0, 0, 0});
-            assert_true(co_line_send(&fx->peer.line, 0x580 + PEER,
-                                     (const uint8_t[]){0x80, 0x03, 0x20, 0x00, 0x01, 0x00, 0x04, 0x05}, 8));
-            settle(fx);
+    tu_log_clear(&fx->c);
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 100, 0, 0, 0});
+    peer_answers(fx, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x00, 1, 2, 3, 4, 5, 6, 7});
+    expect(&fx->a, 0x581, 1, (const uint8_t[8]){0x20});
+    advance(fx, fx->a.now + (TIMEOUT_MS + 5) * TU_MS);   /* the node stays silent */
+    const uint8_t timeout[8] = {0x80, 0x03, 0x20, 0x00, 0x00, 0x00, 0x04, 0x05};
+    expect(&fx->a, 0x581, 2, timeout);
+    expect(&fx->c, 0x607, 2, timeout);
+    assert_int_equal(co_gateway_stats(&fx->gw)->sdo_timeouts, 1);
+    fx_free(fx);
+}
+
+/* End to end with device 5: 20 bytes written through the pipeline are in
+ * its dictionary; with buffering off every segment waits for the device. */
+static void test_classic_download_pipelined_to_a_device(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    const char *text = "twenty bytes written";
+    for (int pass = 0; pass < 2; pass++) {
+        co_gateway_set_sdo_buffering(&fx->gw, pass == 0);
+        request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 20, 0, 0, 0});
+        for (unsigned off = 0; off < 20; off += 7) {
+            unsigned n = 20 - off < 7 ? 20 - off : 7;
+            uint8_t seg[8] = {(uint8_t)((off / 7 % 2) << 4 | (7 - n) << 1 | (off + n == 20))};
+            memcpy(seg + 1, text + off, n);
+            request(fx, seg);
         }
-        expect(&fx->c, 0x600 + PEER, k++, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 5, 0, 0, 0});
-        assert_true(co_line_send(&fx->peer.line, 0x580 + PEER,
-                                 (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0}, 8));
-        settle(fx);
-        expect(&fx->c, 0x600 + PEER, k, (const uint8_t[]){0x05, 'a', 'b', 'c', 'd', 'e', 0, 0});
-        assert_int_equal(tu_log_count_id(&fx->a, 0x581), 2 * round + 1);   /* last one waits */
-        assert_true(co_line_send(&fx->peer.line, 0x580 + PEER,
-                                 (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0}, 8));
-        settle(fx);
-        expect(&fx->a, 0x581, 2 * (size_t)round + 1, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
+        uint8_t got[32];
+        uint32_t n = 0;
+        assert_int_equal(co_od_get(&fx->dev.od, 0x2003, 0, got, sizeof got, &n), 0);
+        assert_int_equal(n, 20);
+        assert_memory_equal(got, text, 20);
+        assert_int_equal(tu_log_count_id(&fx->a, 0x581), 4 * (pass + 1));
+        assert_int_equal(co_gateway_stats(&fx->gw)->sdo_pipelined, 2);   /* pass 0 only */
+        assert_int_equal(co_od_put(&fx->dev.od, 0x2003, 0, (const uint8_t *)"-", 1), 0);
     }
     fx_free(fx);
 }
@@ -1156,8 +1205,9 @@ int main(void)
         cmocka_unit_test(test_fd_upload_larger_than_the_buffer),
         cmocka_unit_test(test_fd_upload_streamed),
         cmocka_unit_test(test_classic_upload_buffered),
-        cmocka_unit_test(test_classic_download_buffered_by_block),
-        cmocka_unit_test(test_classic_block_refused_then_segmented),
+        cmocka_unit_test(test_classic_download_pipelined),
+        cmocka_unit_test(test_classic_download_pipeline_depth_abort_timeout),
+        cmocka_unit_test(test_classic_download_pipelined_to_a_device),
         cmocka_unit_test(test_classic_relayed_beside_the_buffer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -49,6 +49,7 @@ enum {
     CO_GATEWAY_PDO_LAST = 0xBFFF,
     CO_GATEWAY_EMCY_NETWORKS = 32,   /* 0x1F2F is UNSIGNED32: networks 1..32 */
     CO_GATEWAY_SDO_CONNECTIONS = 4,  /* SDO networking connections at once */
+    CO_GATEWAY_SDO_PIPE_DEPTH = 8,   /* download segments answered ahead of the target */
     /* OD handler subscriptions a joined node's OD needs besides
      * CO_STACK_OD_SUBSCRIPTIONS (mapping checks, 0x1F2C) */
     CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
@@ -94,6 +95,7 @@ typedef struct co_gateway_stats {
     uint32_t sdo_translate_failed; /* ... ended with an abort (either side, timeouts) */
     uint32_t sdo_too_big;        /* ... refused: larger than the gateway's buffer */
     uint32_t sdo_buffer_busy;    /* ... refused: another connection holds the buffer */
+    uint32_t sdo_pipelined;      /* download segments answered ahead of a classic target */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -132,11 +134,20 @@ typedef struct co_gateway_sdo {
                                         segments (0x80 | seqno may be 0xE0..0xFF)
                                         are no network indications */
     co_timer_t timer;
+    /* segmented downloads answered ahead of the target (co_gateway_sdo_pipe.c) */
+    uint8_t pipe;                    /* its state, 0: off */
+    uint8_t pipe_head;               /* oldest waiting segment */
+    uint8_t pipe_count;              /* segments waiting */
+    bool pipe_target_busy;           /* a segment awaits the target's answer */
+    bool pipe_ack_held;              /* the client's answer waits for room */
+    uint8_t pipe_held_toggle;
+    bool pipe_last_in;               /* the client sent its last segment */
+    bool pipe_last_sent;             /* ... and it went to the target */
+    uint8_t pipe_frames[CO_GATEWAY_SDO_PIPE_DEPTH][8];
     /* buffered transfers (co_gateway_sdo_fd.c): every transfer to an fd
-     * target, segmented ones and uploads to a classic target */
+     * target, uploads from a classic one */
     bool fd;                         /* the target is on an fd line */
     bool buffered;                   /* transfers may go through the buffer */
-    bool no_block;                   /* the classic target refused a block download */
     uint8_t xstate;                  /* co_gateway_sdo_fd.c's transfer state */
     uint8_t toggle;                  /* segmented: toggle expected next */
     bool size_known;                 /* segmented download: the client gave its size */
@@ -254,9 +265,10 @@ void co_gateway_set_sdo_timeout(co_gateway_t *gw, uint32_t timeout_ms);
  * line's stack needs a USDO client (co_stack_client_init) whose node-id
  * is not the target's. */
 void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size);
-/* Buffered transfers into classic networks on (the default) or off: off,
- * every frame of a classic target's connection is relayed as it came (fd
- * targets are always translated). Takes effect at the next transfer. */
+/* Overlapped hops into classic networks (pipelined downloads, buffered
+ * uploads) on (the default) or off: off, every frame of a classic target's
+ * connection is relayed as it came and waits for the target (fd targets are
+ * always translated). Takes effect at the next transfer. */
 void co_gateway_set_sdo_buffering(co_gateway_t *gw, bool on);
 
 /* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
@@ -271,8 +283,13 @@ void co_gateway_usdo_unhook(struct co_gateway_port *port);
  * (false: a classic target's frame to relay), and the end of the connection. */
 void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd);
 bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *data);
-/* co_gateway_sdo.c, for co_gateway_sdo_fd.c: relay a request to the target. */
+/* co_gateway_sdo.c, for co_gateway_sdo_fd.c / _pipe.c: relay a request to the target. */
 void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data);
+/* co_gateway_sdo_pipe.c, for co_gateway_sdo.c: a client's request (true:
+ * taken), the target's answer (true: taken, not for the client), the end. */
+bool co_gateway_sdo_pipe_request(co_gateway_sdo_t *c, const uint8_t *data);
+bool co_gateway_sdo_pipe_answer(co_gateway_sdo_t *c, const uint8_t *data);
+void co_gateway_sdo_pipe_close(co_gateway_sdo_t *c);
 void co_gateway_sdo_fd_close(co_gateway_sdo_t *c);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)

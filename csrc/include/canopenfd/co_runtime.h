@@ -706,8 +706,8 @@ int co_rt_gateway_resolve(co_rt_t *rt, uint8_t net, int *line, uint8_t *node_id)
 /* 0x1F2F sub node_id of a joined line whose OD has none: bit k-1 = network k. */
 int co_rt_gateway_emcy_route(co_rt_t *rt, int line, uint8_t node_id, uint32_t networks);
 int co_rt_gateway_stats(co_rt_t *rt, co_gateway_stats_t *out);
-/* SDO networking into classic networks: segmented transfers served from the
- * gateway's buffer (on, the default) or every frame relayed (off). */
+/* SDO networking into classic networks: segmented transfers with the two
+ * hops overlapped (on, the default) or every frame relayed (off). */
 int co_rt_gateway_sdo_buffering(co_rt_t *rt, bool on);
 /* cffi:end */
 
