@@ -11,6 +11,8 @@
  * Actions: switch the client line; the tool starts a routed upload or
  * download (network, node and gateway from the input); the gateway's own
  * client uploads from a node; a route is set; the relay timeout changes.
+ * The gateway has a 96-byte buffer: uploads from device 5 go through it
+ * (larger values relayed), segmented downloads are pipelined.
  *
  * Checked: every frame carried is a valid classic frame; after SETTLE (and
  * at the end) every request ended and every gateway connection waits for
@@ -75,6 +77,7 @@ typedef struct world {
     co_line_t *client;          /* where FRAME records go */
     uint64_t now;
     uint32_t steps;
+    uint8_t sdo_buffer[96];          /* the gateway's (co_gateway_set_sdo_buffer) */
 } world_t;
 
 static world_t W;
@@ -315,6 +318,8 @@ static void build(void)
               "gateway port");
     }
     co_gateway_set_sdo_timeout(&W.gateway, 200);
+    /* small: uploads to device 5 are buffered, larger values relayed */
+    co_gateway_set_sdo_buffer(&W.gateway, W.sdo_buffer, sizeof W.sdo_buffer);
     CHECK(co_gateway_set_route(&W.gateway, 7, 3, NEXT_GW) == 0, "route");
     W.client = &W.raw[0].line;
     step(0);
@@ -337,6 +342,9 @@ static void settle(void)
         const co_gateway_sdo_t *c = &W.gateway.sdo[i];
         CHECK(c->from == NULL || (c->state == 2 && !c->timer.armed),
               "a gateway connection still waits after settling");
+        CHECK(c->from == NULL || (!c->xtimer.armed && !c->fetch_running),
+              "a buffered transfer still waits after settling");
+        CHECK(c->pipe_count <= CO_GATEWAY_SDO_PIPE_DEPTH, "the pipeline overflowed");
     }
 }
 
