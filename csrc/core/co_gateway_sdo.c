@@ -30,6 +30,8 @@ enum { SDO_FRAME = 8, SDO_REQUEST_BASE = 0x600, SDO_RESPONSE_BASE = 0x580,
        SDO_BLOCK_DOWN_MASK = 0xE1, SDO_BLOCK_DOWN_INITIATE = 0xC0,
        /* block upload: the client's initiate (ccs 5, cs 0) */
        SDO_BLOCK_UP_MASK = 0xE3, SDO_BLOCK_UP_INITIATE = 0xA0,
+       /* ... and its confirmation of the server's end frame (ccs 5, cs 1) */
+       SDO_BLOCK_UP_END_RSP = 0xA1,
        SDO_BLOCK_DOWN_END_RSP = 0xA1 };
 
 #define SDO_TIMEOUT 0x05040000u   /* CiA 301: SDO protocol timed out */
@@ -333,10 +335,12 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
     if (c->pipe != 0 && f->data[0] >> 5 != 0) {
         co_gateway_sdo_pipe_close(c);   /* a new transfer or an abort ends it */
     }
-    if (c->buffered && co_gateway_sdo_fd_request(c, f->data)) {
+    /* a relayed block download's segments (byte 0 = c | seqno) are no
+     * requests of their own: never taken for pipelining or buffering */
+    if (!c->block_down && c->buffered && co_gateway_sdo_fd_request(c, f->data)) {
         return true;   /* fd targets; classic: uploads */
     }
-    if (co_gateway_sdo_pipe_request(c, f->data)) {
+    if (!c->block_down && co_gateway_sdo_pipe_request(c, f->data)) {
         return true;   /* classic: segmented downloads */
     }
     co_gateway_sdo_relay(c, f->data);
@@ -356,9 +360,11 @@ void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data)
 {
     c->gw->stats.sdo_relayed++;
     send8(c->gw, line_of(c->to), SDO_REQUEST_BASE + c->target, data);
-    if (data[0] == SDO_CCS_ABORT) {
+    if (data[0] == SDO_CCS_ABORT || data[0] == SDO_BLOCK_UP_END_RSP) {
+        /* an abort, or the client's confirmation of a block upload's end,
+         * is not answered: nothing to wait for */
         co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
-        c->state = SDO_CONNECTED;   /* an abort is not answered */
+        c->state = SDO_CONNECTED;
         c->block_down = false;
         return;
     }

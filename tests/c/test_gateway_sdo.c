@@ -1133,6 +1133,56 @@ static void test_classic_download_pipelined_to_a_device(void **state)
     fx_free(fx);
 }
 
+/* The client's block transfers pass the gateway as they are, also while it
+ * pipelines and buffers: a block download's segments (byte 0 = seqno, so
+ * 0x21..0x7F look like initiates) are no requests of their own, and the
+ * client's confirmation of a block upload's end (A1) is not answered, so
+ * the relay waits for nothing after it: no abort follows a finished
+ * transfer. */
+static void test_classic_block_transfers_relayed_beside_the_pipeline(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    classic_setup(fx, sizeof classic_buffer);
+    uint32_t abort = 1;
+    block_download(fx, NET_C, DEV, &abort);   /* 100 segments: seqno 1..100 */
+    assert_int_equal(abort, 0);
+    const co_od_entry_t *e = co_od_find(&fx->dev.od, 0x2100, 0);
+    assert_int_equal(e->length, BIG);
+    static uint8_t back[BIG];
+    co_sdo_buffer_t sink = {.data = back, .capacity = sizeof back};
+    bool done = false;
+    co_sdo_request_t req = {.server = GW, .index = 0x2100, .upload = true,
+                            .mode = CO_SDO_MODE_BLOCK, .sink = co_sdo_buffer_sink, .ctx = &sink,
+                            .done = flag_done, .user = &done, .network = NET_C,
+                            .network_node = DEV, .timeout_ms = 50};
+    co_line_set_time(&fx->client.line, fx->a.now);
+    assert_int_equal(co_sdo_client_start(co_stack_sdo_client(&fx->tool), &req), 0);
+    settle(fx);
+    advance(fx, fx->a.now + 50 * TU_MS);
+    assert_true(done);
+    assert_int_equal(req.abort, 0);
+    assert_int_equal(req.result_mode, CO_SDO_MODE_BLOCK);
+    assert_int_equal(sink.size, BIG);
+    assert_memory_equal(back, co_od_value(&fx->dev.od, e), BIG);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 0);   /* no late abort */
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);
+    const co_gateway_stats_t *st = co_gateway_stats(&fx->gw);
+    assert_int_equal(st->sdo_timeouts, 0);
+    assert_int_equal(st->sdo_pipelined, 0);
+    assert_int_equal(st->sdo_translated + st->sdo_translate_failed, 0);
+    fx_free(fx);
+}
+
 /* What the buffer does not take is relayed byte for byte: an expedited
  * download, the client's block upload, an upload larger than the buffer
  * (the gateway's own upload stopped with 0x05040005, the client's
@@ -1209,6 +1259,7 @@ int main(void)
         cmocka_unit_test(test_classic_download_pipeline_depth_abort_timeout),
         cmocka_unit_test(test_classic_download_pipelined_to_a_device),
         cmocka_unit_test(test_classic_relayed_beside_the_buffer),
+        cmocka_unit_test(test_classic_block_transfers_relayed_beside_the_pipeline),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
