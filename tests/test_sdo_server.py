@@ -41,7 +41,9 @@ def rig():
         remote = peer.add_node(NODE, canopen.ObjectDictionary())
         # python-canopen waits 0.3 s per response by default: too short for a
         # loaded CI machine (its client and our host line run in Python threads)
-        remote.sdo.RESPONSE_TIMEOUT = 3.0
+        # generous: python-canopen's 1 MiB block download waited out 3 s once on a CI
+        # machine at load average 10 (tests of timeouts set their own)
+        remote.sdo.RESPONSE_TIMEOUT = 10.0
         try:
             yield node, remote, sniffer
         finally:
