@@ -1116,12 +1116,13 @@ static uint32_t manager_dcf_room(const co_stack_t *s, uint32_t asked)
     return asked ? asked : (uint32_t)CO_MANAGER_DCF_BUFFER;
 }
 
-size_t co_stack_manager_need(co_stack_t *stack)
+size_t co_stack_manager_need(co_stack_t *stack, const co_stack_manager_config_t *config)
 {
     if (!stack || !stack->has_node || !stack->od) {
         return 0;
     }
-    uint32_t dcf = manager_dcf_room(stack, 0);
+    /* the same room co_stack_manager_init takes for this config */
+    uint32_t dcf = manager_dcf_room(stack, config ? config->dcf_capacity : 0u);
     return CO_STACK_BLOCK(sizeof(co_manager_slave_t) * manager_slaves(stack)) +
            (dcf ? CO_STACK_BLOCK(dcf) : 0u);
 }

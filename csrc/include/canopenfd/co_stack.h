@@ -322,8 +322,9 @@ void co_stack_lss_master_deinit(co_stack_t *stack);
  * without them or when one runs, CO_STACK_ERR_OD when 0x1F80 bit 0 is
  * clear). Start it with co_manager_start(co_stack_manager(stack)). It is
  * fed the line's error control frames and losses; it goes when the node or
- * the client goes. */
-size_t co_stack_manager_need(co_stack_t *stack);
+ * the client goes. co_stack_manager_need: the bytes co_stack_manager_init
+ * takes with that config (NULL: the defaults), its DCF room included. */
+size_t co_stack_manager_need(co_stack_t *stack, const co_stack_manager_config_t *config);
 co_stack_status_t co_stack_manager_init(co_stack_t *stack,
                                         const co_stack_manager_config_t *config);
 void co_stack_manager_deinit(co_stack_t *stack);
