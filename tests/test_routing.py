@@ -335,3 +335,44 @@ def test_sdo_networking_reaches_a_node_of_an_fd_network(net):
     stats = net.routing.stats
     assert stats["sdo_connects"] == 1 and stats["sdo_translated"] == 4
     assert stats["sdo_translate_failed"] == 2    # the block initiate, 0x2FFF
+
+
+def test_a_rebuilt_gateway_ends_its_sdo_connections(net):
+    """A line joining rebuilds the gateway: its open SDO networking
+    connection ends with abort 0x060A0023 to the client and to the device
+    (counted); the client's next routed request is refused so, the client
+    sends the network indication again and the request after it, and the
+    caller gets the value."""
+    n = next(_buses)
+    a, c, d = (f"mem:routing-rebuild-{x}-{n}" for x in "acd")
+    for bus, network_id in ((a, 1), (c, 3)):
+        gateway = net.open_line(bus, mode="classic")
+        gateway.create_local_node(GW, od=demo_od("classic"))
+        gateway.network_id = network_id
+    target = net.open_line(c, mode="classic").create_local_node(5, od=demo_od("classic"))
+    seen_a, seen_c = Recorder(), Recorder()
+    net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
+    net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
+    device = net.open_line(a, mode="classic").sdo.remote(network=3, node=5, gateway=GW)
+    assert device.upload(0x1000) == target[0x1000].data
+
+    def frames(seen, can_id, count, what):
+        return seen.wait_for(
+            lambda calls: [f.data for f in calls if f.id == can_id][:count]
+            if sum(f.id == can_id for f in calls) >= count else None, 5.0, what)
+
+    joining = net.open_line(d, mode="classic")
+    joining.create_local_node(GW, od=demo_od("classic"))
+    joining.network_id = 4                              # the gateway is rebuilt
+    ended = bytes([0x80, 0x00, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06])
+    assert frames(seen_a, 0x581, 3, "the client's abort")[2] == ended   # after E0, 43
+    assert frames(seen_c, 0x605, 2, "the device's abort")[1] == ended
+    assert net.routing.stats["connections_ended"] == 1
+
+    assert device.upload(0x1018, 1) == target[0x1018][1].data
+    up = bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])
+    indication = bytes([0xE0, 3, 0, 5, 0, 0, 0, 0])
+    assert frames(seen_a, 0x601, 5, "the requests")[2:] == [up, indication, up]
+    answers = frames(seen_a, 0x581, 6, "the answers")[3:]
+    assert answers[:2] == [bytes([0x80, 0x18, 0x10, 0x01, 0x23, 0x00, 0x0A, 0x06]), indication]
+    assert answers[2][:4] == bytes([0x43, 0x18, 0x10, 0x01])

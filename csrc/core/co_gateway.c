@@ -458,6 +458,12 @@ co_gateway_status_t co_gateway_add_port(co_gateway_t *gw, co_stack_t *stack,
     return CO_GATEWAY_OK;
 }
 
+void co_gateway_end_connections(co_gateway_t *gw)
+{
+    co_gateway_sdo_end(gw);
+    co_gateway_usdo_end(gw);
+}
+
 void co_gateway_deinit(co_gateway_t *gw)
 {
     for (uint8_t i = 0; i < gw->port_count; i++) {

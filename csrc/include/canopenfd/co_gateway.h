@@ -54,7 +54,8 @@ enum {
     CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
     CO_GATEWAY_SDO_TIMEOUT_MS = 1000, /* default wait for the target's answer */
     CO_GATEWAY_USDO_RELAYS = 4,      /* remote USDO requests forwarded at once */
-    CO_GATEWAY_USDO_VALUE_MAX = 1024 /* largest value a remote USDO request moves (0x16 above) */
+    CO_GATEWAY_USDO_VALUE_MAX = 1024, /* largest value a remote USDO request moves (0x16 above) */
+    CO_GATEWAY_ENDED = 8             /* connections ended by a rebuild remembered at once */
 };
 
 /* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
@@ -64,6 +65,11 @@ enum {
  * "SDO client busy"), and a network it cannot reach. */
 #define CO_GATEWAY_ABORT_BUSY 0x060A0023u
 #define CO_GATEWAY_ABORT_NO_ROUTE 0x08000000u
+/* What ends a connection when the gateway is rebuilt, on both sides, and
+ * answers the next request of a client whose idle connection was ended:
+ * CiA 301 "resource not available: SDO connection" (remote USDO: its CiA
+ * 1301 counterpart 0x70). Why this code: docs/protocol-notes.md "Gateway". */
+#define CO_GATEWAY_ABORT_ENDED 0x060A0023u
 
 /* cffi:begin */
 typedef struct co_gateway_stats {
@@ -94,6 +100,8 @@ typedef struct co_gateway_stats {
     uint32_t sdo_translate_failed; /* ... ended with an abort (either side, timeouts) */
     uint32_t sdo_too_big;        /* ... refused: larger than the gateway's buffer */
     uint32_t sdo_buffer_busy;    /* ... refused: another connection holds the buffer */
+    uint32_t connections_ended;  /* SDO connections and remote USDO requests a rebuild
+                                    ended (aborts sent to both sides) */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -184,6 +192,17 @@ typedef struct co_gateway_port {
     uint32_t emcy_routes[CO_GATEWAY_NETWORKS];
 } co_gateway_port_t;
 
+/* The server channels whose SDO networking connection a rebuild ended
+ * (co_gateway_end_connections): a client's next request there is aborted
+ * with CO_GATEWAY_ABORT_ENDED, not answered by the gateway's own server,
+ * until it sends a network indication. The owner carries it over to the
+ * rebuilt gateway. */
+typedef struct co_gateway_ended {
+    const co_stack_t *stack[CO_GATEWAY_ENDED];   /* NULL: free */
+    uint8_t channel[CO_GATEWAY_ENDED];
+    uint8_t next;                /* the slot taken over when all are in use */
+} co_gateway_ended_t;
+
 struct co_gateway {
     co_gateway_port_t ports[CO_GATEWAY_MAX_PORTS];
     uint8_t port_count;
@@ -195,6 +214,7 @@ struct co_gateway {
     uint8_t *sdo_buf;            /* translation buffer (caller memory), NULL: none */
     uint32_t sdo_buf_size;
     co_gateway_sdo_t *sdo_buf_owner; /* the connection using it, NULL: free */
+    co_gateway_ended_t ended;
     co_gateway_event_fn on_event;
     void *user;
     co_gateway_stats_t stats;
@@ -216,6 +236,12 @@ co_gateway_status_t co_gateway_add_port(co_gateway_t *gw, co_stack_t *stack,
                                         uint8_t network_id);
 /* Every hook removed (before the stacks go). */
 void co_gateway_deinit(co_gateway_t *gw);
+/* Before a rebuild (co_gateway_deinit, co_gateway_init, the ports again):
+ * every open SDO networking connection, translation and remote USDO request
+ * ends as CiA 301 ends a transfer, with an abort (CO_GATEWAY_ABORT_ENDED)
+ * to the client and to the target, counted in connections_ended; the SDO
+ * clients' server channels go into gw->ended (copy it to the new gateway). */
+void co_gateway_end_connections(co_gateway_t *gw);
 
 /* The line carrying network `net`, or NULL. */
 co_stack_t *co_gateway_line_of(co_gateway_t *gw, uint8_t net);
@@ -250,6 +276,9 @@ void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size);
 /* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
 void co_gateway_sdo_hook(struct co_gateway_port *port);
 void co_gateway_sdo_unhook(struct co_gateway_port *port);
+/* ... and the SDO / remote USDO parts of co_gateway_end_connections. */
+void co_gateway_sdo_end(co_gateway_t *gw);
+void co_gateway_usdo_end(co_gateway_t *gw);
 /* co_gateway_usdo.c, for co_gateway.c: the same for a port's USDO server
  * (unhook cancels the requests forwarded from or to the port). */
 void co_gateway_usdo_hook(struct co_gateway_port *port);
@@ -259,6 +288,9 @@ void co_gateway_usdo_unhook(struct co_gateway_port *port);
 void co_gateway_sdo_fd_open(co_gateway_sdo_t *c);
 bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *data);
 void co_gateway_sdo_fd_close(co_gateway_sdo_t *c);
+/* A rebuild ends the connection: the client hears `code`, a running USDO
+ * transfer is stopped with its USDO counterpart. */
+void co_gateway_sdo_fd_end(co_gateway_sdo_t *c, uint32_t code);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
 {

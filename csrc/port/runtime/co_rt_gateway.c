@@ -5,7 +5,8 @@
  * line's local node appears, since the core hooks the node's OD and PDOs.
  * A joined fd line gets its USDO client (the line's node-id as client) so
  * classic clients reach its nodes by SDO networking, through the runtime's
- * RT_GATEWAY_SDO_BUFFER bytes. */
+ * RT_GATEWAY_SDO_BUFFER bytes. A rebuild ends the open SDO networking
+ * connections and remote USDO requests with aborts (co_gateway_end_connections). */
 #include "co_rt_internal.h"
 
 #include <string.h>
@@ -36,13 +37,19 @@ int rt_gateway_rebuild(co_rt_t *rt)
 {
     co_gateway_t *gw = &rt->gateway;
     uint16_t routes[CO_GATEWAY_NETWORKS];
-    co_gateway_stats_t stats = gw->stats;
     int count = rt_atomic_load_acquire(&rt->line_count);
+    /* open connections end with aborts on both sides (not silently: the
+     * peers would wait for their timeouts); what they were is kept so the
+     * clients' next requests are refused, not served from our own OD */
+    co_gateway_end_connections(gw);
+    co_gateway_stats_t stats = gw->stats;
+    co_gateway_ended_t ended = gw->ended;
     memcpy(routes, gw->routes, sizeof routes);
     co_gateway_deinit(gw);
     co_gateway_init(gw, on_gateway_event, rt);
     memcpy(gw->routes, routes, sizeof routes);
     gw->stats = stats;
+    gw->ended = ended;
     co_gateway_set_sdo_buffer(gw, rt->gateway_sdo_buf, sizeof rt->gateway_sdo_buf);
     for (int i = 0; i < count; i++) {
         rt_line_t *l = rt->lines[i];
