@@ -10,13 +10,16 @@ and the 0x1F2C routes with their refusals as exceptions naming the abort."""
 from __future__ import annotations
 
 import itertools
+import time
 
 import pytest
+
+import canopenfd
 
 from canopenfd import ConfigurationError, SdoAbortError, UsdoAbortError
 from canopenfd.od import DataType, ODArray, ODVariable, demo_od
 from canopenfd.services.routing import GatewayRouteKind
-from helpers import Recorder
+from helpers import Recorder, scaled, virtual_bus
 
 GW = 1
 U16, U32 = DataType.UNSIGNED16, DataType.UNSIGNED32
@@ -141,6 +144,54 @@ def test_emcy_routed_by_0x1f2f_and_by_the_api(rig):
     with pytest.raises(ConfigurationError, match="networks 1..32"):
         rig.net.routing.emcy_route(rig.gw["fd"], 6, [33])
 
+
+
+def test_two_gateways_do_not_bounce_an_emcy(net):
+    """Gateway A (this Network, node 1) re-sends network 2's node 5 EMCY on
+    network 1, gateway B (a second Network, node 2; the two share python-can
+    virtual buses) network 1's node 5 EMCY on network 2. Device 5's EMCY passes A once and
+    B once, then stops: A takes B's copy on network 2 for the echo of the
+    EMCY it re-sent (counted), instead of the two bouncing it for ever."""
+    n = next(_buses)
+    buses = {1: f"routing-echo-x-{n}", 2: f"routing-echo-y-{n}"}
+    seen = {net_id: Recorder() for net_id in buses}
+    for net_id, bus in buses.items():
+        net.open_line(bus=virtual_bus(bus), mode="classic", monitor=True).on_frame(
+            seen[net_id])
+
+    def join(network, node_id):
+        lines = {}
+        for net_id, bus in buses.items():
+            od = demo_od("classic")
+            _array(od, 0x1028, "Emergency consumer", U32,
+                   {**{k: 0x80000000 for k in range(1, 8)}, 5: 0x85})
+            lines[net_id] = network.open_line(bus=virtual_bus(bus), mode="classic")
+            lines[net_id].create_local_node(node_id, od=od)
+            lines[net_id].network_id = net_id
+        return lines
+
+    with canopenfd.Network() as other:
+        a, b = join(net, 1), join(other, 2)
+        net.routing.emcy_route(a[2], 5, [1])     # A: network 2's node 5 -> network 1
+        other.routing.emcy_route(b[1], 5, [2])   # B: network 1's node 5 -> network 2
+        emcy = bytes([0x10, 0x81, 0x11, 1, 2, 3, 4, 5])
+        net.open_line(bus=virtual_bus(buses[2]), mode="classic").send_frame(0x85, emcy)
+
+        def count(net_id):
+            return sum(f.id == 0x85 for f in seen[net_id].snapshot())
+
+        seen[1].wait_for(lambda calls: count(1) >= 1 or None, 5.0, "A's copy on network 1")
+        seen[2].wait_for(lambda calls: count(2) >= 2 or None, 5.0, "B's copy on network 2")
+        deadline = time.monotonic() + scaled(5.0)
+        while net.routing.stats["emcy_echoes"] < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(scaled(0.3))                  # a bounce would have gone on by now
+        assert (count(1), count(2)) == (1, 2)
+        assert all(f.data == emcy for net_id in buses for f in seen[net_id].snapshot()
+                   if f.id == 0x85)
+        assert net.routing.stats["emcy_routed"] == 1
+        assert net.routing.stats["emcy_echoes"] == 1
+        assert other.routing.stats["emcy_routed"] == 1
 
 def test_routes_resolve_refuse_and_report_loops(rig):
     routing = rig.net.routing

@@ -11,7 +11,10 @@
  *   - routes EMCYs per 0x1F2F: sub n, parallel to 0x1028 sub n (node n's
  *     EMCY on the same line), bit k-1 = re-send it on network k (1..32),
  *     re-encoded for the target line (classic 8 bytes / fd 20 bytes) on the
- *     CAN-ID it was heard on;
+ *     CAN-ID it was heard on; never onto the network it came from, and an
+ *     EMCY equal to one it re-sent within CO_GATEWAY_EMCY_ECHO_MS, heard on
+ *     the network that one came from or went to, is its echo through
+ *     another gateway and is not re-sent (no EMCY ping-pong);
  *   - forwards process data: when an RPDO of one line has written objects of
  *     0xB000..0xBFFF, the same objects on the other lines get the values and
  *     every TPDO there that maps one is triggered once (event-driven, no
@@ -55,7 +58,9 @@ enum {
     CO_GATEWAY_SDO_TIMEOUT_MS = 1000, /* default wait for the target's answer */
     CO_GATEWAY_USDO_RELAYS = 4,      /* remote USDO requests forwarded at once */
     CO_GATEWAY_USDO_VALUE_MAX = 1024, /* largest value a remote USDO request moves (0x16 above) */
-    CO_GATEWAY_ENDED = 8             /* connections ended by a rebuild remembered at once */
+    CO_GATEWAY_ENDED = 8,            /* connections ended by a rebuild remembered at once */
+    CO_GATEWAY_EMCY_RECENT = 8,      /* EMCYs re-sent lately, kept to know their echoes */
+    CO_GATEWAY_EMCY_ECHO_MS = 500    /* how long an EMCY re-sent is taken as ours */
 };
 
 /* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
@@ -102,6 +107,8 @@ typedef struct co_gateway_stats {
     uint32_t sdo_buffer_busy;    /* ... refused: another connection holds the buffer */
     uint32_t connections_ended;  /* SDO connections and remote USDO requests a rebuild
                                     ended (aborts sent to both sides) */
+    uint32_t emcy_echoes;        /* an EMCY this gateway re-sent came back (through
+                                    another gateway): not re-sent again */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -203,6 +210,16 @@ typedef struct co_gateway_ended {
     uint8_t next;                /* the slot taken over when all are in use */
 } co_gateway_ended_t;
 
+/* An EMCY the gateway re-sent: its CAN-ID and classic 8 bytes (what every
+ * line's format keeps), the network it came from, those it went to. */
+typedef struct co_gateway_emcy_sent {
+    uint64_t at_us;
+    uint32_t cob_id;
+    uint32_t to_nets;            /* bit k-1 = network k; 0: a free slot */
+    uint8_t from_net;
+    uint8_t data[8];
+} co_gateway_emcy_sent_t;
+
 struct co_gateway {
     co_gateway_port_t ports[CO_GATEWAY_MAX_PORTS];
     uint8_t port_count;
@@ -215,6 +232,8 @@ struct co_gateway {
     uint32_t sdo_buf_size;
     co_gateway_sdo_t *sdo_buf_owner; /* the connection using it, NULL: free */
     co_gateway_ended_t ended;
+    co_gateway_emcy_sent_t emcy_sent[CO_GATEWAY_EMCY_RECENT];
+    uint8_t emcy_next;           /* the slot the next re-sent EMCY takes */
     co_gateway_event_fn on_event;
     void *user;
     co_gateway_stats_t stats;
