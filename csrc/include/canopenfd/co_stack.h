@@ -161,7 +161,9 @@ typedef struct co_stack_line_config {
 typedef struct co_stack_node_config {
     uint8_t node_id;             /* 1..127, or 255: unconfigured, waits for LSS */
     uint16_t heartbeat_ms;       /* 0x1017 without an OD */
-    co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL */
+    co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL: then
+                                    its SDO / USDO server serves an empty OD, so
+                                    every request is aborted 0x06020000 at once */
     /* Parameters saved through this backend (NULL: defaults only; needs the OD). */
     const co_store_backend_t *store_backend;
     void *store_user;
@@ -242,6 +244,7 @@ struct co_stack {
     bool has_node;
     co_node_t node;
     co_od_t *od;
+    co_od_t no_od;               /* what the server serves when od is NULL: nothing */
     bool has_store;
     co_store_t store;
     bool has_emcy;
