@@ -219,12 +219,12 @@ def test_routes_resolve_refuse_and_report_loops(rig):
     assert routing.resolve(4).kind == GatewayRouteKind.UNKNOWN
 
 
-def test_sdo_networking_reaches_a_node_of_another_network(net):
-    """A client on network 1 reads and writes device 5 of network 3 through
-    the gateway (node 1 on both classic lines): the network indication, then
-    every frame relayed; a network no route reaches is the gateway's abort."""
+def _relay_rig(net, name):
+    """The gateway's node 1 joining classic networks 1 (bus a) and 3 (bus
+    c), device 5 on network 3, a monitor on each bus: (a client line on
+    network 1, device 5, frames seen on a, frames seen on c)."""
     n = next(_buses)
-    a, c = f"mem:routing-sdo-a-{n}", f"mem:routing-sdo-c-{n}"
+    a, c = f"mem:routing-{name}-a-{n}", f"mem:routing-{name}-c-{n}"
     for bus, network_id in ((a, 1), (c, 3)):
         gateway = net.open_line(bus, mode="classic")
         gateway.create_local_node(GW, od=demo_od("classic"))
@@ -233,7 +233,14 @@ def test_sdo_networking_reaches_a_node_of_another_network(net):
     seen_a, seen_c = Recorder(), Recorder()
     net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
     net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
-    client = net.open_line(a, mode="classic")
+    return net.open_line(a, mode="classic"), target, seen_a, seen_c
+
+
+def test_sdo_networking_reaches_a_node_of_another_network(net):
+    """A client on network 1 reads and writes device 5 of network 3 through
+    the gateway (node 1 on both classic lines): the network indication, then
+    every frame relayed; a network no route reaches is the gateway's abort."""
+    client, target, seen_a, seen_c = _relay_rig(net, "sdo")
 
     device = client.sdo.remote(network=3, node=5, gateway=GW)
     assert device.upload(0x1000) == target[0x1000].data     # device 5's own value
@@ -394,17 +401,8 @@ def test_a_rebuilt_gateway_ends_its_sdo_connections(net):
     (counted); the client's next routed request is refused so, the client
     sends the network indication again and the request after it, and the
     caller gets the value."""
-    n = next(_buses)
-    a, c, d = (f"mem:routing-rebuild-{x}-{n}" for x in "acd")
-    for bus, network_id in ((a, 1), (c, 3)):
-        gateway = net.open_line(bus, mode="classic")
-        gateway.create_local_node(GW, od=demo_od("classic"))
-        gateway.network_id = network_id
-    target = net.open_line(c, mode="classic").create_local_node(5, od=demo_od("classic"))
-    seen_a, seen_c = Recorder(), Recorder()
-    net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
-    net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
-    device = net.open_line(a, mode="classic").sdo.remote(network=3, node=5, gateway=GW)
+    client, target, seen_a, seen_c = _relay_rig(net, "rebuild")
+    device = client.sdo.remote(network=3, node=5, gateway=GW)
     assert device.upload(0x1000) == target[0x1000].data
 
     def frames(seen, can_id, count, what):
@@ -412,7 +410,7 @@ def test_a_rebuilt_gateway_ends_its_sdo_connections(net):
             lambda calls: [f.data for f in calls if f.id == can_id][:count]
             if sum(f.id == can_id for f in calls) >= count else None, 5.0, what)
 
-    joining = net.open_line(d, mode="classic")
+    joining = net.open_line(f"mem:routing-rebuild-d-{next(_buses)}", mode="classic")
     joining.create_local_node(GW, od=demo_od("classic"))
     joining.network_id = 4                              # the gateway is rebuilt
     ended = bytes([0x80, 0x00, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06])

@@ -386,6 +386,17 @@ static void test_indication_forwarded_to_the_next_gateway(void **state)
 
 /* ------------------------------------------------------------ the client side */
 
+/* Our SDO client (two channels, 50 ms timeout) on the client's line. */
+static void tool_client(fx_t *fx)
+{
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+}
+
 typedef struct upload {
     co_sdo_request_t req;
     co_sdo_buffer_t sink;
@@ -509,12 +520,7 @@ static void test_block_download_last_segment_is_no_indication(void **state)
     (void)state;
     fx_t *fx = fx_new();
     uint32_t abort = 1;
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     block_download(fx, 0, 0, &abort);
     assert_int_equal(abort, 0);
     assert_true(tu_log_find_id(&fx->a, 0x601, 0) >= 0);
@@ -545,12 +551,7 @@ static void test_cancel_during_indication_forgets_the_connection(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     co_sdo_client_t *client = co_stack_sdo_client(&fx->tool);
     upload_t u;
     routed_upload(fx, &u, NET_C, DEV, 0x2000);
@@ -603,12 +604,7 @@ static void test_client_reaches_a_node_through_the_gateway(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     upload_t u;
     routed_upload(fx, &u, NET_C, DEV, 0x2000);
     assert_int_equal(u.req.abort, 0);
@@ -1062,12 +1058,7 @@ static void test_client_reconnects_after_a_rebuild(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     upload_t u;
     routed_upload(fx, &u, NET_C, DEV, 0x2000);
     assert_int_equal(u.req.abort, 0);
