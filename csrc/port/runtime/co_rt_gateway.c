@@ -44,10 +44,15 @@ int rt_gateway_rebuild(co_rt_t *rt)
     co_gateway_end_connections(gw);
     co_gateway_stats_t stats = gw->stats;
     co_gateway_ended_t ended = gw->ended;
+    co_gateway_emcy_sent_t emcy_sent[CO_GATEWAY_EMCY_RECENT];   /* echoes still known */
+    uint8_t emcy_next = gw->emcy_next;
+    memcpy(emcy_sent, gw->emcy_sent, sizeof emcy_sent);
     memcpy(routes, gw->routes, sizeof routes);
     co_gateway_deinit(gw);
     co_gateway_init(gw, on_gateway_event, rt);
     memcpy(gw->routes, routes, sizeof routes);
+    memcpy(gw->emcy_sent, emcy_sent, sizeof emcy_sent);
+    gw->emcy_next = emcy_next;
     gw->stats = stats;
     gw->ended = ended;
     co_gateway_set_sdo_buffer(gw, rt->gateway_sdo_buf, sizeof rt->gateway_sdo_buf);
@@ -108,8 +113,7 @@ int co_rt_gateway_join(co_rt_t *rt, int line, uint8_t network_id)
         l->network_id = old;
         (void)rt_gateway_rebuild(rt);
     }
-    rt_mutex_unlock(&rt->lock);
-    return status;
+    return rt_kick_unlock(rt, status);   /* the rebuild's aborts go out now */
 }
 
 int co_rt_gateway_network(co_rt_t *rt, int line)
