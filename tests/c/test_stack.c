@@ -405,7 +405,8 @@ static void tool_nmt(fx_t *fx, uint8_t command)
 /* A node made without an OD (NMT and heartbeat only) still answers every
  * SDO / USDO request at once, "object does not exist" (0x06020000 / 0x33)
  * with the request's multiplexer, instead of leaving the client to its
- * timeout; the memory its server takes is in co_stack_node_need. */
+ * timeout; the memory its server takes is in co_stack_node_need and
+ * within CO_STACK_NODE_MEMORY. */
 static void test_node_without_od_answers_no_such_object(void **state)
 {
     (void)state;
@@ -419,6 +420,8 @@ static void test_node_without_od_answers_no_such_object(void **state)
         size_t need = co_stack_node_need(&fx->dev_line.line, &nc);
         assert_int_equal(co_stack_node_init(&fx->stack, &nc), CO_STACK_OK);
         assert_int_equal(fx->arena.used - before, need);
+        assert_true(need <= CO_STACK_NODE_MEMORY(0, 0, 0, 0,
+                                                 m ? CO_STACK_DEFAULT_SERVER_SESSIONS : 1));
         assert_null(co_stack_od(&fx->stack));
         assert_int_equal(co_stack_boot(&fx->stack), CO_STACK_OK);
         tu_run_until(&fx->tb, 2 * TU_MS);
