@@ -19,30 +19,13 @@ nothing is asserted.
 from __future__ import annotations
 
 import argparse
-import time
 
 import canopenfd
 from canopenfd.od import demo_od
+from routing_common import GATEWAY, open_gateway, pattern, run
 
-DEVICE, GATEWAY = 5, 1
+DEVICE = 5
 U32, DOMAIN = (0x1000, 1), (0x2100, 0)
-
-
-def pattern(size: int) -> bytes:
-    return bytes((i * 7 + (i >> 8)) & 0xFF for i in range(size))
-
-
-def run(read, budget_s: float, size: int) -> tuple:
-    count, moved = 0, 0
-    end = time.monotonic() + budget_s
-    start = time.monotonic()
-    while time.monotonic() < end:
-        data = read()
-        assert len(data) == size, f"read {len(data)} bytes, expected {size}"
-        count += 1
-        moved += len(data)
-    elapsed = time.monotonic() - start
-    return count / elapsed, moved / elapsed / 1000
 
 
 def main() -> None:
@@ -53,10 +36,7 @@ def main() -> None:
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     with canopenfd.Network() as network:
-        for bus, network_id in (("mem:bench-cell", 1), ("mem:bench-axis", 2)):
-            gateway = network.open_line(bus, mode="fd")
-            gateway.create_local_node(GATEWAY, od=demo_od("fd"))
-            gateway.network_id = network_id
+        open_gateway(network, [("mem:bench-cell", "fd", 1), ("mem:bench-axis", "fd", 2)])
         device = network.open_line("mem:bench-axis", mode="fd").create_local_node(
             DEVICE, od=demo_od("fd"))
         device.serve_domain(DOMAIN[0], max(sizes))

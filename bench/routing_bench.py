@@ -35,24 +35,20 @@ import argparse
 import os
 import subprocess
 import sys
-import time
 
 import canopenfd
 from canopenfd.od import DataType, ODVariable, demo_od
+from routing_common import GATEWAY, open_gateway, pattern, run
 
-DEVICE, FD_DEVICE, GATEWAY = 5, 6, 1
+DEVICE, FD_DEVICE = 5, 6
 U32, DOMAIN = 0x1018, 0x2110   # U32: identity, vendor-ID (sub 1); DOMAIN + k: size k
 U32_RW = 0x2007                 # the demo OD's writable UNSIGNED32
 OFFICE, CELL, MACHINE = 1, 2, 3      # network-ids
 
 
-def open_gateway(network, office: str, machine: str, cell: str) -> None:
-    """The gateway's node 1 on the three lines, joined with their network-ids."""
-    for bus, mode, network_id in ((office, "classic", OFFICE), (machine, "classic", MACHINE),
-                                  (cell, "fd", CELL)):
-        line = network.open_line(bus, mode=mode)
-        line.create_local_node(GATEWAY, od=demo_od(mode))
-        line.network_id = network_id
+def gateway_lines(office: str, machine: str, cell: str) -> list:
+    """The gateway's three lines: (bus, mode, network-id)."""
+    return [(office, "classic", OFFICE), (machine, "classic", MACHINE), (cell, "fd", CELL)]
 
 
 def open_devices(network, machine: str, cell: str, sizes: list) -> None:
@@ -75,7 +71,7 @@ def serve(role: str, lines: list, sizes: list) -> None:
     office, machine, cell = lines
     with canopenfd.Network() as network:
         if role == "gateway":
-            open_gateway(network, office, machine, cell)
+            open_gateway(network, gateway_lines(office, machine, cell))
         else:
             open_devices(network, machine, cell, sizes)
         print("ready", flush=True)
@@ -98,25 +94,6 @@ def spawn(role: str, lines: str, sizes: str) -> subprocess.Popen:
     assert proc.stdout is not None
     assert proc.stdout.readline().strip() == "ready", f"the {role} process failed"
     return proc
-
-
-def pattern(size: int) -> bytes:
-    return bytes((i * 7 + (i >> 8)) & 0xFF for i in range(size))
-
-
-def run(transfer, budget_s: float, size: int) -> tuple:
-    """Transfers/s and kB/s of `transfer` (an upload returning the value, or
-    a download returning None) repeated for budget_s."""
-    count, moved = 0, 0
-    end = time.monotonic() + budget_s
-    start = time.monotonic()
-    while time.monotonic() < end:
-        data = transfer()
-        assert data is None or len(data) == size, f"read {len(data)} bytes, expected {size}"
-        count += 1
-        moved += size
-    elapsed = time.monotonic() - start
-    return count / elapsed, moved / elapsed / 1000
 
 
 def main() -> None:
@@ -143,7 +120,7 @@ def main() -> None:
         if args.vcan:
             helpers = [spawn(role, args.vcan, args.sizes) for role in ("gateway", "devices")]
         else:
-            open_gateway(network, office, machine, cell)
+            open_gateway(network, gateway_lines(office, machine, cell))
             open_devices(network, machine, cell, sizes)
         direct = network.open_line(machine, mode="classic").sdo
         direct_usdo = network.open_line(cell, mode="fd").usdo

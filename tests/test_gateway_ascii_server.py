@@ -475,6 +475,38 @@ def test_lss_allnodes_gives_node_ids(net, bus_name):
         server.close()
 
 
+
+def test_lss_allnodes_step_timeout_is_its_own(net, bus_name):
+    """lss_allnodes 300 scans with a 300 ms step timeout (no device answers:
+    the search takes at least that long) while line.lss.timeout_ms, which
+    every other user of the line's LSS master gets, stays 40 throughout."""
+    line = net.open_line(bus_name, mode="classic")
+    line.lss.timeout_ms = 40
+    server = AsciiGateway({1: line}).start_in_thread()
+    seen = set()
+    done = threading.Event()
+
+    def watch():
+        while not done.is_set():
+            seen.add(line.lss.timeout_ms)
+            time.sleep(0.002)
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    try:
+        client = Client(server.port)
+        sent = time.monotonic()
+        client.send("[1] lss_allnodes 300")
+        assert client.answer() == "# Found 0 nodes, search finished."
+        assert client.answer() == "[1] OK"
+        assert time.monotonic() - sent >= 0.3
+        client.close()
+    finally:
+        done.set()
+        watcher.join()
+        server.close()
+    assert seen == {40}
+
 def unconfigured_device(net, bus_name, identity):
     od = demo_od("classic")
     for sub, value in enumerate(identity, start=1):

@@ -10,13 +10,16 @@ and the 0x1F2C routes with their refusals as exceptions naming the abort."""
 from __future__ import annotations
 
 import itertools
+import time
 
 import pytest
+
+import canopenfd
 
 from canopenfd import ConfigurationError, SdoAbortError, UsdoAbortError
 from canopenfd.od import DataType, ODArray, ODVariable, demo_od
 from canopenfd.services.routing import GatewayRouteKind
-from helpers import Recorder
+from helpers import Recorder, scaled, virtual_bus
 
 GW = 1
 U16, U32 = DataType.UNSIGNED16, DataType.UNSIGNED32
@@ -142,6 +145,54 @@ def test_emcy_routed_by_0x1f2f_and_by_the_api(rig):
         rig.net.routing.emcy_route(rig.gw["fd"], 6, [33])
 
 
+
+def test_two_gateways_do_not_bounce_an_emcy(net):
+    """Gateway A (this Network, node 1) re-sends network 2's node 5 EMCY on
+    network 1, gateway B (a second Network, node 2; the two share python-can
+    virtual buses) network 1's node 5 EMCY on network 2. Device 5's EMCY passes A once and
+    B once, then stops: A takes B's copy on network 2 for the echo of the
+    EMCY it re-sent (counted), instead of the two bouncing it for ever."""
+    n = next(_buses)
+    buses = {1: f"routing-echo-x-{n}", 2: f"routing-echo-y-{n}"}
+    seen = {net_id: Recorder() for net_id in buses}
+    for net_id, bus in buses.items():
+        net.open_line(bus=virtual_bus(bus), mode="classic", monitor=True).on_frame(
+            seen[net_id])
+
+    def join(network, node_id):
+        lines = {}
+        for net_id, bus in buses.items():
+            od = demo_od("classic")
+            _array(od, 0x1028, "Emergency consumer", U32,
+                   {**{k: 0x80000000 for k in range(1, 8)}, 5: 0x85})
+            lines[net_id] = network.open_line(bus=virtual_bus(bus), mode="classic")
+            lines[net_id].create_local_node(node_id, od=od)
+            lines[net_id].network_id = net_id
+        return lines
+
+    with canopenfd.Network() as other:
+        a, b = join(net, 1), join(other, 2)
+        net.routing.emcy_route(a[2], 5, [1])     # A: network 2's node 5 -> network 1
+        other.routing.emcy_route(b[1], 5, [2])   # B: network 1's node 5 -> network 2
+        emcy = bytes([0x10, 0x81, 0x11, 1, 2, 3, 4, 5])
+        net.open_line(bus=virtual_bus(buses[2]), mode="classic").send_frame(0x85, emcy)
+
+        def count(net_id):
+            return sum(f.id == 0x85 for f in seen[net_id].snapshot())
+
+        seen[1].wait_for(lambda calls: count(1) >= 1 or None, 5.0, "A's copy on network 1")
+        seen[2].wait_for(lambda calls: count(2) >= 2 or None, 5.0, "B's copy on network 2")
+        deadline = time.monotonic() + scaled(5.0)
+        while net.routing.stats["emcy_echoes"] < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(scaled(0.3))                  # a bounce would have gone on by now
+        assert (count(1), count(2)) == (1, 2)
+        assert all(f.data == emcy for net_id in buses for f in seen[net_id].snapshot()
+                   if f.id == 0x85)
+        assert net.routing.stats["emcy_routed"] == 1
+        assert net.routing.stats["emcy_echoes"] == 1
+        assert other.routing.stats["emcy_routed"] == 1
+
 def test_routes_resolve_refuse_and_report_loops(rig):
     routing = rig.net.routing
     notices = Recorder()
@@ -168,12 +219,12 @@ def test_routes_resolve_refuse_and_report_loops(rig):
     assert routing.resolve(4).kind == GatewayRouteKind.UNKNOWN
 
 
-def test_sdo_networking_reaches_a_node_of_another_network(net):
-    """A client on network 1 reads and writes device 5 of network 3 through
-    the gateway (node 1 on both classic lines): the network indication, then
-    every frame relayed; a network no route reaches is the gateway's abort."""
+def _relay_rig(net, name):
+    """The gateway's node 1 joining classic networks 1 (bus a) and 3 (bus
+    c), device 5 on network 3, a monitor on each bus: (a client line on
+    network 1, device 5, frames seen on a, frames seen on c)."""
     n = next(_buses)
-    a, c = f"mem:routing-sdo-a-{n}", f"mem:routing-sdo-c-{n}"
+    a, c = f"mem:routing-{name}-a-{n}", f"mem:routing-{name}-c-{n}"
     for bus, network_id in ((a, 1), (c, 3)):
         gateway = net.open_line(bus, mode="classic")
         gateway.create_local_node(GW, od=demo_od("classic"))
@@ -182,7 +233,14 @@ def test_sdo_networking_reaches_a_node_of_another_network(net):
     seen_a, seen_c = Recorder(), Recorder()
     net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
     net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
-    client = net.open_line(a, mode="classic")
+    return net.open_line(a, mode="classic"), target, seen_a, seen_c
+
+
+def test_sdo_networking_reaches_a_node_of_another_network(net):
+    """A client on network 1 reads and writes device 5 of network 3 through
+    the gateway (node 1 on both classic lines): the network indication, then
+    every frame relayed; a network no route reaches is the gateway's abort."""
+    client, target, seen_a, seen_c = _relay_rig(net, "sdo")
 
     device = client.sdo.remote(network=3, node=5, gateway=GW)
     assert device.upload(0x1000) == target[0x1000].data     # device 5's own value
@@ -384,3 +442,35 @@ def test_sdo_networking_reaches_a_node_of_an_fd_network(net):
     stats = net.routing.stats
     assert stats["sdo_connects"] == 1 and stats["sdo_translated"] == 4
     assert stats["sdo_translate_failed"] == 2    # the block initiate, 0x2FFF
+
+
+def test_a_rebuilt_gateway_ends_its_sdo_connections(net):
+    """A line joining rebuilds the gateway: its open SDO networking
+    connection ends with abort 0x060A0023 to the client and to the device
+    (counted); the client's next routed request is refused so, the client
+    sends the network indication again and the request after it, and the
+    caller gets the value."""
+    client, target, seen_a, seen_c = _relay_rig(net, "rebuild")
+    device = client.sdo.remote(network=3, node=5, gateway=GW)
+    assert device.upload(0x1000) == target[0x1000].data
+
+    def frames(seen, can_id, count, what):
+        return seen.wait_for(
+            lambda calls: [f.data for f in calls if f.id == can_id][:count]
+            if sum(f.id == can_id for f in calls) >= count else None, 5.0, what)
+
+    joining = net.open_line(f"mem:routing-rebuild-d-{next(_buses)}", mode="classic")
+    joining.create_local_node(GW, od=demo_od("classic"))
+    joining.network_id = 4                              # the gateway is rebuilt
+    ended = bytes([0x80, 0x00, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06])
+    assert frames(seen_a, 0x581, 3, "the client's abort")[2] == ended   # after E0, 43
+    assert frames(seen_c, 0x605, 2, "the device's abort")[1] == ended
+    assert net.routing.stats["connections_ended"] == 1
+
+    assert device.upload(0x1018, 1) == target[0x1018][1].data
+    up = bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])
+    indication = bytes([0xE0, 3, 0, 5, 0, 0, 0, 0])
+    assert frames(seen_a, 0x601, 5, "the requests")[2:] == [up, indication, up]
+    answers = frames(seen_a, 0x581, 6, "the answers")[3:]
+    assert answers[:2] == [bytes([0x80, 0x18, 0x10, 0x01, 0x23, 0x00, 0x0A, 0x06]), indication]
+    assert answers[2][:4] == bytes([0x43, 0x18, 0x10, 0x01])

@@ -161,3 +161,31 @@ def test_stopped_node_answers_no_usdo(rig):
         time.sleep(0.01)
     frame = ask(client, answers, bytes([SERVER, 0x11, 8, 0x01, 0x18, 0x10]))
     assert frame.data[:3] == bytes([CLIENT, 0x31, 8])
+
+
+@pytest.mark.parametrize("mode", ["fd", "classic"])
+def test_node_without_od_answers_no_such_object(net, bus_name, mode):
+    """A local node created without od= (NMT and heartbeat only) answers
+    every request at once with "object does not exist" (USDO 0x33, SDO
+    0x06020000) and the request's multiplexer, so a client is told well
+    before its timeout instead of waiting for it."""
+    from canopenfd import SdoAbortError, UsdoAbortError
+
+    net.open_line(bus_name, mode=mode).create_local_node(SERVER)
+    seen = Recorder()
+    net.open_line(bus_name, mode=mode, monitor=True).on_frame(
+        lambda f: seen(f) if f.id == RESPONSE else None)
+    line = net.open_line(bus_name, mode=mode)
+    client = line.usdo if mode == "fd" else line.sdo
+    started = time.monotonic()
+    with pytest.raises(UsdoAbortError if mode == "fd" else SdoAbortError) as refused:
+        client.upload(SERVER, 0x1000, 0, timeout=5.0)
+    assert time.monotonic() - started < scaled(1.0)    # an answer, not the 5 s timeout
+    assert refused.value.from_server
+    (frame,) = seen.wait_count(1)
+    if mode == "fd":
+        assert refused.value.usdo_code == 0x33 and refused.value.code == 0x06020000
+        assert frame.data[1:2] == b"\x7F" and frame.data[3:7] == bytes([0x00, 0x00, 0x10, 0x33])
+    else:
+        assert refused.value.code == 0x06020000
+        assert frame.data == bytes([0x80, 0x00, 0x10, 0x00, 0x00, 0x00, 0x02, 0x06])

@@ -35,7 +35,7 @@ import collections
 import logging
 import socket
 import threading
-from typing import Any, Callable, Deque, Dict, List, Mapping, Optional, Set, Tuple, Union
+from typing import Any, Deque, Dict, List, Mapping, Optional, Set, Tuple, Union
 
 from .. import __version__
 from ..errors import AbortError, CanopenFDError
@@ -591,8 +591,8 @@ class AsciiGateway:
         ms, 0 or none: 100) and left selected in the configuration state for
         the next lss_set_node / lss_store: its LSS address, as CANopenNode's
         gateway answers it. None: a time-out error."""
-        device = await self._with_timeout(line, args[0] if args and args[0] else 100,
-                                          line.lss.start_fast_scan_identify)
+        device = await line.lss.start_fast_scan_identify(
+            timeout_ms=args[0] if args and args[0] else 100)
         if device is None:
             return proto.format_error(seq, proto.TIME_OUT, "no unconfigured device answered")
         return proto.format_answer(seq, _address(device))
@@ -616,8 +616,8 @@ class AsciiGateway:
         lines: List[str] = []
         node_id = start
         while True:
-            device = await self._with_timeout(
-                line, timeout, lambda: lss.start_fast_scan_identify(match=match, skip=skip))
+            device = await lss.start_fast_scan_identify(match=match, skip=skip,
+                                                        timeout_ms=timeout)
             if device is None:
                 break
             await lss.start_configure_node_id(node_id)
@@ -631,17 +631,6 @@ class AsciiGateway:
             node_id += 1
         lines.append(f"# Found {node_id - start} nodes, search finished.")
         return "\r\n".join(lines + [proto.format_ok(seq)])
-
-    @staticmethod
-    async def _with_timeout(line: Line, timeout_ms: int, start: Callable[[], Any]) -> Any:
-        """Await an LSS request with the step timeout the command gave."""
-        lss = line.lss
-        old_timeout = lss.timeout_ms
-        lss.timeout_ms = timeout_ms
-        try:
-            return await start()
-        finally:
-            lss.timeout_ms = old_timeout
 
 
 _LSS_PARTS = ("vendor_id", "product_code", "revision", "serial")

@@ -249,24 +249,30 @@ class LssMaster:
         return await self.start_fast_scan(node_ids, match=match, skip=skip)
 
     def start_fast_scan_identify(self, *, match: Optional[Mapping[str, int]] = None,
-                                 skip: Sequence[str] = ()
+                                 skip: Sequence[str] = (), timeout_ms: Optional[int] = None
                                  ) -> "_Request[Optional[LssDevice]]":
         where = f"lss.fast_scan_identify() on {self._where}"
         return self._start(LssRequest.FASTSCAN, [], [], where, _identified,
-                           _fastscan_filter(match, skip, where))
+                           _fastscan_filter(match, skip, where), timeout_ms)
 
     def fast_scan_identify(self, *, match: Optional[Mapping[str, int]] = None,
-                           skip: Sequence[str] = ()) -> Optional[LssDevice]:
+                           skip: Sequence[str] = (), timeout_ms: Optional[int] = None
+                           ) -> Optional[LssDevice]:
         """Find one device without a node-id by fast scan (filters as
         fast_scan) and leave it selected in the configuration state, its
         node-id untouched: the next configure_node_id, store or inquire
         goes to it; switch_global('waiting') lets it go. None when no device
-        (passing the filters) is unconfigured. Its node_id is 0."""
-        return self.start_fast_scan_identify(match=match, skip=skip).result()
+        (passing the filters) is unconfigured. Its node_id is 0.
+        `timeout_ms`: this scan's step timeout instead of lss.timeout_ms
+        (which stays as it is for the line's other users)."""
+        return self.start_fast_scan_identify(match=match, skip=skip,
+                                             timeout_ms=timeout_ms).result()
 
     async def afast_scan_identify(self, *, match: Optional[Mapping[str, int]] = None,
-                                  skip: Sequence[str] = ()) -> Optional[LssDevice]:
-        return await self.start_fast_scan_identify(match=match, skip=skip)
+                                  skip: Sequence[str] = (), timeout_ms: Optional[int] = None
+                                  ) -> Optional[LssDevice]:
+        return await self.start_fast_scan_identify(match=match, skip=skip,
+                                                   timeout_ms=timeout_ms)
 
     def scan(self, vendor_id: int, product_code: int, revisions: Tuple[int, int] = (0, _U32),
              serials: Tuple[int, int] = (0, _U32)) -> List[LssDevice]:
@@ -287,23 +293,28 @@ class LssMaster:
 
     # ---------------------------------------------------------------- plumbing
     def _runtime_start(self, kind: int, values: List[int], node_ids: List[int],
-                       where: str, fastscan_filter: Sequence[Tuple[int, int]] = ()) -> None:
-        if isinstance(self.timeout_ms, bool) or not isinstance(self.timeout_ms, int) or \
-                not 0 <= self.timeout_ms <= 60000:
-            raise ConfigurationError(f"{where}: lss.timeout_ms must be an int 0..60000, got "
-                                     f"{self.timeout_ms!r}")
+                       where: str, fastscan_filter: Sequence[Tuple[int, int]] = (),
+                       timeout_ms: Optional[int] = None) -> None:
+        # a per-call timeout leaves lss.timeout_ms alone: another user of the
+        # line's master between two of our requests keeps its own
+        timeout, name = (self.timeout_ms, "lss.timeout_ms") if timeout_ms is None \
+            else (timeout_ms, "timeout_ms")
+        if isinstance(timeout, bool) or not isinstance(timeout, int) or \
+                not 0 <= timeout <= 60000:
+            raise ConfigurationError(f"{where}: {name} must be an int 0..60000, got "
+                                     f"{timeout!r}")
         settle = self.settle_ms
         if settle is not None and (isinstance(settle, bool) or not isinstance(settle, int) or
-                                   not 1 <= settle <= (self.timeout_ms or 100)):
+                                   not 1 <= settle <= (timeout or 100)):
             raise ConfigurationError(f"{where}: lss.settle_ms must be None or an int 1.."
-                                     f"{self.timeout_ms or 100} (lss.timeout_ms), got "
-                                     f"{settle!r}")
+                                     f"{timeout or 100} ({name}), got {settle!r}")
         self._context.runtime.lss_start(self._context.index, kind, values, node_ids,
-                                        self.timeout_ms, where, settle or 0, fastscan_filter)
+                                        timeout, where, settle or 0, fastscan_filter)
 
     def _start(self, kind: LssRequest, values: List[int], node_ids: List[int], where: str,
                finish: Callable[[Result, List[LssDevice], str], T],
-               fastscan_filter: Sequence[Tuple[int, int]] = ()) -> "_Request[T]":
+               fastscan_filter: Sequence[Tuple[int, int]] = (),
+               timeout_ms: Optional[int] = None) -> "_Request[T]":
         request: _Request[T] = _Request(self._context, kind, where,
                                         lambda r, d: finish(r, d, where))
         with self._context.cond:
@@ -312,7 +323,7 @@ class LssMaster:
                                          "(one LSS request at a time per line)")
             self._running = request
         try:
-            self._runtime_start(int(kind), values, node_ids, where, fastscan_filter)
+            self._runtime_start(int(kind), values, node_ids, where, fastscan_filter, timeout_ms)
         except BaseException:
             with self._context.cond:
                 self._running = None

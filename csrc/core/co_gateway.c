@@ -256,6 +256,43 @@ static uint32_t emcy_networks(co_gateway_port_t *port, uint8_t node_id)
     return port->emcy_routes[node_id];
 }
 
+static uint32_t net_bit(uint8_t net)
+{
+    return net >= 1 && net <= CO_GATEWAY_EMCY_NETWORKS ? 1u << (net - 1u) : 0u;
+}
+
+/* An EMCY equal to one we re-sent lately, heard on the network that one
+ * came from or went to: our own EMCY coming back through another gateway
+ * (EMCY frames carry no origin). Re-sending it would bounce it between the
+ * gateways for ever. */
+static bool is_echo(co_gateway_t *gw, const co_gateway_port_t *from, uint32_t cob_id,
+                    const uint8_t *data, uint64_t now)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_EMCY_RECENT; i++) {
+        const co_gateway_emcy_sent_t *e = &gw->emcy_sent[i];
+        /* lines keep their own time: one a little behind another reads 0 */
+        uint64_t age = now > e->at_us ? now - e->at_us : 0u;
+        if (e->to_nets != 0 && age < (uint64_t)CO_GATEWAY_EMCY_ECHO_MS * 1000u &&
+            e->cob_id == cob_id && memcmp(e->data, data, sizeof e->data) == 0 &&
+            (e->from_net == from->network_id || (e->to_nets & net_bit(from->network_id)))) {
+            return true;
+        }
+    }
+    return false;
+}
+
+static void remember_sent(co_gateway_t *gw, const co_gateway_port_t *from, uint32_t cob_id,
+                          const uint8_t *data, uint64_t now, uint32_t to_nets)
+{
+    co_gateway_emcy_sent_t *e = &gw->emcy_sent[gw->emcy_next];
+    gw->emcy_next = (uint8_t)((gw->emcy_next + 1u) % CO_GATEWAY_EMCY_RECENT);
+    e->at_us = now;
+    e->cob_id = cob_id;
+    e->to_nets = to_nets;
+    e->from_net = from->network_id;
+    memcpy(e->data, data, sizeof e->data);
+}
+
 static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t *msg,
                     void *user)
 {
@@ -263,6 +300,17 @@ static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t 
     co_gateway_t *gw = from->gw;
     uint32_t networks = emcy_networks(from, node_id);
     uint32_t cob_id = co_emcy_consumer_get_entry(c, node_id);
+    uint64_t now = co_line_now(co_stack_line(from->stack));
+    uint8_t key[8] = {0};
+    uint32_t sent = 0;
+    if (networks == 0) {
+        return;
+    }
+    (void)co_emcy_encode_classic(msg, key, sizeof key);
+    if (is_echo(gw, from, cob_id, key, now)) {
+        gw->stats.emcy_echoes++;
+        return;
+    }
     for (uint8_t k = 0; k < CO_GATEWAY_EMCY_NETWORKS && networks != 0; k++) {
         co_gateway_port_t *to;
         co_frame_t frame;
@@ -290,9 +338,13 @@ static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t 
                                   : co_emcy_encode_classic(msg, frame.data, sizeof frame.data));
         if (frame.len != 0 && co_line_send_frame(co_stack_line(to->stack), &frame)) {
             gw->stats.emcy_routed++;
+            sent |= net_bit(to->network_id);
         } else {
             gw->stats.emcy_tx_failed++;
         }
+    }
+    if (sent != 0) {
+        remember_sent(gw, from, cob_id, key, now, sent);
     }
 }
 
@@ -456,6 +508,12 @@ co_gateway_status_t co_gateway_add_port(co_gateway_t *gw, co_stack_t *stack,
     co_gateway_sdo_hook(p);
     co_gateway_usdo_hook(p);
     return CO_GATEWAY_OK;
+}
+
+void co_gateway_end_connections(co_gateway_t *gw)
+{
+    co_gateway_sdo_end(gw);
+    co_gateway_usdo_end(gw);
 }
 
 void co_gateway_deinit(co_gateway_t *gw)

@@ -28,9 +28,8 @@ enum { SDO_FRAME = 8, SDO_REQUEST_BASE = 0x600, SDO_RESPONSE_BASE = 0x580,
        /* block download: the client's initiate (ccs 6, cs 0) and the
         * server's end response (scs 5, ss 1), as byte 0 masks */
        SDO_BLOCK_DOWN_MASK = 0xE1, SDO_BLOCK_DOWN_INITIATE = 0xC0,
-       /* block upload: the client's initiate (ccs 5, cs 0) */
-       SDO_BLOCK_UP_MASK = 0xE3, SDO_BLOCK_UP_INITIATE = 0xA0,
-       /* ... and its confirmation of the server's end frame (ccs 5, cs 1) */
+       /* block upload: the client's confirmation of the server's end
+        * frame (ccs 5, cs 1), which is not answered */
        SDO_BLOCK_UP_END_RSP = 0xA1,
        SDO_BLOCK_DOWN_END_RSP = 0xA1 };
 
@@ -234,6 +233,17 @@ static bool refuse(co_gateway_t *gw, co_line_t *line, uint32_t reply_id, const u
     return true;
 }
 
+/* The slot of an ended connection on this server channel, or -1. */
+static int ended_slot(const co_gateway_t *gw, const co_stack_t *stack, uint8_t channel)
+{
+    for (int i = 0; i < CO_GATEWAY_ENDED; i++) {
+        if (gw->ended.stack[i] == stack && gw->ended.channel[i] == channel) {
+            return i;
+        }
+    }
+    return -1;
+}
+
 /* A network indication from a client on `from`'s server channel. */
 static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_id,
                        const uint8_t *data)
@@ -245,6 +255,10 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
     uint8_t node = data[3];
     co_stack_t *target_line = NULL;
     uint8_t hop = 0;
+    int ended = ended_slot(gw, from->stack, channel);
+    if (ended >= 0) {
+        gw->ended.stack[ended] = NULL;   /* the client knows: it connects anew */
+    }
     if (c != NULL) {
         release(c);   /* a new indication ends the old connection */
     }
@@ -312,6 +326,71 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
     return true;
 }
 
+/* A request on a server channel with no connection: when a rebuild ended
+ * this client's connection, it hears CO_GATEWAY_ABORT_ENDED instead of an
+ * answer from the gateway's own OD it did not ask for (its own abort
+ * frames go to the server as usual). */
+static bool ended_request(co_gateway_port_t *from, uint8_t channel, uint32_t tx_id,
+                          const uint8_t *data)
+{
+    co_gateway_t *gw = from->gw;
+    int slot = data[0] == SDO_CCS_ABORT ? -1 : ended_slot(gw, from->stack, channel);
+    if (slot < 0) {
+        return false;
+    }
+    gw->ended.stack[slot] = NULL;
+    return refuse(gw, line_of(from), tx_id, data + 1, CO_GATEWAY_ABORT_ENDED);
+}
+
+static void remember_ended(co_gateway_t *gw, const co_gateway_sdo_t *c)
+{
+    int slot = ended_slot(gw, c->from->stack, c->channel);
+    for (int i = 0; i < CO_GATEWAY_ENDED && slot < 0; i++) {
+        if (gw->ended.stack[i] == NULL) {
+            slot = i;
+        }
+    }
+    if (slot < 0) {
+        slot = gw->ended.next;   /* all taken: the oldest entry goes */
+        gw->ended.next = (uint8_t)((gw->ended.next + 1u) % CO_GATEWAY_ENDED);
+    }
+    gw->ended.stack[slot] = c->from->stack;
+    gw->ended.channel[slot] = c->channel;
+}
+
+/* A rebuild ends every connection. The relay does not follow transfer
+ * boundaries (a segmented transfer is "connected" between its frames), so
+ * both sides hear the abort whether a transfer runs or not: CiA 301 peers
+ * ignore an abort for no transfer. */
+void co_gateway_sdo_end(co_gateway_t *gw)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_SDO_CONNECTIONS; i++) {
+        co_gateway_sdo_t *c = &gw->sdo[i];
+        if (c->from == NULL) {
+            continue;
+        }
+        gw->stats.connections_ended++;
+        remember_ended(gw, c);
+        if (c->fd) {
+            co_gateway_sdo_fd_end(c, CO_GATEWAY_ABORT_ENDED);
+        } else {
+            send_abort(gw, line_of(c->from), c->reply_id, c->mux, CO_GATEWAY_ABORT_ENDED);
+            send_abort(gw, line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux,
+                       CO_GATEWAY_ABORT_ENDED);
+        }
+        release(c);
+    }
+}
+
+/* A client's initiate (download, upload, block upload, block download):
+ * the frames whose bytes 1..3 are the transfer's multiplexer (segments
+ * carry data there). */
+static bool starts_transfer(uint8_t byte0)
+{
+    uint8_t ccs = byte0 >> 5;
+    return ccs == 1 || ccs == 2 || (ccs == 5 && (byte0 & 3u) == 0) || (ccs == 6 && !(byte0 & 1u));
+}
+
 static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
                        const co_frame_t *f, void *user)
 {
@@ -326,7 +405,8 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
         return indication(from, channel, tx_id, f->data);
     }
     if (c == NULL) {
-        return false;   /* not connected: the gateway's own server answers */
+        /* not connected: the gateway's own server answers */
+        return ended_request(from, channel, tx_id, f->data);
     }
     if (c->state == SDO_CONNECTING) {
         send_abort(from->gw, line_of(from), c->reply_id, f->data + 1, CO_GATEWAY_ABORT_BUSY);
@@ -347,15 +427,6 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
     return true;
 }
 
-/* A request that names its object in bytes 1..3: a download or upload
- * initiate, a block download or block upload initiate. */
-static bool is_initiate(uint8_t b0)
-{
-    uint8_t ccs = b0 >> 5;
-    return ccs == 1 || ccs == 2 || (b0 & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE ||
-           (b0 & SDO_BLOCK_UP_MASK) == SDO_BLOCK_UP_INITIATE;
-}
-
 void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data)
 {
     c->gw->stats.sdo_relayed++;
@@ -368,11 +439,11 @@ void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data)
         c->block_down = false;
         return;
     }
+    if (!c->block_down && starts_transfer(data[0])) {
+        memcpy(c->mux, data + 1, 3);   /* what the gateway's own aborts name */
+    }
     if (!c->block_down && (data[0] & SDO_BLOCK_DOWN_MASK) == SDO_BLOCK_DOWN_INITIATE) {
         c->block_down = true;
-    }
-    if (is_initiate(data[0])) {
-        memcpy(c->mux, data + 1, 3);   /* a segment's bytes 1..3 are data */
     }
     c->state = SDO_WAITING;
     arm(c);

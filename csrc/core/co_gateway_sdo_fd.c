@@ -510,6 +510,15 @@ void co_gateway_set_sdo_buffering(co_gateway_t *gw, bool on)
     gw->sdo_relay_only = !on;
 }
 
+void co_gateway_sdo_fd_end(co_gateway_sdo_t *c, uint32_t code)
+{
+    if (c->fetch_running) {
+        cancel_fetch(c, code);
+    }
+    abort_client(c, code);
+    finish(c);
+}
+
 void co_gateway_set_sdo_buffer(co_gateway_t *gw, uint8_t *buf, uint32_t size)
 {
     gw->sdo_buf = size != 0 ? buf : NULL;

@@ -458,6 +458,19 @@ static bool on_remote(co_usdo_server_t *server, uint8_t client, co_usdo_decode_r
     return refuse(gw, from, client, m, code);
 }
 
+/* A rebuild ends every request being carried out: the client hears a
+ * routed abort, a request running on the target line is stopped, both
+ * with the USDO counterpart of CO_GATEWAY_ABORT_ENDED. */
+void co_gateway_usdo_end(co_gateway_t *gw)
+{
+    for (uint8_t i = 0; i < CO_GATEWAY_USDO_RELAYS; i++) {
+        if (gw->usdo[i].from != NULL) {
+            gw->stats.connections_ended++;
+            fail(&gw->usdo[i], co_usdo_abort_from_co(CO_GATEWAY_ABORT_ENDED));
+        }
+    }
+}
+
 void co_gateway_usdo_hook(co_gateway_port_t *port)
 {
     port->usdo_server = co_stack_usdo_server(port->stack);

@@ -902,8 +902,11 @@ static uint32_t open_channel(co_sdo_client_t *c, co_sdo_request_t *req, const ui
     req->total = 0;
     req->transferred = 0;
     ch->state = CO_SDO_CLIENT_UL_INIT;   /* taken; send_first sets the real state */
-    code = routed_of(req) != c->routed[req->server] ? send_network_indication(ch, data)
-                                                    : send_first(ch, data);
+    ch->indicated = routed_of(req) != c->routed[req->server];
+    if (routed_of(req) != 0) {
+        memcpy(ch->first_data, data, sizeof ch->first_data);   /* kept for a resend */
+    }
+    code = ch->indicated ? send_network_indication(ch, data) : send_first(ch, data);
     if (code != 0) {
         release(ch);
     }
@@ -969,11 +972,31 @@ static bool expected(uint8_t state, uint8_t frame)
     }
 }
 
+static bool initiating(uint8_t state)
+{
+    return state == CO_SDO_CLIENT_UL_INIT || state == CO_SDO_CLIENT_DL_EXPEDITED ||
+           state == CO_SDO_CLIENT_DL_INIT || state == CO_SDO_CLIENT_BD_INIT ||
+           state == CO_SDO_CLIENT_BU_INIT;
+}
+
 /* A server's abort. AUTO block refused as unknown: once more without. */
 static void on_server_abort(co_sdo_client_channel_t *ch, uint32_t code)
 {
     co_sdo_request_t *req = ch->req;
     ch->client->stats.aborts_received++;
+    if (code == CO_ABORT_NO_RESOURCE && routed_of(req) != 0) {
+        /* SDO networking: "no SDO connection" - the gateway ended ours (it
+         * was rebuilt) or holds none; an initiate sent on the old connection
+         * goes again once, after a new network indication */
+        ch->client->routed[req->server] = ROUTED_UNKNOWN;
+        if (initiating(ch->state) && !ch->indicated) {
+            ch->indicated = true;
+            if (send_network_indication(ch, NULL) != 0) {
+                finish(ch, CO_ABORT_NO_RESOURCE, false);
+            }
+            return;
+        }
+    }
     if ((ch->state == CO_SDO_CLIENT_BD_INIT || ch->state == CO_SDO_CLIENT_BU_INIT) &&
         req->mode == CO_SDO_MODE_AUTO && code == CO_ABORT_COMMAND && !req->fell_back) {
         fall_back(ch);

@@ -187,7 +187,14 @@ static bool node_sizes(const co_line_t *line, const co_stack_node_config_t *c, n
     n->emcy_active = c->emcy_active ? c->emcy_active : (uint16_t)CO_STACK_DEFAULT_EMCY_ACTIVE;
     n->emcy_history = c->emcy_history ? c->emcy_history
                                       : (uint8_t)CO_STACK_DEFAULT_EMCY_HISTORY;
+    if (is_fd(line)) {
+        n->servers = c->server_sessions ? c->server_sessions
+                                        : (uint32_t)CO_STACK_DEFAULT_SERVER_SESSIONS;
+    }
     if (!c->od) {
+        /* the server of an empty OD: one SDO channel, no USDO scratch */
+        n->servers = is_fd(line) ? n->servers : 1u;
+        n->server_scratch = is_fd(line) ? 0u : (uint32_t)CO_SDO_SERVER_BUFFER;
         return true;
     }
     if (!co_pdo_need(c->od, &n->pdo_channels, &n->pdo_items)) {
@@ -198,8 +205,6 @@ static bool node_sizes(const co_line_t *line, const co_stack_node_config_t *c, n
                                                     : co_store_image_need(c->od);
     }
     if (is_fd(line)) {
-        n->servers = c->server_sessions ? c->server_sessions
-                                        : (uint32_t)CO_STACK_DEFAULT_SERVER_SESSIONS;
         n->server_scratch = co_usdo_server_scratch_need(c->od);
     } else {
         n->servers = sdo_channel_count(c->od);
@@ -219,14 +224,14 @@ static void node_plan(const co_line_t *line, const node_sizes_t *n, bool has_od,
     plan_add(p, sizeof(co_emcy_msg_t) * n->emcy_queue);
     plan_add(p, sizeof(co_emcy_active_t) * n->emcy_active);
     plan_add(p, sizeof(uint32_t) * n->emcy_history);
+    plan_add(p, server_entry_size(line) * n->servers);
+    plan_add(p, (size_t)n->server_scratch * n->servers + 1u);
     if (!has_od) {
         return;
     }
     if (n->store_capacity) {
         plan_add(p, 2u * (size_t)n->store_capacity);
     }
-    plan_add(p, server_entry_size(line) * n->servers);
-    plan_add(p, (size_t)n->server_scratch * n->servers + 1u);
     plan_add(p, sizeof(co_pdo_channel_t) * n->pdo_channels);
     plan_add(p, sizeof(co_pdo_map_item_t) * n->pdo_items);
     if (n->pdo_channels > CO_PDO_SCAN_MAX) {
@@ -462,8 +467,22 @@ static void node_undo(co_stack_t *s)
     give_back(s, OWNER_NODE);
 }
 
+/* The node's OD, or for a node without one an empty OD: a request gets
+ * "object does not exist" (0x06020000 / 0x33) at once instead of no answer,
+ * which would keep the client waiting for its timeout. */
+static co_od_t *served_od(co_stack_t *s)
+{
+    if (s->od) {
+        return s->od;
+    }
+    co_od_init(&s->no_od, co_line_mode(s->line), NULL, 0, NULL, 0, NULL, 0);
+    (void)co_od_seal(&s->no_od, s->node.nmt.node_id);
+    return &s->no_od;
+}
+
 static co_stack_status_t serve_od(co_stack_t *s, const node_sizes_t *n)
 {
+    co_od_t *od = served_od(s);
     void *table = take(s, OWNER_NODE, server_entry_size(s->line) * n->servers);
     uint8_t *scratch = take(s, OWNER_NODE, (size_t)n->server_scratch * n->servers + 1u);
     if (!table || !scratch) {
@@ -474,13 +493,13 @@ static co_stack_status_t serve_od(co_stack_t *s, const node_sizes_t *n)
                                           .session_count = (uint8_t)n->servers,
                                           .scratch = scratch,
                                           .scratch_size = n->server_scratch};
-        s->has_usdo_server = co_usdo_server_init(&s->usdo_server, s->line, s->od, &config);
+        s->has_usdo_server = co_usdo_server_init(&s->usdo_server, s->line, od, &config);
     } else if (CO_CONFIG_CLASSIC) {
         co_sdo_server_config_t config = {.channels = table,
                                          .channel_count = (uint8_t)n->servers,
                                          .scratch = scratch,
                                          .scratch_size = n->server_scratch};
-        s->has_sdo_server = co_sdo_server_init(&s->sdo_server, s->line, s->od, &config);
+        s->has_sdo_server = co_sdo_server_init(&s->sdo_server, s->line, od, &config);
         if (s->has_sdo_server) {
             co_sdo_server_refresh(&s->sdo_server);   /* the node-id is set by now */
         }
@@ -584,7 +603,7 @@ static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_con
 {
     co_node_services_t services = {.sync = &s->sync, .time = &s->time,
                                    .led = s->has_led ? &s->led : NULL};
-    co_stack_status_t status = s->od ? start_od_parts(s, c, n) : CO_STACK_OK;
+    co_stack_status_t status = s->od ? start_od_parts(s, c, n) : serve_od(s, n);
     if (status == CO_STACK_OK) {
         status = start_emcy(s, n);
     }
@@ -1116,12 +1135,13 @@ static uint32_t manager_dcf_room(const co_stack_t *s, uint32_t asked)
     return asked ? asked : (uint32_t)CO_MANAGER_DCF_BUFFER;
 }
 
-size_t co_stack_manager_need(co_stack_t *stack)
+size_t co_stack_manager_need(co_stack_t *stack, const co_stack_manager_config_t *config)
 {
     if (!stack || !stack->has_node || !stack->od) {
         return 0;
     }
-    uint32_t dcf = manager_dcf_room(stack, 0);
+    /* the same room co_stack_manager_init takes for this config */
+    uint32_t dcf = manager_dcf_room(stack, config ? config->dcf_capacity : 0u);
     return CO_STACK_BLOCK(sizeof(co_manager_slave_t) * manager_slaves(stack)) +
            (dcf ? CO_STACK_BLOCK(dcf) : 0u);
 }

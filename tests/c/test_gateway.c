@@ -428,6 +428,50 @@ static void test_emcy_routed_both_ways(void **state)
     fx_free(fx);
 }
 
+/* EMCY ping-pong between gateways: node 5's EMCY re-sent from network 1
+ * onto network 2 comes back on network 2 (another gateway routes network
+ * 2's node 5 to network 1), then on network 1 (a third one routes it back):
+ * neither copy is re-sent (counted as echoes). Another EMCY of node 5 is
+ * news; the first one again after CO_GATEWAY_EMCY_ECHO_MS as well. */
+static void test_emcy_echo_not_resent(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    assert_int_equal(sdo_write(fx, 0x1F2F, 5, 0x2, 4), 0);         /* 1's node 5 -> 2 */
+    assert_int_equal(od_write(&fx->b.od, 0x1F2F, 5, 0x1, 4), 0);   /* 2's node 5 -> 1 */
+    tu_log_clear(&fx->a.tb);
+    tu_log_clear(&fx->b.tb);
+    const co_gateway_stats_t *st = co_gateway_stats(&fx->gw);
+    const uint8_t classic[8] = {0x10, 0x81, 0x11, 1, 2, 3, 4, 5};
+    uint8_t fd[20] = {0};
+    memcpy(fd, classic, 8);
+    send(&fx->a, 0x85, classic, 8);
+    settle(fx);
+    assert_int_equal(tu_log_count_id(&fx->b.tb, 0x85), 1);
+    send(&fx->b, 0x85, fd, 20);   /* the echo on the network it went to */
+    settle(fx);
+    assert_int_equal(tu_log_count_id(&fx->a.tb, 0x85), 1);   /* only the device's own */
+    send(&fx->a, 0x85, classic, 8);   /* ... and on the network it came from */
+    settle(fx);
+    assert_int_equal(tu_log_count_id(&fx->b.tb, 0x85), 2);   /* the two echoes only */
+    assert_int_equal(st->emcy_echoes, 2);
+    assert_int_equal(st->emcy_routed, 1);
+
+    const uint8_t reset[8] = {0x00, 0x00, 0x00, 0, 0, 0, 0, 0};   /* error reset */
+    send(&fx->a, 0x85, reset, 8);
+    settle(fx);
+    assert_int_equal(tu_log_count_id(&fx->b.tb, 0x85), 3);   /* routed */
+    uint64_t later = fx->a.tb.now + (CO_GATEWAY_EMCY_ECHO_MS + 1) * 1000u;
+    tu_step(&fx->a.tb, later);
+    tu_step(&fx->b.tb, later);
+    send(&fx->b, 0x85, fd, 20);
+    settle(fx);
+    assert_int_equal(tu_log_count_id(&fx->a.tb, 0x85), 4);   /* news again: routed to 1 */
+    assert_int_equal(st->emcy_routed, 3);
+    assert_int_equal(st->emcy_echoes, 2);
+    fx_free(fx);
+}
+
 /* A line without 0x1F2F in its OD routes through the API table. */
 static void test_emcy_route_api(void **state)
 {
@@ -571,6 +615,7 @@ int main(void)
         cmocka_unit_test(test_mapping_refusals),
         cmocka_unit_test(test_emcy_routed_both_ways),
         cmocka_unit_test(test_emcy_route_api),
+        cmocka_unit_test(test_emcy_echo_not_resent),
         cmocka_unit_test(test_routes_and_loops),
         cmocka_unit_test(test_loaded_route_without_a_node_leads_nowhere),
         cmocka_unit_test(test_ports_refused),

@@ -386,6 +386,17 @@ static void test_indication_forwarded_to_the_next_gateway(void **state)
 
 /* ------------------------------------------------------------ the client side */
 
+/* Our SDO client (two channels, 50 ms timeout) on the client's line. */
+static void tool_client(fx_t *fx)
+{
+    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
+    co_stack_line_config_t lc = {.heartbeat_entries = 1};
+    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
+                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
+    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
+    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+}
+
 typedef struct upload {
     co_sdo_request_t req;
     co_sdo_buffer_t sink;
@@ -509,12 +520,7 @@ static void test_block_download_last_segment_is_no_indication(void **state)
     (void)state;
     fx_t *fx = fx_new();
     uint32_t abort = 1;
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     block_download(fx, 0, 0, &abort);
     assert_int_equal(abort, 0);
     assert_true(tu_log_find_id(&fx->a, 0x601, 0) >= 0);
@@ -545,12 +551,7 @@ static void test_cancel_during_indication_forgets_the_connection(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     co_sdo_client_t *client = co_stack_sdo_client(&fx->tool);
     upload_t u;
     routed_upload(fx, &u, NET_C, DEV, 0x2000);
@@ -603,12 +604,7 @@ static void test_client_reaches_a_node_through_the_gateway(void **state)
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     upload_t u;
     routed_upload(fx, &u, NET_C, DEV, 0x2000);
     assert_int_equal(u.req.abort, 0);
@@ -954,6 +950,132 @@ static void test_fd_upload_streamed(void **state)
     fx_free(fx);
 }
 
+/* ------------------------------------------------------- the gateway rebuilt */
+
+/* What the runtime does when a line joins or a node appears: the open
+ * connections end, the gateway is made anew over the same lines and keeps
+ * its routes, counters and the list of ended connections. */
+static void rebuild(fx_t *fx)
+{
+    co_gateway_end_connections(&fx->gw);
+    co_gateway_stats_t stats = fx->gw.stats;
+    co_gateway_ended_t ended = fx->gw.ended;
+    co_gateway_deinit(&fx->gw);
+    co_gateway_init(&fx->gw, NULL, NULL);
+    fx->gw.stats = stats;
+    fx->gw.ended = ended;
+    co_gateway_set_sdo_timeout(&fx->gw, TIMEOUT_MS);
+    co_gateway_set_sdo_buffer(&fx->gw, fx->fd_buffer, sizeof fx->fd_buffer);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_a.stack, NET_A), CO_GATEWAY_OK);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_b.stack, NET_B), CO_GATEWAY_OK);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_c.stack, NET_C), CO_GATEWAY_OK);
+    settle(fx);
+}
+
+static const uint8_t ENDED_2003[8] = {0x80, 0x03, 0x20, 0x00, 0x23, 0x00, 0x0A, 0x06};
+
+/* A relayed segmented download in the middle when the gateway is rebuilt:
+ * the client and the device both hear abort 0x060A0023 with the transfer's
+ * multiplexer (not the segment's data bytes), no timeout follows; the
+ * client's next request on that channel is refused the same way instead of
+ * reaching the gateway's own OD; after a new indication it is relayed. */
+static void test_rebuild_ends_a_relayed_transfer(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    request(fx, (const uint8_t[]){0x21, 0x03, 0x20, 0x00, 14, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x60, 0x03, 0x20, 0x00, 0, 0, 0, 0});
+    request(fx, (const uint8_t[]){0x00, 'a', 'b', 'c', 'd', 'e', 'f', 'g'});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x20, 0, 0, 0, 0, 0, 0, 0});
+    rebuild(fx);
+    expect(&fx->a, 0x581, 2, ENDED_2003);
+    expect(&fx->c, 0x605, 2, ENDED_2003);
+    const co_gateway_stats_t *st = co_gateway_stats(&fx->gw);
+    assert_int_equal(st->connections_ended, 1);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(st->sdo_timeouts, 0);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 3);
+    /* the client still thinks it is connected: refused, nothing relayed */
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 3, (const uint8_t[]){0x80, 0x00, 0x20, 0x00, 0x23, 0x00, 0x0A, 0x06});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 3);
+    /* connected anew, relayed again */
+    request(fx, IND_3_5);
+    expect(&fx->a, 0x581, 4, IND_3_5);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 5, (const uint8_t[]){0x43, 0x00, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12});
+    fx_free(fx);
+}
+
+/* An idle connection ends too: its client's next request is refused once
+ * (0x060A0023), the one after goes to the gateway's own server as for
+ * any client without a connection. */
+static void test_rebuild_ends_an_idle_connection(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    connect_3_5(fx);
+    rebuild(fx);
+    assert_int_equal(co_gateway_stats(&fx->gw)->connections_ended, 1);
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->c);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x00, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06});
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
+    expect(&fx->a, 0x581, 1, (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x02, 0x03, 0x00, 0x00});
+    assert_int_equal(tu_log_count_id(&fx->c, 0x605), 0);
+    fx_free(fx);
+}
+
+/* A translated upload whose USDO transfer runs (node 7 of the fd network
+ * is silent) when the gateway is rebuilt: the client hears 0x060A0023,
+ * the fd bus the gateway's USDO abort 0x70 (its CiA 1301 counterpart). */
+static void test_rebuild_ends_a_translated_transfer(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    fd_setup(fx);
+    request(fx, (const uint8_t[]){0xE0, NET_B, 0x00, 7, 0, 0, 0, 0});
+    tu_log_clear(&fx->a);
+    request(fx, (const uint8_t[]){0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
+    expect_fd(&fx->b, 0x600 + GW, 0, (const uint8_t[]){7, 0x11, 0, 0x00, 0x00, 0x20}, 6);
+    rebuild(fx);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x00, 0x20, 0x00, 0x23, 0x00, 0x0A, 0x06});
+    expect_fd(&fx->b, 0x600 + GW, 1, (const uint8_t[]){7, 0x7F, 0, 0x00, 0x00, 0x20, 0x70}, 7);
+    assert_int_equal(co_gateway_stats(&fx->gw)->connections_ended, 1);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x581), 1);   /* nothing more */
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 2);
+    fx_free(fx);
+}
+
+/* Our SDO client, connected to network 3 node 5 through the gateway, idle
+ * when the gateway is rebuilt: its next routed request is refused
+ * 0x060A0023, so it sends the network indication again and the initiate
+ * after it; the caller sees the value, not the rebuild. */
+static void test_client_reconnects_after_a_rebuild(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    tool_client(fx);
+    upload_t u;
+    routed_upload(fx, &u, NET_C, DEV, 0x2000);
+    assert_int_equal(u.req.abort, 0);
+    rebuild(fx);
+    tu_log_clear(&fx->a);
+    routed_upload(fx, &u, NET_C, DEV, 0x2001);
+    assert_int_equal(u.req.abort, 0);
+    assert_memory_equal(u.data, "hello gateway!", 14);
+    const uint8_t up[8] = {0x40, 0x01, 0x20, 0x00, 0, 0, 0, 0};
+    expect(&fx->a, 0x601, 0, up);
+    expect(&fx->a, 0x581, 0, (const uint8_t[]){0x80, 0x01, 0x20, 0x00, 0x23, 0x00, 0x0A, 0x06});
+    expect(&fx->a, 0x601, 1, IND_3_5);
+    expect(&fx->a, 0x581, 1, IND_3_5);
+    expect(&fx->a, 0x601, 2, up);
+    fx_free(fx);
+}
+
 /* ------------------------------------------- buffered, into a classic network */
 
 enum { PEER = 7 };   /* a node on network 3 answered by hand (fx->peer) */
@@ -1143,12 +1265,7 @@ static void test_classic_block_transfers_relayed_beside_the_pipeline(void **stat
 {
     (void)state;
     fx_t *fx = fx_new();
-    co_stack_arena_init(&fx->tool_arena, fx->tool_memory, sizeof fx->tool_memory);
-    co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    assert_int_equal(co_stack_init(&fx->tool, &fx->client.line, &lc,
-                                   co_stack_arena_allocator(&fx->tool_arena)), CO_STACK_OK);
-    co_stack_client_config_t cc = {.sessions = 2, .timeout_ms = 50};
-    assert_int_equal(co_stack_client_init(&fx->tool, &cc), CO_STACK_OK);
+    tool_client(fx);
     classic_setup(fx, sizeof classic_buffer);
     uint32_t abort = 1;
     block_download(fx, NET_C, DEV, &abort);   /* 100 segments: seqno 1..100 */
@@ -1254,6 +1371,10 @@ int main(void)
         cmocka_unit_test(test_fd_buffer_limits_busy_and_block),
         cmocka_unit_test(test_fd_upload_larger_than_the_buffer),
         cmocka_unit_test(test_fd_upload_streamed),
+        cmocka_unit_test(test_rebuild_ends_a_relayed_transfer),
+        cmocka_unit_test(test_rebuild_ends_an_idle_connection),
+        cmocka_unit_test(test_rebuild_ends_a_translated_transfer),
+        cmocka_unit_test(test_client_reconnects_after_a_rebuild),
         cmocka_unit_test(test_classic_upload_buffered),
         cmocka_unit_test(test_classic_download_pipelined),
         cmocka_unit_test(test_classic_download_pipeline_depth_abort_timeout),

@@ -327,14 +327,19 @@ static void test_abort_of_the_target_forwarded(void **state)
     expect(&fx->a, 0x580 + GW, 0, abort_a, 11);
 }
 
+/* The client's routed upload of 0x2000 from node 9 on B (silent: no
+ * answer is sent for it); the session-ID the gateway's request took. */
+static uint8_t upload_from_silent_peer(fx_t *fx, uint8_t session)
+{
+    const uint8_t req[10] = {GW, 0x91, session, NET_B, NEXT_GW, NET_A, CLIENT, 0x00, 0x00, 0x20};
+    client_sends(fx, req, 10);
+    return logged(&fx->b, 0x600 + GW, 0)[2];
+}
+
 static void test_silent_target_times_out_both_sides(void **state)
 {
     fx_t *fx = *state;
-    /* node 9 on B never answers */
-    static const uint8_t req[10] = {GW, 0x91, 0x14, NET_B, NEXT_GW, NET_A, CLIENT, 0x00, 0x00,
-                                    0x20};
-    client_sends(fx, req, 10);
-    uint8_t sid = logged(&fx->b, 0x600 + GW, 0)[2];
+    uint8_t sid = upload_from_silent_peer(fx, 0x14);
     assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 0);
     advance(fx, fx->a.now + (TIMEOUT_MS + 5) * 1000u);
     uint8_t abort_b[7] = {NEXT_GW, 0x7F, sid, 0x00, 0x00, 0x20, 0x12};
@@ -347,10 +352,7 @@ static void test_silent_target_times_out_both_sides(void **state)
 static void test_client_abort_reaches_the_target(void **state)
 {
     fx_t *fx = *state;
-    static const uint8_t req[10] = {GW, 0x91, 0x15, NET_B, NEXT_GW, NET_A, CLIENT, 0x00, 0x00,
-                                    0x20};
-    client_sends(fx, req, 10);
-    uint8_t sid = logged(&fx->b, 0x600 + GW, 0)[2];
+    uint8_t sid = upload_from_silent_peer(fx, 0x15);
     static const uint8_t abo[11] = {GW, 0xFF, 0x15, NET_B, NEXT_GW, NET_A, CLIENT,
                                     0x00, 0x00, 0x20, 0x10};
     client_sends(fx, abo, 11);
@@ -365,6 +367,33 @@ static void test_client_abort_reaches_the_target(void **state)
     /* nothing left running: the timeout sends nothing more */
     advance(fx, fx->a.now + (TIMEOUT_MS + 5) * 1000u);
     assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 0);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 2);
+}
+
+/* A forwarded upload (node 9 on B silent) when the gateway is rebuilt
+ * (ended, made anew over the same lines as the runtime does): the client
+ * hears the routed abort 0x70 (the CiA 1301 counterpart of 0x060A0023),
+ * the target the gateway's local abort 0x70; nothing follows. */
+static void test_rebuild_ends_a_forwarded_request(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t sid = upload_from_silent_peer(fx, 0x16);
+    co_gateway_end_connections(&fx->gw);
+    co_gateway_stats_t stats = fx->gw.stats;
+    co_gateway_deinit(&fx->gw);
+    co_gateway_init(&fx->gw, NULL, NULL);
+    fx->gw.stats = stats;
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_a.stack, NET_A), CO_GATEWAY_OK);
+    assert_int_equal(co_gateway_add_port(&fx->gw, &fx->gw_b.stack, NET_B), CO_GATEWAY_OK);
+    settle(fx);
+    uint8_t abort_b[7] = {NEXT_GW, 0x7F, sid, 0x00, 0x00, 0x20, 0x70};
+    expect(&fx->b, 0x600 + GW, 1, abort_b, 7);
+    static const uint8_t abort_a[11] = {CLIENT, 0xFF, 0x16, NET_A, CLIENT, NET_B, NEXT_GW,
+                                        0x00, 0x00, 0x20, 0x70};
+    expect(&fx->a, 0x580 + GW, 0, abort_a, 11);
+    assert_int_equal(co_gateway_stats(&fx->gw)->connections_ended, 1);
+    advance(fx, fx->a.now + (TIMEOUT_MS + 5) * 1000u);
+    assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 1);
     assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 2);
 }
 
@@ -653,6 +682,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_silent_target_times_out_both_sides, setup,
                                         teardown),
         cmocka_unit_test_setup_teardown(test_client_abort_reaches_the_target, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_rebuild_ends_a_forwarded_request, setup, teardown),
         cmocka_unit_test_setup_teardown(test_refusals, setup, teardown),
         cmocka_unit_test_setup_teardown(test_busy_gateway_client, setup, teardown),
         cmocka_unit_test_setup_teardown(test_through_the_next_gateway, setup, teardown),

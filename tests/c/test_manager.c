@@ -688,7 +688,7 @@ static void test_manager_memory_need(void **state)
     co_stack_client_config_t cc = {.sessions = 2};
     assert_int_equal(co_stack_client_init(&st->stack, &cc), CO_STACK_OK);
     assert_int_equal(co_manager_slaves_in(&st->od.od, MANAGER), 3);
-    size_t need = co_stack_manager_need(&st->stack);
+    size_t need = co_stack_manager_need(&st->stack, NULL);
     assert_int_equal(need, CO_STACK_BLOCK(3 * sizeof(co_manager_slave_t)));
     size_t before = st->arena.used;
     co_stack_manager_config_t mc = {0};

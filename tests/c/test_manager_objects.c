@@ -384,7 +384,8 @@ static void test_request_nmt_mirror_written_on_change(void **state)
     fx_free(fx);
 }
 
-/* co_stack_manager_need counts the 0x1F25 DCF buffer when the OD has 0x1F25. */
+/* co_stack_manager_need counts the 0x1F25 DCF buffer when the OD has 0x1F25,
+ * of the size the config asks for. */
 static void test_memory_need_counts_the_dcf_buffer(void **state)
 {
     (void)state;
@@ -394,7 +395,7 @@ static void test_memory_need_counts_the_dcf_buffer(void **state)
     station_t *st = station(fx, 1);
     co_stack_client_config_t cc = {.sessions = 2, .node_id = 1};
     assert_int_equal(co_stack_client_init(&st->stack, &cc), CO_STACK_OK);
-    size_t need = co_stack_manager_need(&st->stack);
+    size_t need = co_stack_manager_need(&st->stack, NULL);
     assert_int_equal(need, CO_STACK_BLOCK(2 * sizeof(co_manager_slave_t)) +
                                CO_STACK_BLOCK(CO_MANAGER_DCF_BUFFER));
     size_t before = st->arena.used;
@@ -403,6 +404,18 @@ static void test_memory_need_counts_the_dcf_buffer(void **state)
     assert_int_equal(st->arena.used - before, need);
     co_stack_manager_deinit(&st->stack);
     assert_int_equal(st->arena.used, before);
+    /* a DCF room of the caller's size: the need follows it, larger and smaller */
+    const uint32_t rooms[2] = {CO_MANAGER_DCF_BUFFER * 4u, 40u};
+    for (int i = 0; i < 2; i++) {
+        co_stack_manager_config_t sized = {.dcf_capacity = rooms[i]};
+        need = co_stack_manager_need(&st->stack, &sized);
+        assert_int_equal(need, CO_STACK_BLOCK(2 * sizeof(co_manager_slave_t)) +
+                                   CO_STACK_BLOCK(rooms[i]));
+        assert_int_equal(co_stack_manager_init(&st->stack, &sized), CO_STACK_OK);
+        assert_int_equal(st->arena.used - before, need);
+        co_stack_manager_deinit(&st->stack);
+        assert_int_equal(st->arena.used, before);
+    }
     fx_free(fx);
 }
 

@@ -402,6 +402,51 @@ static void tool_nmt(fx_t *fx, uint8_t command)
     tool_send(fx, 0x000, (const uint8_t[]){command, NODE}, 2);
 }
 
+/* A node made without an OD (NMT and heartbeat only) still answers every
+ * SDO / USDO request at once, "object does not exist" (0x06020000 / 0x33)
+ * with the request's multiplexer, instead of leaving the client to its
+ * timeout; the memory its server takes is in co_stack_node_need and
+ * within CO_STACK_NODE_MEMORY. */
+static void test_node_without_od_answers_no_such_object(void **state)
+{
+    (void)state;
+    for (int m = 0; m < 2; m++) {
+        co_mode_t mode = m ? CO_MODE_FD : CO_MODE_CLASSIC;
+        fx_t *fx = fx_new(mode);
+        assert_int_equal(co_stack_init(&fx->stack, &fx->dev_line.line, NULL,
+                                       co_stack_arena_allocator(&fx->arena)), CO_STACK_OK);
+        co_stack_node_config_t nc = {.node_id = NODE};
+        size_t before = fx->arena.used;
+        size_t need = co_stack_node_need(&fx->dev_line.line, &nc);
+        assert_int_equal(co_stack_node_init(&fx->stack, &nc), CO_STACK_OK);
+        assert_int_equal(fx->arena.used - before, need);
+        assert_true(need <= CO_STACK_NODE_MEMORY(0, 0, 0, 0,
+                                                 m ? CO_STACK_DEFAULT_SERVER_SESSIONS : 1));
+        assert_null(co_stack_od(&fx->stack));
+        assert_int_equal(co_stack_boot(&fx->stack), CO_STACK_OK);
+        tu_run_until(&fx->tb, 2 * TU_MS);
+        tu_log_clear(&fx->tb);
+        if (mode == CO_MODE_CLASSIC) {
+            tool_send(fx, 0x600 + NODE, (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}, 8);
+            tool_send(fx, 0x600 + NODE,
+                      (const uint8_t[]){0x2B, 0x17, 0x10, 0x00, 0xE8, 0x03, 0, 0}, 8);
+            tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NODE, 0), 0x580 + NODE,
+                             (const uint8_t[]){0x80, 0x00, 0x10, 0x00, 0x00, 0x00, 0x02, 0x06},
+                             8);
+            tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NODE, 1), 0x580 + NODE,
+                             (const uint8_t[]){0x80, 0x17, 0x10, 0x00, 0x00, 0x00, 0x02, 0x06},
+                             8);
+        } else {
+            /* [dest, 0x11 upload, session 5, sub 0, index 0x1000] */
+            tool_send(fx, 0x600 + CLIENT, (const uint8_t[]){NODE, 0x11, 5, 0x00, 0x00, 0x10}, 6);
+            tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NODE, 0), 0x580 + NODE,
+                             (const uint8_t[]){CLIENT, 0x7F, 5, 0x00, 0x00, 0x10, 0x33}, 7);
+        }
+        assert_int_equal(tu_log_count_id(&fx->tb, 0x580 + NODE), m ? 1 : 2);
+        fx_free(fx);
+    }
+}
+
 /* CiA 301: no SDO in stopped. A stopped classic device ignores SDO requests
  * (no frame on 0x580 + id, counted), a segmented download open when it
  * stopped ends without an abort frame, and back in pre-operational it serves
@@ -532,6 +577,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fd_device_boots_and_serves_its_od),
         cmocka_unit_test(test_sizing_matches_what_is_taken),
+        cmocka_unit_test(test_node_without_od_answers_no_such_object),
         cmocka_unit_test(test_no_memory_leaves_nothing_behind),
         cmocka_unit_test(test_wrong_use_is_refused),
         cmocka_unit_test(test_services_are_wired),

@@ -11,7 +11,10 @@
  *   - routes EMCYs per 0x1F2F: sub n, parallel to 0x1028 sub n (node n's
  *     EMCY on the same line), bit k-1 = re-send it on network k (1..32),
  *     re-encoded for the target line (classic 8 bytes / fd 20 bytes) on the
- *     CAN-ID it was heard on;
+ *     CAN-ID it was heard on; never onto the network it came from, and an
+ *     EMCY equal to one it re-sent within CO_GATEWAY_EMCY_ECHO_MS, heard on
+ *     the network that one came from or went to, is its echo through
+ *     another gateway and is not re-sent (no EMCY ping-pong);
  *   - forwards process data: when an RPDO of one line has written objects of
  *     0xB000..0xBFFF, the same objects on the other lines get the values and
  *     every TPDO there that maps one is triggered once (event-driven, no
@@ -55,7 +58,10 @@ enum {
     CO_GATEWAY_OD_SUBSCRIPTIONS = 2,
     CO_GATEWAY_SDO_TIMEOUT_MS = 1000, /* default wait for the target's answer */
     CO_GATEWAY_USDO_RELAYS = 4,      /* remote USDO requests forwarded at once */
-    CO_GATEWAY_USDO_VALUE_MAX = 1024 /* largest value a remote USDO request moves (0x16 above) */
+    CO_GATEWAY_USDO_VALUE_MAX = 1024, /* largest value a remote USDO request moves (0x16 above) */
+    CO_GATEWAY_ENDED = 8,            /* connections ended by a rebuild remembered at once */
+    CO_GATEWAY_EMCY_RECENT = 8,      /* EMCYs re-sent lately, kept to know their echoes */
+    CO_GATEWAY_EMCY_ECHO_MS = 500    /* how long an EMCY re-sent is taken as ours */
 };
 
 /* SDO networking (CiA 302-7 style; layout in docs/protocol-notes.md): byte 0
@@ -65,6 +71,11 @@ enum {
  * "SDO client busy"), and a network it cannot reach. */
 #define CO_GATEWAY_ABORT_BUSY 0x060A0023u
 #define CO_GATEWAY_ABORT_NO_ROUTE 0x08000000u
+/* What ends a connection when the gateway is rebuilt, on both sides, and
+ * answers the next request of a client whose idle connection was ended:
+ * CiA 301 "resource not available: SDO connection" (remote USDO: its CiA
+ * 1301 counterpart 0x70). Why this code: docs/protocol-notes.md "Gateway". */
+#define CO_GATEWAY_ABORT_ENDED 0x060A0023u
 
 /* cffi:begin */
 typedef struct co_gateway_stats {
@@ -96,6 +107,10 @@ typedef struct co_gateway_stats {
     uint32_t sdo_too_big;        /* ... refused: larger than the gateway's buffer */
     uint32_t sdo_buffer_busy;    /* ... refused: another connection holds the buffer */
     uint32_t sdo_pipelined;      /* download segments answered ahead of a classic target */
+    uint32_t connections_ended;  /* SDO connections and remote USDO requests a rebuild
+                                    ended (aborts sent to both sides) */
+    uint32_t emcy_echoes;        /* an EMCY this gateway re-sent came back (through
+                                    another gateway): not re-sent again */
 } co_gateway_stats_t;
 
 /* Results of co_gateway_resolve. */
@@ -202,6 +217,27 @@ typedef struct co_gateway_port {
     uint32_t emcy_routes[CO_GATEWAY_NETWORKS];
 } co_gateway_port_t;
 
+/* The server channels whose SDO networking connection a rebuild ended
+ * (co_gateway_end_connections): a client's next request there is aborted
+ * with CO_GATEWAY_ABORT_ENDED, not answered by the gateway's own server,
+ * until it sends a network indication. The owner carries it over to the
+ * rebuilt gateway. */
+typedef struct co_gateway_ended {
+    const co_stack_t *stack[CO_GATEWAY_ENDED];   /* NULL: free */
+    uint8_t channel[CO_GATEWAY_ENDED];
+    uint8_t next;                /* the slot taken over when all are in use */
+} co_gateway_ended_t;
+
+/* An EMCY the gateway re-sent: its CAN-ID and classic 8 bytes (what every
+ * line's format keeps), the network it came from, those it went to. */
+typedef struct co_gateway_emcy_sent {
+    uint64_t at_us;
+    uint32_t cob_id;
+    uint32_t to_nets;            /* bit k-1 = network k; 0: a free slot */
+    uint8_t from_net;
+    uint8_t data[8];
+} co_gateway_emcy_sent_t;
+
 struct co_gateway {
     co_gateway_port_t ports[CO_GATEWAY_MAX_PORTS];
     uint8_t port_count;
@@ -214,6 +250,9 @@ struct co_gateway {
     uint32_t sdo_buf_size;
     co_gateway_sdo_t *sdo_buf_owner; /* the connection using it, NULL: free */
     bool sdo_relay_only;         /* classic targets: every frame relayed, never buffered */
+    co_gateway_ended_t ended;
+    co_gateway_emcy_sent_t emcy_sent[CO_GATEWAY_EMCY_RECENT];
+    uint8_t emcy_next;           /* the slot the next re-sent EMCY takes */
     co_gateway_event_fn on_event;
     void *user;
     co_gateway_stats_t stats;
@@ -235,6 +274,12 @@ co_gateway_status_t co_gateway_add_port(co_gateway_t *gw, co_stack_t *stack,
                                         uint8_t network_id);
 /* Every hook removed (before the stacks go). */
 void co_gateway_deinit(co_gateway_t *gw);
+/* Before a rebuild (co_gateway_deinit, co_gateway_init, the ports again):
+ * every open SDO networking connection, translation and remote USDO request
+ * ends as CiA 301 ends a transfer, with an abort (CO_GATEWAY_ABORT_ENDED)
+ * to the client and to the target, counted in connections_ended; the SDO
+ * clients' server channels go into gw->ended (copy it to the new gateway). */
+void co_gateway_end_connections(co_gateway_t *gw);
 
 /* The line carrying network `net`, or NULL. */
 co_stack_t *co_gateway_line_of(co_gateway_t *gw, uint8_t net);
@@ -274,6 +319,9 @@ void co_gateway_set_sdo_buffering(co_gateway_t *gw, bool on);
 /* co_gateway_sdo.c, for co_gateway.c: hook / unhook a port's SDO server. */
 void co_gateway_sdo_hook(struct co_gateway_port *port);
 void co_gateway_sdo_unhook(struct co_gateway_port *port);
+/* ... and the SDO / remote USDO parts of co_gateway_end_connections. */
+void co_gateway_sdo_end(co_gateway_t *gw);
+void co_gateway_usdo_end(co_gateway_t *gw);
 /* co_gateway_usdo.c, for co_gateway.c: the same for a port's USDO server
  * (unhook cancels the requests forwarded from or to the port). */
 void co_gateway_usdo_hook(struct co_gateway_port *port);
@@ -291,6 +339,9 @@ bool co_gateway_sdo_pipe_request(co_gateway_sdo_t *c, const uint8_t *data);
 bool co_gateway_sdo_pipe_answer(co_gateway_sdo_t *c, const uint8_t *data);
 void co_gateway_sdo_pipe_close(co_gateway_sdo_t *c);
 void co_gateway_sdo_fd_close(co_gateway_sdo_t *c);
+/* A rebuild ends the connection: the client hears `code`, a running USDO
+ * transfer is stopped with its USDO counterpart. */
+void co_gateway_sdo_fd_end(co_gateway_sdo_t *c, uint32_t code);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
 {

@@ -190,7 +190,9 @@ typedef struct co_sdo_client_channel {
     bool valid;                     /* configured and usable */
     bool subscribed;                /* rx_id outside 0x581..0x5FF: own line receiver */
     uint8_t state;                  /* co_sdo_client_state_t */
-    uint8_t first_data[4];          /* an expedited download's bytes while NET_IND */
+    uint8_t first_data[4];          /* an expedited download's bytes while NET_IND
+                                       (and for a routed initiate sent again) */
+    bool indicated;                 /* routed: this transfer sent a network indication */
     uint8_t mode;                   /* co_sdo_mode_t in use */
     uint8_t toggle;                 /* segmented: toggle of the next exchange */
     bool last_sent;                 /* segmented download: the last segment is out */

@@ -161,7 +161,9 @@ typedef struct co_stack_line_config {
 typedef struct co_stack_node_config {
     uint8_t node_id;             /* 1..127, or 255: unconfigured, waits for LSS */
     uint16_t heartbeat_ms;       /* 0x1017 without an OD */
-    co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL */
+    co_od_t *od;                 /* sealed with node_id (co_od_seal), or NULL: then
+                                    its SDO / USDO server serves an empty OD, so
+                                    every request is aborted 0x06020000 at once */
     /* Parameters saved through this backend (NULL: defaults only; needs the OD). */
     const co_store_backend_t *store_backend;
     void *store_user;
@@ -242,6 +244,7 @@ struct co_stack {
     bool has_node;
     co_node_t node;
     co_od_t *od;
+    co_od_t no_od;               /* what the server serves when od is NULL: nothing */
     bool has_store;
     co_store_t store;
     bool has_emcy;
@@ -322,8 +325,9 @@ void co_stack_lss_master_deinit(co_stack_t *stack);
  * without them or when one runs, CO_STACK_ERR_OD when 0x1F80 bit 0 is
  * clear). Start it with co_manager_start(co_stack_manager(stack)). It is
  * fed the line's error control frames and losses; it goes when the node or
- * the client goes. */
-size_t co_stack_manager_need(co_stack_t *stack);
+ * the client goes. co_stack_manager_need: the bytes co_stack_manager_init
+ * takes with that config (NULL: the defaults), its DCF room included. */
+size_t co_stack_manager_need(co_stack_t *stack, const co_stack_manager_config_t *config);
 co_stack_status_t co_stack_manager_init(co_stack_t *stack,
                                         const co_stack_manager_config_t *config);
 void co_stack_manager_deinit(co_stack_t *stack);

@@ -6,7 +6,9 @@
  * A joined fd line gets its USDO client (the line's node-id as client) so
  * classic clients reach its nodes by SDO networking, through the runtime's
  * RT_GATEWAY_SDO_BUFFER bytes; a joined classic line its SDO client, so
- * the gateway can buffer transfers to its nodes instead of relaying them. */
+ * the gateway can read uploads from its nodes ahead of the client. A
+ * rebuild ends the open SDO networking connections and remote USDO requests
+ * with aborts (co_gateway_end_connections). */
 #include "co_rt_internal.h"
 
 #include <string.h>
@@ -52,15 +54,26 @@ int rt_gateway_rebuild(co_rt_t *rt)
 {
     co_gateway_t *gw = &rt->gateway;
     uint16_t routes[CO_GATEWAY_NETWORKS];
-    co_gateway_stats_t stats = gw->stats;
     bool relay_only = gw->sdo_relay_only;
     int count = rt_atomic_load_acquire(&rt->line_count);
+    /* open connections end with aborts on both sides (not silently: the
+     * peers would wait for their timeouts); what they were is kept so the
+     * clients' next requests are refused, not served from our own OD */
+    co_gateway_end_connections(gw);
+    co_gateway_stats_t stats = gw->stats;
+    co_gateway_ended_t ended = gw->ended;
+    co_gateway_emcy_sent_t emcy_sent[CO_GATEWAY_EMCY_RECENT];   /* echoes still known */
+    uint8_t emcy_next = gw->emcy_next;
+    memcpy(emcy_sent, gw->emcy_sent, sizeof emcy_sent);
     memcpy(routes, gw->routes, sizeof routes);
     co_gateway_deinit(gw);
     co_gateway_init(gw, on_gateway_event, rt);
     memcpy(gw->routes, routes, sizeof routes);
+    memcpy(gw->emcy_sent, emcy_sent, sizeof emcy_sent);
+    gw->emcy_next = emcy_next;
     gw->stats = stats;
     co_gateway_set_sdo_buffering(gw, !relay_only);
+    gw->ended = ended;
     co_gateway_set_sdo_buffer(gw, rt->gateway_sdo_buf, sizeof rt->gateway_sdo_buf);
     for (int i = 0; i < count; i++) {
         rt_line_t *l = rt->lines[i];
@@ -122,8 +135,7 @@ int co_rt_gateway_join(co_rt_t *rt, int line, uint8_t network_id)
         l->network_id = old;
         (void)rt_gateway_rebuild(rt);
     }
-    rt_mutex_unlock(&rt->lock);
-    return status;
+    return rt_kick_unlock(rt, status);   /* the rebuild's aborts go out now */
 }
 
 int co_rt_gateway_network(co_rt_t *rt, int line)
