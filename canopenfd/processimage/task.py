@@ -17,7 +17,7 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Tuple
 
-from ..errors import CanopenFDError, ClosedError
+from ..errors import CanopenFDError, ClosedError, ConfigurationError
 from ..gateway.remote_access_stream import ByteStream
 from . import codec
 from .device_od import build_od
@@ -33,6 +33,8 @@ FATAL_INTERFACE_DOWN = 0x02
 FATAL_STACK_CLOSED = 0x03      # the node's network was closed under the task
 #: A frame the host leaves unfinished this long is refused (s).
 FRAME_TIMEOUT = 0.5
+#: Indications kept while no host reads them.
+MAX_PENDING = 256
 #: How often the task looks for indications while the host is quiet (s).
 POLL = 0.02
 
@@ -46,21 +48,23 @@ def status_size_bits(size: int) -> int:
 
 
 class ProcessImageTask:
-    """Serve `stream` for the device `setup` describes on `line` (a Line
-    without a local node). `close()` ends it; the node stays on the line."""
+    """The device `setup` describes on `line` (a Line without a local node),
+    serving the host on `stream` (or on each stream given to `serve` later,
+    one at a time). `close()` ends it; the node stays on the line."""
 
-    def __init__(self, line: Any, setup: SetupFile, stream: ByteStream, *,
+    def __init__(self, line: Any, setup: SetupFile, stream: Optional[ByteStream] = None, *,
                  frame_timeout: float = FRAME_TIMEOUT) -> None:
         assert setup.node is not None
         self.line = line
         self.setup = setup
-        self.stream = stream
+        self.stream: Optional[ByteStream] = None
         self.frame_timeout = frame_timeout
         self.node: Any = None
         self.bps = setup.node.bps          # the InitCANopen code in use (0 = default)
         self.node_id = setup.node.node_id
         self.decoder = codec.RequestDecoder()
         self.indications_sent = 0
+        self.indications_dropped = 0
         self._image = bytearray(setup.image)
         self._owner: List[Optional[ImageEntry]] = [None] * len(self._image)
         self._entries: Dict[Tuple[int, int], ImageEntry] = {}
@@ -73,15 +77,34 @@ class ProcessImageTask:
         self._own_reset = False
         self._stack_lost = False
         self._closed = False
-        self._thread = threading.Thread(target=self._run, name="process-image task",
-                                        daemon=True)
-        self._thread.start()
+        self._thread: Optional[threading.Thread] = None
+        if stream is not None:
+            self.serve(stream)
 
     # ------------------------------------------------------------ life
+    def serve(self, stream: ByteStream) -> None:
+        """Serve the host on `stream` until it ends (EOF) or close()."""
+        if self._thread is not None and self._thread.is_alive():
+            raise ConfigurationError(f"process image task: already serving "
+                                     f"{self.stream.name if self.stream else '?'}")
+        self.stream = stream
+        self.decoder.expire()     # a frame the last host left unfinished is not continued
+        self._thread = threading.Thread(target=self._run, args=(stream,),
+                                        name="process-image task", daemon=True)
+        self._thread.start()
+
+    def wait_link_closed(self, timeout: Optional[float] = None) -> bool:
+        """Wait until the stream being served ends; True when it did."""
+        thread = self._thread
+        if thread is not None:
+            thread.join(timeout)
+        return thread is None or not thread.is_alive()
+
     def close(self) -> None:
         self._closed = True
-        self.stream.close()
-        if threading.current_thread() is not self._thread:
+        if self.stream is not None:
+            self.stream.close()
+        if self._thread is not None and threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
 
     def __enter__(self) -> "ProcessImageTask":
@@ -92,7 +115,8 @@ class ProcessImageTask:
 
     @property
     def stats(self) -> Dict[str, int]:
-        out = {"accepted": self.decoder.accepted, "indications": self.indications_sent}
+        out = {"accepted": self.decoder.accepted, "indications": self.indications_sent,
+               "indications dropped": self.indications_dropped}
         out.update({f"refused {k}": v for k, v in self.decoder.refused.items()})
         return out
 
@@ -183,6 +207,9 @@ class ProcessImageTask:
     # ------------------------------------------------------------ indications
     def _indicate(self, code: int, params: bytes) -> None:
         with self._lock:
+            if len(self._pending) >= MAX_PENDING:     # no host reads them: keep the newest
+                del self._pending[0]
+                self.indications_dropped += 1
             self._pending.append((code, params))
 
     def _state_changed(self, old: Any, new: Any) -> None:
@@ -273,30 +300,32 @@ class ProcessImageTask:
         count = self.write(offset, params[2:])
         return bytes((count, codec.ACK)) if count else codec.nak_for(code)
 
-    def _run(self) -> None:
+    def _run(self, stream: ByteStream) -> None:
         last_byte = time.monotonic()
         while not self._closed:
             try:
-                data = self.stream.read(POLL)
+                data = stream.read(POLL)
             except EOFError:
                 break
             now = time.monotonic()
             if data:
                 last_byte = now
                 for item in self.decoder.feed(data):
-                    self._send(self._answer(item) if isinstance(item, codec.Request)
+                    self._send(stream, self._answer(item) if isinstance(item, codec.Request)
                                else codec.nak_for(item.code))
             elif self.decoder.pending and now - last_byte > self.frame_timeout:
                 refused = self.decoder.expire()
                 if refused is not None:
-                    self._send(codec.nak_for(refused.code))
+                    self._send(stream, codec.nak_for(refused.code))
             if not self.decoder.pending:
                 out = self._take_indications()
                 if out:
-                    self._send(out)
+                    self._send(stream, out)
+        stream.close()
 
-    def _send(self, data: bytes) -> None:
+    @staticmethod
+    def _send(stream: ByteStream, data: bytes) -> None:
         try:
-            self.stream.write(data)
+            stream.write(data)
         except EOFError:
-            self._closed = True
+            stream.close()      # the read then ends the loop
