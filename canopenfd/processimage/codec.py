@@ -84,6 +84,11 @@ class RequestDecoder:
                                         "incomplete": 0}
 
     @property
+    def buffered(self) -> int:
+        """Bytes of an unfinished frame held (at most one frame's worth)."""
+        return len(self._buffer)
+
+    @property
     def pending(self) -> bool:
         """True while part of a frame waits for more bytes."""
         return bool(self._buffer) or self._skipping

@@ -109,7 +109,7 @@ def build_od(setup: SetupFile, image: Optional[bytes] = None) -> ObjectDictionar
     node = setup.node
     assert node is not None
     od = ObjectDictionary(mode=setup.mode, node_id=node.node_id)
-    given = {item.index for item in [*setup.cod, *setup.rwod]}
+    given = {entry.index for entry in setup.cod} | {entry.index for entry in setup.rwod}
     if 0x1000 not in given:
         od.add_object(ODVariable("Device type", 0x1000, 0, U32, "ro", 0))
     od.add_object(ODVariable("Error register", 0x1001, 0, U8, "ro", 0))

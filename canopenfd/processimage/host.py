@@ -114,15 +114,20 @@ class ProcessImage:
                 self._pending, self._answer = code, None
             self.stream.write(codec.encode_request(code, params))
             with self._cond:
-                got = self._cond.wait_for(lambda: self._answer is not None or self._closed,
-                                          self.timeout)
-                answer, self._pending = self._answer, None
-            if not got or answer is None:
+                self._cond.wait_for(lambda: self._answer is not None or self._closed,
+                                    self.timeout)
+                answer = self._take_answer()
+            if answer is None:
                 raise ProcessImageError(f"{self.stream.name}: no answer to {chr(code)!r} "
                                         f"within {self.timeout} s")
             if not answer.ok and not nak_ok:
                 raise ProcessImageError(f"{self.stream.name}: {chr(code)!r} refused (NAK)")
             return answer
+
+    def _take_answer(self) -> Optional[codec.Answer]:
+        """The answer that came (None: none), the request no longer pending."""
+        answer, self._answer, self._pending = self._answer, None, None
+        return answer
 
     def _run(self) -> None:
         while not self._closed:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple, Union
 
 from ..errors import ConfigurationError
 
@@ -358,7 +358,8 @@ def _check_tables(reader: _Reader, setup: SetupFile) -> None:
                                               f"(line {other.line}) at image byte {byte}")
             owner[byte] = entry
     seen: Dict[Tuple[int, int], int] = {}
-    for item in [*setup.cod, *setup.rwod]:
+    items: List[Union[ConstEntry, ImageEntry]] = [*setup.cod, *setup.rwod]
+    for item in items:
         key = (item.index, item.sub)
         if key in seen:
             raise reader.fail(item.line, f"{item.index:04X}:{item.sub:02X} defined twice "
