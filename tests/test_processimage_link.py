@@ -261,3 +261,28 @@ def test_host_object_drives_the_task(world: World) -> None:
         assert image.read(2, 2) == b"\x01\x02"
         assert image.init_canopen(9, 0) is False
         assert image.dropped == 0
+
+
+def test_rpdo_to_scattered_bytes_gives_one_indication_per_run(net: Any, bus_name: str) -> None:
+    """Seed 004 §4.2.2 NOTE: an RPDO whose bytes land apart in the image gives
+    an indication per consecutive run (here 6200:01 at byte 2, 6200:02 at 5)."""
+    text = setup_text(RWOD=["0060015100", "0060025101", "006201F102", "006202F105",
+                            "FFFFFFFFFF"])
+    line = net.open_line(bus_name, mode="classic")
+    peer = net.open_line(bus_name, mode="classic")
+    stream, fd, owner = link_pair("unix")
+    task = ProcessImageTask(line, parse_setup_text(text, "scattered.txt"), stream)
+    host = RawHost(fd, owner)
+    try:
+        host.send(b"I\x00\x00;")
+        host.expect(b".n\x00.n\x7f.")
+        peer.nmt.send("START", NODE)
+        host.expect(b"n\x05.")
+        peer.send_frame(0x200 + NODE, b"\x0b\x0e")
+        host.expect(b"d\x02\x01.d\x05\x01.")
+        host.send(b"R\x02\x04;")
+        host.expect(b"\x04\x0b\x33\x44\x0e.")
+        assert task.stats["indications"] == 5
+    finally:
+        task.close()
+        host.close()

@@ -91,7 +91,8 @@ static void add_image_entry(fx_t *fx, uint16_t index, uint8_t sub, uint8_t type,
     assert_int_equal(co_od_add_in_image(&fx->od, &d, offset), CO_OD_ADDED);
 }
 
-static fx_t *fx_new(void)
+/* second: the image byte of [6200,02] (3 follows [6200,01] at 2; 5 lies apart) */
+static fx_t *fx_new_at(uint32_t second)
 {
     fx_t *fx = calloc(1, sizeof *fx);
     assert_non_null(fx);
@@ -104,7 +105,7 @@ static fx_t *fx_new(void)
     tu_od_add_rows(&fx->od, comm_rows, sizeof comm_rows / sizeof comm_rows[0]);
     add_image_entry(fx, 0x6000, 1, U16, 2, CO_OD_MAP_TPDO, 0);
     add_image_entry(fx, 0x6200, 1, U8, 1, CO_OD_MAP_RPDO, 2);
-    add_image_entry(fx, 0x6200, 2, U8, 1, CO_OD_MAP_RPDO, 3);
+    add_image_entry(fx, 0x6200, 2, U8, 1, CO_OD_MAP_RPDO, second);
     assert_true(co_od_seal(&fx->od, NODE));
     co_stack_arena_init(&fx->arena, fx->memory, sizeof fx->memory);
     co_stack_line_config_t line_config = {.heartbeat_entries = 4};
@@ -115,6 +116,11 @@ static fx_t *fx_new(void)
                               .initial_image = initial, .cb = &callbacks, .user = fx};
     assert_true(co_api_init(&fx->api, &fx->stack, &config));
     return fx;
+}
+
+static fx_t *fx_new(void)
+{
+    return fx_new_at(3);
 }
 
 static void fx_free(fx_t *fx)
@@ -224,6 +230,26 @@ static void test_rpdo_gives_one_received_data(void **state)
     fx_free(fx);
 }
 
+/* Seed 004 §4.2.2 NOTE: bytes that land apart give one indication each. */
+static void test_rpdo_to_scattered_bytes(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new_at(5);
+    fx_start(fx);
+    assert_true(co_line_send(&fx->tool_line.line, 0x200 + NODE,
+                             (const uint8_t[]){0x0B, 0x0E}, 2));
+    tu_run_until(&fx->tb, fx->tb.now + 5 * TU_MS);
+    assert_int_equal(fx->received_count, 2);
+    assert_int_equal(fx->received[0][0], 2);
+    assert_int_equal(fx->received[0][1], 1);
+    assert_int_equal(fx->received[1][0], 5);
+    assert_int_equal(fx->received[1][1], 1);
+    uint8_t buf[4];
+    assert_int_equal(co_api_read(&fx->api, 2, 4, buf), 4);
+    assert_memory_equal(buf, ((const uint8_t[]){0x0B, 0x33, 0x44, 0x0E}), 4);
+    fx_free(fx);
+}
+
 static void test_sdo_download_gives_received_data(void **state)
 {
     (void)state;
@@ -308,6 +334,7 @@ int main(void)
         cmocka_unit_test(test_read_and_write_stay_in_the_image),
         cmocka_unit_test(test_init_canopen_and_nmt_changes),
         cmocka_unit_test(test_rpdo_gives_one_received_data),
+        cmocka_unit_test(test_rpdo_to_scattered_bytes),
         cmocka_unit_test(test_sdo_download_gives_received_data),
         cmocka_unit_test(test_write_sends_the_tpdo),
         cmocka_unit_test(test_fatal_error),
