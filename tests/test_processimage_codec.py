@@ -100,3 +100,16 @@ def test_host_decoder_takes_answers_and_indications_apart(exchanges) -> None:
         assert items == [codec.Indication(c, p[:codec.INDICATION_PARAMS[c]])
                          for c, p in indications]
     assert decoder.dropped == 0
+
+
+def test_an_indication_crossing_a_read_that_looks_like_one() -> None:
+    """A read of 100 bytes answers with count 64h = 'd'; an NMTChange sent
+    before the request came in is still told apart from it."""
+    decoder = codec.TaskDecoder()
+    data = bytes(range(100))
+    items, answered = decoder.feed(b"n\x05." + b"d" + data + b".", codec.READ_DATA)
+    assert answered
+    assert items == [codec.Indication(codec.NMT_CHANGE, b"\x05"),
+                     codec.Answer(codec.READ_DATA, True, data, 100)]
+    items, answered = decoder.feed(b"d" + data + b".", codec.READ_DATA)
+    assert answered and items == [codec.Answer(codec.READ_DATA, True, data, 100)]

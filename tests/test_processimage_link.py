@@ -260,6 +260,11 @@ def test_host_object_drives_the_task(world: World) -> None:
         received.wait_value((2, 2))
         assert image.read(2, 2) == b"\x01\x02"
         assert image.init_canopen(9, 0) is False
+        with pytest.raises(ValueError, match=r"ProcessImage.write: length of data 256 is not "
+                                             r"a byte 0..255"):
+            image.write(0, bytes(256))
+        with pytest.raises(ValueError, match=r"ProcessImage.read: offset -1"):
+            image.read(-1, 1)
         assert image.dropped == 0
 
 

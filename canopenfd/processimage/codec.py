@@ -258,8 +258,17 @@ class TaskDecoder:
                 return _indication_shape(buf)
             return _answer_shape(pending, buf)
         try:
-            # the answer first; while it is incomplete, wait for it (an
-            # indication before it is read once the answer shape fails)
-            return _answer_shape(pending, buf)
-        except ValueError:
+            answer = _answer_shape(pending, buf)
+        except ValueError:        # not the answer: an indication sent before it
             return _indication_shape(buf)
+        if answer is not None:
+            return answer
+        # the answer's shape is still incomplete; a whole indication followed
+        # by a whole answer is that (an indication crossed the request)
+        try:
+            indication = _indication_shape(buf)
+            if indication is not None and _answer_shape(pending, buf[indication[1]:]):
+                return indication
+        except ValueError:
+            pass
+        return None

@@ -27,6 +27,12 @@ class ProcessImageError(CommandError):
     """The task NAKed a request or did not answer it."""
 
 
+def _check_byte(call: str, name: str, value: int) -> None:
+    """Every parameter of the message form is one byte (seed 004 §1.1)."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 255:
+        raise ValueError(f"ProcessImage.{call}: {name} {value!r} is not a byte 0..255")
+
+
 class ProcessImage:
     def __init__(self, stream: ByteStream, *, timeout: float = ANSWER_TIMEOUT) -> None:
         self.stream = stream
@@ -96,14 +102,20 @@ class ProcessImage:
 
     def init_canopen(self, bps: int = 0, node_id: int = 0) -> bool:
         """InitCANopen: True on ACK, False on NAK."""
+        _check_byte("init_canopen", "bps", bps)
+        _check_byte("init_canopen", "node_id", node_id)
         return self._request(codec.INIT_CANOPEN, bytes((bps, node_id)), nak_ok=True).ok
 
     def read(self, offset: int, length: int) -> bytes:
         """ReadProcessData: the bytes read (b"" when none: past the image)."""
+        _check_byte("read", "offset", offset)
+        _check_byte("read", "length", length)
         return self._request(codec.READ_DATA, bytes((offset, length)), nak_ok=True).data
 
     def write(self, offset: int, data: bytes) -> int:
         """WriteProcessData: the number of bytes written (0 past the image)."""
+        _check_byte("write", "offset", offset)
+        _check_byte("write", "length of data", len(data))
         answer = self._request(codec.WRITE_DATA, bytes((offset, len(data))) + bytes(data),
                                nak_ok=True)
         return answer.count
