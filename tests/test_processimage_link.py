@@ -204,12 +204,15 @@ def test_sdo_write_gives_received_data(world: World) -> None:
     world.host.expect(b"\x01\x5a.")
 
 
-def test_write_sends_the_tpdo(world: World) -> None:
+def test_write_sends_the_tpdo_once_with_every_byte(world: World) -> None:
     start(world)
-    world.host.send(b"W\x00\x02\x10\x20;")
+    before = len(frames(world.bus, 0x180 + NODE))
+    world.host.send(b"W\x00\x02\x10\x20;")      # two entries of TPDO 1 change
     world.host.expect(b"\x02.")
     world.bus.wait_for(lambda calls: b"\x10\x20" in frames(world.bus, 0x180 + NODE),
                        what="TPDO 1 with the written bytes")
+    time.sleep(scaled(0.2))
+    assert frames(world.bus, 0x180 + NODE)[before:] == [b"\x10\x20"]
 
 
 def test_bad_frames_are_naked_and_counted(world: World) -> None:

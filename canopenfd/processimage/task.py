@@ -17,6 +17,7 @@ import threading
 import time
 from typing import Any, Dict, List, Optional, Tuple
 
+from ..services.nmt import NmtState
 from ..errors import CanopenFDError, ClosedError, ConfigurationError
 from ..gateway.remote_access_stream import ByteStream
 from . import codec
@@ -147,6 +148,7 @@ class ProcessImageTask:
     def write(self, offset: int, data: bytes) -> int:
         """WriteProcessData: bytes written (fewer at the end, none past it)."""
         end = min(offset + len(data), len(self._image))
+        changed: List[ImageEntry] = []
         with self._lock:
             pos = offset
             while pos < end:
@@ -166,11 +168,24 @@ class ProcessImageTask:
                     except CanopenFDError as exc:     # (unsigned entries take any bytes)
                         log.warning("process image byte %d: %s", pos, exc)
                         return pos - offset
-                    if entry.mappable and not entry.rpdo_only:
-                        # a changed value is the event of event-driven TPDOs mapping it
-                        self.node.trigger_pdo((entry.index, entry.sub))
+                    changed.append(entry)
                 pos = stop
+        self._trigger_tpdos(changed)
         return max(0, end - offset)
+
+    def _trigger_tpdos(self, changed: List[ImageEntry]) -> None:
+        """A changed value is the event of the event-driven TPDOs mapping it:
+        each such TPDO is sent once, after the whole write (never half of it:
+        seed 004 §3.3, consistency)."""
+        if not changed or self.node is None or self.node.state != NmtState.OPERATIONAL:
+            return
+        refs = {self.setup.rwod.index(entry) for entry in changed}
+        for pdo in self.setup.tpdos:
+            if refs.intersection(pdo.entries):
+                try:
+                    self.node.tpdo[pdo.number].transmit()
+                except CanopenFDError as exc:    # a synchronous type takes no events
+                    log.debug("TPDO %d: %s", pdo.number, exc)
 
     def init_canopen(self, bps: int, node_id: int) -> bool:
         """InitCANopen: start (or re-initialise) the node; False for values

@@ -221,6 +221,35 @@ uint8_t co_api_read(co_api_t *api, uint8_t offset, uint8_t length, uint8_t *data
     return (uint8_t)n;
 }
 
+/* True when any byte of [from, from + n) is marked in `changed`. */
+static bool any_changed(const uint8_t *changed, uint32_t from, uint32_t n)
+{
+    for (uint32_t b = from; b < from + n && b < CO_API_IMAGE_MAX; b++) {
+        if (changed[b / 8u] & (1u << (b % 8u))) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Each TPDO mapping a changed byte is triggered once, after the whole write
+ * (so it never carries half of it: seed 004 §3.3, consistency). */
+static void trigger_tpdos(co_api_t *api, const uint8_t *changed)
+{
+    co_pdo_t *pdo = api->started ? co_stack_pdo(api->stack) : NULL;
+    uint32_t size = co_od_image_size(api->config.node.od);
+    for (uint16_t n = 1; pdo != NULL && n <= CO_PDO_MAX_NUMBER; n++) {   /* any numbering */
+        const co_pdo_channel_t *ch = co_pdo_channel(pdo, false, n);
+        for (uint8_t i = 0; ch != NULL && i < ch->map_count; i++) {
+            const co_pdo_map_item_t *it = &ch->map[i];
+            if (it->value < size && any_changed(changed, it->value, (it->bits + 7u) / 8u)) {
+                (void)co_pdo_trigger(pdo, n);    /* false: not operational, not an event type */
+                break;
+            }
+        }
+    }
+}
+
 uint8_t co_api_write(co_api_t *api, uint8_t offset, uint8_t length, const uint8_t *data)
 {
     uint32_t n = api->stack != NULL ? image_span(api, offset, length) : 0u;
@@ -228,25 +257,15 @@ uint8_t co_api_write(co_api_t *api, uint8_t offset, uint8_t length, const uint8_
         api->refused_writes++;
         return 0;
     }
-    co_od_t *od = api->config.node.od;
-    uint8_t *image = co_od_image(od);
-    uint32_t end = offset + n;
-    co_pdo_t *pdo = api->started ? co_stack_pdo(api->stack) : NULL;
-    /* each TPDO-mapped entry whose bytes change is an event for its TPDOs */
-    for (uint32_t i = 0; pdo != NULL && i < od->count; i++) {
-        const co_od_entry_t *e = &od->entries[i];
-        if (!co_od_in_image(od, e) || !(e->flags & CO_OD_MAP_TPDO) || e->value >= end ||
-            e->value + e->size <= offset) {
-            continue;
-        }
-        uint32_t from = e->value > offset ? e->value : offset;
-        uint32_t to = e->value + e->size < end ? e->value + e->size : end;
-        if (memcmp(image + from, data + (from - offset), to - from) != 0) {
-            memcpy(image + from, data + (from - offset), to - from);
-            co_pdo_trigger_object(pdo, co_od_entry_index(e), co_od_entry_sub(e));
+    uint8_t *image = co_od_image(api->config.node.od);
+    uint8_t changed[(CO_API_IMAGE_MAX + 7u) / 8u] = {0};
+    for (uint32_t i = 0; i < n; i++) {
+        if (image[offset + i] != data[i]) {
+            changed[(offset + i) / 8u] |= (uint8_t)(1u << ((offset + i) % 8u));
         }
     }
     memcpy(image + offset, data, n);
+    trigger_tpdos(api, changed);
     return (uint8_t)n;
 }
 

@@ -284,6 +284,7 @@ static void test_write_sends_the_tpdo(void **state)
     tu_run_until(&fx->tb, fx->tb.now + 5 * TU_MS);
     tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x180 + NODE, before), 0x180 + NODE,
                      (const uint8_t[]){0x10, 0x20}, 2);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x180 + NODE), before + 1);   /* once */
     fx_free(fx);
 }
 

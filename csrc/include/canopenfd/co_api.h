@@ -97,7 +97,8 @@ uint8_t co_api_get_status(const co_api_t *api);
 uint8_t co_api_init_canopen(co_api_t *api, uint8_t bps, uint8_t node_id);
 /* Copy image bytes out / in: the number copied, fewer at the end of the
  * image, 0 from offset past it; nothing outside the image is touched. A
- * write that changes a TPDO-mapped entry triggers its event-driven TPDOs. */
+ * write that changes bytes a TPDO maps triggers that TPDO once, after all
+ * bytes are in (event-driven types, in operational). */
 uint8_t co_api_read(co_api_t *api, uint8_t offset, uint8_t length, uint8_t *data);
 uint8_t co_api_write(co_api_t *api, uint8_t offset, uint8_t length, const uint8_t *data);
 
