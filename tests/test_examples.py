@@ -32,6 +32,11 @@ EXPECTED = {
     "pdo_remap.py": ((), ["mapped: ['Process data.Process data 1'", "on COB-ID 0x185",
                           "PDOs received: 10; last values [5, 0, 0, 5000]"]),
     "sync_cyclic.py": (("--cycles", "30"), ["cycles received: 30", "no cycle skipped"]),
+    "process_image_host.py": ((), ["host: task 1234h version 1.2, status 01h",
+                                   "host: InitCANopen -> True", "host: NMTChange 7Fh",
+                                   "host: NMTChange 05h", "network: TPDO 1 carries 12 34",
+                                   "host: ReceivedData 2..3, read ab cd",
+                                   "host: read past the end gives 2 bytes, from offset 9 0"]),
     "asyncio_many.py": ((), [f"node {n}: vendor 00000000, 65536 bytes ok" for n in range(2, 10)]
                         + ["24 transfers, 8 at a time"]),
     "firmware_download.py": ((), ["downloaded 1048576 bytes (bulk)", "device: image verified"]),

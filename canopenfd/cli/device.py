@@ -14,6 +14,8 @@ from ..errors import CanopenFDError
 from ..od import DataType, ObjectDictionary
 from .common import (EXIT_OK, Printer, UsageError, add_line_options, od_arg,
                      command_line, ms_arg, node_id_arg, parse_key, wait_until_done)
+from .device_setup import add_options as add_setup_options
+from .device_setup import cmd_setup_device
 
 _SIZE_RE = re.compile(r"^(0x[0-9a-f]+|\d+)\s*(k|kib|m|mib|g|gib|b)?$", re.IGNORECASE)
 _SIZE_UNITS = {None: 1, "b": 1, "k": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mib": 1 << 20,
@@ -23,7 +25,7 @@ _SIZE_UNITS = {None: 1, "b": 1, "k": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mib
 def add_parsers(subparsers: Any) -> None:
     p = subparsers.add_parser("device", help="run a local node until interrupted")
     add_line_options(p)
-    p.add_argument("--node-id", type=int, required=True, metavar="N",
+    p.add_argument("--node-id", type=int, metavar="N",
                    help="the node's node-id 1..127, or 255: factory-fresh, only its LSS "
                         "slave answers until an LSS master gives it a node-id (the "
                         "dictionary needs 0x1018:04; see --serial)")
@@ -48,6 +50,7 @@ def add_parsers(subparsers: Any) -> None:
                         "by itself)")
     p.add_argument("--duration", type=float, metavar="SECONDS",
                    help="stop after SECONDS (default: run until Ctrl-C)")
+    add_setup_options(p)
     p.set_defaults(func=cmd_device)
 
 
@@ -135,6 +138,12 @@ def _device_domains(args: argparse.Namespace, od: Any, mode: str) -> Dict[Tuple[
 
 # ------------------------------------------------------------------ command
 def cmd_device(args: argparse.Namespace) -> int:
+    if args.setup is not None:
+        return cmd_setup_device(args)
+    if args.host_link is not None:
+        raise UsageError("--host-link serves a process image: it needs --setup FILE")
+    if args.node_id is None:
+        raise UsageError("device: --node-id N is required (or --setup FILE)")
     mode = "classic" if args.classic else "fd"
     unconfigured = args.node_id == 255
     node_id = args.node_id if unconfigured else node_id_arg(args.node_id, "--node-id")

@@ -372,7 +372,10 @@ static co_od_add_result_t validate(const co_od_def_t *def)
     return CO_OD_ADDED;
 }
 
-co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def)
+/* Add one entry; with in_image its value lives at image byte `offset` (the
+ * caller checked the range), only default and limits take pool room. */
+static co_od_add_result_t add_entry(co_od_t *od, const co_od_def_t *def, bool in_image,
+                                    uint32_t offset)
 {
     if (od->sealed) {
         return CO_OD_ERR_SEALED;
@@ -393,7 +396,7 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def)
     if (pos < od->count && od->entries[pos].key == key) {
         return CO_OD_ERR_DUPLICATE;
     }
-    uint32_t need = co_od_pool_need(def);
+    uint32_t need = co_od_pool_need(def) - (in_image ? def->size : 0u);
     if (od->count >= od->capacity || need > od->pool_size - od->pool_used) {
         return CO_OD_ERR_FULL;
     }
@@ -410,12 +413,12 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def)
     e->flags = def->flags;
     e->size = def->size;
     e->length = 0;
-    e->value = od->pool_used;
-    e->default_value = e->value + def->size;
+    e->value = in_image ? offset : od->pool_used;
+    e->default_value = in_image ? od->pool_used : e->value + def->size;
     e->default_length = def->default_length;
     e->limits = e->default_value + def->default_length;
     if (need > 0) {   /* (no pool pointer arithmetic when there is no pool) */
-        memset(od->pool + e->value, 0, need);
+        memset(od->pool + od->pool_used, 0, need);
         copy_bytes(od->pool + e->default_value, def->default_value, def->default_length);
         if (def->flags & FLAGS_LIMITS) {
             copy_bytes(od->pool + e->limits, def->min, def->size);
@@ -425,6 +428,47 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def)
     od->pool_used += need;
     od->count++;
     return CO_OD_ADDED;
+}
+
+co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def)
+{
+    return add_entry(od, def, false, 0);
+}
+
+bool co_od_reserve_image(co_od_t *od, uint32_t size)
+{
+    if (od->sealed || od->count > 0 || od->pool_used > 0 || size > od->pool_size) {
+        return false;
+    }
+    if (size > 0) {
+        memset(od->pool, 0, size);
+    }
+    od->image_size = size;
+    od->pool_used = size;
+    return true;
+}
+
+co_od_add_result_t co_od_add_in_image(co_od_t *od, const co_od_def_t *def, uint32_t offset)
+{
+    if (od->sealed) {
+        return CO_OD_ERR_SEALED;
+    }
+    if (def == NULL) {
+        return CO_OD_ERR_TYPE;
+    }
+    /* a fixed-size value only: strings and domains change length */
+    if (co_od_type_size(def->type) == 0 || def->size != co_od_type_size(def->type) ||
+        offset >= od->image_size || def->size > od->image_size - offset) {
+        return CO_OD_ERR_IMAGE;
+    }
+    for (uint32_t i = 0; i < od->count; i++) {   /* no two entries share a byte */
+        const co_od_entry_t *e = &od->entries[i];
+        if (co_od_in_image(od, e) && e->value < offset + def->size &&
+            offset < e->value + e->size) {
+            return CO_OD_ERR_IMAGE;
+        }
+    }
+    return add_entry(od, def, true, offset);
 }
 
 /* Load the default of one entry into its value; true when anything changed.

@@ -215,6 +215,7 @@ struct co_od {
     co_od_subscription_t *subs;
     uint8_t sub_count;
     uint8_t sub_capacity;
+    uint32_t image_size;          /* pool[0..image_size): the process image (seed 004) */
 };
 
 typedef enum co_od_xfer_state {
@@ -257,7 +258,8 @@ typedef enum co_od_add_result {
     CO_OD_ERR_TYPE = 4,           /* unknown type, or size does not fit the type */
     CO_OD_ERR_DEFAULT = 5,        /* default longer than size, or outside the limits */
     CO_OD_ERR_LIMITS = 6,         /* min > max */
-    CO_OD_ERR_SEALED = 7
+    CO_OD_ERR_SEALED = 7,
+    CO_OD_ERR_IMAGE = 8           /* in the image: not fixed-size, past its end, overlapping */
 } co_od_add_result_t;
 /* Adds may come in any order (ascending is cheapest: the table stays sorted,
  * out-of-order adds move the entries behind). A fixed-size entry without a
@@ -273,6 +275,16 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def);
  * (still unsealed, refused_index set) when a check fails, or when the OD is
  * already sealed. */
 bool co_od_seal(co_od_t *od, uint8_t node_id);
+/* The process image (seed 004 §3): the first `size` bytes of the pool hold
+ * the values of the entries added with co_od_add_in_image, so PDOs, SDO/USDO
+ * and the host (co_api) work on the same bytes. Before any add; false when
+ * too late or the pool is smaller. */
+bool co_od_reserve_image(co_od_t *od, uint32_t size);
+/* Add an entry whose value lives at image byte `offset` (little-endian as
+ * every value): fixed-size types only, within the image, sharing no byte
+ * with another image entry (else CO_OD_ERR_IMAGE). Its default is what a
+ * reset loads there. */
+co_od_add_result_t co_od_add_in_image(co_od_t *od, const co_od_def_t *def, uint32_t offset);
 /* A sealed OD's node-id changes (LSS gave an unconfigured node one): what
  * $NODEID-relative defaults add from the next co_od_load_defaults on. */
 void co_od_set_node_id(co_od_t *od, uint8_t node_id);
@@ -289,6 +301,13 @@ const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t sub);
 /* True when the index exists at all (to tell "no object" from "no sub"). */
 bool co_od_has_index(const co_od_t *od, uint16_t index);
 static inline uint8_t *co_od_value(co_od_t *od, const co_od_entry_t *e) { return od->pool + e->value; }
+static inline uint32_t co_od_image_size(const co_od_t *od) { return od->image_size; }
+static inline uint8_t *co_od_image(co_od_t *od) { return od->pool; }
+/* True when the entry's value lives in the process image. */
+static inline bool co_od_in_image(const co_od_t *od, const co_od_entry_t *e)
+{
+    return e->size > 0 && e->value < od->image_size;
+}
 /* Fixed size of a type in bytes, 0 for strings and domains. */
 uint32_t co_od_type_size(uint8_t type);
 /* Copy the value out: abort code or 0; *length = bytes (length may be NULL).
