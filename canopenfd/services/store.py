@@ -139,6 +139,10 @@ class ParameterStore:
             loaded = medium.load()
             status = StoreStatus.OK if loaded else StoreStatus.EMPTY
             image = bytes(loaded or b"")
+        except ConfigurationError:
+            # a medium that can tell what is wrong (a text store's file:line)
+            # stops the boot: the device never starts half-configured
+            raise
         except Exception:  # noqa: BLE001 - an unreadable medium: run on defaults, say so
             log.exception("%s: load() failed; the node starts from defaults", what)
             image, status = b"", StoreStatus.IO
