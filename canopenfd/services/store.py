@@ -21,11 +21,12 @@ import os
 import threading
 from typing import Callable, Optional, Protocol, Union
 
-from .._binding.constants import AbortCode, EventKind, ParameterGroup, StoreStatus
+from .._binding.constants import AbortCode, EventKind, StoreStatus
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
 from ..errors import AbortError, ConfigurationError
+from .store_groups import DEFAULT_GROUPS, GroupTable
 from .views import LocalNodeView
 
 __all__ = ["MemoryStore", "ParameterStore", "StoreMedium", "StoreLike", "check_store",
@@ -47,13 +48,9 @@ class StoreMedium(Protocol):
 #: What create_local_node(store=...) takes.
 StoreLike = Union[str, bytes, "os.PathLike[str]", StoreMedium]
 
-#: 0x1010 / 0x1011 parameter groups by name: (group mask, CiA 301 sub-index).
-PARAMETER_GROUPS = {
-    "all": (ParameterGroup.ALL, 1),
-    "communication": (ParameterGroup.COMMUNICATION, 2),
-    "application": (ParameterGroup.APPLICATION, 3),
-    "manufacturer": (ParameterGroup.MANUFACTURER, 4),
-}
+#: 0x1010 / 0x1011 parameter groups by name without a declaration: (group
+#: mask, CiA 301 sub-index); see canopenfd.services.store_groups.
+PARAMETER_GROUPS = DEFAULT_GROUPS
 
 #: What a parameter load found (co_store_status_t), as the texts callbacks get:
 #: the C name in lower case with dashes ('too-big'); IO says what failed.
@@ -110,8 +107,12 @@ class ParameterStore:
     STORE tell what a load found)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView,
-                 store: Union[None, str, StoreMedium], where: str) -> None:
+                 store: Union[None, str, StoreMedium], where: str,
+                 groups: Optional[GroupTable] = None) -> None:
         self._context = context
+        self._groups = groups
+        #: save_parameters / restore_defaults group names: (mask, sub-index)
+        self.group_names = groups.names if groups is not None else PARAMETER_GROUPS
         self._node = node
         #: A file path, a StoreMedium, or None.
         self.store = store
@@ -130,7 +131,12 @@ class ParameterStore:
 
     def open(self) -> None:
         """At boot, once the OD is defined: give an application medium's image
-        to the runtime (an unreadable medium: the node runs on defaults)."""
+        to the runtime (an unreadable medium: the node runs on defaults), and
+        the declared parameter groups."""
+        if self._groups is not None:
+            self._context.runtime.store_groups(
+                self._context.index, self._groups.rows, self._groups.min_interval_ms,
+                f"store groups of {self._where}")
         medium = self.medium
         if medium is None:
             return
@@ -177,11 +183,12 @@ class ParameterStore:
     def save_or_restore(self, group: str, save: bool) -> None:
         """What a "save" to 0x1010 (save=True) or a "load" to 0x1011 does."""
         what = f"{'save_parameters' if save else 'restore_defaults'}({group!r}) on {self._where}"
-        if group not in PARAMETER_GROUPS:
-            raise ConfigurationError(f"{what}: group must be one of {', '.join(PARAMETER_GROUPS)}")
+        if group not in self.group_names:
+            raise ConfigurationError(f"{what}: group must be one of "
+                                     f"{', '.join(self.group_names)}")
         if not self._node.booted:
             raise ConfigurationError(f"{what}: the node is not booted yet")
-        mask, sub = PARAMETER_GROUPS[group]
+        mask, sub = self.group_names[group]
         context = self._context
         code = context.runtime.od_store(context.index, mask, save, what)
         if code == 0 and self.medium is not None:

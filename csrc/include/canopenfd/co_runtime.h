@@ -298,6 +298,13 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
 /* After co_rt_od_save / co_rt_od_restore_defaults: persisted (ok = 1: the
  * staged image becomes the one loads use) or not (ok = 0: dropped). */
 int co_rt_store_finish(co_rt_t *rt, int line, int ok);
+/* Declare the node's parameter groups (co_store_config_t; copied), after
+ * co_rt_od_define and co_rt_store_application, before CO_CMD_NODE_CREATE,
+ * which refuses a declaration co_store_init_config refuses. Autonomously
+ * saved groups need a store file (min_interval_ms: least time between two
+ * autonomous saves). */
+int co_rt_store_groups(co_rt_t *rt, int line, const co_store_group_t *groups, uint32_t rows,
+                       uint32_t min_interval_ms);
 
 /* ---- Client transfers: USDO on fd lines, SDO on classic lines. They run in
  * the runtime thread; the caller starts them, is told CO_EV_TRANSFER_DONE

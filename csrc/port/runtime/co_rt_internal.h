@@ -245,6 +245,9 @@ typedef struct rt_line {
     uint8_t domain_count;
     char *store_path;                /* file store, or NULL */
     rt_app_store_t app_store;        /* application store (instead of a file) */
+    co_store_group_t *store_groups;  /* declared parameter groups, or NULL: the default */
+    uint8_t store_group_rows;
+    uint32_t store_min_interval_ms;
     co_store_file_t *store_file;
     struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
     /* Runtime state of the services' glue (EMCY, TIME and guarding keep none). */

@@ -72,6 +72,14 @@ uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
 int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity_out)
 {
     rt_app_store_t *a = &l->app_store;
+    for (uint8_t i = 0; i < l->store_group_rows; i++) {
+        if (l->store_groups[i].mode & CO_STORE_MODE_AUTONOMOUS) {
+            /* the runtime thread would stage images nobody writes to the medium */
+            rt_set_error(rt, "line %d: autonomously saved parameter groups need a store "
+                         "file, not an application store", l->index);
+            return CO_RT_ERR_ARGUMENT;
+        }
+    }
     uint32_t need = co_store_image_need(&l->od);
     /* Committed and staged swap places, so both hold an image of either size. */
     uint32_t capacity = need > a->committed_length ? need : a->committed_length;
@@ -111,10 +119,11 @@ static const co_od_handler_t persist_handler = {.check_write = on_check_persist}
 
 bool rt_app_store_hook(rt_line_t *l)
 {
+    uint8_t last = co_stack_store(&l->stack)->last_sub;   /* the store hooked 1..last */
     return (!co_od_has_index(&l->od, 0x1010) ||
-            co_od_subscribe(&l->od, 0x1010, 1, 0x1010, 4, &persist_handler, l)) &&
+            co_od_subscribe(&l->od, 0x1010, 1, 0x1010, last, &persist_handler, l)) &&
            (!co_od_has_index(&l->od, 0x1011) ||
-            co_od_subscribe(&l->od, 0x1011, 1, 0x1011, 4, &persist_handler, l));
+            co_od_subscribe(&l->od, 0x1011, 1, 0x1011, last, &persist_handler, l));
 }
 
 void rt_app_store_free(rt_line_t *l)
@@ -212,6 +221,39 @@ int co_rt_store_finish(co_rt_t *rt, int line, int ok)
     } else if (a) {
         (void)rt_app_store_persisted(l, ok ? 0u : CO_ABORT_DATA_STORE);
         result = CO_RT_OK;
+    }
+    rt_mutex_unlock(&rt->lock);
+    return result;
+}
+
+/* ---------------------------------------------------------------- groups */
+
+int co_rt_store_groups(co_rt_t *rt, int line, const co_store_group_t *groups, uint32_t rows,
+                       uint32_t min_interval_ms)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l || !groups || rows == 0 || rows > CO_STORE_MAX_GROUP_ROWS ||
+        !co_store_groups_valid(groups, (uint8_t)rows)) {
+        return rt_argument_error(rt, "line %d: parameter groups refused (1..%d blocks in "
+                                 "0x1000..0xFFFF that do not overlap, sub-indices 2, 3, ... "
+                                 "without gaps, one mode and reset type per group)", line,
+                                 CO_STORE_MAX_GROUP_ROWS);
+    }
+    rt_mutex_lock(&rt->lock);
+    int result = CO_RT_OK;
+    if (!l->has_od || rt_has_node(l) || l->store_groups) {
+        rt_set_error(rt, "line %d: parameter groups come once, after the object dictionary "
+                     "and before the node", line);
+        result = CO_RT_ERR_STATE;
+    } else {
+        l->store_groups = malloc(rows * sizeof *groups);
+        if (!l->store_groups) {
+            result = CO_RT_ERR_NO_MEMORY;
+        } else {
+            memcpy(l->store_groups, groups, rows * sizeof *groups);
+            l->store_group_rows = (uint8_t)rows;
+            l->store_min_interval_ms = min_interval_ms;
+        }
     }
     rt_mutex_unlock(&rt->lock);
     return result;
