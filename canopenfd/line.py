@@ -29,7 +29,7 @@ from .services.lss import UNCONFIGURED, LssMaster
 from .services.manager import NetworkManager
 from .services.nmt import HeartbeatEvent, NmtMaster, NmtState, NodeEvents, remote_state_of
 from .services.store import StoreLike, check_store
-from .services.store_groups import MODES, GroupTable, StoreGroup, declare_groups
+from .services.store_groups import GroupTable, StoreGroup, declare_groups
 from .services.sleep import SleepService
 from .services.sync import SyncService
 from .services.time import TimeService
@@ -167,7 +167,7 @@ class Line:
         store_groups: the parameter groups of 0x1010/0x1011 (StoreGroup list,
         see canopenfd.services.store_groups; default: CiA 301's by index
         range); autonomously saved groups are written by the stack at most
-        every store_interval_ms (they need a store file).
+        every store_interval_ms.
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
@@ -549,9 +549,4 @@ def _store_groups(groups: Optional[Sequence[StoreGroup]], interval_ms: int,
         return None
     if store is None:
         raise ConfigurationError(f"{where}: store_groups need a store")
-    table = declare_groups(groups, interval_ms, where)
-    autonomous = any(row[3] & MODES["autonomous"] for row in table.rows)
-    if autonomous and not isinstance(store, str):
-        raise ConfigurationError(f"{where}: autonomously saved store groups need a store "
-                                 "file (the stack writes it itself), not a store object")
-    return table
+    return declare_groups(groups, interval_ms, where)

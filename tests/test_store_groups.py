@@ -14,6 +14,7 @@ import pytest
 
 from canopenfd import ConfigurationError
 from canopenfd.od import demo_od
+from canopenfd.services.store import MemoryStore
 from canopenfd.services.store_groups import StoreGroup
 from canopenfd.services.store_image import parse_image
 from canopenfd.services.store_text import TextStore
@@ -150,17 +151,82 @@ def test_bad_declarations_are_refused_naming_the_group(net, bus_name, tmp_path, 
     assert line.local_node is None
 
 
-def test_autonomous_groups_need_a_store_file(net, bus_name, tmp_path):
+def wait_for(condition, what, timeout=5.0):
+    deadline = time.monotonic() + scaled(timeout)
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.01)
+
+
+def test_the_text_store_is_written_on_change(net, bus_name, tmp_path):
+    """Retentive variables: a change of an autonomous group's member reaches
+    the text file through the application store, no save command."""
+    path = tmp_path / "p.txt"
     line = net.open_line(bus_name, mode="classic")
-    with pytest.raises(ConfigurationError, match="need a store file"):
-        line.create_local_node(NODE, od=demo_od("classic"), store=TextStore(tmp_path / "p.txt"),
-                               store_groups=GROUPS)
-    # on command only: a store object (the text store) takes them
-    node = line.create_local_node(NODE, od=demo_od("classic"),
-                                  store=TextStore(tmp_path / "p.txt"),
-                                  store_groups=[StoreGroup("limits", [(0x2001, 0x2004)])])
+    node = line.create_local_node(NODE, od=demo_od("classic"), store=TextStore(path),
+                                  store_groups=GROUPS, store_interval_ms=100)
+    node[0x2006].raw = 1234
+    wait_for(lambda: path.exists() and "2006 00 UNSIGNED16 2 : D2 04\n" in path.read_text(),
+             "0x2006 never written to the text store")
+    assert "2003 00" not in path.read_text()          # "limits" is saved on command only
     node[0x2003].raw = -7
     node.save_parameters("limits")
-    assert "2003 00 INTEGER16 2 : F9 FF\n" in (tmp_path / "p.txt").read_text()
-    with pytest.raises(ConfigurationError, match="one of all, limits"):
+    assert "2003 00 INTEGER16 2 : F9 FF\n" in path.read_text()
+    with pytest.raises(ConfigurationError, match="one of all, comm, tuning, limits"):
         node.save_parameters("communication")
+    restarted = boot_on(net, bus_name + "-restart", TextStore(path))
+    assert restarted[0x2006].raw == 1234 and restarted[0x2003].raw == -7
+
+
+def boot_on(net, bus, store):
+    line = net.open_line(bus, mode="classic")
+    return line.create_local_node(NODE, od=demo_od("classic"), store=store,
+                                  store_groups=GROUPS, store_interval_ms=100)
+
+
+def test_an_autonomous_save_the_medium_refuses_is_retried(net, bus_name):
+    class Flaky(MemoryStore):
+        failures = 1
+
+        def save(self, image):
+            if self.failures:
+                self.failures -= 1
+                raise OSError("medium busy")
+            super().save(image)
+
+    store = Flaky()
+    node = boot_on(net, bus_name, store)
+    node[0x2005].raw = 42
+    # the first save raised: the stack marks the group changed and saves again
+    wait_for(lambda: store.saves == 1, "the refused autonomous save was never retried")
+    assert store.failures == 0
+    assert boot_on(net, bus_name + "-restart", MemoryStore(store.image))[0x2005].raw == 42
+
+
+def test_an_application_save_while_an_autonomous_image_waits_persists_both(net, bus_name):
+    """The stack staged an autonomous image the dispatcher has not written yet
+    (it is busy in a callback): save_parameters writes that image first, then
+    its own, instead of failing on the busy staging slot."""
+    import threading
+
+    store = MemoryStore()
+    node = boot_on(net, bus_name, store)
+    busy, release = threading.Event(), threading.Event()
+
+    def hold_the_dispatcher(value, origin):
+        busy.set()
+        assert release.wait(scaled(10))
+    node.on_object_changed(hold_the_dispatcher)
+    sdo = Client(net, bus_name)
+    sdo.line.send_frame(REQUEST, bytes([0x2B, 0x17, 0x10, 0, 0x2C, 0x01, 0, 0]))  # 0x1017
+    assert busy.wait(scaled(5))
+    node[0x2006].raw = 555               # autonomous: staged, its event waits
+    time.sleep(scaled(0.2))
+    node[0x2003].raw = -9
+    node.save_parameters("limits")       # takes the autonomous image to the medium first
+    release.set()
+    assert store.saves == 2
+    image = parse_image(store.image)
+    values = {(r.index, r.sub): r.data for r in image.records}
+    assert values[(0x2006, 0)] == (555).to_bytes(2, "little")
+    assert values[(0x2003, 0)] == (-9).to_bytes(2, "little", signed=True)

@@ -264,6 +264,14 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
+    def store_autonomous_pending(self, line: int, what: str) -> bool:
+        """Whether the staged image is an autonomous save's."""
+        with self._lock:
+            rc = lib.co_rt_store_autonomous_pending(self._live(what), line)
+            if rc < 0:
+                self._raise(rc, what)
+            return rc == 1
+
     def store_groups(self, line: int, rows: Sequence[Tuple[int, int, int, int, int]],
                      min_interval_ms: int, what: str) -> None:
         """Declare parameter groups: (first_key, last_key, sub, mode, reset) rows."""

@@ -118,7 +118,12 @@ class ParameterStore:
         self.store = store
         self._where = where
         self._problems = CallbackList(f"node {node.node_id} store problem")
+        # One image goes to the medium at a time: the application's save, a
+        # network save and the stack's autonomous one each stage, persist and
+        # finish under it.
+        self._medium_lock = threading.RLock()
         context.subscribe(EventKind.STORE, self._event)
+        context.subscribe(EventKind.STORE_PERSIST, self._autonomous_save)
 
     @property
     def path(self) -> Optional[str]:
@@ -170,14 +175,38 @@ class ParameterStore:
             return int(AbortCode.DATA_STORE)
         return 0
 
+    def _autonomous_save(self, event: Event) -> Deferred:
+        """CO_EV_STORE_PERSIST: the stack saved autonomous groups into the
+        staging image; a medium that refuses it gets them marked changed again
+        (the stack retries one interval later)."""
+        what = f"autonomous parameter save on {self._where}"
+
+        def persist() -> None:
+            with self._medium_lock:
+                self._finish_autonomous(what)
+        return persist
+
+    def _finish_autonomous(self, what: str) -> bool:
+        """Persist and finish the staged image if it is an autonomous save's;
+        whether one was (under _medium_lock)."""
+        context = self._context
+        if self.medium is None or not context.runtime.store_autonomous_pending(context.index,
+                                                                                  what):
+            return False
+        code = self._persist(what)
+        if code is not None:
+            context.runtime.store_finish(context.index, code == 0, what)
+        return True
+
     def persist_request(self, token: int) -> Callable[[], None]:
         """A network save/restore waits until the image is on the medium (an
         OD request of kind STORE): what answers it."""
         what = f"0x1010/0x1011 over the network on {self._where}"
 
         def persist() -> None:
-            code = self._persist(what)
-            self._context.runtime.od_answer(self._context.index, token, code or 0, what)
+            with self._medium_lock:
+                code = self._persist(what)
+                self._context.runtime.od_answer(self._context.index, token, code or 0, what)
         return persist
 
     def save_or_restore(self, group: str, save: bool) -> None:
@@ -190,12 +219,16 @@ class ParameterStore:
             raise ConfigurationError(f"{what}: the node is not booted yet")
         mask, sub = self.group_names[group]
         context = self._context
-        code = context.runtime.od_store(context.index, mask, save, what)
-        if code == 0 and self.medium is not None:
-            persisted = self._persist(what)
-            if persisted is not None:
-                context.runtime.store_finish(context.index, persisted == 0, what)
-                code = persisted
+        with self._medium_lock:
+            code = context.runtime.od_store(context.index, mask, save, what)
+            if code == int(AbortCode.HARDWARE) and self._finish_autonomous(what):
+                # an autonomous image was waiting for the medium: now it is there
+                code = context.runtime.od_store(context.index, mask, save, what)
+            if code == 0 and self.medium is not None:
+                persisted = self._persist(what)
+                if persisted is not None:
+                    context.runtime.store_finish(context.index, persisted == 0, what)
+                    code = persisted
         if code:
             raise AbortError(code, self._node.node_id, 0x1010 if save else 0x1011, sub, what)
 

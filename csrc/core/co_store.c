@@ -533,39 +533,48 @@ static void on_autonomous_timer(co_timer_t *timer, uint64_t now_us, void *user)
 {
     co_store_t *s = user;
     uint8_t changed = s->changed;
+    uint32_t abort;
     (void)timer;
     if (changed == 0)
         return;   /* a load since the change put the saved values back */
     s->last_autonomous_us = now_us;
     s->autonomous_ran = true;
     s->changed = 0;
-    if (co_store_save(s, changed) == 0) {
+    abort = co_store_save(s, changed);
+    if (abort == 0) {
         s->autonomous_saves++;
-        return;
+    } else {
+        s->autonomous_failures++;
+        s->changed |= changed;
+        co_timer_start(co_line_timers(s->line), &s->autonomous_timer,
+                       now_us + s->min_interval_us);
     }
-    s->autonomous_failures++;
-    s->changed |= changed;
-    co_timer_start(co_line_timers(s->line), &s->autonomous_timer, now_us + s->min_interval_us);
+    if (s->autonomous_saved != NULL)
+        s->autonomous_saved(s, abort, s->autonomous_user);
+}
+
+void co_store_changed(co_store_t *s, uint8_t groups)
+{
+    uint64_t due, now;
+    groups &= groups_with_mode(s, CO_STORE_MODE_AUTONOMOUS);
+    if (groups == 0 || s->line == NULL)
+        return;
+    s->changed |= groups;
+    if (co_timer_is_armed(&s->autonomous_timer))
+        return;
+    now = co_line_now(s->line);
+    due = s->autonomous_ran ? s->last_autonomous_us + s->min_interval_us : now;
+    co_timer_start(co_line_timers(s->line), &s->autonomous_timer, due > now ? due : now);
 }
 
 static void on_member_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin,
                               void *user)
 {
     co_store_t *s = user;
-    uint8_t group;
-    uint64_t due, now;
     (void)od;
     if (origin == CO_ORIGIN_RESTORE || !entry_is_stored(e))
         return;   /* a load is no change to save */
-    group = co_store_group_of(s, e->key) & groups_with_mode(s, CO_STORE_MODE_AUTONOMOUS);
-    if (group == 0)
-        return;
-    s->changed |= group;
-    if (co_timer_is_armed(&s->autonomous_timer))
-        return;
-    now = co_line_now(s->line);
-    due = s->autonomous_ran ? s->last_autonomous_us + s->min_interval_us : now;
-    co_timer_start(co_line_timers(s->line), &s->autonomous_timer, due > now ? due : now);
+    co_store_changed(s, co_store_group_of(s, e->key));
 }
 
 static const co_od_handler_t member_handler = {
@@ -720,6 +729,8 @@ bool co_store_init_config(co_store_t *s, co_od_t *od, const co_store_backend_t *
     if (autonomous) {
         s->line = config->line;
         s->min_interval_us = (uint64_t)config->min_interval_ms * 1000u;
+        s->autonomous_saved = config->autonomous_saved;
+        s->autonomous_user = config->autonomous_user;
     }
     co_timer_init(&s->autonomous_timer, on_autonomous_timer, s);
     /* Sub 1..last_sub only: sub 0 is the OD's, higher manufacturer subs stay plain. */

@@ -46,11 +46,21 @@ typedef struct fixture {
     uint8_t buf[2048];
     tu_mem_backend_t mem;
     tu_line_t line;
+    unsigned told;               /* autonomous_saved calls */
+    uint32_t last_abort;
 } fixture_t;
+
+static void on_saved(co_store_t *s, uint32_t abort, void *user)
+{
+    fixture_t *fx = user;
+    (void)s;
+    fx->told++;
+    fx->last_abort = abort;
+}
 
 static co_store_config_t config_of(fixture_t *fx, const co_store_group_t *g, uint8_t n)
 {
-    co_store_config_t c = { g, n, &fx->line.line, INTERVAL_MS };
+    co_store_config_t c = { g, n, &fx->line.line, INTERVAL_MS, on_saved, fx };
     return c;
 }
 
@@ -306,14 +316,33 @@ static void test_a_failed_autonomous_save_is_retried(void **state)
     put(fx, 0x2000, 9);
     at_ms(fx, 0);
     assert_int_equal(fx->store.autonomous_failures, 1);
+    assert_int_equal(fx->told, 1);
+    assert_int_equal(fx->last_abort, CO_ABORT_HARDWARE);   /* the application hears it */
     fx->mem.fail_save = false;
     at_ms(fx, INTERVAL_MS - 1);
     assert_int_equal(fx->store.autonomous_saves, 0);
     at_ms(fx, INTERVAL_MS);
     assert_int_equal(fx->store.autonomous_saves, 1);
+    assert_int_equal(fx->told, 2);
+    assert_int_equal(fx->last_abort, 0);
     put(fx, 0x2000, 1);
     assert_int_equal(co_store_load_at_reset(&fx->store, true), CO_STORE_OK);
     assert_int_equal(get(fx, 0x2000), 9);
+}
+
+static void test_changed_behind_the_od_is_saved_too(void **state)
+{
+    fixture_t *fx = *state;
+    const co_od_entry_t *e = co_od_find(&fx->od, 0x2001, 0);
+    /* the application changed the value in place (no co_od_put) and says so */
+    tu_le_put(co_od_value(&fx->od, e), 77, 4);
+    co_store_changed(&fx->store, 0xFF);    /* only autonomous groups are marked */
+    assert_int_equal(fx->store.changed, 0x2 | 0x4);
+    at_ms(fx, 0);
+    assert_int_equal(fx->store.autonomous_saves, 1);
+    tu_le_put(co_od_value(&fx->od, e), 1, 4);
+    assert_int_equal(co_store_load_at_reset(&fx->store, true), CO_STORE_OK);
+    assert_int_equal(get(fx, 0x2001), 77);
 }
 
 int main(void)
@@ -330,6 +359,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_power_cut_during_an_autonomous_save, setup,
                                         teardown),
         cmocka_unit_test_setup_teardown(test_a_failed_autonomous_save_is_retried, setup,
+                                        teardown),
+        cmocka_unit_test_setup_teardown(test_changed_behind_the_od_is_saved_too, setup,
                                         teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -171,6 +171,7 @@ typedef struct co_stack_node_config {
     const co_store_group_t *store_groups;
     uint8_t store_group_rows;
     uint32_t store_min_interval_ms;
+    co_store_saved_fn store_saved;   /* told after autonomous saves, with `user` (may be NULL) */
     /* fd lines: USDO server sessions, 0 = CO_STACK_DEFAULT_SERVER_SESSIONS.
      * classic lines: the default SDO channel plus one per 0x1201..0x127F
      * object of the OD (this field is not used). */

@@ -75,6 +75,11 @@ enum {
     CO_STORE_MAX_GROUP_ROWS = 32
 };
 
+struct co_store;
+/* Told after each autonomous save: abort 0 (saved) or the abort code of the
+ * refused save (retried one interval later). */
+typedef void (*co_store_saved_fn)(struct co_store *s, uint32_t abort, void *user);
+
 typedef struct co_store_config {
     /* NULL: the default declaration, CiA 301's groups by index range: sub 2
      * communication (0x1000..0x1FFF, reset communication), sub 3 application
@@ -89,6 +94,8 @@ typedef struct co_store_config {
      * the medium per interval. */
     co_line_t *line;
     uint32_t min_interval_ms;
+    co_store_saved_fn autonomous_saved;   /* may be NULL */
+    void *autonomous_user;
 } co_store_config_t;
 
 typedef struct co_store {
@@ -114,6 +121,8 @@ typedef struct co_store {
     co_timer_t autonomous_timer;
     uint32_t autonomous_saves;     /* autonomous saves done */
     uint32_t autonomous_failures;  /* autonomous saves the backend refused (retried) */
+    co_store_saved_fn autonomous_saved;
+    void *autonomous_user;
 } co_store_t;
 
 /* Bytes of one image of this (sealed) OD. */
@@ -144,6 +153,9 @@ uint8_t co_store_reset_groups(const co_store_t *s, bool reset_node);
  * group load their defaults when their index range (co_od_group_of) is the
  * reset's (communication area at a reset communication, all at a reset node). */
 co_store_status_t co_store_load_at_reset(co_store_t *s, bool reset_node);
+/* Mark autonomous groups changed as a write to a member does (a value
+ * changed behind the OD's back, or a save that did not reach the medium). */
+void co_store_changed(co_store_t *s, uint8_t groups);
 /* Unhook 0x1010/0x1011 (the OD outlives the store). */
 void co_store_deinit(co_store_t *s);
 /* 0x1010: save the CO_STORE entries of the groups in group_mask (the other

@@ -51,6 +51,7 @@ static void commit(rt_app_store_t *a)
     a->staged = old;
     a->status = CO_STORE_OK;
     a->staged_pending = false;
+    a->staged_autonomous = false;
 }
 
 uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
@@ -64,7 +65,22 @@ uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
         return 0;
     }
     a->staged_pending = false;
+    if (a->staged_autonomous) {
+        /* not on the medium: the values are still to be saved */
+        a->staged_autonomous = false;
+        co_store_changed(co_stack_store(&l->stack), 0xFF);
+    }
     return abort;
+}
+
+void rt_app_store_autonomous(co_store_t *s, uint32_t abort, void *user)
+{
+    rt_line_t *l = user;
+    (void)s;
+    if (abort == 0 && l->app_store.enabled && l->app_store.staged_pending) {
+        l->app_store.staged_autonomous = true;
+        rt_post(l, CO_EV_STORE_PERSIST, co_stack_node(&l->stack)->nmt.node_id, 0, 0, NULL);
+    }
 }
 
 /* ---------------------------------------------------------------- node attach */
@@ -72,14 +88,6 @@ uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
 int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity_out)
 {
     rt_app_store_t *a = &l->app_store;
-    for (uint8_t i = 0; i < l->store_group_rows; i++) {
-        if (l->store_groups[i].mode & CO_STORE_MODE_AUTONOMOUS) {
-            /* the runtime thread would stage images nobody writes to the medium */
-            rt_set_error(rt, "line %d: autonomously saved parameter groups need a store "
-                         "file, not an application store", l->index);
-            return CO_RT_ERR_ARGUMENT;
-        }
-    }
     uint32_t need = co_store_image_need(&l->od);
     /* Committed and staged swap places, so both hold an image of either size. */
     uint32_t capacity = need > a->committed_length ? need : a->committed_length;
@@ -221,7 +229,20 @@ int co_rt_store_finish(co_rt_t *rt, int line, int ok)
     } else if (a) {
         (void)rt_app_store_persisted(l, ok ? 0u : CO_ABORT_DATA_STORE);
         result = CO_RT_OK;
+        rt_kick(rt);   /* a failed autonomous save re-armed its timer */
     }
+    rt_mutex_unlock(&rt->lock);
+    return result;
+}
+
+int co_rt_store_autonomous_pending(co_rt_t *rt, int line)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    int result = l->app_store.staged_pending && l->app_store.staged_autonomous ? 1 : 0;
     rt_mutex_unlock(&rt->lock);
     return result;
 }
