@@ -247,6 +247,12 @@ static uint8_t all_groups(const co_store_t *s)
     return groups_with_mode(s, 0);
 }
 
+/* The groups that are saved at all: a disabled group's values are not kept. */
+static uint8_t enabled_groups(const co_store_t *s)
+{
+    return groups_with_mode(s, CO_STORE_MODE_BOTH);
+}
+
 /* The mode bits of the groups in mask, OR-ed (0x1010 sub 1 reports them all). */
 static uint8_t mode_of(const co_store_t *s, uint8_t mask)
 {
@@ -443,8 +449,8 @@ uint32_t co_store_save(co_store_t *s, uint8_t group_mask)
     co_store_status_t st;
     uint8_t keep;
 
-    group_mask &= all_groups(s);
-    keep = (uint8_t)(all_groups(s) & ~group_mask);
+    group_mask &= enabled_groups(s);
+    keep = (uint8_t)(enabled_groups(s) & ~group_mask);
     if (keep == 0)   /* saving everything needs nothing old: works over any file */
         return rewrite(s, group_mask, 0, NULL);
     st = image_read(s, s->previous, &prev);
@@ -460,7 +466,7 @@ uint32_t co_store_restore_defaults(co_store_t *s, uint8_t group_mask)
     img_view_t prev;
     co_store_status_t st;
 
-    group_mask &= all_groups(s);
+    group_mask &= enabled_groups(s);
     st = image_read(s, s->previous, &prev);
     if (st == CO_STORE_IO)
         return CO_ABORT_HARDWARE;
@@ -468,7 +474,7 @@ uint32_t co_store_restore_defaults(co_store_t *s, uint8_t group_mask)
         return 0;   /* nothing saved: defaults load already; spare the medium */
     /* A damaged or foreign image is replaced by an empty one (zero records):
      * the backend has no "erase", and the next load then says OK, not DAMAGED. */
-    return rewrite(s, 0, (uint8_t)(all_groups(s) & ~group_mask),
+    return rewrite(s, 0, (uint8_t)(enabled_groups(s) & ~group_mask),
                    st == CO_STORE_OK ? &prev : NULL);
 }
 
@@ -502,7 +508,7 @@ static co_store_status_t load(co_store_t *s, uint8_t groups, uint8_t areas)
     pick.areas = areas;
     /* the loaded values are the saved ones (or defaults): nothing to save */
     s->changed &= (uint8_t)~groups;
-    groups &= groups_with_mode(s, CO_STORE_MODE_BOTH);
+    groups &= enabled_groups(s);
     s->records_skipped = 0;
     co_od_load_defaults_if(s->od, pick_default, &pick);
     st = image_read(s, s->image, &view);
@@ -625,8 +631,7 @@ static uint32_t on_check_restore(co_od_t *od, co_od_xfer_t *xfer, const co_od_en
     (void)od;
     (void)xfer;
     co_store_t *s = user;
-    uint8_t groups = group_of_sub(s, co_od_entry_sub(e)) &
-                     groups_with_mode(s, CO_STORE_MODE_BOTH);
+    uint8_t groups = group_of_sub(s, co_od_entry_sub(e)) & enabled_groups(s);
     if (length != 4 || get_u32(value) != CO_STORE_LOAD_SIGNATURE || groups == 0)
         return CO_ABORT_DATA_STORE;   /* also: a disabled group */
     return co_store_restore_defaults(s, groups);

@@ -129,9 +129,10 @@ typedef struct co_store {
 uint32_t co_store_image_need(const co_od_t *od);
 /* buffer must hold at least 2 * co_store_image_need(od) (more lets images of
  * an older OD layout with more entries load instead of being TOO_BIG). Hooks
- * 0x1010 and 0x1011 sub 1..4 when they exist (reads report "saves/restores on
- * command"; writes need the signature, otherwise CO_ABORT_DATA_STORE). False
- * on a bad argument, an unsealed OD, a small buffer or no subscription room. */
+ * 0x1010 and 0x1011 sub 1..4 when they exist (the default groups, see
+ * co_store_config_t: reads report "saves/restores on command"; writes need the
+ * signature, otherwise CO_ABORT_DATA_STORE). False on a bad argument, an
+ * unsealed OD, a small buffer or no subscription room. */
 bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend, void *user,
                    uint8_t *buffer, uint32_t buffer_size);
 /* The same with declared groups (config NULL: co_store_init). False also
@@ -159,7 +160,8 @@ void co_store_changed(co_store_t *s, uint8_t groups);
 /* Unhook 0x1010/0x1011 (the OD outlives the store). */
 void co_store_deinit(co_store_t *s);
 /* 0x1010: save the CO_STORE entries of the groups in group_mask (the other
- * groups keep what was saved before). 0 or an abort code. */
+ * groups keep what was saved before; whatever the mode, but a disabled group
+ * is never saved). 0 or an abort code. */
 uint32_t co_store_save(co_store_t *s, uint8_t group_mask);
 /* 0x1011: forget the saved values of the groups, so the next reset loads
  * their defaults. 0 or an abort code. */
