@@ -12,9 +12,10 @@ import pytest
 
 from canopenfd import AbortError
 from canopenfd.cli.entry import main
-from canopenfd.od import demo_od
+from canopenfd.od import DataType, demo_od
 from canopenfd.services import atomic_file
-from canopenfd.services.store_text import StoreFileError, TextStore
+from canopenfd.services.store_image import ParameterImage, Record
+from canopenfd.services.store_text import StoreFileError, TextStore, format_text
 from helpers import Recorder, run_cli
 
 NODE, CLIENT = 5, 2
@@ -186,3 +187,29 @@ def test_the_cli_refuses_damaged_input_with_file_line_and_writes_nothing(tmp_pat
     result = run_cli("store", "export", str(image), str(text) + "2")
     assert result.returncode == 2 and f"{image}: magic" in result.stderr
     assert not os.path.exists(str(text) + "2")
+
+
+@pytest.mark.parametrize("record, words", [
+    ((0x2060, 0, DataType.UNSIGNED16, b"\x01\x00"), "2060:00: no stored entry of that key"),
+    ((0x1018, 1, DataType.UNSIGNED32, b"\x01\x00\x00\x00"), "1018:01: no stored entry"),
+    ((0x1017, 0, DataType.UNSIGNED32, b"\x01\x00\x00\x00"),
+     "1017:00: type UNSIGNED32, the object dictionary says UNSIGNED16"),
+    ((0x2009, 0, DataType.VISIBLE_STRING, b"x" * 40),
+     "2009:00: length 40, the entry holds 32 bytes at most"),
+])
+def test_entries_the_dictionary_contradicts_stop_the_boot_at_their_line(net, bus_name,
+                                                                        tmp_path, record,
+                                                                        words):
+    """A sealed file whose entry does not fit the node's dictionary (a typo
+    in an index, another type or length) is refused, never skipped."""
+    path = tmp_path / "params.txt"
+    records = [Record(0x2006, 0, int(DataType.UNSIGNED16), b"\x10\x00"),
+               Record(record[0], record[1], int(record[2]), record[3])]
+    records.sort(key=lambda r: r.key)
+    text = format_text(ParameterImage(0, records))
+    path.write_text(text)
+    number = next(n for n, line in enumerate(text.splitlines(), 1)
+                  if line.startswith(f"{record[0]:04X} {record[1]:02X} "))
+    with pytest.raises(StoreFileError) as info:
+        boot(net, bus_name, TextStore(path))
+    assert str(info.value).startswith(f"{path}:{number}: {words}"), str(info.value)

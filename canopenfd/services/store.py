@@ -150,6 +150,9 @@ class ParameterStore:
             loaded = medium.load()
             status = StoreStatus.OK if loaded else StoreStatus.EMPTY
             image = bytes(loaded or b"")
+            check_od = getattr(medium, "check_od", None)
+            if loaded and callable(check_od) and self._node.od is not None:
+                check_od(self._node.od)   # e.g. the text store: a stray entry at its line
         except ConfigurationError:
             # a medium that can tell what is wrong (a text store's file:line)
             # stops the boot: the device never starts half-configured

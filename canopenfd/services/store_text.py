@@ -32,6 +32,7 @@ from typing import Dict, List, Optional, Tuple
 
 from ..errors import ConfigurationError
 from ..od.datatypes import DataType
+from ..od.model import ObjectDictionary
 from .atomic_file import replace_file
 from .store_image import ImageError, ParameterImage, Record, build_image, parse_image
 
@@ -156,9 +157,11 @@ def _header_value(lines: List[Tuple[int, str]], at: int, name: str, file: str) -
     return value.strip()
 
 
-def parse_text(text: bytes, file: str, check: bool = True) -> ParameterImage:
+def parse_text(text: bytes, file: str, check: bool = True,
+               lines_of: Optional[Dict[int, int]] = None) -> ParameterImage:
     """The records of a text store; StoreFileError (file:line) when it is not
-    whole and consistent. check=False accepts any checksum (for seal)."""
+    whole and consistent. check=False accepts any checksum (for seal);
+    lines_of, when given, gets each record's line number by key."""
     lines = _lines(text, file)
     version = _header_value(lines, 0, "format", file)
     if version != str(FORMAT):
@@ -184,6 +187,8 @@ def parse_text(text: bytes, file: str, check: bool = True) -> ParameterImage:
     if at + 1 < len(lines):
         raise StoreFileError(f"{lines[at + 1][1][:60]!r} after the checksum line {number}",
                              file, lines[at + 1][0])
+    if lines_of is not None:
+        lines_of.update(seen)
     image = ParameterImage(int(signature, 16), sorted(records, key=lambda r: r.key))
     if not _HEX8.fullmatch(value):
         raise StoreFileError(f"checksum {value[:20]!r} is not 8 hex digits", file, number)
@@ -210,6 +215,8 @@ class TextStore:
         self.path = os.fspath(path)
         if not self.path:
             raise ConfigurationError("TextStore: the path is empty")
+        self._loaded: Optional[ParameterImage] = None
+        self._lines: Dict[int, int] = {}
 
     def __repr__(self) -> str:
         return f"TextStore({self.path!r})"
@@ -218,12 +225,34 @@ class TextStore:
         """The stack's image of the file's entries; None when there is no
         file yet; StoreFileError when it is damaged."""
         text = _read(self.path)
+        self._loaded, self._lines = None, {}
         if text is None:
             return None
         try:
-            return build_image(parse_text(text, self.path))
+            self._loaded = parse_text(text, self.path, lines_of=self._lines)
+            return build_image(self._loaded)
         except ImageError as exc:
             raise StoreFileError(str(exc), self.path) from None
+
+    def check_od(self, od: ObjectDictionary) -> None:
+        """After load(), at boot: every entry of the file must be a stored
+        entry of the node's dictionary with the same type and a length that
+        fits, else StoreFileError at its line (a person's typo in an index
+        is never dropped in silence)."""
+        for record in self._loaded.records if self._loaded is not None else ():
+            line = self._lines.get(record.key)
+            where = f"{record.index:04X}:{record.sub:02X}"
+            variable = od.get_variable(record.index, record.sub)
+            if variable is None or not variable.store:
+                raise StoreFileError(f"{where}: no stored entry of that key in the object "
+                                     "dictionary", self.path, line)
+            if int(variable.data_type) != record.type:
+                raise StoreFileError(f"{where}: type {_type_name(record.type)}, the object "
+                                     f"dictionary says {variable.data_type.name}", self.path,
+                                     line)
+            if len(record.data) > variable.storage_size:
+                raise StoreFileError(f"{where}: length {len(record.data)}, the entry holds "
+                                     f"{variable.storage_size} bytes at most", self.path, line)
 
     def save(self, image: bytes) -> None:
         replace_file(self.path, format_text(parse_image(image)).encode("ascii"))
