@@ -10,7 +10,8 @@ subscribed its kind."""
 from __future__ import annotations
 
 import logging
-from typing import Callable, Dict, Iterable, Iterator, List, Optional, Protocol, Tuple, Union
+from typing import (Callable, Dict, Iterable, Iterator, List, Optional, Protocol, Sequence, Tuple,
+                    Union)
 
 from ._binding.constants import CommandKind, CommEvent, EventKind
 from ._binding.context import Deferred, FrameHandler, RuntimeLineContext
@@ -28,6 +29,7 @@ from .services.lss import UNCONFIGURED, LssMaster
 from .services.manager import NetworkManager
 from .services.nmt import HeartbeatEvent, NmtMaster, NmtState, NodeEvents, remote_state_of
 from .services.store import StoreLike, check_store
+from .services.store_groups import GroupTable, StoreGroup, declare_groups
 from .services.sleep import SleepService
 from .services.sync import SyncService
 from .services.time import TimeService
@@ -152,7 +154,8 @@ class Line:
     # ---------------------------------------------------------------- nodes
     def create_local_node(self, node_id: int, heartbeat_ms: int = 0, *,
                           od: Optional[ODLike] = None, store: Optional[StoreLike] = None,
-                          boot: bool = True) -> LocalNode:
+                          store_groups: Optional[Sequence[StoreGroup]] = None,
+                          store_interval_ms: int = 1000, boot: bool = True) -> LocalNode:
         """Create our node on this line (one per line) and boot it: boot-up
         message, PRE-OPERATIONAL, then a heartbeat every heartbeat_ms (0 = none).
 
@@ -161,6 +164,10 @@ class Line:
         replaces the 0x1017 default). store: a file where `save_parameters()`
         and 0x1010 keep parameters across restarts, or an object with load()
         and save(image) for other media (see canopenfd.services.store; needs od).
+        store_groups: the parameter groups of 0x1010/0x1011 (StoreGroup list,
+        see canopenfd.services.store_groups; default: CiA 301's by index
+        range); autonomously saved groups are written by the stack at most
+        every store_interval_ms.
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
@@ -187,8 +194,10 @@ class Line:
                     "OD with the serial number 0x1018:04 (its LSS address), else nothing "
                     "could ever give it a node-id")
             checked_store = check_store(store, f"create_local_node({node_id}) on {self._where}")
+            groups = _store_groups(store_groups, store_interval_ms, checked_store,
+                                   f"create_local_node({node_id}) on {self._where}")
             scope = context.scoped()
-            node = LocalNode(self, scope, node_id, heartbeat_ms, served, checked_store)
+            node = LocalNode(self, scope, node_id, heartbeat_ms, served, checked_store, groups)
             self.local_node = node
             context.local_node_id = node_id
             if boot:
@@ -532,3 +541,12 @@ def _served_od(od: Optional[ODLike], node_id: int, store: Optional[StoreLike],
                                      "(od=...)")
         return None
     return _remote_od(od, node_id, where)
+
+
+def _store_groups(groups: Optional[Sequence[StoreGroup]], interval_ms: int,
+                  store: object, where: str) -> Optional[GroupTable]:
+    if groups is None:
+        return None
+    if store is None:
+        raise ConfigurationError(f"{where}: store_groups need a store")
+    return declare_groups(groups, interval_ms, where)

@@ -25,6 +25,7 @@ from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtComma
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
 from .services.served_od import Key, LocalObject, LocalValue, ServedDictionary
 from .services.store import STORE_STATUS, StoreMedium, ParameterStore
+from .services.store_groups import GroupTable
 from .od.fileio import Source
 from .transfer.client import TransferClient, require_protocol
 from .transfer.remote import RemoteAccess, RemoteObjects, resolve
@@ -53,7 +54,8 @@ class LocalNode:
 
     def __init__(self, line: NodeLine, context: RuntimeLineContext, node_id: int,
                  heartbeat_ms: int, od: Optional[ObjectDictionary] = None,
-                 store: Union[None, str, StoreMedium] = None) -> None:
+                 store: Union[None, str, StoreMedium] = None,
+                 store_groups: Optional[GroupTable] = None) -> None:
         self.line = line
         self.node_id = node_id
         #: The object dictionary this node serves (None: NMT and heartbeat only).
@@ -66,7 +68,7 @@ class LocalNode:
         self._slave = NmtSlave(context, node_id, heartbeat_ms, where)
         self.nmt = LocalNmt(self._slave)
         self._served = ServedDictionary(context, self, where)
-        self._store = ParameterStore(context, self, store, where)
+        self._store = ParameterStore(context, self, store, where, store_groups)
         self._indications = Indications(context, self, self._served, where,
                                         self._store.persist_request)
         self._emcy = EmcyProducer(context, self, self._served, where)
@@ -184,7 +186,8 @@ class LocalNode:
     # ---------------------------------------------------------------- parameter store
     def save_parameters(self, group: str = "all") -> None:
         """What writing "save" to 0x1010 does: the stored entries of `group`
-        ('all', 'communication', 'application', 'manufacturer') go to the store
+        ('all', 'communication', 'application', 'manufacturer', or the names
+        of the node's declared store_groups) go to the store
         file, atomically; they come back at the next boot or reset."""
         self._store.save_or_restore(group, True)
 

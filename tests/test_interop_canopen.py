@@ -193,6 +193,44 @@ def test_python_canopen_sdo_client_against_our_server(line, peer):
         assert f.read() == data
 
 
+def test_python_canopen_sees_parameter_groups(line, peer, tmp_path):
+    """A classic peer (python-canopen's SDO client and NMT master) reads the
+    CiA 301 capability bits of declared groups, saves one with "save", and
+    gets the saved values back after its reset communication; the
+    autonomous group is saved without any command."""
+    from canopenfd.od import demo_od
+    from canopenfd.services.store_groups import StoreGroup
+
+    groups = [StoreGroup("comm", [(0x1000, 0x1FFF)], reset="communication"),
+              StoreGroup("tuning", [(0x2005, 0x2007)], mode="autonomous"),
+              StoreGroup("limits", [(0x2001, 0x2004)], mode="both")]
+    node = line.create_local_node(5, od=demo_od("classic"), store=str(tmp_path / "p.bin"),
+                                  store_groups=groups, store_interval_ms=50)
+    remote = peer.add_node(5, canopen.ObjectDictionary())
+    remote.sdo.RESPONSE_TIMEOUT = scaled(1.0)
+    bits = [int.from_bytes(remote.sdo.upload(0x1010, sub), "little") for sub in (1, 2, 3, 4)]
+    assert bits == [3, 1, 2, 3]
+    with pytest.raises(canopen.SdoAbortedError) as info:
+        remote.sdo.download(0x1010, 3, b"save")       # autonomous only: not on command
+    assert info.value.code == 0x08000020
+    remote.sdo.download(0x1017, 0, (300).to_bytes(2, "little"))
+    remote.sdo.download(0x1010, 2, b"save")
+    remote.sdo.download(0x2006, 0, (777).to_bytes(2, "little"))   # saved autonomously
+    remote.sdo.download(0x1017, 0, (40).to_bytes(2, "little"))
+    resets = Recorder()
+    node.on_reset(resets)
+    remote.nmt.state = "RESET COMMUNICATION"
+    resets.wait_count(1)
+    node.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+    assert remote.sdo.upload(0x1017, 0) == (300).to_bytes(2, "little")
+    remote.nmt.state = "RESET"                        # reset node: defaults, then saved
+    resets.wait_count(2)
+    node.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=scaled(10))
+    # 0x2006 (default 1000) was saved by the stack 50 ms after the write at
+    # the latest, long before this reset
+    assert remote.sdo.upload(0x2006, 0) == (777).to_bytes(2, "little")
+
+
 def test_our_sdo_client_against_python_canopen_server(line, peer):
     """Our SDO client reads and writes python-canopen's LocalNode (its own SDO
     server) over a real classic SocketCAN line: expedited and segmented."""

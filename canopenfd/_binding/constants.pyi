@@ -160,6 +160,7 @@ class EventKind(enum.IntEnum):
     SLEEP = 24
     FLYMA = 25
     GATEWAY = 26
+    STORE_PERSIST = 27
 
 
 class FrameFlag(enum.IntEnum):

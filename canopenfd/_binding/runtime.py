@@ -264,6 +264,27 @@ class Runtime:
             if rc < 0:
                 self._raise(rc, what)
 
+    def store_autonomous_pending(self, line: int, what: str) -> bool:
+        """Whether the staged image is an autonomous save's."""
+        with self._lock:
+            rc = lib.co_rt_store_autonomous_pending(self._live(what), line)
+            if rc < 0:
+                self._raise(rc, what)
+            return rc == 1
+
+    def store_groups(self, line: int, rows: Sequence[Tuple[int, int, int, int, int]],
+                     min_interval_ms: int, what: str) -> None:
+        """Declare parameter groups: (first_key, last_key, sub, mode, reset) rows."""
+        table = ffi.new("co_store_group_t[]", len(rows))
+        for i, (first, last, sub, mode, reset) in enumerate(rows):
+            table[i].first_key, table[i].last_key = first, last
+            table[i].sub, table[i].mode, table[i].reset = sub, mode, reset
+        with self._lock:
+            rc = lib.co_rt_store_groups(self._live(what), line, table, len(rows),
+                                        min_interval_ms)
+            if rc < 0:
+                self._raise(rc, what)
+
     def store_staged(self, line: int, what: str) -> Optional[bytes]:
         """The image waiting to be persisted, None when none waits."""
         size = 256

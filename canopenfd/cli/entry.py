@@ -10,11 +10,11 @@ from typing import List, Optional
 from .. import __version__
 from ..errors import CanopenFDError
 from ..network import Network
-from . import concise, demo, device, gateway, lss, monitor, nmt, od, transfer
+from . import concise, demo, device, gateway, lss, monitor, nmt, od, store, transfer
 from .common import EXIT_USAGE, UsageError, print_error
 
 #: the command groups in the order `--help` lists their commands
-COMMAND_GROUPS = (demo, nmt, monitor, device, od, transfer, concise, lss, gateway)
+COMMAND_GROUPS = (demo, nmt, monitor, device, od, transfer, concise, lss, gateway, store)
 
 
 def build_parser() -> argparse.ArgumentParser:

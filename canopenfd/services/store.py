@@ -21,11 +21,12 @@ import os
 import threading
 from typing import Callable, Optional, Protocol, Union
 
-from .._binding.constants import AbortCode, EventKind, ParameterGroup, StoreStatus
+from .._binding.constants import AbortCode, EventKind, StoreStatus
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
 from ..errors import AbortError, ConfigurationError
+from .store_groups import DEFAULT_GROUPS, GroupTable
 from .views import LocalNodeView
 
 __all__ = ["MemoryStore", "ParameterStore", "StoreMedium", "StoreLike", "check_store",
@@ -47,13 +48,9 @@ class StoreMedium(Protocol):
 #: What create_local_node(store=...) takes.
 StoreLike = Union[str, bytes, "os.PathLike[str]", StoreMedium]
 
-#: 0x1010 / 0x1011 parameter groups by name: (group mask, CiA 301 sub-index).
-PARAMETER_GROUPS = {
-    "all": (ParameterGroup.ALL, 1),
-    "communication": (ParameterGroup.COMMUNICATION, 2),
-    "application": (ParameterGroup.APPLICATION, 3),
-    "manufacturer": (ParameterGroup.MANUFACTURER, 4),
-}
+#: 0x1010 / 0x1011 parameter groups by name without a declaration: (group
+#: mask, CiA 301 sub-index); see canopenfd.services.store_groups.
+PARAMETER_GROUPS = DEFAULT_GROUPS
 
 #: What a parameter load found (co_store_status_t), as the texts callbacks get:
 #: the C name in lower case with dashes ('too-big'); IO says what failed.
@@ -110,14 +107,23 @@ class ParameterStore:
     STORE tell what a load found)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView,
-                 store: Union[None, str, StoreMedium], where: str) -> None:
+                 store: Union[None, str, StoreMedium], where: str,
+                 groups: Optional[GroupTable] = None) -> None:
         self._context = context
+        self._groups = groups
+        #: save_parameters / restore_defaults group names: (mask, sub-index)
+        self.group_names = groups.names if groups is not None else PARAMETER_GROUPS
         self._node = node
         #: A file path, a StoreMedium, or None.
         self.store = store
         self._where = where
         self._problems = CallbackList(f"node {node.node_id} store problem")
+        # One image goes to the medium at a time: the application's save, a
+        # network save and the stack's autonomous one each stage, persist and
+        # finish under it.
+        self._medium_lock = threading.RLock()
         context.subscribe(EventKind.STORE, self._event)
+        context.subscribe(EventKind.STORE_PERSIST, self._autonomous_save)
 
     @property
     def path(self) -> Optional[str]:
@@ -130,7 +136,12 @@ class ParameterStore:
 
     def open(self) -> None:
         """At boot, once the OD is defined: give an application medium's image
-        to the runtime (an unreadable medium: the node runs on defaults)."""
+        to the runtime (an unreadable medium: the node runs on defaults), and
+        the declared parameter groups."""
+        if self._groups is not None:
+            self._context.runtime.store_groups(
+                self._context.index, self._groups.rows, self._groups.min_interval_ms,
+                f"store groups of {self._where}")
         medium = self.medium
         if medium is None:
             return
@@ -139,6 +150,13 @@ class ParameterStore:
             loaded = medium.load()
             status = StoreStatus.OK if loaded else StoreStatus.EMPTY
             image = bytes(loaded or b"")
+            check_od = getattr(medium, "check_od", None)
+            if loaded and callable(check_od) and self._node.od is not None:
+                check_od(self._node.od)   # e.g. the text store: a stray entry at its line
+        except ConfigurationError:
+            # a medium that can tell what is wrong (a text store's file:line)
+            # stops the boot: the device never starts half-configured
+            raise
         except Exception:  # noqa: BLE001 - an unreadable medium: run on defaults, say so
             log.exception("%s: load() failed; the node starts from defaults", what)
             image, status = b"", StoreStatus.IO
@@ -160,31 +178,60 @@ class ParameterStore:
             return int(AbortCode.DATA_STORE)
         return 0
 
+    def _autonomous_save(self, event: Event) -> Deferred:
+        """CO_EV_STORE_PERSIST: the stack saved autonomous groups into the
+        staging image; a medium that refuses it gets them marked changed again
+        (the stack retries one interval later)."""
+        what = f"autonomous parameter save on {self._where}"
+
+        def persist() -> None:
+            with self._medium_lock:
+                self._finish_autonomous(what)
+        return persist
+
+    def _finish_autonomous(self, what: str) -> bool:
+        """Persist and finish the staged image if it is an autonomous save's;
+        whether one was (under _medium_lock)."""
+        context = self._context
+        if self.medium is None or not context.runtime.store_autonomous_pending(context.index,
+                                                                                  what):
+            return False
+        code = self._persist(what)
+        if code is not None:
+            context.runtime.store_finish(context.index, code == 0, what)
+        return True
+
     def persist_request(self, token: int) -> Callable[[], None]:
         """A network save/restore waits until the image is on the medium (an
         OD request of kind STORE): what answers it."""
         what = f"0x1010/0x1011 over the network on {self._where}"
 
         def persist() -> None:
-            code = self._persist(what)
-            self._context.runtime.od_answer(self._context.index, token, code or 0, what)
+            with self._medium_lock:
+                code = self._persist(what)
+                self._context.runtime.od_answer(self._context.index, token, code or 0, what)
         return persist
 
     def save_or_restore(self, group: str, save: bool) -> None:
         """What a "save" to 0x1010 (save=True) or a "load" to 0x1011 does."""
         what = f"{'save_parameters' if save else 'restore_defaults'}({group!r}) on {self._where}"
-        if group not in PARAMETER_GROUPS:
-            raise ConfigurationError(f"{what}: group must be one of {', '.join(PARAMETER_GROUPS)}")
+        if group not in self.group_names:
+            raise ConfigurationError(f"{what}: group must be one of "
+                                     f"{', '.join(self.group_names)}")
         if not self._node.booted:
             raise ConfigurationError(f"{what}: the node is not booted yet")
-        mask, sub = PARAMETER_GROUPS[group]
+        mask, sub = self.group_names[group]
         context = self._context
-        code = context.runtime.od_store(context.index, mask, save, what)
-        if code == 0 and self.medium is not None:
-            persisted = self._persist(what)
-            if persisted is not None:
-                context.runtime.store_finish(context.index, persisted == 0, what)
-                code = persisted
+        with self._medium_lock:
+            code = context.runtime.od_store(context.index, mask, save, what)
+            if code == int(AbortCode.HARDWARE) and self._finish_autonomous(what):
+                # an autonomous image was waiting for the medium: now it is there
+                code = context.runtime.od_store(context.index, mask, save, what)
+            if code == 0 and self.medium is not None:
+                persisted = self._persist(what)
+                if persisted is not None:
+                    context.runtime.store_finish(context.index, persisted == 0, what)
+                    code = persisted
         if code:
             raise AbortError(code, self._node.node_id, 0x1010 if save else 0x1011, sub, what)
 

@@ -82,17 +82,18 @@ static void apply_od_parameters(co_node_t *node)
     }
 }
 
-/* Boot and resets: defaults, then saved values, of the groups concerned. */
-static void load_parameters(co_node_t *node, uint8_t groups)
+/* Boot and resets: defaults, then saved values, of the groups concerned
+ * (with a store: the groups whose reset type says so). */
+static void load_parameters(co_node_t *node, bool reset_node)
 {
     if (!node->od) {
         co_hb_producer_set_time(&node->heartbeat, node->heartbeat_default_ms);
         return;
     }
     if (node->store) {
-        node->store_status = co_store_load(node->store, groups);
+        node->store_status = co_store_load_at_reset(node->store, reset_node);
     } else {
-        co_od_load_defaults(node->od, groups);
+        co_od_load_defaults(node->od, reset_node ? CO_GROUP_ALL : CO_GROUP_COMMUNICATION);
     }
     apply_od_parameters(node);
 }
@@ -460,8 +461,7 @@ static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
     /* Reset communication reloads the communication parameters, reset node
      * all of them. The boot-up message follows right after this, the first
      * heartbeat one period later. */
-    load_parameters(node, kind == CO_NMT_CMD_RESET_COMMUNICATION ? CO_GROUP_COMMUNICATION
-                                                                  : CO_GROUP_ALL);
+    load_parameters(node, kind != CO_NMT_CMD_RESET_COMMUNICATION);
     services_reset(node);
     if (node->ind && node->ind->reset) {
         node->ind->reset(node, kind, node->user);
@@ -589,7 +589,7 @@ void co_node_boot(co_node_t *node)
     /* Power-on loads every parameter (without an OD: the producer time set
      * so far); the first heartbeat follows the boot-up one period later. */
     if (node->od) {
-        load_parameters(node, CO_GROUP_ALL);
+        load_parameters(node, true);
     } else {
         co_hb_producer_set_time(&node->heartbeat, node->heartbeat.time_ms);
     }

@@ -722,13 +722,23 @@ uint8_t co_od_group_of(uint16_t index)
     return 0;
 }
 
+static bool in_groups(const co_od_entry_t *e, void *user)
+{
+    return (co_od_group_of(co_od_entry_index(e)) & *(const uint8_t *)user) != 0;
+}
+
 void co_od_load_defaults(co_od_t *od, uint8_t group_mask)
+{
+    co_od_load_defaults_if(od, in_groups, &group_mask);
+}
+
+void co_od_load_defaults_if(co_od_t *od, co_od_pick_fn pick, void *user)
 {
     uint32_t i;
     /* Load everything first, then tell: handlers see the restored OD whole. */
     for (i = 0; i < od->count; i++) {
         co_od_entry_t *e = &od->entries[i];
-        if ((co_od_group_of(co_od_entry_index(e)) & group_mask) && load_default(od, e)) {
+        if (pick(e, user) && load_default(od, e)) {
             e->flags |= FLAG_RESTORED;
         }
     }

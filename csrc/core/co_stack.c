@@ -575,8 +575,10 @@ static co_stack_status_t start_od_parts(co_stack_t *s, const co_stack_node_confi
         if (!buffer) {
             return fail(s, CO_STACK_PART_STORE, CO_STACK_ERR_NO_MEMORY);
         }
-        s->has_store = co_store_init(&s->store, s->od, c->store_backend, c->store_user, buffer,
-                                     size);
+        co_store_config_t groups = { c->store_groups, c->store_group_rows, s->line,
+                                     c->store_min_interval_ms, c->store_saved, c->user };
+        s->has_store = co_store_init_config(&s->store, s->od, c->store_backend, c->store_user,
+                                            buffer, size, &groups);
         if (!s->has_store) {
             return fail(s, CO_STACK_PART_STORE, CO_STACK_ERR_TAKEN);
         }

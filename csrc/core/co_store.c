@@ -66,9 +66,14 @@ enum {
 
 static const uint8_t img_magic[8] = { 'C', 'o', 'F', 'D', 'p', 'a', 'r', 0 };
 
-/* 0x1010 / 0x1011 read value: bit 0 "saves / restores on command" (nothing
- * is saved autonomously). */
-#define CAPABILITY_ON_COMMAND 0x00000001u
+/* The default declaration: CiA 301's groups by index range (co_od_group_of),
+ * so the group masks are the CO_GROUP_* ones. */
+static const co_store_group_t default_groups[] = {
+    { 0x100000u, 0x1FFFFFu, 2, CO_STORE_MODE_ON_COMMAND, CO_STORE_RESET_COMMUNICATION },
+    { 0x200000u, 0x5FFFFFu, 4, CO_STORE_MODE_ON_COMMAND, CO_STORE_RESET_NODE },
+    { 0x600000u, 0x9FFFFFu, 3, CO_STORE_MODE_ON_COMMAND, CO_STORE_RESET_NODE },
+    { 0xA00000u, 0xFFFFFFu, 4, CO_STORE_MODE_ON_COMMAND, CO_STORE_RESET_NODE },
+};
 
 /* ------------------------------------------------------------ byte order */
 
@@ -210,9 +215,64 @@ static bool entry_is_stored(const co_od_entry_t *e)
     return (e->flags & CO_OD_STORE) != 0 && e->size > 0;
 }
 
-static uint8_t group_of_key(uint32_t key)
+static uint8_t group_bit(uint8_t sub)
 {
-    return co_od_group_of((uint16_t)(key >> 8));
+    return (uint8_t)(1u << (sub - 2u));
+}
+
+uint8_t co_store_group_of(const co_store_t *s, uint32_t key)
+{
+    uint8_t i;
+    for (i = 0; i < s->group_rows; i++) {
+        const co_store_group_t *g = &s->groups[i];
+        if (key >= g->first_key && key <= g->last_key)
+            return group_bit(g->sub);
+    }
+    return 0;
+}
+
+/* The groups whose mode has any of these bits (0: the disabled ones too). */
+static uint8_t groups_with_mode(const co_store_t *s, uint8_t mode_bits)
+{
+    uint8_t i, mask = 0;
+    for (i = 0; i < s->group_rows; i++) {
+        if (mode_bits == 0 || (s->groups[i].mode & mode_bits) != 0)
+            mask |= group_bit(s->groups[i].sub);
+    }
+    return mask;
+}
+
+static uint8_t all_groups(const co_store_t *s)
+{
+    return groups_with_mode(s, 0);
+}
+
+/* The groups that are saved at all: a disabled group's values are not kept. */
+static uint8_t enabled_groups(const co_store_t *s)
+{
+    return groups_with_mode(s, CO_STORE_MODE_BOTH);
+}
+
+/* The mode bits of the groups in mask, OR-ed (0x1010 sub 1 reports them all). */
+static uint8_t mode_of(const co_store_t *s, uint8_t mask)
+{
+    uint8_t i, mode = 0;
+    for (i = 0; i < s->group_rows; i++) {
+        if ((group_bit(s->groups[i].sub) & mask) != 0)
+            mode |= s->groups[i].mode;
+    }
+    return mode;
+}
+
+uint8_t co_store_reset_groups(const co_store_t *s, bool reset_node)
+{
+    uint8_t i, mask = 0;
+    for (i = 0; i < s->group_rows; i++) {
+        const co_store_group_t *g = &s->groups[i];
+        if (reset_node || g->reset == CO_STORE_RESET_COMMUNICATION)
+            mask |= group_bit(g->sub);
+    }
+    return mask;
 }
 
 /* The entry a record may be applied to, or NULL: then it is skipped. */
@@ -263,7 +323,7 @@ static uint32_t restore_records(co_store_t *s, const img_view_t *view, uint8_t m
         const co_od_entry_t *e;
         if (!record_next(view->records, view->length, &pos, &r))
             break;   /* cannot happen after image_parse */
-        if ((group_of_key(r.key) & mask) == 0)
+        if ((co_store_group_of(s, r.key) & mask) == 0)
             continue;
         e = record_target(s->od, &r);
         if (e == NULL)
@@ -351,7 +411,7 @@ static uint32_t rewrite(co_store_t *s, uint8_t current, uint8_t keep, const img_
         uint8_t group;
         if (!entry_is_stored(e))
             continue;
-        group = group_of_key(e->key);
+        group = co_store_group_of(s, e->key);
         if ((group & current) != 0) {
             if (!append_record(&w, e->key, e->type, co_od_value(od, e), e->length))
                 return CO_ABORT_OUT_OF_MEMORY;
@@ -389,8 +449,8 @@ uint32_t co_store_save(co_store_t *s, uint8_t group_mask)
     co_store_status_t st;
     uint8_t keep;
 
-    group_mask &= CO_GROUP_ALL;
-    keep = (uint8_t)(CO_GROUP_ALL & ~group_mask);
+    group_mask &= enabled_groups(s);
+    keep = (uint8_t)(enabled_groups(s) & ~group_mask);
     if (keep == 0)   /* saving everything needs nothing old: works over any file */
         return rewrite(s, group_mask, 0, NULL);
     st = image_read(s, s->previous, &prev);
@@ -406,7 +466,7 @@ uint32_t co_store_restore_defaults(co_store_t *s, uint8_t group_mask)
     img_view_t prev;
     co_store_status_t st;
 
-    group_mask &= CO_GROUP_ALL;
+    group_mask &= enabled_groups(s);
     st = image_read(s, s->previous, &prev);
     if (st == CO_STORE_IO)
         return CO_ABORT_HARDWARE;
@@ -414,51 +474,139 @@ uint32_t co_store_restore_defaults(co_store_t *s, uint8_t group_mask)
         return 0;   /* nothing saved: defaults load already; spare the medium */
     /* A damaged or foreign image is replaced by an empty one (zero records):
      * the backend has no "erase", and the next load then says OK, not DAMAGED. */
-    return rewrite(s, 0, (uint8_t)(CO_GROUP_ALL & ~group_mask),
+    return rewrite(s, 0, (uint8_t)(enabled_groups(s) & ~group_mask),
                    st == CO_STORE_OK ? &prev : NULL);
 }
 
-co_store_status_t co_store_load(co_store_t *s, uint8_t group_mask)
+/* Which entries a load gives their defaults: the members of the loaded
+ * groups, and the entries of no group in the index ranges of `areas`. */
+typedef struct default_pick {
+    const co_store_t *s;
+    uint8_t groups;
+    uint8_t areas;
+} default_pick_t;
+
+static bool pick_default(const co_od_entry_t *e, void *user)
+{
+    const default_pick_t *p = user;
+    uint8_t group = co_store_group_of(p->s, e->key);
+    if (group != 0)
+        return (group & p->groups) != 0;
+    return (co_od_group_of(co_od_entry_index(e)) & p->areas) != 0;
+}
+
+/* Disabled groups load their defaults but never saved values (nothing of
+ * theirs is saved from now on, so an old value would come back for ever). */
+static co_store_status_t load(co_store_t *s, uint8_t groups, uint8_t areas)
 {
     img_view_t view;
     co_store_status_t st;
+    default_pick_t pick;
 
-    group_mask &= CO_GROUP_ALL;
+    pick.s = s;
+    pick.groups = groups;
+    pick.areas = areas;
+    /* the loaded values are the saved ones (or defaults): nothing to save */
+    s->changed &= (uint8_t)~groups;
+    groups &= enabled_groups(s);
     s->records_skipped = 0;
-    co_od_load_defaults(s->od, group_mask);
+    co_od_load_defaults_if(s->od, pick_default, &pick);
     st = image_read(s, s->image, &view);
     if (st == CO_STORE_OK) {
-        s->records_skipped = restore_records(s, &view, group_mask, false);
-        (void)restore_records(s, &view, group_mask, true);
+        s->records_skipped = restore_records(s, &view, groups, false);
+        (void)restore_records(s, &view, groups, true);
     }
     s->last_load = st;
     return st;
 }
 
-/* ------------------------------------------------------ 0x1010 and 0x1011 */
-
-static uint8_t group_of_sub(uint8_t sub)
+co_store_status_t co_store_load(co_store_t *s, uint8_t group_mask)
 {
-    switch (sub) {
-    case 1:
-        return CO_GROUP_ALL;
-    case 2:
-        return CO_GROUP_COMMUNICATION;
-    case 3:
-        return CO_GROUP_APPLICATION;
-    default:
-        return CO_GROUP_MANUFACTURER;   /* 4: the subscription covers 1..4 */
-    }
+    return load(s, group_mask, group_mask);
 }
 
-/* A read reports the capability, whatever was written last. */
+co_store_status_t co_store_load_at_reset(co_store_t *s, bool reset_node)
+{
+    return load(s, co_store_reset_groups(s, reset_node),
+                reset_node ? CO_GROUP_ALL : CO_GROUP_COMMUNICATION);
+}
+
+/* ------------------------------------------------------ autonomous saves */
+
+/* Saves the changed groups; a refused save keeps them changed and retries
+ * one interval later (the previous image stays whole meanwhile). */
+static void on_autonomous_timer(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    co_store_t *s = user;
+    uint8_t changed = s->changed;
+    uint32_t abort;
+    (void)timer;
+    if (changed == 0)
+        return;   /* a load since the change put the saved values back */
+    s->last_autonomous_us = now_us;
+    s->autonomous_ran = true;
+    s->changed = 0;
+    abort = co_store_save(s, changed);
+    if (abort == 0) {
+        s->autonomous_saves++;
+    } else {
+        s->autonomous_failures++;
+        s->changed |= changed;
+        co_timer_start(co_line_timers(s->line), &s->autonomous_timer,
+                       now_us + s->min_interval_us);
+    }
+    if (s->autonomous_saved != NULL)
+        s->autonomous_saved(s, abort, s->autonomous_user);
+}
+
+void co_store_changed(co_store_t *s, uint8_t groups)
+{
+    uint64_t due, now;
+    groups &= groups_with_mode(s, CO_STORE_MODE_AUTONOMOUS);
+    if (groups == 0 || s->line == NULL)
+        return;
+    s->changed |= groups;
+    if (co_timer_is_armed(&s->autonomous_timer))
+        return;
+    now = co_line_now(s->line);
+    due = s->autonomous_ran ? s->last_autonomous_us + s->min_interval_us : now;
+    co_timer_start(co_line_timers(s->line), &s->autonomous_timer, due > now ? due : now);
+}
+
+static void on_member_written(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin,
+                              void *user)
+{
+    co_store_t *s = user;
+    (void)od;
+    if (origin == CO_ORIGIN_RESTORE || !entry_is_stored(e))
+        return;   /* a load is no change to save */
+    co_store_changed(s, co_store_group_of(s, e->key));
+}
+
+static const co_od_handler_t member_handler = {
+    .after_write = on_member_written,
+};
+
+/* ------------------------------------------------------ 0x1010 and 0x1011 */
+
+static uint8_t group_of_sub(const co_store_t *s, uint8_t sub)
+{
+    return sub == 1 ? all_groups(s) : group_bit(sub);   /* the subscription: 1..last_sub */
+}
+
+/* A read reports the mode bits of the sub's groups, whatever was written
+ * last: 0x1010 "saves on command" (bit 0) and "autonomously" (bit 1); 0x1011
+ * bit 0 "restores defaults" for an enabled group. */
 static uint32_t on_before_read(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
                                void *user)
 {
+    const co_store_t *s = user;
+    uint8_t mode = mode_of(s, group_of_sub(s, co_od_entry_sub(e)));
     (void)xfer;
-    (void)user;
+    if (co_od_entry_index(e) == 0x1011)
+        mode = mode != 0 ? CO_STORE_MODE_ON_COMMAND : 0;
     if (e->type == CO_TYPE_UNSIGNED32 && e->size >= 4)
-        put_u32(co_od_value(od, e), CAPABILITY_ON_COMMAND);
+        put_u32(co_od_value(od, e), mode);
     return 0;
 }
 
@@ -469,9 +617,12 @@ static uint32_t on_check_save(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry
 {
     (void)od;
     (void)xfer;
-    if (length != 4 || get_u32(value) != CO_STORE_SAVE_SIGNATURE)
-        return CO_ABORT_DATA_STORE;
-    return co_store_save(user, group_of_sub(co_od_entry_sub(e)));
+    co_store_t *s = user;
+    uint8_t groups = group_of_sub(s, co_od_entry_sub(e)) &
+                     groups_with_mode(s, CO_STORE_MODE_ON_COMMAND);
+    if (length != 4 || get_u32(value) != CO_STORE_SAVE_SIGNATURE || groups == 0)
+        return CO_ABORT_DATA_STORE;   /* also: a group not saved on command */
+    return co_store_save(s, groups);
 }
 
 static uint32_t on_check_restore(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t *e,
@@ -479,9 +630,11 @@ static uint32_t on_check_restore(co_od_t *od, co_od_xfer_t *xfer, const co_od_en
 {
     (void)od;
     (void)xfer;
-    if (length != 4 || get_u32(value) != CO_STORE_LOAD_SIGNATURE)
-        return CO_ABORT_DATA_STORE;
-    return co_store_restore_defaults(user, group_of_sub(co_od_entry_sub(e)));
+    co_store_t *s = user;
+    uint8_t groups = group_of_sub(s, co_od_entry_sub(e)) & enabled_groups(s);
+    if (length != 4 || get_u32(value) != CO_STORE_LOAD_SIGNATURE || groups == 0)
+        return CO_ABORT_DATA_STORE;   /* also: a disabled group */
+    return co_store_restore_defaults(s, groups);
 }
 
 static const co_od_handler_t save_handler = {
@@ -493,15 +646,68 @@ static const co_od_handler_t restore_handler = {
     .check_write = on_check_restore,
 };
 
+/* The highest group sub-index when the declaration is valid (see
+ * co_store_init_config), else 0. */
+static uint8_t check_groups(const co_store_group_t *g, uint8_t rows)
+{
+    uint8_t i, j, last_sub = 1;
+    unsigned subs_seen = 0;
+    if (rows == 0 || rows > CO_STORE_MAX_GROUP_ROWS)
+        return 0;
+    for (i = 0; i < rows; i++) {
+        if (g[i].first_key < 0x100000u || g[i].last_key > 0xFFFFFFu ||
+            g[i].first_key > g[i].last_key || g[i].sub < 2 ||
+            g[i].sub >= 2 + CO_STORE_MAX_GROUPS || g[i].mode > CO_STORE_MODE_BOTH ||
+            g[i].reset > CO_STORE_RESET_COMMUNICATION)
+            return 0;
+        for (j = 0; j < i; j++) {
+            if (g[i].first_key <= g[j].last_key && g[j].first_key <= g[i].last_key)
+                return 0;   /* overlap: an entry in two groups */
+            if (g[j].sub == g[i].sub &&
+                (g[j].mode != g[i].mode || g[j].reset != g[i].reset))
+                return 0;   /* one group, two behaviours */
+        }
+        subs_seen |= 1u << (g[i].sub - 2u);
+        if (g[i].sub > last_sub)
+            last_sub = g[i].sub;
+    }
+    /* 2..last_sub without gaps: each 0x1010 sub of a group names one */
+    return subs_seen == (1u << (last_sub - 1u)) - 1u ? last_sub : 0;
+}
+
+bool co_store_groups_valid(const co_store_group_t *groups, uint8_t rows)
+{
+    return groups != NULL && check_groups(groups, rows) != 0;
+}
+
 bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend, void *user,
                    uint8_t *buffer, uint32_t buffer_size)
 {
+    return co_store_init_config(s, od, backend, user, buffer, buffer_size, NULL);
+}
+
+bool co_store_init_config(co_store_t *s, co_od_t *od, const co_store_backend_t *backend,
+                          void *user, uint8_t *buffer, uint32_t buffer_size,
+                          const co_store_config_t *config)
+{
+    bool declared = config != NULL && config->groups != NULL;
+    const co_store_group_t *groups = declared ? config->groups : default_groups;
+    uint8_t rows = declared ? config->group_rows
+                            : (uint8_t)(sizeof default_groups / sizeof default_groups[0]);
     uint32_t need, half;
-    bool has_save, has_restore;
+    bool has_save, has_restore, autonomous = false;
     unsigned subs_needed;
+    uint8_t last_sub, i;
 
     if (s == NULL || od == NULL || backend == NULL || backend->save == NULL ||
         backend->load == NULL || buffer == NULL || !od->sealed)
+        return false;
+    last_sub = check_groups(groups, rows);
+    if (last_sub == 0)
+        return false;
+    for (i = 0; i < rows; i++)
+        autonomous = autonomous || (groups[i].mode & CO_STORE_MODE_AUTONOMOUS) != 0;
+    if (autonomous && config->line == NULL)
         return false;
     need = co_store_image_need(od);
     half = buffer_size / 2;
@@ -510,7 +716,7 @@ bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend
     has_save = co_od_has_index(od, 0x1010);
     has_restore = co_od_has_index(od, 0x1011);
     /* All or nothing: no half-hooked OD when the subscription table is full. */
-    subs_needed = (unsigned)has_save + (unsigned)has_restore;
+    subs_needed = (unsigned)has_save + (unsigned)has_restore + (unsigned)autonomous;
     if ((unsigned)od->sub_capacity - od->sub_count < subs_needed)
         return false;
     memset(s, 0, sizeof *s);
@@ -522,10 +728,23 @@ bool co_store_init(co_store_t *s, co_od_t *od, const co_store_backend_t *backend
     s->image_capacity = half;
     s->last_load = CO_STORE_EMPTY;
     s->records_skipped = 0;
-    /* Sub 1..4 only: sub 0 is the OD's, manufacturer subs 5..0x7F stay plain. */
-    if (has_save && !co_od_subscribe(od, 0x1010, 1, 0x1010, 4, &save_handler, s))
+    s->groups = groups;
+    s->group_rows = rows;
+    s->last_sub = last_sub;
+    if (autonomous) {
+        s->line = config->line;
+        s->min_interval_us = (uint64_t)config->min_interval_ms * 1000u;
+        s->autonomous_saved = config->autonomous_saved;
+        s->autonomous_user = config->autonomous_user;
+    }
+    co_timer_init(&s->autonomous_timer, on_autonomous_timer, s);
+    /* Sub 1..last_sub only: sub 0 is the OD's, higher manufacturer subs stay plain. */
+    if (has_save && !co_od_subscribe(od, 0x1010, 1, 0x1010, last_sub, &save_handler, s))
         return false;
-    if (has_restore && !co_od_subscribe(od, 0x1011, 1, 0x1011, 4, &restore_handler, s))
+    if (has_restore && !co_od_subscribe(od, 0x1011, 1, 0x1011, last_sub, &restore_handler, s))
+        return false;
+    /* every key: a member of an autonomous group may be anywhere */
+    if (autonomous && !co_od_subscribe(od, 0x1000, 0, 0xFFFF, 0xFF, &member_handler, s))
         return false;
     return true;
 }
@@ -535,6 +754,9 @@ void co_store_deinit(co_store_t *s)
     if (s->od) {
         co_od_unsubscribe(s->od, &save_handler, s);
         co_od_unsubscribe(s->od, &restore_handler, s);
+        co_od_unsubscribe(s->od, &member_handler, s);
+        if (s->line != NULL)
+            co_timer_cancel(co_line_timers(s->line), &s->autonomous_timer);
         s->od = NULL;
     }
 }

@@ -107,6 +107,47 @@ static inline void tu_od_add_rows(co_od_t *od, const tu_od_row_t *rows, size_t n
     }
 }
 
+/* ------------------------------------------------- network access (U32) */
+
+/* A network download of 4 bytes through a transfer: 0 or the abort code. */
+static inline uint32_t tu_od_net_write_u32(co_od_t *od, uint16_t index, uint8_t sub,
+                                           uint32_t v)
+{
+    co_od_xfer_t x;
+    uint8_t scratch[64], b[4];
+    uint32_t r;
+    co_od_xfer_init(&x, scratch, sizeof scratch);
+    tu_le_put(b, v, 4);
+    r = co_od_write_begin(od, &x, index, sub, 4);
+    if (r != 0)
+        return r;
+    r = co_od_write_chunk(&x, b, 4);
+    if (r != 0)
+        return r;
+    return co_od_write_end(&x);
+}
+
+/* A network upload of a 4-byte value: 0 (value in *out) or the abort code. */
+static inline uint32_t tu_od_net_read_u32(co_od_t *od, uint16_t index, uint8_t sub,
+                                          uint32_t *out)
+{
+    co_od_xfer_t x;
+    uint8_t scratch[64], b[16];
+    uint32_t r, n = 0;
+    bool last = false;
+    co_od_xfer_init(&x, scratch, sizeof scratch);
+    r = co_od_read_begin(od, &x, index, sub);
+    if (r != 0)
+        return r;
+    r = co_od_read_chunk(&x, b, sizeof b, &n, &last);
+    if (r != 0)
+        return r;
+    assert_true(last);
+    assert_int_equal(n, 4);
+    *out = (uint32_t)tu_le_get(b, 4);
+    return 0;
+}
+
 /* ------------------------------------------------------ in-memory backend */
 
 typedef struct tu_mem_backend {

@@ -202,37 +202,12 @@ static void expect_all(fixture_t *fx, const vset_t *v)
 
 static uint32_t net_write_u32(fixture_t *fx, uint16_t index, uint8_t sub, uint32_t v)
 {
-    co_od_xfer_t x;
-    uint8_t scratch[64], b[4];
-    uint32_t r;
-    co_od_xfer_init(&x, scratch, sizeof scratch);
-    tu_le_put(b, v, 4);
-    r = co_od_write_begin(&fx->od, &x, index, sub, 4);
-    if (r != 0)
-        return r;
-    r = co_od_write_chunk(&x, b, 4);
-    if (r != 0)
-        return r;
-    return co_od_write_end(&x);
+    return tu_od_net_write_u32(&fx->od, index, sub, v);
 }
 
 static uint32_t net_read_u32(fixture_t *fx, uint16_t index, uint8_t sub, uint32_t *out)
 {
-    co_od_xfer_t x;
-    uint8_t scratch[64], b[16];
-    uint32_t r, n = 0;
-    bool last = false;
-    co_od_xfer_init(&x, scratch, sizeof scratch);
-    r = co_od_read_begin(&fx->od, &x, index, sub);
-    if (r != 0)
-        return r;
-    r = co_od_read_chunk(&x, b, sizeof b, &n, &last);
-    if (r != 0)
-        return r;
-    assert_true(last);
-    assert_int_equal(n, 4);
-    *out = (uint32_t)tu_le_get(b, 4);
-    return 0;
+    return tu_od_net_read_u32(&fx->od, index, sub, out);
 }
 
 /* --------------------------------------------------------- image access */

@@ -334,6 +334,9 @@ uint32_t co_od_check_value(const co_od_t *od, const co_od_entry_t *e, const uint
  * is told with CO_ORIGIN_RESTORE once per entry that changed. Indices below
  * 0x1000 belong to no group. */
 void co_od_load_defaults(co_od_t *od, uint8_t group_mask);
+/* The same for the entries pick() chooses (declared parameter groups). */
+typedef bool (*co_od_pick_fn)(const co_od_entry_t *e, void *user);
+void co_od_load_defaults_if(co_od_t *od, co_od_pick_fn pick, void *user);
 uint8_t co_od_group_of(uint16_t index);
 
 /* ---- network access (SDO/USDO servers)

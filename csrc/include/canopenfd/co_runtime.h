@@ -139,9 +139,12 @@ typedef enum co_rt_event_kind {
                                   phase after it (co_sleep_phase_t) */
     CO_EV_FLYMA = 25,          /* flying master (co_rt_flyma_start): a = co_flyma_event_t,
                                   b = master | priority << 8, node = co_flyma_state_t */
-    CO_EV_GATEWAY = 26         /* gateway between the lines (co_rt_gateway_join): node =
+    CO_EV_GATEWAY = 26,        /* gateway between the lines (co_rt_gateway_join): node =
                                   network, a = co_gateway_event_t, b = abort code; posted
                                   on the first joined line */
+    CO_EV_STORE_PERSIST = 27   /* an autonomous save staged an image of the application
+                                  store: persist it (co_rt_store_staged, then
+                                  co_rt_store_finish) */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -288,7 +291,10 @@ int co_rt_od_answer(co_rt_t *rt, int line, uint32_t token, uint32_t abort);
  * image that the application writes to its medium: for network accesses a
  * CO_EV_OD_REQUEST of kind CO_RT_INDICATE_STORE (answer with co_rt_od_answer:
  * 0 = persisted, else the abort for the client), for the application's own
- * calls co_rt_store_finish. Until then the next save is refused. */
+ * calls co_rt_store_finish, for the stack's autonomous saves a
+ * CO_EV_STORE_PERSIST then co_rt_store_finish (ok = 0 marks the groups
+ * changed again: retried one interval later). Until then the next save is
+ * refused. */
 int co_rt_store_application(co_rt_t *rt, int line, const uint8_t *image, uint32_t length,
                             int status);
 /* The staged image (length in *length; a small buffer gives
@@ -298,6 +304,17 @@ int co_rt_store_staged(co_rt_t *rt, int line, uint8_t *buf, uint32_t capacity,
 /* After co_rt_od_save / co_rt_od_restore_defaults: persisted (ok = 1: the
  * staged image becomes the one loads use) or not (ok = 0: dropped). */
 int co_rt_store_finish(co_rt_t *rt, int line, int ok);
+/* 1 when the staged image is an autonomous save's (CO_EV_STORE_PERSIST), 0
+ * when none or another waits. While one waits, other saves are refused:
+ * the application persists it first (then finishes it) and saves again. */
+int co_rt_store_autonomous_pending(co_rt_t *rt, int line);
+/* Declare the node's parameter groups (co_store_config_t; copied), after
+ * co_rt_od_define and co_rt_store_application, before CO_CMD_NODE_CREATE,
+ * which refuses a declaration co_store_init_config refuses. Autonomously
+ * saved groups need a store file (min_interval_ms: least time between two
+ * autonomous saves). */
+int co_rt_store_groups(co_rt_t *rt, int line, const co_store_group_t *groups, uint32_t rows,
+                       uint32_t min_interval_ms);
 
 /* ---- Client transfers: USDO on fd lines, SDO on classic lines. They run in
  * the runtime thread; the caller starts them, is told CO_EV_TRANSFER_DONE

@@ -117,9 +117,9 @@ enum {
     CO_STACK_MAX_BLOCKS = 24,    /* blocks a stack holds at once */
     /* OD handler subscriptions the node's parts take at most (node, store,
      * SDO/USDO server and client, EMCY, SYNC, TIME, EMCY consumer, PDO,
-     * guarding slave): an OD served by a stack needs at least this many
+     * guarding slave, autonomous saves): an OD served by a stack needs at least this many
      * subscription slots besides the application's own. */
-    CO_STACK_OD_SUBSCRIPTIONS = 16,
+    CO_STACK_OD_SUBSCRIPTIONS = 17,
     CO_STACK_DEFAULT_HB_ENTRIES = 127,
     CO_STACK_DEFAULT_SERVER_SESSIONS = 8,    /* fd lines: USDO server sessions */
     CO_STACK_DEFAULT_EMCY_QUEUE = 16,
@@ -168,6 +168,12 @@ typedef struct co_stack_node_config {
     const co_store_backend_t *store_backend;
     void *store_user;
     uint32_t store_image_capacity;   /* bytes per image, 0 = co_store_image_need(od) */
+    /* Declared parameter groups (co_store_config_t; NULL: CiA 301's default
+     * groups) and the least time between autonomous saves, on the line's clock. */
+    const co_store_group_t *store_groups;
+    uint8_t store_group_rows;
+    uint32_t store_min_interval_ms;
+    co_store_saved_fn store_saved;   /* told after autonomous saves, with `user` (may be NULL) */
     /* fd lines: USDO server sessions, 0 = CO_STACK_DEFAULT_SERVER_SESSIONS.
      * classic lines: the default SDO channel plus one per 0x1201..0x127F
      * object of the OD (this field is not used). */

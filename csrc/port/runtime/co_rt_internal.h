@@ -149,6 +149,7 @@ typedef struct rt_app_store {
     uint32_t staged_length;
     uint32_t staged_capacity;
     bool staged_pending;
+    bool staged_autonomous;      /* the stack's autonomous save staged it */
 } rt_app_store_t;
 
 /* A DOMAIN entry whose data the runtime keeps in memory (co_rt_od_domain). */
@@ -245,6 +246,9 @@ typedef struct rt_line {
     uint8_t domain_count;
     char *store_path;                /* file store, or NULL */
     rt_app_store_t app_store;        /* application store (instead of a file) */
+    co_store_group_t *store_groups;  /* declared parameter groups, or NULL: the default */
+    uint8_t store_group_rows;
+    uint32_t store_min_interval_ms;
     co_store_file_t *store_file;
     struct rt_client *client;        /* USDO/SDO client: created at the first transfer */
     /* Runtime state of the services' glue (EMCY, TIME and guarding keep none). */
@@ -545,6 +549,9 @@ int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity);
 extern const co_store_backend_t rt_app_store_backend;
 /* Subscribed after the node: network saves wait until the image persisted. */
 bool rt_app_store_hook(rt_line_t *l);
+/* co_stack_node_config_t.store_saved of an application store: an
+ * autonomous save staged an image, the application persists it. */
+void rt_app_store_autonomous(co_store_t *s, uint32_t abort, void *user);
 /* The application's answer to a persist request: commit or drop the image;
  * returns the abort to resume the access with. */
 uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort);

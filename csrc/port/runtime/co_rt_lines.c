@@ -106,6 +106,7 @@ void rt_line_free(rt_line_t *l)
     free(l->od_entries);
     free(l->od_pool);
     free(l->store_path);
+    free(l->store_groups);
     free(l->store_file);
     rt_app_store_free(l);
     rt_od_free_domains(l);

@@ -111,7 +111,11 @@ static int prepare_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id,
         }
         config->store_backend = &rt_app_store_backend;
         config->store_user = l;
+        config->store_saved = rt_app_store_autonomous;
     }
+    config->store_groups = l->store_groups;
+    config->store_group_rows = l->store_group_rows;
+    config->store_min_interval_ms = l->store_min_interval_ms;
     return CO_RT_OK;
 }
 

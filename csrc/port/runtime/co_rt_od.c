@@ -52,9 +52,12 @@ void rt_od_release(rt_line_t *l)
     free(l->od_entries);
     free(l->od_pool);
     free(l->store_path);
+    free(l->store_groups);
     l->od_entries = NULL;
     l->od_pool = NULL;
     l->store_path = NULL;
+    l->store_groups = NULL;
+    l->store_group_rows = 0;
 }
 
 int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count,
@@ -344,9 +347,8 @@ static int store_call(co_rt_t *rt, int line, int group_mask, bool save)
     if (!l) {
         return CO_RT_ERR_ARGUMENT;
     }
-    if (group_mask <= 0 || group_mask > CO_GROUP_ALL) {
-        return rt_argument_error(rt, "parameter group mask %d outside 1..%d", group_mask,
-                              CO_GROUP_ALL);
+    if (group_mask <= 0 || group_mask > 0xFF) {
+        return rt_argument_error(rt, "parameter group mask %d outside 1..255", group_mask);
     }
     rt_mutex_lock(&rt->lock);
     co_store_t *store = served_store(rt, l);

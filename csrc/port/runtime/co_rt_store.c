@@ -51,6 +51,7 @@ static void commit(rt_app_store_t *a)
     a->staged = old;
     a->status = CO_STORE_OK;
     a->staged_pending = false;
+    a->staged_autonomous = false;
 }
 
 uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
@@ -64,7 +65,22 @@ uint32_t rt_app_store_persisted(rt_line_t *l, uint32_t abort)
         return 0;
     }
     a->staged_pending = false;
+    if (a->staged_autonomous) {
+        /* not on the medium: the values are still to be saved */
+        a->staged_autonomous = false;
+        co_store_changed(co_stack_store(&l->stack), 0xFF);
+    }
     return abort;
+}
+
+void rt_app_store_autonomous(co_store_t *s, uint32_t abort, void *user)
+{
+    rt_line_t *l = user;
+    (void)s;
+    if (abort == 0 && l->app_store.enabled && l->app_store.staged_pending) {
+        l->app_store.staged_autonomous = true;
+        rt_post(l, CO_EV_STORE_PERSIST, co_stack_node(&l->stack)->nmt.node_id, 0, 0, NULL);
+    }
 }
 
 /* ---------------------------------------------------------------- node attach */
@@ -111,10 +127,11 @@ static const co_od_handler_t persist_handler = {.check_write = on_check_persist}
 
 bool rt_app_store_hook(rt_line_t *l)
 {
+    uint8_t last = co_stack_store(&l->stack)->last_sub;   /* the store hooked 1..last */
     return (!co_od_has_index(&l->od, 0x1010) ||
-            co_od_subscribe(&l->od, 0x1010, 1, 0x1010, 4, &persist_handler, l)) &&
+            co_od_subscribe(&l->od, 0x1010, 1, 0x1010, last, &persist_handler, l)) &&
            (!co_od_has_index(&l->od, 0x1011) ||
-            co_od_subscribe(&l->od, 0x1011, 1, 0x1011, 4, &persist_handler, l));
+            co_od_subscribe(&l->od, 0x1011, 1, 0x1011, last, &persist_handler, l));
 }
 
 void rt_app_store_free(rt_line_t *l)
@@ -212,6 +229,52 @@ int co_rt_store_finish(co_rt_t *rt, int line, int ok)
     } else if (a) {
         (void)rt_app_store_persisted(l, ok ? 0u : CO_ABORT_DATA_STORE);
         result = CO_RT_OK;
+        rt_kick(rt);   /* a failed autonomous save re-armed its timer */
+    }
+    rt_mutex_unlock(&rt->lock);
+    return result;
+}
+
+int co_rt_store_autonomous_pending(co_rt_t *rt, int line)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    int result = l->app_store.staged_pending && l->app_store.staged_autonomous ? 1 : 0;
+    rt_mutex_unlock(&rt->lock);
+    return result;
+}
+
+/* ---------------------------------------------------------------- groups */
+
+int co_rt_store_groups(co_rt_t *rt, int line, const co_store_group_t *groups, uint32_t rows,
+                       uint32_t min_interval_ms)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l || !groups || rows == 0 || rows > CO_STORE_MAX_GROUP_ROWS ||
+        !co_store_groups_valid(groups, (uint8_t)rows)) {
+        return rt_argument_error(rt, "line %d: parameter groups refused (1..%d blocks in "
+                                 "0x1000..0xFFFF that do not overlap, sub-indices 2, 3, ... "
+                                 "without gaps, one mode and reset type per group)", line,
+                                 CO_STORE_MAX_GROUP_ROWS);
+    }
+    rt_mutex_lock(&rt->lock);
+    int result = CO_RT_OK;
+    if (!l->has_od || rt_has_node(l) || l->store_groups) {
+        rt_set_error(rt, "line %d: parameter groups come once, after the object dictionary "
+                     "and before the node", line);
+        result = CO_RT_ERR_STATE;
+    } else {
+        l->store_groups = malloc(rows * sizeof *groups);
+        if (!l->store_groups) {
+            result = CO_RT_ERR_NO_MEMORY;
+        } else {
+            memcpy(l->store_groups, groups, rows * sizeof *groups);
+            l->store_group_rows = (uint8_t)rows;
+            l->store_min_interval_ms = min_interval_ms;
+        }
     }
     rt_mutex_unlock(&rt->lock);
     return result;
