@@ -32,7 +32,8 @@ def device(channel: str, seconds: float) -> None:
 def master(channel: str) -> None:
     with canopenfd.connect(channel) as line:
         drive = line.add_node(NODE, demo_od("fd"), heartbeat_timeout_ms=500)
-        state = drive.wait_for_heartbeat(timeout=10)
+        # the device process may take a while to start on a slow or loaded machine
+        state = drive.wait_for_heartbeat(timeout=30)
         print(f"master: node {NODE} is {state.label}")
         print(f"master: setpoint {drive.od['Demo record.Setpoint'].raw}")
         line.nmt.start(NODE)
