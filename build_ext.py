@@ -34,6 +34,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_usdo.h",
     "csrc/include/canopenfd/co_emcy_codec.h",
     "csrc/include/canopenfd/co_emcy.h",
+    "csrc/include/canopenfd/co_errors.h",
     "csrc/include/canopenfd/co_pdo.h",
     "csrc/include/canopenfd/co_sync.h",
     "csrc/include/canopenfd/co_time.h",

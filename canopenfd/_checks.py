@@ -7,7 +7,7 @@ from typing import Type, TypeVar, Union
 
 from .errors import ConfigurationError
 
-__all__ = ["check_node_id", "check_ms", "enum_member"]
+__all__ = ["check_node_id", "check_ms", "check_int", "enum_member"]
 
 E = TypeVar("E", bound=enum.IntEnum)
 
@@ -38,4 +38,12 @@ def check_ms(value: object, name: str, where: str) -> int:
         raise ConfigurationError(f"{where}: {name} must be an int 0..65535 ms, got {value!r}")
     if not 0 <= value <= 0xFFFF:
         raise ConfigurationError(f"{where}: {name} {value} ms outside 0..65535")
+    return value
+
+
+def check_int(value: object, name: str, low: int, high: int, where: str) -> int:
+    """An int low..high (not a bool) or ConfigurationError naming value and place."""
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise ConfigurationError(f"{where}: {name} must be an int {low}..{high:#x}, "
+                                 f"got {value!r}")
     return value

@@ -15,6 +15,7 @@ from .errors import ConfigurationError
 from .od import ODVariable, ObjectDictionary
 from .od.datatypes import Value
 from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
+from .services.errors import ErrorBits
 from .services.flyma import FlyingMaster
 from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
@@ -71,7 +72,8 @@ class LocalNode:
         self._store = ParameterStore(context, self, store, where, store_groups)
         self._indications = Indications(context, self, self._served, where,
                                         self._store.persist_request)
-        self._emcy = EmcyProducer(context, self, self._served, where)
+        self._errors = ErrorBits(context, self, where)
+        self._emcy = EmcyProducer(context, self, self._served, where, self._errors)
         #: Flying master (CiA 302-2): start() once the node booted.
         self.flying_master = FlyingMaster(context, where)
         self._leds = LocalLeds(context, self, where)
@@ -305,8 +307,19 @@ class LocalNode:
     @property
     def emcy(self) -> EmcyProducer:
         """The node's EMCY producer: `raise_error(code, ...)`, `clear(code)`,
-        `error_register`, `active`, `history` (see canopenfd.services.emcy)."""
+        `error_register`, `active`, `history`, and the code table by
+        application error id: `define(error_id, code, register_bits)`,
+        `raise_defined(error_id)`, `clear_defined(error_id)`, `count(error_id)`
+        (see canopenfd.services.emcy)."""
         return self._emcy
+
+    @property
+    def errors(self) -> ErrorBits:
+        """The node's error-status bits and EMCY code table: `define(bit, code,
+        register_bits)`, `report(bit, code)`, `reset(bit, code)`, `count(bit)`,
+        `bits` (as 0x2100 shows them), `set_condition(register_bit, bits)`
+        (see canopenfd.services.errors)."""
+        return self._errors
 
     # ---------------------------------------------------------------- LEDs (CiA 303-3)
     def on_led(self, callback: Callable[[str, bool, str], None]

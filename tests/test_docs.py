@@ -16,6 +16,7 @@ from helpers import package_env
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 #: Pages whose python blocks are whole scripts.
 RUNNABLE_PAGES = ["docs/from-python-canopen.md", "docs/network-manager-requests.md",
+                  "docs/error-bits.md",
                   "docs/gateway-ascii.md", "docs/remote-access.md", "docs/usdo-transfers.md",
                   "docs/routing.md", "docs/process-image.md", "docs/parameter-store.md"]
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)

@@ -27,7 +27,8 @@ from typing import Dict, Tuple
 from .c_enums import C_ENUMS, NmtCommandBase, NmtStateBase, c_enum, c_members
 
 __all__ = [
-    "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "EventKind", "FrameFlag",
+    "AbortCode", "CommEvent", "CommandKind", "Driver", "EmcyStatus", "ErrorBit",
+    "ErrorRegister", "EventKind", "FrameFlag",
     "GuardEventCode", "HeartbeatEvent", "Indicate", "LssRequest", "LssStatus", "Mode",
     "NmtCommand", "NmtState", "FlymaAction", "FlymaEvent", "FlymaState",
     "GatewayEvent", "GatewayRouteKind",
@@ -85,6 +86,10 @@ StoreStatus = _c_enum("StoreStatus", "CO_STORE_", "co_store_status_t",
 # ---------------------------------------------------------------- EMCY
 EmcyStatus = _c_enum("EmcyStatus", "CO_EMCY_STATUS_",
                      doc="Bits of the FD EMCY's status byte (priority mask and flags).")
+ErrorRegister = _c_enum("ErrorRegister", "CO_EMCY_ER_",
+                        doc="Bits of the error register 0x1001 (CiA 301 classes).")
+ErrorBit = _c_enum("ErrorBit", "CO_ERRORS_BIT_",
+                   doc="Error-status bits of the errors the stack detects (co_errors.h).")
 
 # ---------------------------------------------------------------- LSS
 LssRequest = _c_enum("LssRequest", "CO_LSS_REQ_", "co_lss_request_t",

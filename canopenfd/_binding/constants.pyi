@@ -14,6 +14,8 @@ __all__ = [
     "CommandKind",
     "Driver",
     "EmcyStatus",
+    "ErrorBit",
+    "ErrorRegister",
     "EventKind",
     "FrameFlag",
     "GuardEventCode",
@@ -130,6 +132,29 @@ class EmcyStatus(enum.IntEnum):
     NON_RECOVERABLE = 8
     OCCURRED = 16
     REPEATED = 32
+
+
+class ErrorBit(enum.IntEnum):
+    """Error-status bits of the errors the stack detects (co_errors.h)."""
+    CAN_OVERRUN = 0
+    ERROR_PASSIVE = 1
+    LIFE_GUARD = 2
+    BUS_OFF = 3
+    RPDO_SHORT = 4
+    RPDO_LONG = 5
+    SYNC_LENGTH = 6
+    RPDO_TIMEOUT = 7
+
+
+class ErrorRegister(enum.IntEnum):
+    """Bits of the error register 0x1001 (CiA 301 classes)."""
+    GENERIC = 1
+    CURRENT = 2
+    VOLTAGE = 4
+    TEMPERATURE = 8
+    COMMUNICATION = 16
+    DEVICE_PROFILE = 32
+    MANUFACTURER = 128
 
 
 class EventKind(enum.IntEnum):

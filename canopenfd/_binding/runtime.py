@@ -548,6 +548,28 @@ class Runtime:
         return {name: getattr(out, name)
                 for name, _ in ffi.typeof("co_rt_emcy_state_t").fields}
 
+    def errors_define(self, line: int, bit: int, code: int, register_bits: int,
+                      what: str) -> None:
+        self._call(what, lib.co_rt_errors_define, line, bit, code, register_bits)
+
+    def errors_report(self, line: int, bit: int, info: int, reset: bool, what: str) -> int:
+        """0 = set / cleared (EMCY sent or queued), 1 = already set, 2 = reset of a
+        clear bit."""
+        return self._call(what, lib.co_rt_errors_report, line, bit, info, int(reset))
+
+    def errors_condition(self, line: int, register_bit: int, mask: bytes, what: str) -> None:
+        self._call(what, lib.co_rt_errors_condition, line, register_bit, mask)
+
+    def errors_expose(self, line: int, index: int, what: str) -> None:
+        self._call(what, lib.co_rt_errors_expose, line, index)
+
+    def errors_state(self, line: int, what: str) -> "ErrorsState":
+        out = ffi.new("co_rt_errors_state_t *")
+        self._call(what, lib.co_rt_errors_state, line, out)
+        return ErrorsState(bytes(out.bits), int(out.error_register), int(out.bits_register),
+                           [int(c) for c in out.codes], [int(c) for c in out.classes],
+                           [int(c) for c in out.counts])
+
     def emcy_watch(self, line: int, node_id: int, watch: bool, what: str) -> None:
         self._call(what, lib.co_rt_emcy_watch, line, node_id, int(watch))
 
@@ -838,6 +860,17 @@ def _event(ev: CData) -> Event:
         # (no CAN frame flags)
         data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
     return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data, ev.coalesced)
+
+
+class ErrorsState(NamedTuple):
+    """The local node's error bits (co_rt_errors_state_t): per bit its code
+    table entry (code 0 = not defined) and report count."""
+    bits: bytes
+    error_register: int
+    bits_register: int
+    codes: List[int]
+    classes: List[int]
+    counts: List[int]
 
 
 class EmcyFields(NamedTuple):

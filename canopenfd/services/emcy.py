@@ -30,9 +30,11 @@ from .._binding.constants import EmcyStatus, EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event, decode_emcy
 from .._callbacks import CallbackList, chain
+from .._checks import check_int as _int
 from .._checks import check_node_id
 from ..decode.emcy import emcy_code_text, emcy_status_text, error_register_text
 from ..errors import ClosedError, ConfigurationError
+from .errors import ErrorBits
 from .served_od import ServedDictionary
 from .views import LocalNodeView, NodeView
 
@@ -158,13 +160,6 @@ class Emcy:
 FieldValue = Union[int, bool, bytes]
 
 
-def _int(value: object, name: str, low: int, high: int, where: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ConfigurationError(f"{where}: {name} must be an int {low}..{high:#x}, "
-                                 f"got {value!r}")
-    return value
-
-
 class EmcyProducer:
     """The EMCY producer of our local node (`local_node.emcy`).
 
@@ -176,11 +171,12 @@ class EmcyProducer:
     0x8120, RPDO length 0x8210/0x8220, ...)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView, served: ServedDictionary,
-                 where: str) -> None:
+                 where: str, errors: ErrorBits) -> None:
         self._context = context
         self.node = node
         self._served = served
         self._where = where
+        self._errors = errors
 
     def __repr__(self) -> str:
         return f"<EmcyProducer of {self.node!r}>"
@@ -239,6 +235,30 @@ class EmcyProducer:
         where = self._what("clear", code)
         fields = self._fields(code, data, 0, logical_device, 0, 0, False, time_stamp, where)
         return self._context.runtime.emcy(self._context.index, fields, True, where) == 0
+
+    # The code table (Embedded Office style): application error ids are the
+    # node's error-status bits 16..127 (canopenfd.services.errors).
+    def define(self, error_id: int, code: int, register_bits: int = 0) -> None:
+        """Declare application error `error_id` (16..127) once: its EMCY code
+        and 0x1001 class bits (`ErrorRegister.CURRENT`, `.VOLTAGE`,
+        `.TEMPERATURE`, ...)."""
+        self._errors.define(error_id, code, register_bits)
+
+    def raise_defined(self, error_id: int, info: int = 0) -> bool:
+        """Raise a declared error: its EMCY the first time (bytes 3 the id,
+        4-5 info); True when new, False when it was raised already."""
+        return self._errors.report(error_id, info)
+
+    def clear_defined(self, error_id: int, info: int = 0) -> bool:
+        """Clear a declared error (reset EMCY); False when it was not raised."""
+        return self._errors.reset(error_id, info)
+
+    def is_raised(self, error_id: int) -> bool:
+        return self._errors.is_set(error_id)
+
+    def count(self, error_id: int) -> int:
+        """How often `error_id` was raised (repetitions included)."""
+        return self._errors.count(error_id)
 
     def _state(self) -> Dict[str, int]:
         where = f"EMCY state of {self._where}"

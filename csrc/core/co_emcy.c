@@ -187,7 +187,7 @@ static void submit(co_emcy_t *e, const co_emcy_msg_t *msg)
 
 static void update_register(co_emcy_t *e)
 {
-    uint8_t reg = 0;
+    uint8_t reg = e->extra_register;
     for (uint16_t i = 0; i < e->active_count; i++) {
         reg |= (uint8_t)(CO_EMCY_ER_GENERIC | e->active[i].register_bits);
     }
@@ -242,6 +242,25 @@ static co_emcy_msg_t message_of(const co_emcy_t *e, const co_emcy_active_t *a)
     return msg;
 }
 
+/* An active-table entry for err, its EMCY occurred (repeated: again). */
+static void fill_active(const co_emcy_t *e, co_emcy_active_t *a, const co_emcy_error_t *err,
+                        bool repeated)
+{
+    memset(&a->msg, 0, sizeof a->msg);
+    a->msg.code = err->code;
+    memcpy(a->msg.msef, err->msef, CO_EMCY_MSEF_LEN);
+    a->register_bits = (uint8_t)((co_emcy_code_register_bits(err->code) | err->register_bits) &
+                                 ~0x40u);   /* bit 6 is reserved */
+    if (is_fd(e)) {
+        a->msg.logical_device = err->logical_device;
+        a->msg.spec_number = err->spec_number;
+        a->msg.time_stamp = err->time_stamp;
+        a->msg.status = (uint8_t)(err->priority | CO_EMCY_STATUS_OCCURRED |
+                                  (err->non_recoverable ? CO_EMCY_STATUS_NON_RECOVERABLE : 0) |
+                                  (repeated ? CO_EMCY_STATUS_REPEATED : 0));
+    }
+}
+
 co_emcy_result_t co_emcy_raise(co_emcy_t *e, const co_emcy_error_t *err)
 {
     if (e == NULL || !error_ok(err)) {
@@ -264,19 +283,7 @@ co_emcy_result_t co_emcy_raise(co_emcy_t *e, const co_emcy_error_t *err)
         }
         a = &e->active[e->active_count++];
     }
-    memset(&a->msg, 0, sizeof a->msg);
-    a->msg.code = err->code;
-    memcpy(a->msg.msef, err->msef, CO_EMCY_MSEF_LEN);
-    a->register_bits = (uint8_t)((co_emcy_code_register_bits(err->code) | err->register_bits) &
-                                 ~0x40u);   /* bit 6 is reserved */
-    if (fd) {
-        a->msg.logical_device = logical_device;
-        a->msg.spec_number = err->spec_number;
-        a->msg.time_stamp = err->time_stamp;
-        a->msg.status = (uint8_t)(err->priority | CO_EMCY_STATUS_OCCURRED |
-                                  (err->non_recoverable ? CO_EMCY_STATUS_NON_RECOVERABLE : 0) |
-                                  (result == CO_EMCY_REPEATED ? CO_EMCY_STATUS_REPEATED : 0));
-    }
+    fill_active(e, a, err, result == CO_EMCY_REPEATED);
     update_register(e);
     if (result == CO_EMCY_OK) {
         history_push(e, co_emcy_list_value(&a->msg));
@@ -346,6 +353,33 @@ uint16_t co_emcy_clear_all(co_emcy_t *e)
     }
     mirror(e);
     return cleared;
+}
+
+void co_emcy_set_extra_register(co_emcy_t *e, uint8_t bits)
+{
+    e->extra_register = (uint8_t)(bits & ~0x40u);
+    update_register(e);
+    mirror(e);
+}
+
+co_emcy_result_t co_emcy_signal(co_emcy_t *e, const co_emcy_error_t *err, bool occurred)
+{
+    if (e == NULL || !error_ok(err)) {
+        return CO_EMCY_BAD_ARGUMENT;
+    }
+    co_emcy_active_t a;
+    fill_active(e, &a, err, false);
+    co_emcy_msg_t msg;
+    if (occurred) {
+        history_push(e, co_emcy_list_value(&a.msg));
+        mirror(e);
+        msg = message_of(e, &a);
+    } else {
+        msg = removal_of(e, &a, err->msef, err->time_stamp);
+        msg.error_register = e->error_register;
+    }
+    submit(e, &msg);
+    return CO_EMCY_OK;
 }
 
 bool co_emcy_is_active(const co_emcy_t *e, uint16_t code, uint8_t logical_device)

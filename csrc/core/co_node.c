@@ -153,8 +153,18 @@ static void led_cause(co_node_t *node, uint8_t cause, bool active)
 
 /* The stack's own errors use CiA 301's code table; info (a node-id, a PDO
  * number) goes to the first manufacturer-specific bytes. */
+/* The error-status bit of a code the node raises follows it. */
+static void note_bit(co_node_t *node, uint16_t code, bool active)
+{
+    int bit = co_errors_stack_bit(code);
+    if (node->services.errors && bit >= 0) {
+        co_errors_note(node->services.errors, (uint8_t)bit, active);
+    }
+}
+
 static void raise_error(co_node_t *node, uint16_t code, uint16_t info)
 {
+    note_bit(node, code, true);
     if (node->services.emcy) {
         co_emcy_error_t err = {.code = code, .spec_number = 301};
         err.msef[0] = (uint8_t)info;
@@ -165,6 +175,7 @@ static void raise_error(co_node_t *node, uint16_t code, uint16_t info)
 
 static void clear_error(co_node_t *node, uint16_t code)
 {
+    note_bit(node, code, false);
     if (node->services.emcy) {
         co_emcy_error_t err = {.code = code, .spec_number = 301};
         (void)co_emcy_clear(node->services.emcy, &err);
@@ -375,12 +386,21 @@ const co_pdo_indications_t co_node_pdo_indications = {
     .rx_error_changed = on_rpdo_error_changed,
 };
 
+static void on_comm_bit(co_errors_t *errors, void *user)
+{
+    (void)errors;
+    co_node_error_behaviour(user, 1);   /* 0x1029:01: communication error */
+}
+
 void co_node_attach_services(co_node_t *node, const co_node_services_t *services)
 {
     co_flyma_t *flyma = node->services.flyma;   /* attached on its own */
     node->services = *services;
     if (!services->flyma) {
         node->services.flyma = flyma;
+    }
+    if (services->errors) {
+        co_errors_set_comm_indication(services->errors, on_comm_bit, node);
     }
     if (services->sync) {
         (void)co_sync_add_listener(services->sync, on_sync, node);
@@ -572,6 +592,9 @@ void co_node_deinit(co_node_t *node)
         co_sync_set_window_indication(node->services.sync, NULL, NULL);
         co_sync_set_error_indication(node->services.sync, NULL, NULL);
         co_sync_set_timeout_indication(node->services.sync, NULL, NULL);
+    }
+    if (node->services.errors) {
+        co_errors_set_comm_indication(node->services.errors, NULL, NULL);
     }
     memset(&node->services, 0, sizeof node->services);
     if (node->od) {

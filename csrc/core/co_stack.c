@@ -433,6 +433,10 @@ static void node_undo(co_stack_t *s)
         co_pdo_deinit(&s->pdo);
         s->has_pdo = false;
     }
+    if (s->has_errors) {
+        co_errors_detach_od(&s->errors);
+        s->has_errors = false;
+    }
     if (s->has_emcy) {
         co_emcy_deinit(&s->emcy);
         s->has_emcy = false;
@@ -524,8 +528,14 @@ static co_stack_status_t start_emcy(co_stack_t *s, const node_sizes_t *n)
     if (!s->has_emcy) {
         return fail(s, CO_STACK_PART_EMCY, CO_STACK_ERR_ARGUMENT);
     }
-    return (s->od && !co_emcy_attach_od(&s->emcy, s->od))
-               ? fail(s, CO_STACK_PART_EMCY, CO_STACK_ERR_TAKEN) : CO_STACK_OK;
+    if (s->od && !co_emcy_attach_od(&s->emcy, s->od)) {
+        return fail(s, CO_STACK_PART_EMCY, CO_STACK_ERR_TAKEN);
+    }
+    /* the error-status bits sit in front of the producer (their 0x1001 part);
+     * the application shows them in its OD when it asks (co_errors_attach_od) */
+    co_errors_init(&s->errors, &s->emcy);
+    s->has_errors = true;
+    return CO_STACK_OK;
 }
 
 static co_stack_status_t start_pdo(co_stack_t *s, const node_sizes_t *n)
@@ -610,6 +620,7 @@ static co_stack_status_t start_node_parts(co_stack_t *s, const co_stack_node_con
         status = start_emcy(s, n);
     }
     services.emcy = &s->emcy;
+    services.errors = s->has_errors ? &s->errors : NULL;
     if (status == CO_STACK_OK && s->od) {
         status = bind_line_services(s);
         if (status == CO_STACK_OK) {

@@ -106,6 +106,7 @@ typedef struct co_emcy {
     uint8_t history_limit;           /* entries kept: storage, and the subs 0x1003 has */
     uint8_t history_count;
     uint8_t error_register;          /* 0x1001 */
+    uint8_t extra_register;          /* 0x1001 bits another error source holds (co_errors) */
     bool overflow;                   /* an EMCY was dropped since the last take */
     co_emcy_stats_t stats;
 } co_emcy_t;
@@ -164,6 +165,15 @@ co_emcy_result_t co_emcy_clear(co_emcy_t *e, const co_emcy_error_t *err);
 /* Clear every active error: classic sends one error reset (msef zero), FD
  * one "removed" EMCY per error. Returns the number cleared. */
 uint16_t co_emcy_clear_all(co_emcy_t *e);
+
+/* For an error source that keeps its own error state (co_errors): the
+ * 0x1001 bits it holds, ORed with those of the active errors. */
+void co_emcy_set_extra_register(co_emcy_t *e, uint8_t bits);
+/* Send the EMCY of an error kept outside the active table: occurred = its
+ * EMCY as co_emcy_raise builds it, and a 0x1003 entry; not occurred = the
+ * removal as co_emcy_clear builds it (classic: error reset 0x0000 with
+ * err->msef). The register is the current one. */
+co_emcy_result_t co_emcy_signal(co_emcy_t *e, const co_emcy_error_t *err, bool occurred);
 
 static inline uint8_t co_emcy_error_register(const co_emcy_t *e) { return e->error_register; }
 static inline uint16_t co_emcy_active_count(const co_emcy_t *e) { return e->active_count; }

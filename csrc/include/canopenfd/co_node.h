@@ -7,6 +7,7 @@
 #define CO_NODE_H
 
 #include "canopenfd/co_emcy.h"
+#include "canopenfd/co_errors.h"
 #include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
@@ -40,6 +41,10 @@ typedef struct co_node_indications {
  * node as user, a guarding slave with co_node_guard_life and the node. */
 typedef struct co_node_services {
     co_emcy_t *emcy;
+    /* Error-status bits in front of emcy: the node keeps its stack bits in
+     * step with the errors it raises, and applies 0x1029:01 when a report
+     * sets a communication-class bit. */
+    co_errors_t *errors;
     co_sync_t *sync;
     co_time_t *time;
     co_pdo_t *pdo;

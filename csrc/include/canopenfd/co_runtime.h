@@ -391,8 +391,8 @@ int co_rt_transfer_wait(co_rt_t *rt, int line, int handle, int timeout_ms);
  * 0 = the event will come, 1 = the transfer already ended (no event comes:
  * the caller acts on the end itself), < 0 = error (CO_RT_ERR_STATE: released). */
 int co_rt_transfer_notify(co_rt_t *rt, int line, int handle);
-/* ---- process data and errors (co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c,
- * co_rt_guard.c, co_rt_stats.c) ---- */
+/* ---- process data and errors (co_rt_emcy.c, co_rt_errors.c, co_rt_pdo.c, co_rt_sync.c,
+ * co_rt_time.c, co_rt_guard.c, co_rt_stats.c) ---- */
 
 /* An error the application raises or clears on its local node's EMCY
  * producer (FD lines send every field, classic lines code, register, msef). */
@@ -419,6 +419,27 @@ typedef struct co_rt_emcy_state {
  * an error not active; < 0 = refused (co_rt_status_t, reason in the error). */
 int co_rt_emcy(co_rt_t *rt, int line, const co_rt_emcy_t *error, int clear);
 int co_rt_emcy_state(co_rt_t *rt, int line, co_rt_emcy_state_t *out);
+/* The local node's error-status bits and EMCY code table (co_errors.h). */
+typedef struct co_rt_errors_state {
+    uint8_t bits[16];          /* bit n in byte n / 8 at bit n % 8 (as 0x2100) */
+    uint8_t error_register;    /* 0x1001 as a whole */
+    uint8_t bits_register;     /* the part the bits make */
+    uint16_t codes[128];       /* the code table: EMCY code per bit, 0 = not defined */
+    uint8_t classes[128];      /* the code table: 0x1001 bits per bit */
+    uint32_t counts[128];      /* reports of each bit, repetitions included */
+} co_rt_errors_state_t;
+
+/* Declare application bit 16..127: EMCY code, 0x1001 class bits. */
+int co_rt_errors_define(co_rt_t *rt, int line, int bit, int code, int register_bits);
+/* Report (reset = 0) or reset a defined application bit with an info code:
+ * 0 = set / cleared (EMCY sent or queued), 1 = already set (counted, nothing
+ * sent), 2 = reset of a clear bit; < 0 = refused (reason in the error). */
+int co_rt_errors_report(co_rt_t *rt, int line, int bit, int info, int reset);
+/* 0x1001 bit register_bit (0..7, not 6) = any bit of mask[16] set. */
+int co_rt_errors_condition(co_rt_t *rt, int line, int register_bit, const uint8_t *mask);
+int co_rt_errors_state(co_rt_t *rt, int line, co_rt_errors_state_t *out);
+/* Show the bits in the node's OD entry index:00 (an OCTET_STRING), once. */
+int co_rt_errors_expose(co_rt_t *rt, int line, int index);
 /* Hear (CO_EV_EMCY) the EMCYs of node_id on 0x80 + node_id (watch = 0: stop). */
 int co_rt_emcy_watch(co_rt_t *rt, int line, int node_id, int watch);
 /* Application event for the local node's TPDO n (types 0, 254, 255). */

@@ -117,9 +117,10 @@ enum {
     CO_STACK_MAX_BLOCKS = 24,    /* blocks a stack holds at once */
     /* OD handler subscriptions the node's parts take at most (node, store,
      * SDO/USDO server and client, EMCY, SYNC, TIME, EMCY consumer, PDO,
-     * guarding slave, autonomous saves): an OD served by a stack needs at least this many
-     * subscription slots besides the application's own. */
-    CO_STACK_OD_SUBSCRIPTIONS = 17,
+     * guarding slave, autonomous saves, error-status bits): an OD served by a
+     * stack needs at least this many subscription slots besides the
+     * application's own. */
+    CO_STACK_OD_SUBSCRIPTIONS = 18,
     CO_STACK_DEFAULT_HB_ENTRIES = 127,
     CO_STACK_DEFAULT_SERVER_SESSIONS = 8,    /* fd lines: USDO server sessions */
     CO_STACK_DEFAULT_EMCY_QUEUE = 16,
@@ -255,6 +256,8 @@ struct co_stack {
     co_store_t store;
     bool has_emcy;
     co_emcy_t emcy;
+    bool has_errors;
+    co_errors_t errors;
     bool has_pdo;
     co_pdo_t pdo;
     bool has_guard_slave;
@@ -376,6 +379,10 @@ static inline co_node_t *co_stack_node(co_stack_t *s) { return s->has_node ? &s-
 static inline co_od_t *co_stack_od(co_stack_t *s) { return s->has_node ? s->od : NULL; }
 static inline co_store_t *co_stack_store(co_stack_t *s) { return s->has_store ? &s->store : NULL; }
 static inline co_emcy_t *co_stack_emcy(co_stack_t *s) { return s->has_emcy ? &s->emcy : NULL; }
+static inline co_errors_t *co_stack_errors(co_stack_t *s)
+{
+    return s->has_errors ? &s->errors : NULL;
+}
 static inline co_pdo_t *co_stack_pdo(co_stack_t *s) { return s->has_pdo ? &s->pdo : NULL; }
 static inline co_guard_slave_t *co_stack_guard_slave(co_stack_t *s)
 {
