@@ -219,17 +219,19 @@ def test_routes_resolve_refuse_and_report_loops(rig):
     assert routing.resolve(4).kind == GatewayRouteKind.UNKNOWN
 
 
-def _relay_rig(net, name):
+def _relay_rig(net, name, od=None):
     """The gateway's node 1 joining classic networks 1 (bus a) and 3 (bus
-    c), device 5 on network 3, a monitor on each bus: (a client line on
-    network 1, device 5, frames seen on a, frames seen on c)."""
+    c), device 5 on network 3 (the demo OD unless `od`), a monitor on each
+    bus: (a client line on network 1, device 5, frames seen on a, frames
+    seen on c)."""
     n = next(_buses)
     a, c = f"mem:routing-{name}-a-{n}", f"mem:routing-{name}-c-{n}"
     for bus, network_id in ((a, 1), (c, 3)):
         gateway = net.open_line(bus, mode="classic")
         gateway.create_local_node(GW, od=demo_od("classic"))
         gateway.network_id = network_id
-    target = net.open_line(c, mode="classic").create_local_node(5, od=demo_od("classic"))
+    target = net.open_line(c, mode="classic").create_local_node(
+        5, od=od if od is not None else demo_od("classic"))
     seen_a, seen_c = Recorder(), Recorder()
     net.open_line(a, mode="classic", monitor=True).on_frame(seen_a)
     net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
@@ -270,19 +272,10 @@ def test_sdo_networking_overlaps_the_hops_into_a_classic_network(net):
     upload: the gateway's own client reads the device (its segment requests
     run ahead of the client's). Then routing.sdo_buffering off: every frame
     relayed, nothing answered ahead."""
-    n = next(_buses)
-    a, c = f"mem:routing-buf-a-{n}", f"mem:routing-buf-c-{n}"
-    for bus, network_id in ((a, 1), (c, 3)):
-        gateway = net.open_line(bus, mode="classic")
-        gateway.create_local_node(GW, od=demo_od("classic"))
-        gateway.network_id = network_id
     od = demo_od("classic")
     od.add_object(ODVariable("Blob", 0x2400, 0, DataType.OCTET_STRING, "rw",
                              default=b"", max_length=300))
-    target = net.open_line(c, mode="classic").create_local_node(5, od=od)
-    seen_c = Recorder()
-    net.open_line(c, mode="classic", monitor=True).on_frame(seen_c)
-    client = net.open_line(a, mode="classic")
+    client, target, _, seen_c = _relay_rig(net, "buf", od)
     device = client.sdo.remote(network=3, node=5, gateway=GW)
     assert net.routing.sdo_buffering is True
 
