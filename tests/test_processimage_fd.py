@@ -5,6 +5,7 @@ download wrote, and the TPDO carries the host's bytes, byte for byte."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tty
 
@@ -36,15 +37,15 @@ def fd_setup_text() -> str:
         COD=None, RWOD=rwod + ["FFFFFFFFFF"], PIMG=[PRESET.hex().upper()])
 
 
-@pytest.fixture
-def device(net, bus_name):
-    """(host, received, states, task) for the FD setup on an fd line of bus_name."""
+@contextlib.contextmanager
+def fd_device(net, channel):
+    """(host, received, states) for the FD setup on an fd line of channel."""
     setup = parse_setup_text(fd_setup_text(), "fd.txt")
     assert setup.mode == "fd"
     task_end, host_end = os.openpty()
     tty.setraw(task_end)
     tty.setraw(host_end)
-    task = ProcessImageTask(net.open_line(bus_name, mode="fd"), setup,
+    task = ProcessImageTask(net.open_line(channel, mode="fd"), setup,
                             FdStream(task_end, "task"))
     try:
         with ProcessImage(FdStream(host_end, "host")) as host:
@@ -58,40 +59,51 @@ def device(net, bus_name):
         task.close()
 
 
-def test_fd_setup_device_exchanges_64_byte_pdos_and_usdo(device, net, bus_name):
-    host, received, states = device
-    peer = net.open_line(bus_name, mode="fd")
+def exchange(net, channel, tpdo_heard):
+    """The whole exchange on `channel`; tpdo_heard(data) waits for the TPDO
+    carrying `data` and returns its payload as sent on the bus."""
+    with fd_device(net, channel) as (host, received, states):
+        peer = net.open_line(channel, mode="fd")
+        remote = peer.add_node(NODE)
+
+        # USDO: the preset bytes of a TPDO entry; a download lands in the image
+        assert remote.usdo.upload((0x2001, 1)) == PRESET[64:72]
+        remote.usdo.download((0x2000, 3), bytes.fromhex("0102030405060708"))
+        received.wait_value((16, 8))
+        assert host.read(16, 8) == bytes.fromhex("0102030405060708")
+
+        peer.nmt.send("START", NODE)
+        states.wait_value(0x05)
+
+        # a 64-byte RPDO from the peer: one ReceivedData for the whole run
+        rpdo = bytes(range(0x40, 0x80))
+        start = len(received)
+        peer.send_frame(RPDO_ID, rpdo)
+        assert received.wait_value((0, 64), start=start) >= start
+        assert host.read(0, 64) == rpdo
+        assert remote.usdo.upload((0x2000, 8)) == rpdo[56:64]
+
+        # the host writes its 64 input bytes: TPDO 1 (type FEh, sent on change)
+        inputs = bytes((7 * i + 3) & 0xFF for i in range(64))        # not the preset
+        assert host.write(64, inputs) == 64
+        assert tpdo_heard(inputs) == inputs
+        assert remote.usdo.upload((0x2001, 4)) == inputs[24:32]
+        # read-only TPDO entries refuse a USDO download; the image keeps the host's bytes
+        with pytest.raises(UsdoAbortError) as refused:
+            remote.usdo.download((0x2001, 1), bytes(8))
+        assert refused.value.code == 0x06010002 and refused.value.from_server
+        assert host.read(64, 64) == inputs
+        assert received.snapshot().count((0, 64)) == 1 and (64, 64) not in received.snapshot()
+
+
+def test_fd_setup_device_exchanges_64_byte_pdos_and_usdo(net, bus_name):
     monitor = Recorder()
     net.open_line(bus_name, mode="fd", monitor=True).on_frame(monitor)
-    remote = peer.add_node(NODE)
 
-    # USDO: the preset bytes of a TPDO entry; a download lands in the image
-    assert remote.usdo.upload((0x2001, 1)) == PRESET[64:72]
-    remote.usdo.download((0x2000, 3), bytes.fromhex("0102030405060708"))
-    received.wait_value((16, 8))
-    assert host.read(16, 8) == bytes.fromhex("0102030405060708")
+    def tpdo_heard(data):
+        frame = monitor.wait_for(lambda frames: [f for f in frames if f.id == TPDO_ID
+                                                 and bytes(f.data) == data], what="TPDO")[0]
+        assert frame.fd
+        return bytes(frame.data)
 
-    peer.nmt.send("START", NODE)
-    states.wait_value(0x05)
-
-    # a 64-byte RPDO from the peer: one ReceivedData for the whole run
-    rpdo = bytes(range(0x40, 0x80))
-    start = len(received)
-    peer.send_frame(RPDO_ID, rpdo)
-    assert received.wait_value((0, 64), start=start) >= start
-    assert host.read(0, 64) == rpdo
-    assert remote.usdo.upload((0x2000, 8)) == rpdo[56:64]
-
-    # the host writes its 64 input bytes: TPDO 1 (type FEh, sent on change), 64 bytes
-    inputs = bytes((7 * i + 3) & 0xFF for i in range(64))        # not the preset
-    assert host.write(64, inputs) == 64
-    tpdo = monitor.wait_for(lambda frames: [f for f in frames if f.id == TPDO_ID
-                                            and bytes(f.data) == inputs], what="the TPDO")[0]
-    assert len(tpdo.data) == 64
-    assert remote.usdo.upload((0x2001, 4)) == inputs[24:32]
-    # the read-only TPDO entries refuse a USDO download; the image keeps the host's bytes
-    with pytest.raises(UsdoAbortError) as refused:
-        remote.usdo.download((0x2001, 1), bytes(8))
-    assert refused.value.code == 0x06010002 and refused.value.from_server
-    assert host.read(64, 64) == inputs
-    assert received.snapshot().count((0, 64)) == 1 and (64, 64) not in received.snapshot()
+    exchange(net, bus_name, tpdo_heard)
