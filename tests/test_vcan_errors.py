@@ -14,6 +14,7 @@ import time
 import pytest
 from helpers import Recorder, scaled
 from test_errors import emcy_bytes, error_od
+from test_errors_interop import logged
 from test_vcan_services import networks, raw_buses, recv_all  # noqa: F401 (fixtures)
 
 from canopenfd.services.errors import ErrorRegister
@@ -38,16 +39,6 @@ def device_on(networks, channel, mode):
     me.errors.define(OVER_CURRENT, 0x2310, ErrorRegister.CURRENT)
     me.emcy.define(UNDER_VOLTAGE, 0x3220, ErrorRegister.VOLTAGE)
     return me
-
-
-def logged(remote, count, timeout=5.0):
-    """python-canopen's EMCY log once it holds `count` entries (its wait()
-    hears only EMCYs arriving after the call: polling avoids that race)."""
-    deadline = time.monotonic() + scaled(timeout)
-    while len(remote.emcy.log) < count:
-        assert time.monotonic() < deadline, f"python-canopen logged {remote.emcy.log}"
-        time.sleep(0.01)
-    return list(remote.emcy.log)
 
 
 def quiet(bus, can_id, seconds=0.3):
