@@ -22,6 +22,7 @@ from canopenfd.processimage.task import ProcessImageTask
 
 pytestmark = pytest.mark.vcan
 canopen = pytest.importorskip("canopen")
+can = pytest.importorskip("can")
 
 NODE = 0x40
 
@@ -78,3 +79,22 @@ def test_setup_device_on_vcan(vcan) -> None:
     finally:
         if peer is not None:
             peer.disconnect()
+
+
+def test_fd_setup_device_on_fd_vcan(vcan, net) -> None:
+    """The CANopen FD setup of tests/test_processimage_fd.py on a kernel fd
+    line (the first name in CANOPENFD_VCAN): a raw FD socket checks the
+    64-byte TPDO as the kernel carried it."""
+    from test_processimage_fd import TPDO_ID, exchange
+    from test_vcan_services import recv_all
+
+    raw = can.Bus(interface="socketcan", channel=vcan[0], fd=True)
+    try:
+        def tpdo_heard(data: bytes) -> bytes:
+            msg = recv_all(raw, TPDO_ID, 1)[0]         # the first TPDO is the host's write
+            assert msg.is_fd and msg.bitrate_switch
+            return bytes(msg.data)
+
+        exchange(net, vcan[0], tpdo_heard)
+    finally:
+        raw.shutdown()
