@@ -17,7 +17,10 @@
  * device 5; "relayed": the client on network 1 through the gateway with
  * overlapping off (co_gateway_set_sdo_buffering false: every frame waits
  * for the device); "overlapped": the same with it on (downloads pipelined,
- * uploads read ahead). Figures are printed, nothing is asserted. */
+ * uploads read ahead). The same on two CAN FD networks (1 Mbit/s
+ * arbitration, 5 Mbit/s data) with remote USDO (CiA 1301 routed requests,
+ * store and forward in the gateway: one column "routed"). Figures are
+ * printed, nothing is asserted. */
 #include "canopenfd/co_gateway.h"
 #include "canopenfd/co_membus.h"
 #include "canopenfd/co_stack.h"
@@ -40,6 +43,7 @@ typedef struct sim_bus {
     sim_line_t *lines[MAX_LINES];
     int count;
     uint32_t bit_ns;
+    uint32_t data_bit_ns;        /* fd: the data phase's bit time, 0: classic */
     bool on_wire;
     co_frame_t frame;
     sim_line_t *from;
@@ -83,7 +87,8 @@ static void line_init(sim_line_t *l, sim_bus_t *bus, uint64_t latency_us)
 {
     co_line_config_t cfg;
     memset(&cfg, 0, sizeof cfg);
-    cfg.mode = CO_MODE_CLASSIC;
+    cfg.mode = bus->data_bit_ns != 0 ? CO_MODE_FD : CO_MODE_CLASSIC;
+    cfg.brs = bus->data_bit_ns != 0;
     cfg.rx_slots = l->rx;
     cfg.rx_capacity = QUEUE;
     cfg.tx_slots = l->tx;
@@ -96,9 +101,15 @@ static void line_init(sim_line_t *l, sim_bus_t *bus, uint64_t latency_us)
     bus->lines[bus->count++] = l;
 }
 
+/* Classic: 47 + 8 x data bits. FD with bit-rate switch: about 30 bits at
+ * the arbitration rate (identifier, control, ACK, end of frame) and the data
+ * with its CRC (21 bits, a few stuff bits) at the data rate. */
 static uint64_t frame_ns(const sim_bus_t *b, const co_frame_t *f)
 {
-    return (uint64_t)(47u + 8u * f->len) * b->bit_ns;
+    if (b->data_bit_ns == 0) {
+        return (uint64_t)(47u + 8u * f->len) * b->bit_ns;
+    }
+    return 30u * (uint64_t)b->bit_ns + (uint64_t)(8u * f->len + 28u) * b->data_bit_ns;
 }
 
 /* One instant: frames whose transmission ended are delivered, nodes whose
@@ -198,7 +209,7 @@ static void od_add(co_od_t *od, uint16_t index, uint8_t type, uint8_t access, ui
 static void node_init(node_t *n, sim_bus_t *bus, uint8_t node_id, uint64_t latency_us)
 {
     line_init(&n->sl, bus, latency_us);
-    co_od_init(&n->od, CO_MODE_CLASSIC, n->entries, 8, n->pool, sizeof n->pool, n->subs,
+    co_od_init(&n->od, co_line_mode(&n->sl.line), n->entries, 8, n->pool, sizeof n->pool, n->subs,
                sizeof n->subs / sizeof n->subs[0]);
     od_add(&n->od, 0x1000, CO_TYPE_UNSIGNED32, CO_ACCESS_RO, 4);
     od_add(&n->od, 0x1001, CO_TYPE_UNSIGNED8, CO_ACCESS_RO, 1);
@@ -225,25 +236,28 @@ static void client_init(co_stack_t *s, co_stack_arena_t *arena, unsigned char *m
     line_init(l, bus, latency_us);
     co_stack_arena_init(arena, mem, size);
     co_stack_line_config_t lc = {.heartbeat_entries = 1};
-    co_stack_client_config_t cc = {.sessions = 1, .timeout_ms = 1000};
+    co_stack_client_config_t cc = {.sessions = 1, .node_id = CLIENT, .timeout_ms = 1000};
     if (co_stack_init(s, &l->line, &lc, co_stack_arena_allocator(arena)) != CO_STACK_OK ||
         co_stack_client_init(s, &cc) != CO_STACK_OK) {
         die("client stack");
     }
 }
 
-static void world_init(uint32_t bit_ns, uint64_t device_us, uint64_t gateway_us,
-                       uint64_t client_us)
+/* value_size: the bytes of device 5's 0x2100 */
+static void world_init(uint32_t bit_ns, uint32_t data_bit_ns, uint64_t device_us,
+                       uint64_t gateway_us, uint64_t client_us, uint32_t value_size)
 {
     memset(&W, 0, sizeof W);
     W.a.bit_ns = bit_ns;
     W.c.bit_ns = bit_ns;
+    W.a.data_bit_ns = data_bit_ns;
+    W.c.data_bit_ns = data_bit_ns;
     node_init(&W.gw_a, &W.a, GW, gateway_us);
     node_init(&W.gw_c, &W.c, GW, gateway_us);
     node_init(&W.dev, &W.c, DEV, device_us);
     client_init(&W.tool_a, &W.arena_a, W.mem_a, sizeof W.mem_a, &W.client_a, &W.a, client_us);
     client_init(&W.tool_c, &W.arena_c, W.mem_c, sizeof W.mem_c, &W.client_c, &W.c, client_us);
-    co_stack_client_config_t own = {.sessions = 2, .timeout_ms = 1000};
+    co_stack_client_config_t own = {.sessions = 2, .node_id = GW, .timeout_ms = 1000};
     if (co_stack_client_init(&W.gw_c.stack, &own) != CO_STACK_OK) {
         die("the gateway's own client");
     }
@@ -257,7 +271,7 @@ static void world_init(uint32_t bit_ns, uint64_t device_us, uint64_t gateway_us,
     for (unsigned i = 0; i < sizeof value; i++) {
         value[i] = (uint8_t)(i * 7u);
     }
-    if (co_od_put(&W.dev.od, IDX_VALUE, 0, value, sizeof value) != 0) {
+    if (co_od_put(&W.dev.od, IDX_VALUE, 0, value, value_size) != 0) {
         die("co_od_put");
     }
     sim_run(10u * 1000u * 1000u);   /* boot-ups */
@@ -276,8 +290,11 @@ static void world_deinit(void)
 /* ------------------------------------------------------------ the transfers */
 
 typedef struct run {
-    co_sdo_request_t req;
+    co_sdo_request_t req;            /* classic lines */
+    co_usdo_request_t ureq;          /* fd lines */
+    bool fd;
     co_sdo_client_t *client;
+    co_usdo_client_t *uclient;
     co_line_t *line;
     uint8_t data[VALUE_MAX];
     co_sdo_buffer_t buffer;
@@ -291,32 +308,47 @@ static run_t R;
 
 static void start(run_t *r);
 
-static void on_done(co_sdo_request_t *req)
+/* A transfer ended: counted, and the next one started while time is left. */
+static void ended(run_t *r, uint32_t abort, bool upload, uint32_t size)
 {
-    run_t *r = req->user;
-    if (req->abort != 0) {
+    if (abort != 0) {
         r->failed++;
-        fprintf(stderr, "gateway_sim: %s %s 0x%04X aborted 0x%08X (%s)\n",
-                req->network != 0 ? "routed" : "direct", req->upload ? "upload" : "download",
-                req->index, (unsigned)req->abort, req->abort_from_server ? "server" : "client");
+        fprintf(stderr, "gateway_sim: %s %s aborted 0x%08X\n", r->fd ? "USDO" : "SDO",
+                upload ? "upload" : "download", (unsigned)abort);
         return;
     }
     r->done++;
     r->last_done_ns = W.now;
-    r->bytes += r->req.size != 0 ? r->req.size : r->buffer.size;
+    r->bytes += upload ? r->buffer.size : size;
     if (W.now < r->end_ns) {
         start(r);
     }
 }
 
+static void on_done(co_sdo_request_t *req)
+{
+    ended(req->user, req->abort, req->upload, req->size);
+}
+
+static void on_usdo_done(co_usdo_request_t *req)
+{
+    ended(req->user, req->abort, req->upload, req->size);
+}
+
 static void start(run_t *r)
 {
-    co_sdo_request_t q = r->req;
-    q.abort = 0;
-    q.fell_back = false;
-    r->buffer.size = q.upload ? 0 : q.size;   /* the sink fills it / the source reads it */
-    r->req = q;
+    bool upload = r->fd ? r->ureq.upload : r->req.upload;
+    r->buffer.size = upload ? 0 : (r->fd ? r->ureq.size : r->req.size);   /* sink / source */
     co_line_set_time(r->line, W.now / 1000u);
+    if (r->fd) {
+        r->ureq.abort = 0;
+        if (co_usdo_client_start(r->uclient, &r->ureq) != 0) {
+            die("co_usdo_client_start");
+        }
+        return;
+    }
+    r->req.abort = 0;
+    r->req.fell_back = false;
     if (co_sdo_client_start(r->client, &r->req) != 0) {
         die("co_sdo_client_start");
     }
@@ -327,11 +359,22 @@ static double measure(bool routed, bool upload, uint32_t size, uint8_t mode, dou
 {
     memset(&R, 0, sizeof R);
     co_stack_t *tool = routed ? &W.tool_a : &W.tool_c;
+    R.fd = W.a.data_bit_ns != 0;
     R.client = co_stack_sdo_client(tool);
+    R.uclient = co_stack_usdo_client(tool);
     R.line = routed ? &W.client_a.line : &W.client_c.line;
     R.buffer = (co_sdo_buffer_t){.data = R.data, .size = upload ? 0 : size,
                                  .capacity = sizeof R.data};
     uint16_t index = size == 4 ? IDX_U32 : IDX_VALUE;
+    if (R.fd) {
+        R.ureq = (co_usdo_request_t){
+            .server = routed ? GW : DEV, .index = index, .upload = upload, .mode = mode,
+            .size = upload ? 0 : size, .source = upload ? NULL : co_usdo_buffer_source,
+            .sink = upload ? co_usdo_buffer_sink : NULL, .ctx = &R.buffer,
+            .done = on_usdo_done, .user = &R, .timeout_ms = 1000,
+            .network = routed ? NET_C : 0, .network_node = routed ? DEV : 0,
+            .source_network = routed ? NET_A : 0};
+    }
     R.req = (co_sdo_request_t){
         .server = routed ? GW : DEV, .index = index, .upload = upload, .mode = mode,
         .size = upload ? 0 : size, .source = upload ? NULL : co_sdo_buffer_source,
@@ -385,8 +428,8 @@ int main(int argc, char **argv)
                (unsigned long long)setups[s].gateway_us, (unsigned long long)setups[s].client_us);
         printf("%-26s | %9s | %9s %6s | %10s %6s\n", "transfer", "direct", "relayed", "share",
                "overlapped", "share");
-        world_init(1000000u / setups[s].kbit, setups[s].device_us, setups[s].gateway_us,
-                   setups[s].client_us);
+        world_init(1000000u / setups[s].kbit, 0, setups[s].device_us, setups[s].gateway_us,
+                   setups[s].client_us, VALUE_MAX);
         for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++) {
             const row_t *r = &rows[i];
             double direct = measure(false, r->upload, r->size, r->mode, seconds);
@@ -403,5 +446,26 @@ int main(int argc, char **argv)
                (unsigned)st->sdo_translated);
         world_deinit();
     }
+    /* remote USDO on CAN FD: always store and forward (co_gateway_usdo.c) */
+    static const row_t fd_rows[] = {
+        {"4 B upload (expedited)", true, 4, CO_USDO_MODE_AUTO},
+        {"4 B download (expedited)", false, 4, CO_USDO_MODE_AUTO},
+        {"1000 B upload segmented", true, 1000, CO_USDO_MODE_SEGMENTED},
+        {"1000 B download segmented", false, 1000, CO_USDO_MODE_SEGMENTED},
+    };
+    printf("\nremote USDO, CAN FD 1 Mbit/s / 5 Mbit/s, node latency: device 100 us, "
+           "gateway 100 us, client 100 us\n");
+    printf("%-26s | %9s | %9s %6s\n", "transfer", "direct", "routed", "share");
+    world_init(1000u, 200u, 100, 100, 100, 1000);   /* remote USDO: values up to 1 KiB */
+    for (size_t i = 0; i < sizeof fd_rows / sizeof fd_rows[0]; i++) {
+        const row_t *r = &fd_rows[i];
+        double direct = measure(false, r->upload, r->size, r->mode, seconds);
+        double routed = measure(true, r->upload, r->size, r->mode, seconds);
+        printf("%-26s | %9.2f | %9.2f %5.0f%%\n", r->name, direct, routed,
+               100.0 * routed / direct);
+    }
+    printf("gateway: %u remote requests answered\n",
+           (unsigned)co_gateway_stats(&W.gw)->usdo_answered);
+    world_deinit();
     return 0;
 }
