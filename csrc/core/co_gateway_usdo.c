@@ -12,8 +12,11 @@
  * timing, and the gateway needs no session mapping on the target line.
  * Values up to CO_GATEWAY_USDO_VALUE_MAX bytes, expedited or segmented with
  * the client (a segmented download is collected whole before it is sent
- * on; an upload is fetched whole, then served expedited or segmented);
- * routed bulk requests are answered 0x13. Layout and choices:
+ * on; an upload is answered as soon as the target announced a size too
+ * long for a routed expedited frame, and the client's segment requests are
+ * served while the data still arrives, so the two hops overlap; a smaller
+ * or unannounced value is fetched whole first); routed bulk requests are
+ * answered 0x13. Layout and choices:
  * docs/protocol-notes.md "Remote USDO". */
 #include "canopenfd/co_gateway.h"
 
@@ -124,7 +127,8 @@ static void release(co_gateway_usdo_t *r, uint8_t code)
     }
     co_timer_cancel(co_line_timers(line_of(from)), &r->timer);
     r->from = NULL;
-    if (r->state == RELAY_FORWARD) {
+    if (r->fetching) {
+        r->fetching = false;
         (void)co_usdo_client_cancel(co_stack_usdo_client(r->to->stack), &r->req, code);
     }
     r->state = 0;
@@ -158,6 +162,108 @@ static void arm(co_gateway_usdo_t *r)
                    co_line_now(line) + (uint64_t)relay_timeout_ms(r->gw) * 1000u);
 }
 
+/* The client's segment request (counter checked): the next segment when
+ * the data has come (the last one also waits for the end of our request),
+ * else it waits for the data (the target's timeout governs meanwhile). */
+static void serve_upload(co_gateway_usdo_t *r)
+{
+    co_usdo_msg_t asked;
+    co_usdo_msg_t out;
+    uint32_t rest = r->size - r->offset;
+    bool last = rest <= CO_USDO_SEGMENT_DATA;
+    uint32_t n = last ? rest : CO_USDO_SEGMENT_DATA;
+    if (r->buf.size < r->offset + n || (last && r->fetching)) {
+        r->seg_pending = true;
+        co_timer_cancel(co_line_timers(line_of(r->from)), &r->timer);
+        return;
+    }
+    r->seg_pending = false;
+    asked_of(r, &asked);
+    memset(&out, 0, sizeof out);
+    out.data = r->data + r->offset;
+    out.length = (uint8_t)n;
+    if (!last) {
+        out.cs = CO_USDO_CS_UPLOAD_SEGMENT_RSP;
+        out.counter = r->counter;
+        r->offset += n;
+        r->counter = co_usdo_next_counter(r->counter);
+        send_to_client(r->gw, r->from, r->client, &asked, &out);
+        arm(r);
+        return;
+    }
+    co_gateway_port_t *from = r->from;
+    out.cs = CO_USDO_CS_UPLOAD_LAST_RSP;
+    release(r, 0);
+    r->gw->stats.usdo_answered++;
+    send_to_client(r->gw, from, r->client, &asked, &out);
+}
+
+/* Answer the client's upload with the size: segments from now on. */
+static void answer_segmented(co_gateway_usdo_t *r, uint32_t size)
+{
+    co_usdo_msg_t asked;
+    co_usdo_msg_t m;
+    asked_of(r, &asked);
+    memset(&m, 0, sizeof m);
+    m.cs = CO_USDO_CS_UPLOAD_INITIATE_RSP;
+    m.type = r->type;
+    m.size = size;
+    r->size = size;
+    r->state = RELAY_UL_TX;
+    r->counter = 0;
+    r->offset = 0;
+    r->seg_pending = false;
+    send_to_client(r->gw, r->from, r->client, &asked, &m);
+    arm(r);
+}
+
+/* Our upload's data: into the value, and to the client as it comes. An
+ * announced size too long for a routed expedited answer is answered at
+ * once. */
+static uint8_t upload_sink(void *ctx, uint32_t offset, const uint8_t *data, uint32_t len,
+                           uint32_t total)
+{
+    co_gateway_usdo_t *r = ctx;
+    uint8_t code = co_usdo_buffer_sink(&r->buf, offset, data, len, total);
+    if (code != 0 || r->from == NULL) {
+        return code;
+    }
+    if (len == 0) {
+        r->type = r->req.result_type;
+        if (r->state == RELAY_FORWARD && total != 0xFFFFFFFFu &&
+            total > CO_USDO_REMOTE_EXPEDITED_MAX) {
+            answer_segmented(r, total);
+        }
+    } else if (r->state == RELAY_UL_TX && r->seg_pending) {
+        serve_upload(r);
+    }
+    return 0;
+}
+
+static uint32_t download_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want)
+{
+    co_gateway_usdo_t *r = ctx;
+    return co_usdo_buffer_source(&r->buf, offset, buf, want);
+}
+
+/* Our upload ended while the client was already served segments. */
+static void streamed(co_gateway_usdo_t *r, uint8_t abort)
+{
+    if (abort != 0) {
+        r->gw->stats.usdo_answered++;
+        fail(r, abort);
+        return;
+    }
+    if (r->buf.size != r->size) {
+        r->gw->stats.usdo_answered++;
+        fail(r, CO_USDO_ABORT_DATA_SIZE);
+        return;
+    }
+    if (r->seg_pending) {
+        serve_upload(r);
+    }
+}
+
 /* The request on the target line ended: answer the client. */
 static void on_done(co_usdo_request_t *req)
 {
@@ -165,8 +271,17 @@ static void on_done(co_usdo_request_t *req)
     co_gateway_port_t *from = r->from;
     co_usdo_msg_t asked;
     co_usdo_msg_t m;
-    if (from == NULL || r->state != RELAY_FORWARD) {
+    bool live = r->fetching;
+    r->fetching = false;
+    if (from == NULL || !live) {
         return;   /* cancelled: the client aborted, or a port left */
+    }
+    if (r->state == RELAY_UL_TX) {
+        streamed(r, req->abort);
+        return;
+    }
+    if (r->state != RELAY_FORWARD) {
+        return;
     }
     asked_of(r, &asked);
     r->state = 0;
@@ -199,14 +314,9 @@ static void on_done(co_usdo_request_t *req)
         send_to_client(r->gw, from, r->client, &asked, &m);
         return;
     }
-    /* too long for a routed expedited frame: segmented, the client asks */
-    m.cs = CO_USDO_CS_UPLOAD_INITIATE_RSP;
-    m.size = r->size;
-    r->state = RELAY_UL_TX;
-    r->counter = 0;
-    r->offset = 0;
-    send_to_client(r->gw, from, r->client, &asked, &m);
-    arm(r);
+    /* too long for a routed expedited frame, size not announced before:
+     * segmented, the client asks */
+    answer_segmented(r, r->size);
 }
 
 static co_gateway_port_t *port_of(co_gateway_t *gw, const co_stack_t *stack)
@@ -225,8 +335,10 @@ static void forward(co_gateway_usdo_t *r)
     co_usdo_msg_t asked;
     uint8_t code;
     r->state = RELAY_FORWARD;
+    r->fetching = true;
     code = co_usdo_client_start(co_stack_usdo_client(r->to->stack), &r->req);
     if (code != 0) {
+        r->fetching = false;
         co_gateway_port_t *from = r->from;
         asked_of(r, &asked);
         r->from = NULL;
@@ -298,10 +410,10 @@ static bool on_request(co_gateway_port_t *from, uint8_t client, const co_usdo_ms
     r->req.upload = m->cs == CO_USDO_CS_UPLOAD;
     r->req.done = on_done;
     r->req.user = r;
-    r->req.ctx = &r->buf;
+    r->req.ctx = r;
     r->req.timeout_ms = relay_timeout_ms(gw);
-    r->req.sink = co_usdo_buffer_sink;     /* uploads: above the buffer, 0x16 */
-    r->req.source = co_usdo_buffer_source;
+    r->req.sink = upload_sink;             /* above the buffer: 0x16 */
+    r->req.source = download_source;
     if (kind == CO_GATEWAY_VIA) {
         /* on to the next gateway, routed again */
         r->req.server = hop;
@@ -353,27 +465,13 @@ static bool on_segment(co_gateway_port_t *from, uint8_t client, const co_usdo_ms
     asked_of(r, &asked);
     memset(&out, 0, sizeof out);
     if (!download) {
-        uint32_t rest = r->size - r->offset;
         if (m->counter != r->counter) {
             fail(r, CO_USDO_ABORT_COUNTER);
             return true;
         }
-        out.data = r->data + r->offset;
-        if (rest > CO_USDO_SEGMENT_DATA) {
-            out.cs = CO_USDO_CS_UPLOAD_SEGMENT_RSP;
-            out.counter = m->counter;
-            out.length = CO_USDO_SEGMENT_DATA;
-            r->offset += CO_USDO_SEGMENT_DATA;
-            r->counter = co_usdo_next_counter(r->counter);
-            send_to_client(gw, from, client, &asked, &out);
-            arm(r);
-            return true;
+        if (!r->seg_pending) {   /* (a repeat while one waits is the same request) */
+            serve_upload(r);
         }
-        out.cs = CO_USDO_CS_UPLOAD_LAST_RSP;
-        out.length = (uint8_t)rest;
-        release(r, 0);
-        gw->stats.usdo_answered++;
-        send_to_client(gw, from, client, &asked, &out);
         return true;
     }
     if (m->cs == CO_USDO_CS_DOWNLOAD_SEGMENT) {

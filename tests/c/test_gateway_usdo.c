@@ -548,6 +548,61 @@ static void test_segmented_download_and_upload_forwarded(void **state)
     assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 4);
 }
 
+/* An upload too long for a routed expedited answer is answered as soon as
+ * the target announced its size, and each segment the client asks is served
+ * as soon as it came from the target: the two hops overlap (node 9
+ * answered by hand, so the order is seen). */
+static void test_upload_streamed_while_the_target_sends(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t value[130];
+    for (size_t i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)('a' + i % 26);
+    }
+    uint8_t sid = upload_from_silent_peer(fx, 0x15);
+    const uint8_t announce[12] = {GW, 0x32, sid, 0x00, 0x00, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    peer_sends(fx, announce, 12);
+    static const uint8_t up_init[16] = {CLIENT, 0xB2, 0x15, NET_A, CLIENT, NET_B, NEXT_GW,
+                                        0x00, 0x00, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    expect(&fx->a, 0x580 + GW, 0, up_init, 16);   /* before any data came */
+    const uint8_t ask0_b[4] = {NEXT_GW, 0x13, sid, 0};
+    expect(&fx->b, 0x600 + GW, 1, ask0_b, 4);
+    for (uint8_t k = 0; k < 3; k++) {
+        const uint8_t ask[4] = {GW, 0x93, 0x15, k};
+        client_sends(fx, ask, 4);
+        assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 1 + k);   /* waits for the data */
+        bool last = k == 2;
+        uint8_t n = last ? 10 : 60;
+        uint8_t seg[64] = {GW, (uint8_t)(last ? 0x34 : 0x33), sid, (uint8_t)(last ? n : k)};
+        memcpy(seg + 4, value + 60 * k, n);
+        peer_sends(fx, seg, (uint8_t)(4 + n));
+        uint8_t out[64] = {CLIENT, (uint8_t)(last ? 0xB4 : 0xB3), 0x15, (uint8_t)(last ? n : k)};
+        memcpy(out + 4, value + 60 * k, n);
+        expect(&fx->a, 0x580 + GW, 1 + k, out, (uint8_t)(4 + n));   /* served at once */
+    }
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_answered, 1);
+    /* the relay is free again */
+    const uint8_t again[4] = {GW, 0x93, 0x15, 3};
+    client_sends(fx, again, 4);
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_stray, 1);
+
+    /* the target aborts in the middle: the client, already served the size,
+     * hears the target's code while it waits for a segment */
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->b);
+    sid = upload_from_silent_peer(fx, 0x16);
+    const uint8_t announce2[12] = {GW, 0x32, sid, 0x00, 0x00, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    peer_sends(fx, announce2, 12);
+    const uint8_t ask[4] = {GW, 0x93, 0x16, 0};
+    client_sends(fx, ask, 4);
+    const uint8_t target_abort[7] = {GW, 0x7F, sid, 0x00, 0x00, 0x20, 0x21};
+    peer_sends(fx, target_abort, 7);
+    static const uint8_t abort_a[11] = {CLIENT, 0xFF, 0x16, NET_A, CLIENT, NET_B, NEXT_GW,
+                                        0x00, 0x00, 0x20, 0x21};
+    expect(&fx->a, 0x580 + GW, 1, abort_a, 11);
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_answered, 2);
+}
+
 static void test_client_silent_in_a_segmented_download(void **state)
 {
     fx_t *fx = *state;
@@ -688,6 +743,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_through_the_next_gateway, setup, teardown),
         cmocka_unit_test_setup_teardown(test_without_gateway_still_0x13, setup, teardown),
         cmocka_unit_test_setup_teardown(test_segmented_download_and_upload_forwarded, setup,
+                                        teardown),
+        cmocka_unit_test_setup_teardown(test_upload_streamed_while_the_target_sends, setup,
                                         teardown),
         cmocka_unit_test_setup_teardown(test_client_silent_in_a_segmented_download, setup,
                                         teardown),

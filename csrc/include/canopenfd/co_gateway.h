@@ -196,6 +196,8 @@ typedef struct co_gateway_usdo {
     uint8_t type;                    /* the value's data type byte */
     uint32_t size;                   /* the value's size (download: announced) */
     uint32_t offset;                 /* segmented with the client: bytes moved */
+    bool fetching;                   /* our request on `to` has not ended yet */
+    bool seg_pending;                /* upload: the client's segment request waits for data */
     co_timer_t timer;                /* segmented with the client: its silence */
     co_usdo_request_t req;           /* on `to`'s USDO client */
     co_buffer_t buf;
