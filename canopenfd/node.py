@@ -82,6 +82,7 @@ class LocalNode:
         self.lss.add_configured_hook(self._lss_configured)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
+        self._frozen_as: Optional[str] = None   # how self.od names us while we serve it
         if od is not None:
             access = LocalPdoAccess(self, self._served)
             self._tpdo = PdoMaps(context, self, "tpdo", od, access)
@@ -118,10 +119,20 @@ class LocalNode:
                 overrides = {(0x1017, 0): heartbeat_ms} \
                     if heartbeat_ms and self._served.has_1017 else {}
                 self._served.define(overrides, self._store.path)
+                self._frozen_as = self._where
+                self.od.freeze(self._frozen_as)   # later model changes would not reach C
                 self._store.open()
                 self._indications.register_all()
                 self._served.give_domains()
             self._slave.create()
+
+    def release_od(self) -> None:
+        """The network closed: the node serves nothing any more, so its
+        object dictionary model may change again (unless another node took it)."""
+        if self.od is not None and self._frozen_as is not None \
+                and self.od.frozen_by == self._frozen_as:
+            self.od.freeze(None)
+        self._frozen_as = None
 
     # ---------------------------------------------------------------- values
     def __getitem__(self, key: Key) -> Union[LocalValue, LocalObject]:

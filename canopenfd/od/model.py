@@ -15,7 +15,7 @@ import re
 from collections.abc import Mapping
 from typing import Dict, Iterator, List, Optional, Set, Tuple, Union
 
-from .errors import OdValueError
+from .errors import OdStateError, OdValueError
 from .objects import ODArray, ODKey, ODObject, ODRecord, _by_name
 from .validate import Problem, validate
 from .variable import (ACCESS_TYPES, LINE_MODES, PDO_DIRECTIONS, ODVariable, ObjectType,
@@ -66,6 +66,9 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         self.source = ""
         #: 'EDS', 'DCF', 'XDD' or 'XDC' for imported dictionaries, else ''.
         self.source_format = ""
+        # Who serves this dictionary from C ('local node 3 on line ...'), set
+        # when that node boots: from then on the objects are fixed.
+        self._served_by: Optional[str] = None
 
     @property
     def node_id(self) -> Optional[int]:
@@ -78,12 +81,38 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
             _check_int(value, 1, 127, "node_id")
         self._node_id = value
 
+    # ------------------------------------------------------------ served
+    def freeze(self, by: Optional[str]) -> None:
+        """A local node built its C dictionary from this one (`by` names it):
+        objects can no longer be added, replaced or removed. None: that node
+        stopped (its network closed), the dictionary is free again."""
+        self._served_by = by
+
+    @property
+    def frozen_by(self) -> Optional[str]:
+        """The running node that serves this dictionary (None: free to change)."""
+        return self._served_by
+
+    def check_changeable(self, where: str, change: str) -> None:
+        """Raise OdStateError when a running node serves this dictionary:
+        the change would not reach its C dictionary."""
+        if self._served_by is not None:
+            raise OdStateError(
+                f"{where}: cannot {change}: {self._served_by} is running with this "
+                f"object dictionary and serves only the objects it had when it booted; "
+                f"make the change before the node boots (create_local_node(..., boot=False), "
+                f"then node.boot())")
+
     # ------------------------------------------------------------ mapping
     def add_object(self, obj: ODObject) -> None:
-        """Add (or replace) the object at obj.index."""
+        """Add (or replace) the object at obj.index. Refused (OdStateError)
+        once a local node serving this dictionary booted."""
         if not isinstance(obj, (ODVariable, ODRecord, ODArray)):
             raise OdValueError(f"objects must be ODVariable, ODRecord or ODArray, "
                                f"got {type(obj).__name__}")
+        self.check_changeable(format_index(obj.index),
+                               "replace the object" if obj.index in self.indices
+                               else "add the object")
         obj.parent = self
         self.indices[obj.index] = obj
 
@@ -96,6 +125,7 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         obj = self[key]
         if isinstance(obj, ODVariable) and obj.parent is not self:
             raise KeyError(f"{key!r} is a sub-entry; delete from its object")
+        self.check_changeable(format_index(obj.index), "remove the object")
         del self.indices[obj.index]
         obj.parent = None
 
