@@ -7,7 +7,7 @@ methods hand over to them.
 
 from __future__ import annotations
 
-from typing import Any, Callable, List, Optional, Protocol, Union
+from typing import Any, Callable, List, Optional, Protocol, Tuple, Union
 
 from ._binding.context import RuntimeLineContext
 from ._checks import check_ms, check_node_id
@@ -56,8 +56,10 @@ class LocalNode:
     def __init__(self, line: NodeLine, context: RuntimeLineContext, node_id: int,
                  heartbeat_ms: int, od: Optional[ObjectDictionary] = None,
                  store: Union[None, str, StoreMedium] = None,
-                 store_groups: Optional[GroupTable] = None) -> None:
+                 store_groups: Optional[GroupTable] = None, spare: Tuple[int, int] = (0, 0)
+                 ) -> None:
         self.line = line
+        self._od_spare = spare   # (entries, bytes) reserved for objects added at run time
         self.node_id = node_id
         #: The object dictionary this node serves (None: NMT and heartbeat only).
         self.od = od
@@ -118,9 +120,10 @@ class LocalNode:
                 heartbeat_ms = self._slave.heartbeat_ms
                 overrides = {(0x1017, 0): heartbeat_ms} \
                     if heartbeat_ms and self._served.has_1017 else {}
-                self._served.define(overrides, self._store.path)
+                self._served.define(overrides, self._store.path, self._od_spare)
                 self._frozen_as = self._where
-                self.od.freeze(self._frozen_as)   # later model changes would not reach C
+                # from now on an added object goes to the C OD first; other changes raise
+                self.od.freeze(self._frozen_as, self._served.add_live)
                 self._store.open()
                 self._indications.register_all()
                 self._served.give_domains()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from typing import Dict, Iterator, List, Optional, Set, Tuple, Union
+from typing import Callable, Dict, Iterator, List, Optional, Set, Tuple, Union
 
 from .errors import OdStateError, OdValueError
 from .objects import ODArray, ODKey, ODObject, ODRecord, _by_name
@@ -69,6 +69,7 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         # Who serves this dictionary from C ('local node 3 on line ...'), set
         # when that node boots: from then on the objects are fixed.
         self._served_by: Optional[str] = None
+        self._add_live: Optional[Callable[[ODObject], None]] = None
 
     @property
     def node_id(self) -> Optional[int]:
@@ -82,11 +83,21 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         self._node_id = value
 
     # ------------------------------------------------------------ served
-    def freeze(self, by: Optional[str]) -> None:
+    def freeze(self, by: Optional[str], add: Optional[Callable[[ODObject], None]] = None
+               ) -> None:
         """A local node built its C dictionary from this one (`by` names it):
-        objects can no longer be added, replaced or removed. None: that node
-        stopped (its network closed), the dictionary is free again."""
+        objects can no longer be replaced or removed; a new object is added
+        only through `add` (the node's C dictionary first, raising OdStateError
+        when it refuses). None: that node stopped (its network closed), the
+        dictionary is free again."""
         self._served_by = by
+        self._add_live = add if by is not None else None
+
+    def __getstate__(self) -> Dict[str, object]:
+        """A copy (copy.deepcopy, pickle) is served by no node: free to change."""
+        state = dict(self.__dict__)
+        state["_served_by"] = state["_add_live"] = None
+        return state
 
     @property
     def frozen_by(self) -> Optional[str]:
@@ -110,9 +121,12 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         if not isinstance(obj, (ODVariable, ODRecord, ODArray)):
             raise OdValueError(f"objects must be ODVariable, ODRecord or ODArray, "
                                f"got {type(obj).__name__}")
-        self.check_changeable(format_index(obj.index),
-                               "replace the object" if obj.index in self.indices
-                               else "add the object")
+        if self._add_live is not None and obj.index not in self.indices:
+            self._add_live(obj)   # the running node serves it first, or this raises
+        else:
+            self.check_changeable(format_index(obj.index),
+                                  "replace the object" if obj.index in self.indices
+                                  else "add the object")
         obj.parent = self
         self.indices[obj.index] = obj
 

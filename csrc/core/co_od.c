@@ -508,6 +508,22 @@ co_od_add_result_t co_od_add_live(co_od_t *od, const co_od_def_t *def)
     return CO_OD_ADDED;
 }
 
+co_od_add_result_t co_od_add_live_all(co_od_t *od, const co_od_def_t *defs, uint32_t count,
+                                      uint32_t *refused)
+{
+    uint32_t count_before = od->count, pool_before = od->pool_used;
+    for (uint32_t i = 0; i < count; i++) {
+        co_od_add_result_t r = co_od_add_live(od, &defs[i]);
+        if (r != CO_OD_ADDED && r != CO_OD_SKIPPED_MODE) {
+            od->count = count_before;     /* live entries are the table's tail */
+            od->pool_used = pool_before;
+            *refused = i;
+            return r;
+        }
+    }
+    return CO_OD_ADDED;
+}
+
 bool co_od_reserve_image(co_od_t *od, uint32_t size)
 {
     if (od->sealed || od->count > 0 || od->pool_used > 0 || size > od->pool_size) {

@@ -188,6 +188,29 @@ static void test_full_when_the_pool_has_no_room(void **state)
     assert_int_equal(co_od_add_live(&l->od, &d), CO_OD_ADDED);
 }
 
+static void test_a_batch_is_added_all_or_none(void **state)
+{
+    live_t *l = *state;
+    uint8_t b0[4], b1[4];
+    co_od_def_t batch[3];
+    uint32_t refused = 99;
+    batch[0] = tu_od_def(0x2060, 0, REC, U8, RO, 0, 1);
+    batch[1] = u32_def(0x2060, 1, b0, 1);
+    batch[2] = u32_def(0x2000, 0, b1, 2);                        /* exists: the batch fails */
+    live_t *before = malloc(sizeof *before);
+    memcpy(before, l, sizeof *l);
+    assert_int_equal(co_od_add_live_all(&l->od, batch, 3, &refused), CO_OD_ERR_DUPLICATE);
+    assert_int_equal(refused, 2);
+    assert_int_equal(l->od.count, before->od.count);
+    assert_int_equal(l->od.pool_used, before->od.pool_used);
+    assert_false(co_od_has_index(&l->od, 0x2060));
+    free(before);
+    batch[2] = u32_def(0x2061, 0, b1, 2);
+    assert_int_equal(co_od_add_live_all(&l->od, batch, 3, &refused), CO_OD_ADDED);
+    assert_non_null(co_od_find(&l->od, 0x2060, 1));
+    assert_non_null(co_od_find(&l->od, 0x2061, 0));
+}
+
 static void test_before_seal_it_is_refused(void **state)
 {
     live_t l;
@@ -216,6 +239,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_full_when_the_slots_or_the_pool_are_used, setup,
                                         teardown),
         cmocka_unit_test_setup_teardown(test_full_when_the_pool_has_no_room, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_a_batch_is_added_all_or_none, setup, teardown),
         cmocka_unit_test(test_before_seal_it_is_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

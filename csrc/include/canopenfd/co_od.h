@@ -294,6 +294,12 @@ bool co_od_seal(co_od_t *od, uint8_t node_id);
  * _DUPLICATE, _TOO_LARGE, _COMMUNICATION, _STRUCTURE (see the enum). Entries
  * cannot be removed: SDO/PDO holders would keep dangling keys. */
 co_od_add_result_t co_od_add_live(co_od_t *od, const co_od_def_t *def);
+/* co_od_add_live of defs[0..count), all or none: at the first refusal the
+ * entries added by this call are taken back (nothing can hold them yet: the
+ * caller keeps other users of the OD out meanwhile) and *refused = its
+ * position. Entries of the other line mode are skipped. */
+co_od_add_result_t co_od_add_live_all(co_od_t *od, const co_od_def_t *defs, uint32_t count,
+                                      uint32_t *refused);
 /* The process image (seed 004 §3): the first `size` bytes of the pool hold
  * the values of the entries added with co_od_add_in_image, so PDOs, SDO/USDO
  * and the host (co_api) work on the same bytes. Before any add; false when
