@@ -1,6 +1,6 @@
 """Objects added to a running local node's dictionary.
 
-`node.od.add_object(obj)` on a booted node goes to the node's C dictionary
+`node.od.add_object(obj)` (or `record.add_member` of a new sub-entry) on a booted node goes to the node's C dictionary
 first (co_rt_od_add: served at once, by SDO/USDO, the application and PDOs)
 and only then into the model; when the node refuses it (no room left, a
 communication object, ...) OdStateError names the node, the index and the
@@ -90,6 +90,10 @@ def test_a_record_is_added_with_all_its_sub_entries(net, bus_name, mode):
     assert client.upload(NODE, 0x2F10, 0) == b"\x02"
     assert client.upload(NODE, 0x2F10, 1) == b"\x07\x00\x00\x00"
     assert node[0x2F10][2].raw == -1
+    third = ODVariable("Third", 0x2F10, 3, DataType.UNSIGNED16, "rw", 3)
+    record.add_member(third)                           # a sub-entry joins it while it runs
+    assert client.upload(NODE, 0x2F10, 3) == b"\x03\x00"
+    assert od[0x2F10][3] is third
 
 
 @MODES
@@ -126,9 +130,13 @@ def test_replacing_deleting_or_growing_objects_after_boot_raises(net, bus_name, 
         del od[0x1018]
     identity = od[0x1018]
     assert isinstance(identity, ODRecord)
-    with pytest.raises(OdStateError, match="0x1018:09"):
-        identity.add_member(ODVariable("Extra", 0x1018, 9, DataType.UNSIGNED32, "ro"))
+    extra = ODVariable("Extra", 0x1018, 9, DataType.UNSIGNED32, "ro")
+    with pytest.raises(OdStateError, match="0x1018:09.*0x1000..0x1FFF"):
+        identity.add_member(extra)                     # refused by the node: a service's
+    with pytest.raises(OdStateError, match="0x1018:01: cannot replace the sub-entry"):
+        identity.add_member(ODVariable("Vendor-ID", 0x1018, 1, DataType.UNSIGNED32, "ro"))
     assert od[0x1017] is heartbeat and 9 not in identity and 0x1018 in od
+    assert extra.parent is None
     node[0x1017].raw = 250                             # the node still serves what it had
     assert node[0x1017].raw == 250
 

@@ -114,6 +114,23 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
                 f"make the change before the node boots (create_local_node(..., boot=False), "
                 f"then node.boot())")
 
+    def check_member_change(self, obj: Union[ODRecord, ODArray], variable: ODVariable) -> None:
+        """Before `variable` joins `obj` (add_member): while a node serves this
+        dictionary a new sub-entry goes to it first; a replaced one raises."""
+        if self._served_by is None:
+            return
+        if self._add_live is None or variable.subindex in obj.subindices:
+            self.check_changeable(format_index(obj.index, variable.subindex),
+                                  "replace the sub-entry" if variable.subindex in obj.subindices
+                                  else "add the sub-entry")
+            return
+        parent = variable.parent
+        variable.parent = obj     # so it is defined as a sub-entry of obj
+        try:
+            self._add_live(variable)
+        finally:
+            variable.parent = parent
+
     # ------------------------------------------------------------ mapping
     def add_object(self, obj: ODObject) -> None:
         """Add (or replace) the object at obj.index. Refused (OdStateError)
