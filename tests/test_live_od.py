@@ -182,3 +182,26 @@ def test_a_copy_of_a_served_dictionary_is_free(net, bus_name):
     assert od.frozen_by is not None and twin.frozen_by is None
     del twin[0x2006]
     assert 0x2006 in od and 0x2006 not in twin
+
+
+def test_stored_objects_added_live_are_saved_and_loaded(bus_name, tmp_path):
+    """The store image has room for what the reserved entries can store."""
+    path = str(tmp_path / "params.bin")
+
+    def late_objects(od):
+        for i in range(20):
+            od.add_object(ODVariable(f"Late {i}", 0x2F40 + i, 0, DataType.UNSIGNED32, "rw", i,
+                                     store=True))
+
+    with canopenfd.Network() as network:
+        node, od, _, _ = rig(network, bus_name, "classic", store=path)
+        late_objects(od)                               # while it runs
+        node[0x2F53].raw = 0xC0FFEE
+        node.save_parameters()
+    with canopenfd.Network() as network:
+        node, od, _, _ = rig(network, bus_name, "classic", boot=False, store=path)
+        late_objects(od)                               # before it boots this time
+        node.boot()
+        assert node.store_status == "ok"
+        assert node[0x2F53].raw == 0xC0FFEE and node[0x2F40].raw == 0
+

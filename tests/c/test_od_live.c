@@ -211,6 +211,23 @@ static void test_a_batch_is_added_all_or_none(void **state)
     assert_non_null(co_od_find(&l->od, 0x2061, 0));
 }
 
+static void test_the_grown_store_image_holds_what_live_adds_can_store(void **state)
+{
+    live_t *l = *state;
+    uint8_t b[4];
+    uint16_t index = 0x2100;
+    uint32_t bound = co_store_image_need_grown(&l->od);
+    assert_true(bound > co_store_image_need(&l->od));
+    while (l->od.count < SLOTS) {                                /* stored entries, as many as fit */
+        co_od_def_t d = u32_def(index++, 0, b, 3);
+        d.flags = CO_OD_STORE;
+        assert_int_equal(co_od_add_live(&l->od, &d), CO_OD_ADDED);
+    }
+    assert_true(co_store_image_need(&l->od) <= bound);
+    assert_int_equal(co_store_image_need_grown(&l->od),             /* full: nothing more */
+                     co_store_image_need(&l->od) + (l->od.pool_size - l->od.pool_used));
+}
+
 static void test_before_seal_it_is_refused(void **state)
 {
     live_t l;
@@ -240,6 +257,8 @@ int main(void)
                                         teardown),
         cmocka_unit_test_setup_teardown(test_full_when_the_pool_has_no_room, setup, teardown),
         cmocka_unit_test_setup_teardown(test_a_batch_is_added_all_or_none, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_the_grown_store_image_holds_what_live_adds_can_store,
+                                        setup, teardown),
         cmocka_unit_test(test_before_seal_it_is_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
