@@ -205,3 +205,20 @@ def test_stored_objects_added_live_are_saved_and_loaded(bus_name, tmp_path):
         assert node.store_status == "ok"
         assert node[0x2F53].raw == 0xC0FFEE and node[0x2F40].raw == 0
 
+
+
+@MODES
+def test_a_transfer_in_progress_survives_objects_added_meanwhile(net, bus_name, mode):
+    node, od, client, _ = rig(net, bus_name, mode, boot=False)
+    node.serve_domain(0x2100, 4 << 20)
+    node.boot()
+    data = bytes(range(256)) * (8192 if mode == "fd" else 1024)   # 2 MiB / 256 KiB
+    node[0x2100].data = data
+    transfer = client.start_upload(NODE, 0x2100, 0, max_size=len(data))
+    od.add_object(ODVariable("Meanwhile", 0x2F30, 0, DataType.UNSIGNED8, "rw", 0))
+    running = not transfer.done()                      # the add came while it ran
+    for i in range(1, 8):
+        od.add_object(ODVariable(f"Meanwhile {i}", 0x2F30 + i, 0, DataType.UNSIGNED8, "rw", i))
+    assert bytes(transfer.result(timeout=60)) == data
+    assert running, "the upload ended before the first add: make it longer"
+    assert client.upload(NODE, 0x2F37, 0) == b"\x07"
