@@ -155,7 +155,8 @@ class Line:
     def create_local_node(self, node_id: int, heartbeat_ms: int = 0, *,
                           od: Optional[ODLike] = None, store: Optional[StoreLike] = None,
                           store_groups: Optional[Sequence[StoreGroup]] = None,
-                          store_interval_ms: int = 1000, boot: bool = True) -> LocalNode:
+                          store_interval_ms: int = 1000, boot: bool = True,
+                          od_spare_objects: int = 32, od_spare_bytes: int = 1024) -> LocalNode:
         """Create our node on this line (one per line) and boot it: boot-up
         message, PRE-OPERATIONAL, then a heartbeat every heartbeat_ms (0 = none).
 
@@ -168,6 +169,10 @@ class Line:
         see canopenfd.services.store_groups; default: CiA 301's by index
         range); autonomously saved groups are written by the stack at most
         every store_interval_ms.
+
+        od_spare_objects / od_spare_bytes: room reserved for entries added to
+        the running node (`node.od.add_object(...)`): entry slots and value
+        bytes (value, default and limits of each entry).
 
         boot=False leaves it off until node.boot(), so callbacks registered in
         between see its first transition."""
@@ -197,7 +202,9 @@ class Line:
             groups = _store_groups(store_groups, store_interval_ms, checked_store,
                                    f"create_local_node({node_id}) on {self._where}")
             scope = context.scoped()
-            node = LocalNode(self, scope, node_id, heartbeat_ms, served, checked_store, groups)
+            node = LocalNode(self, scope, node_id, heartbeat_ms, served, checked_store, groups,
+                             spare=_od_spare(od_spare_objects, od_spare_bytes,
+                                             f"create_local_node({node_id}) on {self._where}"))
             self.local_node = node
             context.local_node_id = node_id
             if boot:
@@ -550,3 +557,11 @@ def _store_groups(groups: Optional[Sequence[StoreGroup]], interval_ms: int,
     if store is None:
         raise ConfigurationError(f"{where}: store_groups need a store")
     return declare_groups(groups, interval_ms, where)
+
+
+def _od_spare(objects: int, size: int, what: str) -> Tuple[int, int]:
+    """The room for entries added at run time, checked."""
+    for name, value in (("od_spare_objects", objects), ("od_spare_bytes", size)):
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 1 << 24:
+            raise ConfigurationError(f"{what}: {name} must be 0..16777215, got {value!r}")
+    return objects, size

@@ -234,6 +234,9 @@ class Network:
             bridge.stop()
         self._runtime.stop()
         self._stop_watch.set()
+        for line in self.lines:   # their nodes serve nothing now: the models are free
+            if line.local_node is not None:
+                line.local_node.release_od()
         with self._lock:
             contexts = list(self._contexts.values())
         for context in contexts:

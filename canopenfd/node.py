@@ -7,7 +7,7 @@ methods hand over to them.
 
 from __future__ import annotations
 
-from typing import Any, Callable, List, Optional, Protocol, Union
+from typing import Any, Callable, List, Optional, Protocol, Tuple, Union
 
 from ._binding.context import RuntimeLineContext
 from ._checks import check_ms, check_node_id
@@ -56,8 +56,10 @@ class LocalNode:
     def __init__(self, line: NodeLine, context: RuntimeLineContext, node_id: int,
                  heartbeat_ms: int, od: Optional[ObjectDictionary] = None,
                  store: Union[None, str, StoreMedium] = None,
-                 store_groups: Optional[GroupTable] = None) -> None:
+                 store_groups: Optional[GroupTable] = None, spare: Tuple[int, int] = (0, 0)
+                 ) -> None:
         self.line = line
+        self._od_spare = spare   # (entries, bytes) reserved for objects added at run time
         self.node_id = node_id
         #: The object dictionary this node serves (None: NMT and heartbeat only).
         self.od = od
@@ -82,6 +84,7 @@ class LocalNode:
         self.lss.add_configured_hook(self._lss_configured)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
+        self._frozen_as: Optional[str] = None   # how self.od names us while we serve it
         if od is not None:
             access = LocalPdoAccess(self, self._served)
             self._tpdo = PdoMaps(context, self, "tpdo", od, access)
@@ -117,11 +120,22 @@ class LocalNode:
                 heartbeat_ms = self._slave.heartbeat_ms
                 overrides = {(0x1017, 0): heartbeat_ms} \
                     if heartbeat_ms and self._served.has_1017 else {}
-                self._served.define(overrides, self._store.path)
+                self._served.define(overrides, self._store.path, self._od_spare)
+                self._frozen_as = self._where
+                # from now on an added object goes to the C OD first; other changes raise
+                self.od.freeze(self._frozen_as, self._served.add_live)
                 self._store.open()
                 self._indications.register_all()
                 self._served.give_domains()
             self._slave.create()
+
+    def release_od(self) -> None:
+        """The network closed: the node serves nothing any more, so its
+        object dictionary model may change again (unless another node took it)."""
+        if self.od is not None and self._frozen_as is not None \
+                and self.od.frozen_by == self._frozen_as:
+            self.od.freeze(None)
+        self._frozen_as = None
 
     # ---------------------------------------------------------------- values
     def __getitem__(self, key: Key) -> Union[LocalValue, LocalObject]:

@@ -18,7 +18,8 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 RUNNABLE_PAGES = ["docs/from-python-canopen.md", "docs/network-manager-requests.md",
                   "docs/error-bits.md",
                   "docs/gateway-ascii.md", "docs/remote-access.md", "docs/usdo-transfers.md",
-                  "docs/routing.md", "docs/process-image.md", "docs/parameter-store.md"]
+                  "docs/routing.md", "docs/process-image.md", "docs/parameter-store.md",
+                  "docs/live-objects.md"]
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 

@@ -64,7 +64,13 @@ def definitions(od: ObjectDictionary, node_id: int,
                 ) -> Tuple[CData, int, List[CData]]:
     """(co_od_def_t array, count, keep-alive list) for `od` on node `node_id`.
     `overrides` maps (index, sub) to a start value replacing the default."""
-    entries = list(od.entries())
+    return entry_definitions(list(od.entries()), node_id, overrides)
+
+
+def entry_definitions(entries: List[ODVariable], node_id: int,
+                      overrides: Optional[Mapping[Tuple[int, int], Value]] = None
+                      ) -> Tuple[CData, int, List[CData]]:
+    """The same for a list of entries (one object added at run time)."""
     defs = ffi.new("co_od_def_t[]", max(len(entries), 1))
     keep: List[CData] = [defs]
     for i, var in enumerate(entries):

@@ -14,11 +14,11 @@ from typing import (Callable, Dict, List, Mapping, NamedTuple, Optional, Sequenc
 
 from ..errors import CanopenFDError, ClosedError, CommandError, ConfigurationError, InterfaceError
 from ..frame import Frame
-from ..od import ObjectDictionary
+from ..od import ODVariable, ObjectDictionary
 from ..od.datatypes import Value
 from .constants import CommandKind, EventKind
 from .core import CData, ffi, lib
-from .od_tables import definitions
+from .od_tables import definitions, entry_definitions
 from .transfers import TransferRequest
 
 #: The runtime's "line N: " prefix of its error texts.
@@ -197,6 +197,21 @@ class Runtime:
         path = ffi.new("char[]", store_path.encode("utf-8")) if store_path else ffi.NULL
         with self._lock:
             rc = lib.co_rt_od_define(self._live(what), line, defs, count, path)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def od_reserve(self, line: int, spare_entries: int, spare_bytes: int, what: str) -> None:
+        """Room for entries added while the node runs, before od_define."""
+        with self._lock:
+            rc = lib.co_rt_od_reserve(self._live(what), line, spare_entries, spare_bytes)
+            if rc < 0:
+                self._raise(rc, what)
+
+    def od_add(self, line: int, entries: List[ODVariable], node_id: int, what: str) -> None:
+        """Add entries to the running node's OD, all or none (served at once)."""
+        defs, count, _keep = entry_definitions(entries, node_id)
+        with self._lock:
+            rc = lib.co_rt_od_add(self._live(what), line, defs, count)
             if rc < 0:
                 self._raise(rc, what)
 

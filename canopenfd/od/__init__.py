@@ -22,7 +22,7 @@ from .builders import add_manager_requests, add_node_array, add_stamp
 from .datatypes import DataType, TimeDifference, TimeOfDay, decode, encode
 from .demo import demo_od
 from .eds import eds_from_text, export_dcf, export_eds, import_eds
-from .errors import OdError, OdFileError, OdValueError
+from .errors import OdError, OdFileError, OdStateError, OdValueError
 from .fileio import MAX_FILE_SIZE, Source, detect_format, read_source
 from .model import ODArray, ODRecord, ODVariable, ObjectDictionary, ObjectType, format_index
 from .validate import Problem
@@ -33,7 +33,7 @@ _log = logging.getLogger(__name__)
 __all__ = [
     "DataType", "TimeOfDay", "TimeDifference", "encode", "decode",
     "ObjectDictionary", "ODVariable", "ODRecord", "ODArray", "ObjectType", "format_index",
-    "Problem", "OdError", "OdValueError", "OdFileError",
+    "Problem", "OdError", "OdValueError", "OdFileError", "OdStateError",
     "import_od", "import_eds", "import_xdd", "export_eds", "export_dcf", "demo_od",
     "MAX_FILE_SIZE", "add_node_array", "add_stamp", "add_manager_requests",
 ]

@@ -49,3 +49,11 @@ class OdFileError(OdError):
         if where:
             location = f"{location} {where}"
         super().__init__(f"{location}: {problem}")
+
+
+class OdStateError(OdError):
+    """A change to a dictionary that a running local node serves: its C
+    dictionary was built from the model when the node booted, so an object
+    added, replaced or removed afterwards would not be served (the model and
+    the node would disagree). The message names the node, the entry and what
+    to do instead; the model is left unchanged."""

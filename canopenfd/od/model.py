@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from typing import Dict, Iterator, List, Optional, Set, Tuple, Union
+from typing import Callable, Dict, Iterator, List, Optional, Set, Tuple, Union
 
-from .errors import OdValueError
+from .errors import OdStateError, OdValueError
 from .objects import ODArray, ODKey, ODObject, ODRecord, _by_name
 from .validate import Problem, validate
 from .variable import (ACCESS_TYPES, LINE_MODES, PDO_DIRECTIONS, ODVariable, ObjectType,
@@ -66,6 +66,10 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         self.source = ""
         #: 'EDS', 'DCF', 'XDD' or 'XDC' for imported dictionaries, else ''.
         self.source_format = ""
+        # Who serves this dictionary from C ('local node 3 on line ...'), set
+        # when that node boots: from then on the objects are fixed.
+        self._served_by: Optional[str] = None
+        self._add_live: Optional[Callable[[ODObject], None]] = None
 
     @property
     def node_id(self) -> Optional[int]:
@@ -78,12 +82,68 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
             _check_int(value, 1, 127, "node_id")
         self._node_id = value
 
+    # ------------------------------------------------------------ served
+    def freeze(self, by: Optional[str], add: Optional[Callable[[ODObject], None]] = None
+               ) -> None:
+        """A local node built its C dictionary from this one (`by` names it):
+        objects can no longer be replaced or removed; a new object is added
+        only through `add` (the node's C dictionary first, raising OdStateError
+        when it refuses). None: that node stopped (its network closed), the
+        dictionary is free again."""
+        self._served_by = by
+        self._add_live = add if by is not None else None
+
+    def __getstate__(self) -> Dict[str, object]:
+        """A copy (copy.deepcopy, pickle) is served by no node: free to change."""
+        state = dict(self.__dict__)
+        state["_served_by"] = state["_add_live"] = None
+        return state
+
+    @property
+    def frozen_by(self) -> Optional[str]:
+        """The running node that serves this dictionary (None: free to change)."""
+        return self._served_by
+
+    def check_changeable(self, where: str, change: str) -> None:
+        """Raise OdStateError when a running node serves this dictionary:
+        the change would not reach its C dictionary."""
+        if self._served_by is not None:
+            raise OdStateError(
+                f"{where}: cannot {change}: {self._served_by} is running with this "
+                f"object dictionary and serves only the objects it had when it booted; "
+                f"make the change before the node boots (create_local_node(..., boot=False), "
+                f"then node.boot())")
+
+    def check_member_change(self, obj: Union[ODRecord, ODArray], variable: ODVariable) -> None:
+        """Before `variable` joins `obj` (add_member): while a node serves this
+        dictionary a new sub-entry goes to it first; a replaced one raises."""
+        if self._served_by is None:
+            return
+        if self._add_live is None or variable.subindex in obj.subindices:
+            self.check_changeable(format_index(obj.index, variable.subindex),
+                                  "replace the sub-entry" if variable.subindex in obj.subindices
+                                  else "add the sub-entry")
+            return
+        parent = variable.parent
+        variable.parent = obj     # so it is defined as a sub-entry of obj
+        try:
+            self._add_live(variable)
+        finally:
+            variable.parent = parent
+
     # ------------------------------------------------------------ mapping
     def add_object(self, obj: ODObject) -> None:
-        """Add (or replace) the object at obj.index."""
+        """Add (or replace) the object at obj.index. Refused (OdStateError)
+        once a local node serving this dictionary booted."""
         if not isinstance(obj, (ODVariable, ODRecord, ODArray)):
             raise OdValueError(f"objects must be ODVariable, ODRecord or ODArray, "
                                f"got {type(obj).__name__}")
+        if self._add_live is not None and obj.index not in self.indices:
+            self._add_live(obj)   # the running node serves it first, or this raises
+        else:
+            self.check_changeable(format_index(obj.index),
+                                  "replace the object" if obj.index in self.indices
+                                  else "add the object")
         obj.parent = self
         self.indices[obj.index] = obj
 
@@ -96,6 +156,7 @@ class ObjectDictionary(Mapping[ODKey, ODObject]):
         obj = self[key]
         if isinstance(obj, ODVariable) and obj.parent is not self:
             raise KeyError(f"{key!r} is a sub-entry; delete from its object")
+        self.check_changeable(format_index(obj.index), "remove the object")
         del self.indices[obj.index]
         obj.parent = None
 

@@ -59,6 +59,9 @@ class _Container(Mapping[Union[int, str], ODVariable]):
         if variable.index != self.index:
             raise OdValueError(f"member {variable.name!r} has index "
                                f"{format_index(variable.index)}", f"{self.where} {self.name}")
+        check = getattr(self.parent, "check_member_change", None)
+        if check is not None:    # a running node serves it first, or this raises
+            check(self, variable)
         variable.parent = self
         self.subindices[variable.subindex] = variable
 

@@ -20,7 +20,9 @@ from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
 from ..errors import AbortError, ConfigurationError
-from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary, export_dcf, export_eds
+from ..od import (ODArray, ODRecord, ODVariable, ObjectDictionary, OdStateError, export_dcf,
+                  export_eds)
+from ..od.objects import ODObject
 from ..od.datatypes import DataType, Value
 from ..od.fileio import Source
 from .views import LocalNodeView
@@ -95,13 +97,31 @@ class ServedDictionary:
         return od is not None and isinstance(od.get_variable(0x1017, 0), ODVariable)
 
     # ------------------------------------------------------------ boot
-    def define(self, overrides: Mapping[Tuple[int, int], Value], store_path: Optional[str]) -> None:
+    def define(self, overrides: Mapping[Tuple[int, int], Value], store_path: Optional[str],
+               spare: Tuple[int, int] = (0, 0)) -> None:
         """Define the OD in the runtime (before the node is created): `overrides`
-        replace start values, `store_path` is the parameter file (or None)."""
+        replace start values, `store_path` is the parameter file (or None),
+        `spare` the (entries, bytes) kept for objects added at run time."""
         od = self._od()
         context = self._context
+        context.runtime.od_reserve(context.index, spare[0], spare[1],
+                                   f"object dictionary of {self.where}")
         context.runtime.od_define(context.index, od, self.node.node_id, overrides, store_path,
                                   f"object dictionary of {self.where}")
+
+    def add_live(self, obj: ODObject) -> None:
+        """Add a new object to the running node's C OD (all its entries or
+        none); OdStateError naming the node, the entry and the reason."""
+        entries = [obj] if isinstance(obj, ODVariable) else \
+            [obj.subindices[sub] for sub in sorted(obj.subindices)]
+        context = self._context
+        what = f"add_object(0x{obj.index:04X}) to {self.where}"
+        try:
+            context.runtime.od_add(context.index, entries, self.node.node_id, what)
+        except ConfigurationError as error:
+            hint = " (reserve more with create_local_node(..., od_spare_objects=N, " \
+                   "od_spare_bytes=M))" if "no room left" in str(error) else ""
+            raise OdStateError(f"{error}{hint}") from None
 
     def serve_domain(self, key: Key, capacity: int) -> None:
         entry = self.entry(key)

@@ -285,7 +285,7 @@ static void notify_after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin
  * to guess (random lookups would mispredict about every other step). */
 static uint32_t lower_bound(const co_od_t *od, uint32_t key)
 {
-    uint32_t base = 0, n = od->count;
+    uint32_t base = 0, n = od->sorted_count;
     if (n == 0) {
         return 0;
     }
@@ -372,14 +372,9 @@ static co_od_add_result_t validate(const co_od_def_t *def)
     return CO_OD_ADDED;
 }
 
-/* Add one entry; with in_image its value lives at image byte `offset` (the
- * caller checked the range), only default and limits take pool room. */
-static co_od_add_result_t add_entry(co_od_t *od, const co_od_def_t *def, bool in_image,
-                                    uint32_t offset)
+/* What every add checks first: the definition itself, then the line mode. */
+static co_od_add_result_t check_definition(const co_od_t *od, const co_od_def_t *def)
 {
-    if (od->sealed) {
-        return CO_OD_ERR_SEALED;
-    }
     if (def == NULL) {
         return CO_OD_ERR_TYPE;
     }
@@ -391,20 +386,19 @@ static co_od_add_result_t add_entry(co_od_t *od, const co_od_def_t *def, bool in
         ((def->flags & CO_OD_CLASSIC_ONLY) && od->mode == CO_MODE_FD)) {
         return CO_OD_SKIPPED_MODE;
     }
+    return CO_OD_ADDED;
+}
+
+static bool has_room(const co_od_t *od, uint32_t need)
+{
+    return od->count < od->capacity && need <= od->pool_size - od->pool_used;
+}
+
+/* Fill slot e from def and take its pool bytes (the caller checked the room). */
+static void fill_entry(co_od_t *od, co_od_entry_t *e, const co_od_def_t *def, bool in_image,
+                       uint32_t offset, uint32_t need)
+{
     uint32_t key = (uint32_t)def->index << 8 | def->sub;
-    uint32_t pos = lower_bound(od, key);
-    if (pos < od->count && od->entries[pos].key == key) {
-        return CO_OD_ERR_DUPLICATE;
-    }
-    uint32_t need = co_od_pool_need(def) - (in_image ? def->size : 0u);
-    if (od->count >= od->capacity || need > od->pool_size - od->pool_used) {
-        return CO_OD_ERR_FULL;
-    }
-    if (pos < od->count) {
-        memmove(&od->entries[pos + 1u], &od->entries[pos],
-                (size_t)(od->count - pos) * sizeof od->entries[0]);
-    }
-    co_od_entry_t *e = &od->entries[pos];
     memset(e, 0, sizeof *e);
     e->key = key;
     e->object_code = def->object_code;
@@ -427,12 +421,107 @@ static co_od_add_result_t add_entry(co_od_t *od, const co_od_def_t *def, bool in
     }
     od->pool_used += need;
     od->count++;
+}
+
+/* Add one entry before seal, in key order; with in_image its value lives at
+ * image byte `offset` (the caller checked the range), only default and limits
+ * take pool room. */
+static co_od_add_result_t add_entry(co_od_t *od, const co_od_def_t *def, bool in_image,
+                                    uint32_t offset)
+{
+    if (od->sealed) {
+        return CO_OD_ERR_SEALED;
+    }
+    co_od_add_result_t r = check_definition(od, def);
+    if (r != CO_OD_ADDED) {
+        return r;
+    }
+    uint32_t key = (uint32_t)def->index << 8 | def->sub;
+    uint32_t pos = lower_bound(od, key);
+    if (pos < od->count && od->entries[pos].key == key) {
+        return CO_OD_ERR_DUPLICATE;
+    }
+    uint32_t need = co_od_pool_need(def) - (in_image ? def->size : 0u);
+    if (!has_room(od, need)) {
+        return CO_OD_ERR_FULL;
+    }
+    if (pos < od->count) {
+        memmove(&od->entries[pos + 1u], &od->entries[pos],
+                (size_t)(od->count - pos) * sizeof od->entries[0]);
+    }
+    fill_entry(od, &od->entries[pos], def, in_image, offset, need);
+    od->sorted_count = od->count;   /* before seal the whole table is sorted */
     return CO_OD_ADDED;
 }
 
 co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def)
 {
     return add_entry(od, def, false, 0);
+}
+
+static bool load_default(co_od_t *od, co_od_entry_t *e);
+
+static bool is_structured(uint8_t object_code)
+{
+    return object_code == CO_OBJECT_ARRAY || object_code == CO_OBJECT_RECORD;
+}
+
+/* The seal's ARRAY/RECORD rule for one live entry: sub 0 first, UNSIGNED8. */
+static bool live_structure_ok(const co_od_t *od, const co_od_def_t *def)
+{
+    if (def->sub == 0) {
+        return !is_structured(def->object_code) || def->type == CO_TYPE_UNSIGNED8;
+    }
+    const co_od_entry_t *sub0 = co_od_find(od, def->index, 0);
+    return sub0 != NULL && sub0->type == CO_TYPE_UNSIGNED8 &&
+           (is_structured(sub0->object_code) || is_structured(def->object_code));
+}
+
+co_od_add_result_t co_od_add_live(co_od_t *od, const co_od_def_t *def)
+{
+    if (!od->sealed) {
+        return CO_OD_ERR_NOT_SEALED;
+    }
+    co_od_add_result_t r = check_definition(od, def);
+    if (r != CO_OD_ADDED) {
+        return r;
+    }
+    if (co_od_find(od, def->index, def->sub) != NULL) {
+        return CO_OD_ERR_DUPLICATE;
+    }
+    if (def->index >= 0x1000u && def->index <= 0x1FFFu) {
+        return CO_OD_ERR_COMMUNICATION;
+    }
+    if (def->size > od->live_size_max) {
+        return CO_OD_ERR_TOO_LARGE;
+    }
+    if (!live_structure_ok(od, def)) {
+        return CO_OD_ERR_STRUCTURE;
+    }
+    uint32_t need = co_od_pool_need(def);
+    if (!has_room(od, need)) {
+        return CO_OD_ERR_FULL;
+    }
+    co_od_entry_t *e = &od->entries[od->count];   /* appended: nothing moves */
+    fill_entry(od, e, def, false, 0, need);
+    (void)load_default(od, e);
+    return CO_OD_ADDED;
+}
+
+co_od_add_result_t co_od_add_live_all(co_od_t *od, const co_od_def_t *defs, uint32_t count,
+                                      uint32_t *refused)
+{
+    uint32_t count_before = od->count, pool_before = od->pool_used;
+    for (uint32_t i = 0; i < count; i++) {
+        co_od_add_result_t r = co_od_add_live(od, &defs[i]);
+        if (r != CO_OD_ADDED && r != CO_OD_SKIPPED_MODE) {
+            od->count = count_before;     /* live entries are the table's tail */
+            od->pool_used = pool_before;
+            *refused = i;
+            return r;
+        }
+    }
+    return CO_OD_ADDED;
 }
 
 bool co_od_reserve_image(co_od_t *od, uint32_t size)
@@ -510,8 +599,12 @@ bool co_od_seal(co_od_t *od, uint8_t node_id)
         return false;
     }
     od->node_id = node_id;
+    od->live_size_max = 0;
     for (i = 0; i < od->count; i++) {
         (void)load_default(od, &od->entries[i]);
+        if (od->entries[i].size > od->live_size_max) {
+            od->live_size_max = od->entries[i].size;
+        }
     }
     /* ARRAY / RECORD objects need sub 0 as UNSIGNED8. Its value is not
      * checked against the sub-indices present: 0x1003 counts the errors
@@ -521,8 +614,7 @@ bool co_od_seal(co_od_t *od, uint8_t node_id)
         uint16_t index = co_od_entry_index(&od->entries[i]);
         bool structured = false;
         for (j = i; j < od->count && co_od_entry_index(&od->entries[j]) == index; j++) {
-            uint8_t oc = od->entries[j].object_code;
-            structured = structured || oc == CO_OBJECT_ARRAY || oc == CO_OBJECT_RECORD;
+            structured = structured || is_structured(od->entries[j].object_code);
         }
         if (!structured) {
             continue;
@@ -570,8 +662,13 @@ const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t sub)
 {
     uint32_t key = (uint32_t)index << 8 | sub;
     uint32_t pos = lower_bound(od, key);
-    if (pos < od->count && od->entries[pos].key == key) {
+    if (pos < od->sorted_count && od->entries[pos].key == key) {
         return &od->entries[pos];
+    }
+    for (pos = od->sorted_count; pos < od->count; pos++) {   /* added live */
+        if (od->entries[pos].key == key) {
+            return &od->entries[pos];
+        }
     }
     return NULL;
 }
@@ -579,7 +676,15 @@ const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t sub)
 bool co_od_has_index(const co_od_t *od, uint16_t index)
 {
     uint32_t pos = lower_bound(od, (uint32_t)index << 8);
-    return pos < od->count && co_od_entry_index(&od->entries[pos]) == index;
+    if (pos < od->sorted_count && co_od_entry_index(&od->entries[pos]) == index) {
+        return true;
+    }
+    for (pos = od->sorted_count; pos < od->count; pos++) {
+        if (co_od_entry_index(&od->entries[pos]) == index) {
+            return true;
+        }
+    }
+    return false;
 }
 
 /* Entry of a sealed OD, or the abort code that says why there is none. */

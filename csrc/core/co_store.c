@@ -348,6 +348,15 @@ uint32_t co_store_image_need(const co_od_t *od)
     return need > UINT32_MAX ? UINT32_MAX : (uint32_t)need;
 }
 
+uint32_t co_store_image_need_grown(const co_od_t *od)
+{
+    /* a live entry's stored bytes are at most its pool bytes */
+    uint64_t need = (uint64_t)co_store_image_need(od) +
+                    (uint64_t)(od->capacity - od->count) * REC_HEADER +
+                    (od->pool_size - od->pool_used);
+    return need > UINT32_MAX ? UINT32_MAX : (uint32_t)need;
+}
+
 static uint32_t od_signature(const co_od_t *od)
 {
     uint32_t crc = 0, i;

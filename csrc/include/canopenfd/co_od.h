@@ -208,7 +208,10 @@ struct co_od {
     uint16_t refused_index;       /* the object co_od_seal() refused */
     co_od_entry_t *entries;
     uint32_t count;
+    uint32_t sorted_count;        /* entries[0..sorted_count): sorted; the rest were added
+                                     live, in arrival order (nothing ever moves after seal) */
     uint32_t capacity;
+    uint32_t live_size_max;       /* largest entry at seal: what the servers' scratch holds */
     uint8_t *pool;                /* values, defaults and limits */
     uint32_t pool_used;
     uint32_t pool_size;
@@ -259,7 +262,13 @@ typedef enum co_od_add_result {
     CO_OD_ERR_DEFAULT = 5,        /* default longer than size, or outside the limits */
     CO_OD_ERR_LIMITS = 6,         /* min > max */
     CO_OD_ERR_SEALED = 7,
-    CO_OD_ERR_IMAGE = 8           /* in the image: not fixed-size, past its end, overlapping */
+    CO_OD_ERR_IMAGE = 8,          /* in the image: not fixed-size, past its end, overlapping */
+    CO_OD_ERR_NOT_SEALED = 9,     /* co_od_add_live before co_od_seal */
+    CO_OD_ERR_TOO_LARGE = 10,     /* live: larger than every entry at seal (the servers'
+                                     transfer scratch was sized for those) */
+    CO_OD_ERR_COMMUNICATION = 11, /* live: 0x1000..0x1FFF, the services read those at reset */
+    CO_OD_ERR_STRUCTURE = 12      /* live: a sub-index > 0 whose index has no UNSIGNED8 sub 0
+                                     of an ARRAY/RECORD, or an ARRAY/RECORD sub 0 not UNSIGNED8 */
 } co_od_add_result_t;
 /* Adds may come in any order (ascending is cheapest: the table stays sorted,
  * out-of-order adds move the entries behind). A fixed-size entry without a
@@ -275,6 +284,22 @@ co_od_add_result_t co_od_add(co_od_t *od, const co_od_def_t *def);
  * (still unsealed, refused_index set) when a check fails, or when the OD is
  * already sealed. */
 bool co_od_seal(co_od_t *od, uint8_t node_id);
+/* Add an entry to a sealed OD while the node runs, into the room left in the
+ * entries table and the pool at init (size them with spare for growth; a
+ * sealed OD keeps what its adds did not use). The entry is appended behind
+ * the sorted table, so no entry moves: pointers held by transfers in progress
+ * and PDO mapping positions stay valid; lookups search the sorted table, then
+ * the live entries one by one. The value starts at the default. Refused, the
+ * OD unchanged: a bad definition as co_od_add, CO_OD_ERR_NOT_SEALED, _FULL,
+ * _DUPLICATE, _TOO_LARGE, _COMMUNICATION, _STRUCTURE (see the enum). Entries
+ * cannot be removed: SDO/PDO holders would keep dangling keys. */
+co_od_add_result_t co_od_add_live(co_od_t *od, const co_od_def_t *def);
+/* co_od_add_live of defs[0..count), all or none: at the first refusal the
+ * entries added by this call are taken back (nothing can hold them yet: the
+ * caller keeps other users of the OD out meanwhile) and *refused = its
+ * position. Entries of the other line mode are skipped. */
+co_od_add_result_t co_od_add_live_all(co_od_t *od, const co_od_def_t *defs, uint32_t count,
+                                      uint32_t *refused);
 /* The process image (seed 004 §3): the first `size` bytes of the pool hold
  * the values of the entries added with co_od_add_in_image, so PDOs, SDO/USDO
  * and the host (co_api) work on the same bytes. Before any add; false when

@@ -238,6 +238,15 @@ typedef struct co_rt_driver_stats {
  * NULL or "" for none. CO_RT_ERR_ARGUMENT names the refused entry. */
 int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count,
                     const char *store_path);
+/* Room for objects added while the node runs (co_rt_od_add): entry slots and
+ * pool bytes beyond what the definition needs, allocated by co_rt_od_define
+ * (so call this first; default 0: no growth). */
+int co_rt_od_reserve(co_rt_t *rt, int line, uint32_t spare_entries, uint32_t spare_bytes);
+/* Add entries to the running node's OD, all or none (co_od_add_live each,
+ * under the runtime's lock, so they are served at once). CO_RT_ERR_STATE
+ * before the node exists; CO_RT_ERR_ARGUMENT names the refused entry and why
+ * ("no room left": see co_rt_od_reserve). */
+int co_rt_od_add(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count);
 /* Application access to the local node's OD, atomic with respect to the
  * runtime thread. Return 0, a CiA abort code (> 0) or a co_rt_status_t (< 0).
  * A read with a too small buffer gives CO_ABORT_OUT_OF_MEMORY and the size

@@ -127,6 +127,10 @@ typedef struct co_store {
 
 /* Bytes of one image of this (sealed) OD. */
 uint32_t co_store_image_need(const co_od_t *od);
+/* The same plus what the entries co_od_add_live may still add could store
+ * (a record per free entry slot, the free pool bytes): the image capacity of
+ * a node whose OD grows at run time. */
+uint32_t co_store_image_need_grown(const co_od_t *od);
 /* buffer must hold at least 2 * co_store_image_need(od) (more lets images of
  * an older OD layout with more entries load instead of being TOO_BIG). Hooks
  * 0x1010 and 0x1011 sub 1..4 when they exist (the default groups, see

@@ -238,6 +238,8 @@ typedef struct rt_line {
     co_od_t od;
     co_od_entry_t *od_entries;
     uint8_t *od_pool;
+    uint32_t od_spare_entries;       /* co_rt_od_reserve: room for co_rt_od_add */
+    uint32_t od_spare_bytes;
     co_od_subscription_t od_subs[RT_OD_SUBSCRIPTIONS];
     rt_indication_t indications[RT_INDICATIONS];
     uint8_t indication_count;

@@ -104,6 +104,7 @@ static int prepare_od(co_rt_t *rt, rt_line_t *l, uint8_t node_id,
         }
         config->store_backend = co_store_file_backend();
         config->store_user = l->store_file;
+        config->store_image_capacity = co_store_image_need_grown(&l->od);   /* live adds too */
     } else if (l->app_store.enabled) {
         int status = rt_app_store_open(rt, l, &config->store_image_capacity);
         if (status != CO_RT_OK) {

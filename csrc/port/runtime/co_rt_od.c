@@ -9,12 +9,19 @@
 static const char *od_add_problem(co_od_add_result_t r)
 {
     switch (r) {
-    case CO_OD_ERR_FULL: return "no room";
+    case CO_OD_ERR_FULL: return "no room left";
     case CO_OD_ERR_DUPLICATE: return "defined twice";
     case CO_OD_ERR_TYPE: return "unknown type, flags, or size that does not fit the type";
     case CO_OD_ERR_DEFAULT: return "default longer than the entry or outside its limits";
     case CO_OD_ERR_LIMITS: return "minimum above maximum";
     case CO_OD_ERR_SEALED: return "dictionary already in use";
+    case CO_OD_ERR_NOT_SEALED: return "the node does not run yet";
+    case CO_OD_ERR_TOO_LARGE: return "larger than every entry the node started with "
+                                     "(its SDO/USDO servers' buffers)";
+    case CO_OD_ERR_COMMUNICATION: return "0x1000..0x1FFF are the services' objects, fixed "
+                                         "while the node runs";
+    case CO_OD_ERR_STRUCTURE: return "a sub-index above 0 needs an ARRAY/RECORD with an "
+                                     "UNSIGNED8 sub-index 0 (add sub-index 0 first)";
     default: return "refused";
     }
 }
@@ -22,21 +29,22 @@ static const char *od_add_problem(co_od_add_result_t r)
 /* Under rt->lock: allocate and fill the OD (setup time, before the node). */
 static int od_fill(co_rt_t *rt, rt_line_t *l, const co_od_def_t *defs, uint32_t count)
 {
-    uint64_t pool = 0;
+    uint64_t pool = l->od_spare_bytes;   /* the room for co_rt_od_add */
     for (uint32_t i = 0; i < count; i++) {
         pool += co_od_pool_need(&defs[i]);
     }
-    if (pool > UINT32_MAX) {
+    uint64_t slots = (uint64_t)count + l->od_spare_entries;
+    if (pool > UINT32_MAX || slots > UINT32_MAX) {
         return rt_argument_error(rt, "line %d: object dictionary too large", l->index);
     }
-    l->od_entries = calloc(count ? count : 1, sizeof *l->od_entries);
+    l->od_entries = calloc(slots ? (size_t)slots : 1, sizeof *l->od_entries);
     l->od_pool = calloc(pool ? (size_t)pool : 1, 1);
     if (!l->od_entries || !l->od_pool) {
         rt_set_error(rt, "line %d: no memory for %u OD entries", l->index, (unsigned)count);
         return CO_RT_ERR_NO_MEMORY;
     }
-    co_od_init(&l->od, co_line_mode(&l->line), l->od_entries, count, l->od_pool, (uint32_t)pool,
-               l->od_subs, RT_OD_SUBSCRIPTIONS);
+    co_od_init(&l->od, co_line_mode(&l->line), l->od_entries, (uint32_t)slots, l->od_pool,
+               (uint32_t)pool, l->od_subs, RT_OD_SUBSCRIPTIONS);
     for (uint32_t i = 0; i < count; i++) {
         co_od_add_result_t r = co_od_add(&l->od, &defs[i]);
         if (r != CO_OD_ADDED && r != CO_OD_SKIPPED_MODE) {
@@ -87,6 +95,51 @@ int co_rt_od_define(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t cou
         } else {
             rt_od_release(l);
         }
+    }
+    rt_mutex_unlock(&rt->lock);
+    return status;
+}
+
+int co_rt_od_reserve(co_rt_t *rt, int line, uint32_t spare_entries, uint32_t spare_bytes)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    if (l->has_od) {
+        rt_set_error(rt, "line %d: room for growth is reserved before the object dictionary "
+                  "is defined", line);
+        status = CO_RT_ERR_STATE;
+    } else {
+        l->od_spare_entries = spare_entries;
+        l->od_spare_bytes = spare_bytes;
+    }
+    rt_mutex_unlock(&rt->lock);
+    return status;
+}
+
+int co_rt_od_add(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (!defs || count == 0) {
+        return rt_argument_error(rt, "line %d: no OD entries given", line);
+    }
+    rt_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    uint32_t refused = 0;
+    co_od_add_result_t r;
+    if (!l->has_od || !rt_has_node(l)) {
+        rt_set_error(rt, "line %d: entries are added at run time to a local node's object "
+                  "dictionary once the node exists", line);
+        status = CO_RT_ERR_STATE;
+    } else if ((r = co_od_add_live_all(&l->od, defs, count, &refused)) != CO_OD_ADDED) {
+        status = rt_argument_error(rt, "line %d: OD entry 0x%04X:%02X: %s", line,
+                                   defs[refused].index, defs[refused].sub, od_add_problem(r));
     }
     rt_mutex_unlock(&rt->lock);
     return status;

@@ -88,7 +88,7 @@ void rt_app_store_autonomous(co_store_t *s, uint32_t abort, void *user)
 int rt_app_store_open(co_rt_t *rt, rt_line_t *l, uint32_t *capacity_out)
 {
     rt_app_store_t *a = &l->app_store;
-    uint32_t need = co_store_image_need(&l->od);
+    uint32_t need = co_store_image_need_grown(&l->od);   /* entries added live too */
     /* Committed and staged swap places, so both hold an image of either size. */
     uint32_t capacity = need > a->committed_length ? need : a->committed_length;
     uint8_t *committed = realloc(a->committed, capacity ? capacity : 1u);
