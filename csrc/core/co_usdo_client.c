@@ -226,9 +226,12 @@ static bool alive(const co_usdo_client_session_t *ses, uint32_t run)
 
 /* ------------------------------------------------------------ data */
 
-/* `want` bytes from the source at the current offset; false (and the
- * transfer aborted 0x10, or ended by the source itself) otherwise. */
-static bool read_source(co_usdo_client_session_t *ses, uint8_t *buf, uint32_t want)
+/* `want` bytes from the source at the current offset; false otherwise:
+ * the transfer aborted 0x10, ended by the source itself, or (only where
+ * `may_wait`: segmented downloads) the source said CO_USDO_SOURCE_LATER and
+ * the session now waits for co_usdo_client_resume, its timeout stopped. */
+static bool read_source(co_usdo_client_session_t *ses, uint8_t *buf, uint32_t want,
+                        bool may_wait)
 {
     co_usdo_request_t *req = ses->req;
     uint32_t run = ses->run;
@@ -238,6 +241,14 @@ static bool read_source(co_usdo_client_session_t *ses, uint8_t *buf, uint32_t wa
     }
     got = req->source(req->ctx, ses->offset, buf, want);
     if (!alive(ses, run)) {
+        return false;
+    }
+    if (got == CO_USDO_SOURCE_LATER && may_wait) {
+        /* nothing is owed by the server now: its timeout must not run
+         * while the caller's data is late (the caller resumes or cancels) */
+        co_timer_cancel(timers_of(ses), &ses->timer);
+        ses->state = CO_USDO_CLIENT_DL_WAIT_SOURCE;
+        ses->client->stats.source_waits++;
         return false;
     }
     if (got != want) {
@@ -278,7 +289,7 @@ static void send_download_segment(co_usdo_client_session_t *ses)
     co_usdo_msg_t m;
     bool last = left <= CO_USDO_SEGMENT_DATA;
     uint32_t n = last ? left : CO_USDO_SEGMENT_DATA;
-    if (!read_source(ses, data, n)) {
+    if (!read_source(ses, data, n, true)) {
         return;
     }
     session_msg(ses, req->server, last ? CO_USDO_CS_DOWNLOAD_LAST : CO_USDO_CS_DOWNLOAD_SEGMENT,
@@ -320,7 +331,7 @@ static bool bulk_send_segment(co_usdo_client_session_t *ses)
     co_usdo_msg_t m;
     bool last = left <= CO_USDO_SEGMENT_DATA;
     uint32_t n = last ? left : CO_USDO_SEGMENT_DATA;
-    if (!read_source(ses, data, n)) {
+    if (!read_source(ses, data, n, false)) {   /* bulk streams: no waiting */
         return false;
     }
     session_msg(ses, req->server, last ? CO_USDO_CS_BULK_LAST : CO_USDO_CS_BULK_SEGMENT, &m);
@@ -702,7 +713,7 @@ static bool expected(uint8_t state, uint8_t cs)
                cs == CO_USDO_CS_UPLOAD_EXPEDITED_RSP || cs == CO_USDO_CS_UPLOAD_INITIATE_RSP;
     case CO_USDO_CLIENT_UL_BULK:
         return cs == CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP || cs == CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
-    default:   /* BULK_SEND: only an abort */
+    default:   /* BULK_SEND, DL_WAIT_SOURCE: only an abort */
         return false;
     }
 }
@@ -1122,6 +1133,29 @@ bool co_usdo_client_cancel(co_usdo_client_t *c, co_usdo_request_t *req, uint8_t 
         }
     }
     return false;
+}
+
+uint8_t co_usdo_client_resume(co_usdo_client_t *c, co_usdo_request_t *req)
+{
+    uint8_t i;
+    if (c == NULL || c->line == NULL || req == NULL) {
+        return CO_USDO_ABORT_UNKNOWN;
+    }
+    for (i = 0; i < c->session_count; i++) {
+        co_usdo_client_session_t *ses = &c->sessions[i];
+        if (ses->state != CO_USDO_CLIENT_FREE && ses->req == req) {
+            if (ses->state != CO_USDO_CLIENT_DL_WAIT_SOURCE) {
+                return CO_USDO_CLIENT_NOT_WAITING;   /* e.g. an answer still due */
+            }
+            /* out of the waiting state before the source runs: a resume
+             * from inside the source is then a no-op, not a second send */
+            ses->state = CO_USDO_CLIENT_DL_SEG;
+            arm_timeout(ses);
+            send_download_segment(ses);
+            return 0;
+        }
+    }
+    return CO_USDO_ABORT_UNKNOWN;
 }
 
 uint8_t co_usdo_client_active(const co_usdo_client_t *c)
