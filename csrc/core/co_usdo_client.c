@@ -159,6 +159,19 @@ static co_usdo_client_session_t *find(co_usdo_client_t *c, uint8_t node, uint8_t
     return NULL;
 }
 
+/* The live session running req, or NULL. */
+static co_usdo_client_session_t *session_of(const co_usdo_client_t *c,
+                                            const co_usdo_request_t *req)
+{
+    uint8_t i;
+    for (i = 0; i < c->session_count; i++) {
+        if (c->sessions[i].state != CO_USDO_CLIENT_FREE && c->sessions[i].req == req) {
+            return &c->sessions[i];
+        }
+    }
+    return NULL;
+}
+
 static void stop_waiting(co_usdo_client_session_t *ses)
 {
     if (ses->wait_space) {
@@ -535,13 +548,7 @@ static void fall_back_from_bulk(co_usdo_client_session_t *ses)
 
 static bool running(const co_usdo_client_t *c, const co_usdo_request_t *req)
 {
-    uint8_t i;
-    for (i = 0; i < c->session_count; i++) {
-        if (c->sessions[i].state != CO_USDO_CLIENT_FREE && c->sessions[i].req == req) {
-            return true;
-        }
-    }
-    return false;
+    return session_of(c, req) != NULL;
 }
 
 /* Why a request cannot start (0 = it can). */
@@ -1120,42 +1127,38 @@ void co_usdo_client_deinit(co_usdo_client_t *c)
 
 bool co_usdo_client_cancel(co_usdo_client_t *c, co_usdo_request_t *req, uint8_t code)
 {
-    uint8_t i;
+    co_usdo_client_session_t *ses;
     if (c == NULL || c->line == NULL || req == NULL) {
         return false;
     }
-    for (i = 0; i < c->session_count; i++) {
-        co_usdo_client_session_t *ses = &c->sessions[i];
-        if (ses->state != CO_USDO_CLIENT_FREE && ses->req == req) {
-            c->stats.cancelled++;
-            fail(ses, code != 0 ? code : (uint8_t)CO_USDO_ABORT_UNKNOWN);
-            return true;
-        }
+    ses = session_of(c, req);
+    if (ses == NULL) {
+        return false;
     }
-    return false;
+    c->stats.cancelled++;
+    fail(ses, code != 0 ? code : (uint8_t)CO_USDO_ABORT_UNKNOWN);
+    return true;
 }
 
 uint8_t co_usdo_client_resume(co_usdo_client_t *c, co_usdo_request_t *req)
 {
-    uint8_t i;
+    co_usdo_client_session_t *ses;
     if (c == NULL || c->line == NULL || req == NULL) {
         return CO_USDO_ABORT_UNKNOWN;
     }
-    for (i = 0; i < c->session_count; i++) {
-        co_usdo_client_session_t *ses = &c->sessions[i];
-        if (ses->state != CO_USDO_CLIENT_FREE && ses->req == req) {
-            if (ses->state != CO_USDO_CLIENT_DL_WAIT_SOURCE) {
-                return CO_USDO_CLIENT_NOT_WAITING;   /* e.g. an answer still due */
-            }
-            /* out of the waiting state before the source runs: a resume
-             * from inside the source is then a no-op, not a second send */
-            ses->state = CO_USDO_CLIENT_DL_SEG;
-            arm_timeout(ses);
-            send_download_segment(ses);
-            return 0;
-        }
+    ses = session_of(c, req);
+    if (ses == NULL) {
+        return CO_USDO_ABORT_UNKNOWN;
     }
-    return CO_USDO_ABORT_UNKNOWN;
+    if (ses->state != CO_USDO_CLIENT_DL_WAIT_SOURCE) {
+        return CO_USDO_CLIENT_NOT_WAITING;   /* e.g. an answer still due */
+    }
+    /* out of the waiting state before the source runs: a resume from
+     * inside the source is then a no-op, not a second send */
+    ses->state = CO_USDO_CLIENT_DL_SEG;
+    arm_timeout(ses);
+    send_download_segment(ses);
+    return 0;
 }
 
 uint8_t co_usdo_client_active(const co_usdo_client_t *c)
