@@ -11,8 +11,10 @@
  * passed one to one; each side keeps its own session-IDs, counters and
  * timing, and the gateway needs no session mapping on the target line.
  * Values up to CO_GATEWAY_USDO_VALUE_MAX bytes, expedited or segmented with
- * the client (a segmented download is collected whole before it is sent
- * on; an upload is answered as soon as the target announced a size too
+ * the client (a segmented download the target takes segmented starts at
+ * the client's initiate and each segment goes on as soon as the client
+ * sent it, the source saying "not yet" until then; a smaller one is
+ * collected first; an upload is answered as soon as the target announced a size too
  * long for a routed expedited frame, and the client's segment requests are
  * served while the data still arrives, so the two hops overlap; a smaller
  * or unannounced value is fetched whole first); routed bulk requests are
@@ -240,9 +242,14 @@ static uint8_t upload_sink(void *ctx, uint32_t offset, const uint8_t *data, uint
     return 0;
 }
 
+/* Our download's data: what the client has sent so far; a streamed
+ * download (still taking the client's segments) waits for the rest. */
 static uint32_t download_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want)
 {
     co_gateway_usdo_t *r = ctx;
+    if (r->state == RELAY_DL_RX && (offset > r->offset || want > r->offset - offset)) {
+        return CO_USDO_SOURCE_LATER;
+    }
     return co_usdo_buffer_source(&r->buf, offset, buf, want);
 }
 
@@ -279,6 +286,12 @@ static void on_done(co_usdo_request_t *req)
     if (r->state == RELAY_UL_TX) {
         streamed(r, req->abort);
         return;
+    }
+    if (r->state == RELAY_DL_RX) {
+        /* streamed download: the target has it all (or aborted, maybe while
+         * the client still sends): the client's silence timer is done */
+        co_timer_cancel(co_line_timers(line_of(from)), &r->timer);
+        r->state = RELAY_FORWARD;
     }
     if (r->state != RELAY_FORWARD) {
         return;
@@ -329,12 +342,12 @@ static co_gateway_port_t *port_of(co_gateway_t *gw, const co_stack_t *stack)
     return NULL;
 }
 
-/* Start our request on the target line for the relay. */
-static void forward(co_gateway_usdo_t *r)
+/* Start our request on the target line for the relay: false (the client
+ * told why) when the target line's client refuses it. */
+static bool start_request(co_gateway_usdo_t *r)
 {
     co_usdo_msg_t asked;
     uint8_t code;
-    r->state = RELAY_FORWARD;
     r->fetching = true;
     code = co_usdo_client_start(co_stack_usdo_client(r->to->stack), &r->req);
     if (code != 0) {
@@ -346,9 +359,17 @@ static void forward(co_gateway_usdo_t *r)
         r->gw->stats.usdo_refused++;
         abort_to_client(r->gw, from, r->client, &asked,
                         code == CO_USDO_ABORT_BUSY ? CO_USDO_ABORT_BUSY : CO_USDO_ABORT_ROUTING);
-        return;
+        return false;
     }
     r->gw->stats.usdo_forwarded++;
+    return true;
+}
+
+/* The whole request goes to the target now; the client waits for its end. */
+static void forward(co_gateway_usdo_t *r)
+{
+    r->state = RELAY_FORWARD;
+    (void)start_request(r);
 }
 
 /* A first frame (expedited download, segmented download initiate, upload):
@@ -424,10 +445,21 @@ static bool on_request(co_gateway_port_t *from, uint8_t client, const co_usdo_ms
         r->req.server = m->dst_node;
     }
     if (m->cs == CO_USDO_CS_DOWNLOAD_INITIATE) {
-        /* collect the value first; the client hears 0xA2 now */
+        /* the client hears 0xA2 now; a value the target takes segmented
+         * goes on segment by segment as the client's come (the two hops
+         * overlap), a smaller one is collected first */
         co_usdo_msg_t rsp;
         r->size = m->size;
         r->state = RELAY_DL_RX;
+        r->buf.size = m->size;   /* the source reads what the client sent (r->offset) */
+        if (m->size > CO_USDO_EXPEDITED_MAX) {
+            r->req.size = m->size;
+            r->req.type = m->type;
+            r->req.mode = CO_USDO_MODE_SEGMENTED;
+            if (!start_request(r)) {
+                return true;
+            }
+        }
         memset(&rsp, 0, sizeof rsp);
         rsp.cs = CO_USDO_CS_DOWNLOAD_INITIATE_RSP;
         send_to_client(gw, from, client, m, &rsp);
@@ -490,6 +522,9 @@ static bool on_segment(co_gateway_port_t *from, uint8_t client, const co_usdo_ms
         r->counter = co_usdo_next_counter(r->counter);
         send_to_client(gw, from, client, &asked, &out);
         arm(r);
+        if (r->fetching) {
+            (void)co_usdo_client_resume(co_stack_usdo_client(r->to->stack), &r->req);
+        }
         return true;
     }
     /* the last segment: the value is whole, send it on */
@@ -500,6 +535,10 @@ static bool on_segment(co_gateway_port_t *from, uint8_t client, const co_usdo_ms
     memcpy(r->data + r->offset, m->data, m->length);
     r->offset += m->length;
     co_timer_cancel(co_line_timers(line_of(from)), &r->timer);
+    if (r->fetching) {   /* streamed: the rest goes on, 0xA4 when the target has it */
+        (void)co_usdo_client_resume(co_stack_usdo_client(r->to->stack), &r->req);
+        return true;
+    }
     r->buf.size = r->size;
     r->req.size = r->size;
     r->req.type = r->type;

@@ -159,6 +159,19 @@ static co_usdo_client_session_t *find(co_usdo_client_t *c, uint8_t node, uint8_t
     return NULL;
 }
 
+/* The live session running req, or NULL. */
+static co_usdo_client_session_t *session_of(const co_usdo_client_t *c,
+                                            const co_usdo_request_t *req)
+{
+    uint8_t i;
+    for (i = 0; i < c->session_count; i++) {
+        if (c->sessions[i].state != CO_USDO_CLIENT_FREE && c->sessions[i].req == req) {
+            return &c->sessions[i];
+        }
+    }
+    return NULL;
+}
+
 static void stop_waiting(co_usdo_client_session_t *ses)
 {
     if (ses->wait_space) {
@@ -226,9 +239,12 @@ static bool alive(const co_usdo_client_session_t *ses, uint32_t run)
 
 /* ------------------------------------------------------------ data */
 
-/* `want` bytes from the source at the current offset; false (and the
- * transfer aborted 0x10, or ended by the source itself) otherwise. */
-static bool read_source(co_usdo_client_session_t *ses, uint8_t *buf, uint32_t want)
+/* `want` bytes from the source at the current offset; false otherwise:
+ * the transfer aborted 0x10, ended by the source itself, or (only where
+ * `may_wait`: segmented downloads) the source said CO_USDO_SOURCE_LATER and
+ * the session now waits for co_usdo_client_resume, its timeout stopped. */
+static bool read_source(co_usdo_client_session_t *ses, uint8_t *buf, uint32_t want,
+                        bool may_wait)
 {
     co_usdo_request_t *req = ses->req;
     uint32_t run = ses->run;
@@ -238,6 +254,14 @@ static bool read_source(co_usdo_client_session_t *ses, uint8_t *buf, uint32_t wa
     }
     got = req->source(req->ctx, ses->offset, buf, want);
     if (!alive(ses, run)) {
+        return false;
+    }
+    if (got == CO_USDO_SOURCE_LATER && may_wait) {
+        /* nothing is owed by the server now: its timeout must not run
+         * while the caller's data is late (the caller resumes or cancels) */
+        co_timer_cancel(timers_of(ses), &ses->timer);
+        ses->state = CO_USDO_CLIENT_DL_WAIT_SOURCE;
+        ses->client->stats.source_waits++;
         return false;
     }
     if (got != want) {
@@ -278,7 +302,7 @@ static void send_download_segment(co_usdo_client_session_t *ses)
     co_usdo_msg_t m;
     bool last = left <= CO_USDO_SEGMENT_DATA;
     uint32_t n = last ? left : CO_USDO_SEGMENT_DATA;
-    if (!read_source(ses, data, n)) {
+    if (!read_source(ses, data, n, true)) {
         return;
     }
     session_msg(ses, req->server, last ? CO_USDO_CS_DOWNLOAD_LAST : CO_USDO_CS_DOWNLOAD_SEGMENT,
@@ -320,7 +344,7 @@ static bool bulk_send_segment(co_usdo_client_session_t *ses)
     co_usdo_msg_t m;
     bool last = left <= CO_USDO_SEGMENT_DATA;
     uint32_t n = last ? left : CO_USDO_SEGMENT_DATA;
-    if (!read_source(ses, data, n)) {
+    if (!read_source(ses, data, n, false)) {   /* bulk streams: no waiting */
         return false;
     }
     session_msg(ses, req->server, last ? CO_USDO_CS_BULK_LAST : CO_USDO_CS_BULK_SEGMENT, &m);
@@ -524,13 +548,7 @@ static void fall_back_from_bulk(co_usdo_client_session_t *ses)
 
 static bool running(const co_usdo_client_t *c, const co_usdo_request_t *req)
 {
-    uint8_t i;
-    for (i = 0; i < c->session_count; i++) {
-        if (c->sessions[i].state != CO_USDO_CLIENT_FREE && c->sessions[i].req == req) {
-            return true;
-        }
-    }
-    return false;
+    return session_of(c, req) != NULL;
 }
 
 /* Why a request cannot start (0 = it can). */
@@ -702,7 +720,7 @@ static bool expected(uint8_t state, uint8_t cs)
                cs == CO_USDO_CS_UPLOAD_EXPEDITED_RSP || cs == CO_USDO_CS_UPLOAD_INITIATE_RSP;
     case CO_USDO_CLIENT_UL_BULK:
         return cs == CO_USDO_CS_BULK_UPLOAD_SEGMENT_RSP || cs == CO_USDO_CS_BULK_UPLOAD_LAST_RSP;
-    default:   /* BULK_SEND: only an abort */
+    default:   /* BULK_SEND, DL_WAIT_SOURCE: only an abort */
         return false;
     }
 }
@@ -1109,19 +1127,38 @@ void co_usdo_client_deinit(co_usdo_client_t *c)
 
 bool co_usdo_client_cancel(co_usdo_client_t *c, co_usdo_request_t *req, uint8_t code)
 {
-    uint8_t i;
+    co_usdo_client_session_t *ses;
     if (c == NULL || c->line == NULL || req == NULL) {
         return false;
     }
-    for (i = 0; i < c->session_count; i++) {
-        co_usdo_client_session_t *ses = &c->sessions[i];
-        if (ses->state != CO_USDO_CLIENT_FREE && ses->req == req) {
-            c->stats.cancelled++;
-            fail(ses, code != 0 ? code : (uint8_t)CO_USDO_ABORT_UNKNOWN);
-            return true;
-        }
+    ses = session_of(c, req);
+    if (ses == NULL) {
+        return false;
     }
-    return false;
+    c->stats.cancelled++;
+    fail(ses, code != 0 ? code : (uint8_t)CO_USDO_ABORT_UNKNOWN);
+    return true;
+}
+
+uint8_t co_usdo_client_resume(co_usdo_client_t *c, co_usdo_request_t *req)
+{
+    co_usdo_client_session_t *ses;
+    if (c == NULL || c->line == NULL || req == NULL) {
+        return CO_USDO_ABORT_UNKNOWN;
+    }
+    ses = session_of(c, req);
+    if (ses == NULL) {
+        return CO_USDO_ABORT_UNKNOWN;
+    }
+    if (ses->state != CO_USDO_CLIENT_DL_WAIT_SOURCE) {
+        return CO_USDO_CLIENT_NOT_WAITING;   /* e.g. an answer still due */
+    }
+    /* out of the waiting state before the source runs: a resume from
+     * inside the source is then a no-op, not a second send */
+    ses->state = CO_USDO_CLIENT_DL_SEG;
+    arm_timeout(ses);
+    send_download_segment(ses);
+    return 0;
 }
 
 uint8_t co_usdo_client_active(const co_usdo_client_t *c)

@@ -8,8 +8,8 @@
  * abort of the target, the client's abort, a silent target, an unknown
  * network, a busy gateway client, a wrong source network, a bulk request
  * (refused), the route through a next gateway; a segmented download and
- * upload of 130 bytes (collected whole, then sent on), a client silent in
- * the middle of one. */
+ * upload of 130 bytes (each streamed: the target's side starts before the
+ * client's has ended), a client silent in the middle of one. */
 #include "test_od_util.h"
 
 #include "canopenfd/co_gateway.h"
@@ -496,7 +496,7 @@ static void test_segmented_download_and_upload_forwarded(void **state)
     static const uint8_t init_rsp[10] = {CLIENT, 0xA2, 0x60, NET_A, CLIENT, NET_B, DEV,
                                          0x00, 0x02, 0x20};
     expect(&fx->a, 0x580 + GW, 0, init_rsp, 10);
-    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 0);   /* collected first */
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 1);   /* started at once */
     for (uint8_t k = 0; k < 2; k++) {
         uint8_t seg[64] = {GW, 0x83, 0x60, k};
         memcpy(seg + 4, value + 60 * k, 60);
@@ -603,6 +603,75 @@ static void test_upload_streamed_while_the_target_sends(void **state)
     assert_int_equal(co_gateway_stats(&fx->gw)->usdo_answered, 2);
 }
 
+/* A segmented download the target takes segmented goes on as the client's
+ * segments come: the gateway starts its own download at the client's
+ * initiate and sends each segment on once the client sent it (node 9
+ * answered by hand); the client's segments are answered at once, its last
+ * one only when the target confirmed the value (0xA4). */
+static void test_download_streamed_as_the_client_sends(void **state)
+{
+    fx_t *fx = *state;
+    uint8_t value[130];
+    for (size_t i = 0; i < sizeof value; i++) {
+        value[i] = (uint8_t)('A' + i % 26);
+    }
+    static const uint8_t init[16] = {GW, 0x82, 0x17, NET_B, NEXT_GW, NET_A, CLIENT, 0x00,
+                                     0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    client_sends(fx, init, 16);
+    static const uint8_t init_rsp[10] = {CLIENT, 0xA2, 0x17, NET_A, CLIENT, NET_B, NEXT_GW,
+                                         0x00, 0x02, 0x20};
+    expect(&fx->a, 0x580 + GW, 0, init_rsp, 10);
+    uint8_t sid = logged(&fx->b, 0x600 + GW, 0)[2];
+    const uint8_t b_init[12] = {NEXT_GW, 0x02, sid, 0x00, 0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    expect(&fx->b, 0x600 + GW, 0, b_init, 12);   /* at once, before any data came */
+    const uint8_t b_init_rsp[6] = {GW, 0x22, sid, 0x00, 0x02, 0x20};
+    peer_sends(fx, b_init_rsp, 6);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 1);   /* waits for the client */
+    for (uint8_t k = 0; k < 3; k++) {
+        bool last = k == 2;
+        uint8_t n = last ? 10 : 60;
+        uint8_t seg[64] = {GW, (uint8_t)(last ? 0x84 : 0x83), 0x17, (uint8_t)(last ? n : k)};
+        memcpy(seg + 4, value + 60 * k, n);
+        client_sends(fx, seg, (uint8_t)(4 + n));
+        if (!last) {
+            const uint8_t ack[4] = {CLIENT, 0xA3, 0x17, k};
+            expect(&fx->a, 0x580 + GW, 1 + k, ack, 4);   /* answered at once */
+        }
+        uint8_t on_b[64] = {NEXT_GW, (uint8_t)(last ? 0x04 : 0x03), sid, (uint8_t)(last ? n : k)};
+        memcpy(on_b + 4, value + 60 * k, n);
+        expect(&fx->b, 0x600 + GW, 1 + k, on_b, (uint8_t)(4 + n));   /* sent on at once */
+        if (!last) {
+            const uint8_t b_ack[4] = {GW, 0x23, sid, k};
+            peer_sends(fx, b_ack, 4);
+        }
+    }
+    assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 3);   /* 0xA4 waits for the target */
+    const uint8_t b_last_rsp[3] = {GW, 0x24, sid};
+    peer_sends(fx, b_last_rsp, 3);
+    static const uint8_t end[3] = {CLIENT, 0xA4, 0x17};
+    expect(&fx->a, 0x580 + GW, 3, end, 3);
+    assert_int_equal(co_gateway_stats(&fx->gw)->usdo_answered, 1);
+
+    /* the target refuses in the middle: the client hears its code at once */
+    tu_log_clear(&fx->a);
+    tu_log_clear(&fx->b);
+    static const uint8_t init2[16] = {GW, 0x82, 0x18, NET_B, NEXT_GW, NET_A, CLIENT, 0x00,
+                                      0x02, 0x20, 0x09, 0x00, 130, 0, 0, 0};
+    client_sends(fx, init2, 16);
+    sid = logged(&fx->b, 0x600 + GW, 0)[2];
+    const uint8_t b_init_rsp2[6] = {GW, 0x22, sid, 0x00, 0x02, 0x20};
+    peer_sends(fx, b_init_rsp2, 6);
+    uint8_t seg0[64] = {GW, 0x83, 0x18, 0};
+    client_sends(fx, seg0, 64);
+    const uint8_t b_abort[7] = {GW, 0x7F, sid, 0x00, 0x02, 0x20, 0x24};
+    peer_sends(fx, b_abort, 7);
+    static const uint8_t abort_a[11] = {CLIENT, 0xFF, 0x18, NET_A, CLIENT, NET_B, NEXT_GW,
+                                        0x00, 0x02, 0x20, 0x24};
+    expect(&fx->a, 0x580 + GW, 2, abort_a, 11);
+    advance(fx, fx->a.now + 3 * TIMEOUT_MS * 1000u);   /* no timer left for the relay */
+    assert_int_equal(tu_log_count_id(&fx->a, 0x580 + GW), 3);
+}
+
 static void test_client_silent_in_a_segmented_download(void **state)
 {
     fx_t *fx = *state;
@@ -613,7 +682,11 @@ static void test_client_silent_in_a_segmented_download(void **state)
     static const uint8_t abort_a[11] = {CLIENT, 0xFF, 0x62, NET_A, CLIENT, NET_B, DEV,
                                         0x00, 0x02, 0x20, 0x12};
     expect(&fx->a, 0x580 + GW, 1, abort_a, 11);
-    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 0);
+    /* the streamed download to device 5 had started: it is stopped too */
+    uint8_t sid = logged(&fx->b, 0x600 + GW, 0)[2];
+    const uint8_t abort_b[7] = {DEV, 0x7F, sid, 0x00, 0x02, 0x20, 0x12};
+    expect(&fx->b, 0x600 + GW, 1, abort_b, 7);
+    assert_int_equal(tu_log_count_id(&fx->b, 0x600 + GW), 2);
     assert_int_equal(co_gateway_stats(&fx->gw)->usdo_timeouts, 1);
     /* a value above CO_GATEWAY_USDO_VALUE_MAX: 0x16 at once */
     static const uint8_t big[16] = {GW, 0x82, 0x63, NET_B, DEV, NET_A, CLIENT, 0x00,
@@ -745,6 +818,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_segmented_download_and_upload_forwarded, setup,
                                         teardown),
         cmocka_unit_test_setup_teardown(test_upload_streamed_while_the_target_sends, setup,
+                                        teardown),
+        cmocka_unit_test_setup_teardown(test_download_streamed_as_the_client_sends, setup,
                                         teardown),
         cmocka_unit_test_setup_teardown(test_client_silent_in_a_segmented_download, setup,
                                         teardown),

@@ -3133,6 +3133,281 @@ static void test_buffer_source_and_sink(void **state)
     assert_int_equal(co_usdo_buffer_sink(&snk, 0xFFFFFFFFu, data, 1, 0xFFFFFFFFu), 0x16);
 }
 
+/* ================================================= source says "later" */
+
+/* A buffer source that says CO_USDO_SOURCE_LATER for the segment at
+ * `later_off` while `hold` is set; it may also try a resume from inside. */
+typedef struct later_src {
+    fx_t *fx;
+    treq_t *t;
+    co_usdo_buffer_t buf;
+    uint32_t later_off;
+    bool hold;
+    bool resume_inside;
+    uint8_t inside_rc;
+    unsigned calls;
+} later_src_t;
+
+static uint32_t later_source(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want)
+{
+    later_src_t *s = ctx;
+    s->calls++;
+    if (s->resume_inside) {
+        s->resume_inside = false;
+        s->inside_rc = co_usdo_client_resume(&s->fx->c, &s->t->r);
+    }
+    if (s->hold && offset == s->later_off)
+        return CO_USDO_SOURCE_LATER;
+    return co_usdo_buffer_source(&s->buf, offset, buf, want);
+}
+
+static void later_req(fx_t *fx, treq_t *t, later_src_t *s, uint8_t server, const uint8_t *data,
+                      uint32_t size, uint8_t mode, uint32_t later_off)
+{
+    dl_req(fx, t, server, 0x2009, 0, DOM, data, size, mode);
+    memset(s, 0, sizeof *s);
+    s->fx = fx;
+    s->t = t;
+    s->buf.data = (uint8_t *)(uintptr_t)data;
+    s->buf.size = size;
+    s->later_off = later_off;
+    s->hold = true;
+    t->r.source = later_source;
+    t->r.ctx = s;
+}
+
+static void expect_dl_init(fx_t *fx, uint8_t dest, uint8_t sid, uint8_t cs, uint32_t size)
+{
+    uint8_t e[12];
+    mux(e, dest, cs, sid, 0x2009, 0);
+    e[6] = DOM;
+    e[7] = 0;
+    tu_le_put(e + 8, size, 4);
+    expect_req(fx, e, 12);
+}
+
+static void expect_dl_segment(fx_t *fx, uint8_t dest, uint8_t cs, uint8_t sid, uint8_t counter,
+                              const uint8_t *data, uint8_t n)
+{
+    uint8_t e[64] = { dest, cs, sid, counter };
+    memcpy(e + 4, data, n);
+    expect_req(fx, e, 4u + n);
+}
+
+static uint8_t session_state_of(fx_t *fx, const treq_t *t)
+{
+    int i;
+    for (i = 0; i < fx->c.session_count; i++)
+        if (fx->c.sessions[i].req == &t->r && fx->c.sessions[i].state != CO_USDO_CLIENT_FREE)
+            return fx->c.sessions[i].state;
+    return CO_USDO_CLIENT_FREE;
+}
+
+/* Segment 2 is late: nothing on the bus while the source waits (even far
+ * beyond the per-frame timeout), then the segment and the rest; the real
+ * server stores the whole value. */
+static void test_later_segment_then_resume_real_server(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    later_src_t s;
+    uint8_t data[150];
+    fill_pattern(data, sizeof data, 21);
+    later_req(fx, &t, &s, 5, data, 150, CO_USDO_MODE_SEGMENTED, 60);
+    t.r.timeout_ms = 100;   /* our timeout well inside the server's 1000 ms */
+    start_ok(fx, &t);
+    settle(fx);
+    expect_dl_init(fx, 5, 1, DL_INIT, 150);
+    expect_dl_segment(fx, 5, DL_SEG, 1, 0, data, 60);
+    expect_no_req(fx);
+    assert_int_equal(fx->c.stats.source_waits, 1);
+    assert_int_equal(session_state_of(fx, &t), CO_USDO_CLIENT_DL_WAIT_SOURCE);
+    assert_int_equal(t.r.transferred, 60);
+    run_ms(fx, 500);   /* five of our timeouts: none fires */
+    expect_no_req(fx);
+    assert_int_equal(t.done_calls, 0);
+    assert_int_equal(fx->c.stats.timeouts, 0);
+    assert_true(co_usdo_client_running(&fx->c, &t.r));
+
+    s.hold = false;
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0);
+    settle(fx);
+    expect_dl_segment(fx, 5, DL_SEG, 1, 1, data + 60, 60);
+    expect_dl_segment(fx, 5, DL_LAST, 1, 30, data + 120, 30);
+    expect_no_req(fx);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.transferred, 150);
+    assert_int_equal(fx->srv[0]->dom_len, 150);
+    assert_memory_equal(fx->srv[0]->dom, data, 150);
+    assert_int_equal(fx->srv[0]->dom_commits, 1);
+    assert_int_equal(fx->c.stats.source_waits, 1);
+    assert_int_equal(fx->c.stats.source_failed, 0);
+    assert_all_idle(fx);
+}
+
+/* Scripted server: exact frames, a wait of 5 s with the default 1 s
+ * timeout, a second LATER on resume, resumes that must not send. */
+static void test_later_scripted_wait_and_resume(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t, other;
+    later_src_t s;
+    uint8_t data[130];
+    fill_pattern(data, sizeof data, 22);
+    later_req(fx, &t, &s, X, data, 130, CO_USDO_MODE_SEGMENTED, 60);
+    /* not running yet: refused, nothing sent */
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0x10);
+    assert_int_equal(co_usdo_client_resume(NULL, &t.r), 0x10);
+    assert_int_equal(co_usdo_client_resume(&fx->c, NULL), 0x10);
+    start_ok(fx, &t);
+    settle(fx);
+    expect_dl_init(fx, X, 1, DL_INIT, 130);
+    /* the initiate's answer is due: no segment may go early */
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), CO_USDO_CLIENT_NOT_WAITING);
+    settle(fx);
+    expect_no_req(fx);
+    inject_mux(fx, X, DL_INIT_RSP, 1, 0x2009, 0);
+    expect_dl_segment(fx, X, DL_SEG, 1, 0, data, 60);
+    expect_no_req(fx);
+    /* segment 0's answer is due: resume is a no-op */
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), CO_USDO_CLIENT_NOT_WAITING);
+    settle(fx);
+    expect_no_req(fx);
+    assert_int_equal(s.calls, 1);
+    inject_counter(fx, X, DL_SEG_RSP, 1, 0);
+    expect_no_req(fx);   /* the source said LATER for segment 1 */
+    assert_int_equal(s.calls, 2);
+    assert_int_equal(session_state_of(fx, &t), CO_USDO_CLIENT_DL_WAIT_SOURCE);
+    /* a repeated answer while waiting is not expected: ignored, no send */
+    inject_counter(fx, X, DL_SEG_RSP, 1, 0);
+    assert_int_equal(fx->c.stats.rx_unexpected, 1);
+    run_ms(fx, 5000);
+    expect_no_req(fx);
+    assert_int_equal(t.done_calls, 0);
+    assert_int_equal(fx->c.stats.timeouts, 0);
+
+    /* still not ready: waits again, nothing sent */
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0);
+    settle(fx);
+    expect_no_req(fx);
+    assert_int_equal(fx->c.stats.source_waits, 2);
+    run_ms(fx, 3000);
+    expect_no_req(fx);
+    assert_int_equal(t.done_calls, 0);
+
+    /* ready; a resume from inside the source is a no-op (no second send) */
+    s.hold = false;
+    s.resume_inside = true;
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0);
+    assert_int_equal(s.inside_rc, CO_USDO_CLIENT_NOT_WAITING);
+    settle(fx);
+    expect_dl_segment(fx, X, DL_SEG, 1, 1, data + 60, 60);
+    expect_no_req(fx);
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), CO_USDO_CLIENT_NOT_WAITING);
+    settle(fx);
+    expect_no_req(fx);
+    /* the timeout runs again from the resume: 1 s of silence aborts 0x12 */
+    run_ms(fx, 999);
+    assert_int_equal(t.done_calls, 0);
+    inject_counter(fx, X, DL_SEG_RSP, 1, 1);
+    expect_dl_segment(fx, X, DL_LAST, 1, 10, data + 120, 10);
+    inject_mux(fx, X, DL_LAST_RSP, 1, 0x2009, 0);
+    assert_done(&t, 0, false);
+    assert_int_equal(t.r.transferred, 130);
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0x10);   /* finished */
+
+    /* a resumed segment whose answer never comes still times out */
+    log_reset(fx);
+    later_req(fx, &other, &s, X, data, 130, CO_USDO_MODE_SEGMENTED, 0);
+    start_ok(fx, &other);
+    settle(fx);
+    expect_dl_init(fx, X, 2, DL_INIT, 130);
+    inject_mux(fx, X, DL_INIT_RSP, 2, 0x2009, 0);
+    expect_no_req(fx);   /* segment 0 is late */
+    run_ms(fx, 2000);
+    s.hold = false;
+    assert_int_equal(co_usdo_client_resume(&fx->c, &other.r), 0);
+    settle(fx);
+    expect_dl_segment(fx, X, DL_SEG, 2, 0, data, 60);
+    run_ms(fx, 1000);
+    expect_req_abort(fx, X, 2, 0x2009, 0, 0x12);
+    assert_done(&other, 0x12, false);
+    assert_int_equal(fx->c.stats.timeouts, 1);
+    assert_all_idle(fx);
+}
+
+/* Cancel while waiting for the source: the abort goes out, done() once,
+ * and nothing more (no timeout later). */
+static void test_later_cancel_while_waiting(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    later_src_t s;
+    uint8_t data[200];
+    fill_pattern(data, sizeof data, 23);
+    later_req(fx, &t, &s, X, data, 200, CO_USDO_MODE_SEGMENTED, 120);
+    start_ok(fx, &t);
+    settle(fx);
+    expect_dl_init(fx, X, 1, DL_INIT, 200);
+    inject_mux(fx, X, DL_INIT_RSP, 1, 0x2009, 0);
+    expect_dl_segment(fx, X, DL_SEG, 1, 0, data, 60);
+    inject_counter(fx, X, DL_SEG_RSP, 1, 0);
+    expect_dl_segment(fx, X, DL_SEG, 1, 1, data + 60, 60);
+    inject_counter(fx, X, DL_SEG_RSP, 1, 1);
+    expect_no_req(fx);
+    assert_int_equal(session_state_of(fx, &t), CO_USDO_CLIENT_DL_WAIT_SOURCE);
+    run_ms(fx, 1500);
+    assert_true(co_usdo_client_cancel(&fx->c, &t.r, 0x60));
+    assert_false(co_usdo_client_cancel(&fx->c, &t.r, 0x60));
+    settle(fx);
+    expect_req_abort(fx, X, 1, 0x2009, 0, 0x60);
+    expect_no_req(fx);
+    assert_done(&t, 0x60, false);
+    assert_int_equal(t.done_calls, 1);
+    assert_int_equal(t.r.transferred, 120);
+    assert_int_equal(fx->c.stats.cancelled, 1);
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0x10);
+    run_ms(fx, 5000);
+    expect_no_req(fx);
+    assert_int_equal(t.done_calls, 1);
+    assert_int_equal(fx->c.stats.timeouts, 0);
+    assert_all_idle(fx);
+}
+
+/* LATER where it is not allowed: an expedited download (read at start) is
+ * refused 0x10 with nothing sent; a bulk download aborts 0x10 mid-stream. */
+static void test_later_refused_expedited_and_bulk(void **state)
+{
+    fx_t *fx = *state;
+    treq_t t;
+    later_src_t s;
+    static uint8_t data[5000];
+    fill_pattern(data, sizeof data, 24);
+    later_req(fx, &t, &s, X, data, 20, CO_USDO_MODE_AUTO, 0);
+    assert_int_equal(co_usdo_client_start(&fx->c, &t.r), 0x10);
+    settle(fx);
+    expect_no_req(fx);
+    assert_int_equal(t.done_calls, 0);
+    assert_int_equal(fx->c.stats.source_failed, 1);
+    assert_int_equal(fx->c.stats.source_waits, 0);
+
+    later_req(fx, &t, &s, X, data, 5000, CO_USDO_MODE_BULK, 120);
+    start_ok(fx, &t);
+    settle(fx);
+    expect_dl_init(fx, X, 1, BULK_INIT, 5000);
+    inject_bulk_accept(fx, X, 1, 0x2009, 0, 0);
+    expect_dl_segment(fx, X, BULK_SEG, 1, 0, data, 60);
+    expect_dl_segment(fx, X, BULK_SEG, 1, 1, data + 60, 60);
+    expect_req_abort(fx, X, 1, 0x2009, 0, 0x10);
+    expect_no_req(fx);
+    assert_done(&t, 0x10, false);
+    assert_int_equal(t.r.transferred, 120);
+    assert_int_equal(fx->c.stats.source_failed, 2);
+    assert_int_equal(fx->c.stats.source_waits, 0);
+    assert_int_equal(co_usdo_client_resume(&fx->c, &t.r), 0x10);
+    assert_all_idle(fx);
+}
+
 #define T(t) cmocka_unit_test_setup_teardown(t, setup, teardown)
 #define B(t) cmocka_unit_test_setup_teardown(t, setup_bare, teardown)
 
@@ -3189,6 +3464,10 @@ int main(void)
         T(test_done_may_start_new_requests),
         T(test_cancel_from_inside_a_sink),
         B(test_deinit_ends_open_requests),
+        T(test_later_segment_then_resume_real_server),
+        B(test_later_scripted_wait_and_resume),
+        B(test_later_cancel_while_waiting),
+        B(test_later_refused_expedited_and_bulk),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -20,6 +20,8 @@
  *                                        a 0x17 every half window, until 0x38)
  *                                        (0x31 / 0x32 taken too: the server's choice)
  *                 -> DL_INIT -> DL_SEG ... -> DL_LAST           segmented download
+ *                    (DL_WAIT_SOURCE between segments while the source says
+ *                     LATER, until co_usdo_client_resume)
  *                 -> BULK_INIT -> BULK_SEND -> BULK_LAST         bulk download
  *                 -> BROADCAST (collects answers until the window ends)
  *   any -> done / abort (server's, ours, timeout, cancel) -> FREE, then done()
@@ -65,6 +67,9 @@ enum {
 };
 /* Largest download: 0xFFFFFFFF means "unknown size" in USDO size fields. */
 #define CO_USDO_CLIENT_SIZE_MAX 0xFFFFFFFEu
+/* co_usdo_client_resume: the request runs but does not wait for its source
+ * (not a USDO abort code: never sent). */
+#define CO_USDO_CLIENT_NOT_WAITING 0x01u
 
 typedef enum co_usdo_mode {
     CO_USDO_MODE_AUTO = 0,
@@ -75,9 +80,22 @@ typedef enum co_usdo_mode {
 
 /* Download source: copy up to `want` bytes starting at `offset` into buf;
  * return the bytes given. The client always asks exactly what is left of
- * the chunk it sends, so anything but `want` means the source failed: the
- * client aborts 0x10 (sent to the server) and reports it. */
+ * the chunk it sends, so anything but `want` (or CO_USDO_SOURCE_LATER where
+ * allowed) means the source failed: the client aborts 0x10 (sent to the
+ * server) and reports it. */
 typedef uint32_t (*co_usdo_source_fn)(void *ctx, uint32_t offset, uint8_t *buf, uint32_t want);
+/* "Not yet": the source has no data for this segment now. Only for a
+ * segment of a segmented download (0x03 / 0x04, also the segmented retry
+ * of an AUTO bulk refused with 0x13): the client sends nothing, keeps the
+ * session open (state DL_WAIT_SOURCE, stats.source_waits counted) and
+ * STOPS its per-frame timeout, since the server owes nothing while our
+ * data is late. The caller owns that wait: it calls co_usdo_client_resume
+ * when the data is there, or co_usdo_client_cancel to give up (the server's
+ * own timeout keeps running on its side). Anywhere else it is a failed
+ * source, as any short count: an expedited download (read at start: the
+ * start is refused 0x10, nothing sent) and a bulk download (abort 0x10). A
+ * source that may say LATER asks for CO_USDO_MODE_SEGMENTED. */
+#define CO_USDO_SOURCE_LATER 0xFFFFFFFFu
 /* Upload sink: called once with len 0 and `total` = announced size
  * (0xFFFFFFFF unknown) before any data, then with each chunk in order;
  * return 0 to go on or a USDO abort code (e.g. 0x16 when total exceeds what
@@ -151,7 +169,9 @@ typedef enum co_usdo_client_state {
     CO_USDO_CLIENT_BULK_LAST,       /* 0x08 sent: waits for 0x28 */
     CO_USDO_CLIENT_BROADCAST,       /* collecting answers until the window ends */
     CO_USDO_CLIENT_UL_BULK_INIT,    /* 0x16 sent: waits for 0x36 (or 0x31 / 0x32) */
-    CO_USDO_CLIENT_UL_BULK          /* taking 0x37 until 0x38, acknowledging with 0x17 */
+    CO_USDO_CLIENT_UL_BULK,         /* taking 0x37 until 0x38, acknowledging with 0x17 */
+    CO_USDO_CLIENT_DL_WAIT_SOURCE   /* segmented download: the source said LATER; no
+                                       timeout, waits for co_usdo_client_resume */
 } co_usdo_client_state_t;
 
 typedef struct co_usdo_client_session {
@@ -212,6 +232,7 @@ typedef struct co_usdo_client_stats {
     uint32_t acks_sent;             /* bulk upload acknowledgements (0x17) */
     uint32_t bulk_budget_full;      /* bulk upload not started: the receive budget is
                                        taken (AUTO went plain, BULK refused 0x70) */
+    uint32_t source_waits;          /* a segmented download's source said LATER */
 } co_usdo_client_stats_t;
 /* cffi:end */
 
@@ -269,6 +290,15 @@ uint8_t co_usdo_client_start(co_usdo_client_t *c, co_usdo_request_t *req);
  * server (broadcast: to all), completes the request with that code and
  * frees the session. False when req is not running. */
 bool co_usdo_client_cancel(co_usdo_client_t *c, co_usdo_request_t *req, uint8_t code);
+/* Resume a segmented download whose source said CO_USDO_SOURCE_LATER: the
+ * waiting segment is asked of the source again and sent with the per-frame
+ * timeout re-armed (the source may say LATER again: it waits again; a
+ * failing source aborts 0x10 as usual). Returns 0 then;
+ * CO_USDO_CLIENT_NOT_WAITING (nothing done, nothing sent) when req runs but
+ * does not wait for its source, e.g. a segment's answer is still due or
+ * the resume comes from inside the source; 0x10 when req is not running or
+ * the client is not initialised. */
+uint8_t co_usdo_client_resume(co_usdo_client_t *c, co_usdo_request_t *req);
 /* Sessions in use. */
 uint8_t co_usdo_client_active(const co_usdo_client_t *c);
 bool co_usdo_client_running(const co_usdo_client_t *c, const co_usdo_request_t *req);
