@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 import os
 import threading
+import time
 from typing import Any, Iterator, List, Optional, Tuple
 
 import pytest
@@ -31,7 +32,7 @@ import pytest
 import canopenfd
 from canopenfd._binding.constants import LssStatus
 from canopenfd.services.lss import LssDevice, LssError
-from helpers import Recorder, TIME_SCALE, virtual_bus
+from helpers import Recorder, TIME_SCALE, scaled, virtual_bus
 
 can = pytest.importorskip("can")
 durand = pytest.importorskip("durand")
@@ -313,8 +314,7 @@ def test_switch_selective_inquire_configure_store(rig):
 
 
 def test_switch_global_both_answer(rig):
-    rig.add(ONES_SERIAL, node_id=3)
-    rig.add(ONES_VENDOR, node_id=4)
+    nodes = [rig.add(ONES_SERIAL, node_id=3), rig.add(ONES_VENDOR, node_id=4)]
     lss = rig.line.lss
     start = len(rig.frames)
     lss.switch_global("configuration")
@@ -322,6 +322,11 @@ def test_switch_global_both_answer(rig):
     assert rig.data(start, LSS_MASTER, 2) == [frame(0x04, 1), frame(0x5E)]
     assert sorted(rig.data(start, LSS_SLAVE, 2)) == [frame(0x5E, 3), frame(0x5E, 4)]
     lss.switch_global("waiting")
+    # durand takes frames in its own thread: inquire once both are waiting again
+    # (under load one still answered from "configuration" once)
+    deadline = time.monotonic() + scaled(5)
+    while any(n.lss._state != 0 for n in nodes) and time.monotonic() < deadline:   # WAITING
+        time.sleep(0.01)
     with pytest.raises(LssError, match="no answer"):
         lss.inquire("node_id")
 
