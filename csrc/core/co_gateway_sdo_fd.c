@@ -6,7 +6,7 @@
  *             relayed to a USDO server); the fd line's USDO client moves
  *             the value;
  *   a node of an attached classic line: uploads, when the buffer and the
- *             line's SDO client are free (else relayed, co_gateway_sdo.c):
+ *             line's SDO client are idle (else relayed, co_gateway_sdo.c):
  *             the client's segment requests are served from the buffer
  *             while the gateway's own client reads ahead, so the two hops
  *             run side by side instead of one frame after the other (a
@@ -432,7 +432,7 @@ void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd)
 }
 
 /* A classic target's transfer the gateway buffers: an upload, while the
- * buffer and the line's SDO client are free (downloads: co_gateway_sdo_pipe.c;
+ * buffer and the line's SDO client are idle (downloads: co_gateway_sdo_pipe.c;
  * the client's block transfers are relayed as they are). */
 static bool buffers(const co_gateway_sdo_t *c, const uint8_t *d)
 {
