@@ -43,6 +43,10 @@ class NodeLine(Protocol):
     channel: str
     mode: str
 
+    def __contains__(self, node_id: object) -> bool:
+        """node_id is a remote node the line watches."""
+        ...
+
 
 class LocalNode:
     """The node this process runs on a line (NMT slave + heartbeat producer).
@@ -81,7 +85,8 @@ class LocalNode:
         self._leds = LocalLeds(context, self, where)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
         self.lss = LssSlave(context, node_id, where)
-        self.lss.add_configured_hook(self._lss_configured)
+        self.lss.add_configured_hook(self._renumbered)
+        self._slave.add_renumber_hook(self._renumbered)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         self._frozen_as: Optional[str] = None   # how self.od names us while we serve it
@@ -93,9 +98,9 @@ class LocalNode:
     def __repr__(self) -> str:
         return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
 
-    def _lss_configured(self, node_id: int) -> None:
+    def _renumbered(self, node_id: int) -> None:
         """LSS gave the node node_id (created unconfigured, or its pending one at a
-        reset): it runs with it."""
+        reset), or a reset activated set_node_id_at_reset's: it runs with it."""
         self.node_id = node_id
         self._slave.node_id = node_id
         self._context.local_node_id = node_id
@@ -240,6 +245,22 @@ class LocalNode:
     def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
         """Block until the node is (or has passed through) `state`."""
         self._slave.wait_for_state(state, timeout)
+
+    def set_node_id_at_reset(self, node_id: int) -> None:
+        """Run with `node_id` from the next reset (communication or node) on,
+        as a pending LSS node-id would: the boot-up carries it and the
+        $NODEID defaults reload with it. `node.node_id` changes at that reset.
+        The node must be booted; an id the line watches as a remote node is
+        refused."""
+        where = f"set_node_id_at_reset on {self._where}"
+        node_id = check_node_id(node_id, where)
+        if node_id in self.line:
+            raise ConfigurationError(f"{where}: node-id {node_id} is a remote node this line "
+                                     "watches; the local node needs an id of its own")
+        if not self.booted:
+            raise ConfigurationError(f"{where}: the node is not booted yet (create it with "
+                                     f"node-id {node_id} instead)")
+        self._context.runtime.node_id_at_reset(self._context.index, node_id, where)
 
     # ---------------------------------------------------------------- 0x1017
     @property

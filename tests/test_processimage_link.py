@@ -153,15 +153,38 @@ def test_init_reports_nmt_and_keeps_written_bytes(world: World) -> None:
     assert world.task.node[(0x6200, 1)].raw == 0x3B
 
 
-def test_init_refuses_out_of_range_and_a_new_node_id(world: World) -> None:
+def test_init_refuses_out_of_range(world: World) -> None:
     world.host.send(b"I\x09\x00;")            # bps 1..8 or 0
     world.host.expect(b"!")
     world.host.send(b"I\x00\x80;")            # node-id 1..127 or 0
     world.host.expect(b"!")
     init(world)
-    world.host.send(b"I\x00\x05;")            # another node-id while node 0x40 runs
+    world.host.send(b"I\x00\x80;")
     world.host.expect(b"!")
     world.host.quiet()
+
+
+def test_init_again_with_a_new_node_id(world: World) -> None:
+    """Seed 004 §4.1.3: InitCANopen on a running task re-initialises it, with
+    the new node-id: boot-up, PDO COB-IDs ($NODEID) and SDO server follow."""
+    start(world)
+    world.host.send(b"I\x00\x05;")            # node 0x40 runs: re-initialise as 5
+    world.host.expect(b".")
+    world.host.expect(b"n\x00.n\x7f.")         # no 81h: the host asked for this reset
+    world.bus.wait_for(lambda calls: frames(world.bus, 0x705) == [b"\x00"],
+                       what="boot-up of node 5")
+    assert world.task.node is not None and world.task.node.node_id == 5
+    assert world.task.node_id == 5
+    assert world.peer.sdo.upload(5, 0x1000, 0) == b"\x91\x01\x0f\x00"
+    world.peer.nmt.send("START", 5)
+    world.host.expect(b"n\x05.")
+    world.peer.send_frame(0x205, b"\xb1\xb2")   # RPDO 1 under the new node-id
+    world.host.expect(b"d\x02\x02.")
+    world.host.send(b"W\x00\x02\x10\x20;")
+    world.host.expect(b"\x02.")
+    world.bus.wait_for(lambda calls: b"\x10\x20" in frames(world.bus, 0x185),
+                       what="TPDO 1 under the new node-id")
+    assert b"\x10\x20" not in frames(world.bus, 0x180 + NODE)
 
 
 def test_nmt_changes_from_the_network(world: World) -> None:

@@ -515,6 +515,13 @@ class Runtime:
             self._raise(rc, what)
         return rc
 
+    def node_id_at_reset(self, line: int, node_id: int, what: str) -> None:
+        """The local node takes node_id at its next reset."""
+        with self._lock:
+            rc = lib.co_rt_node_id_at_reset(self._live(what), line, node_id)
+            if rc < 0:
+                self._raise(rc, what)
+
     def remote_state(self, line: int, node_id: int, what: str) -> int:
         with self._lock:
             rc = lib.co_rt_remote_state(self._live(what), line, node_id)

@@ -188,18 +188,22 @@ class ProcessImageTask:
                     log.debug("TPDO %d: %s", pdo.number, exc)
 
     def init_canopen(self, bps: int, node_id: int) -> bool:
-        """InitCANopen: start (or re-initialise) the node; False for values
-        out of range or a node-id other than the running node's."""
+        """InitCANopen: start the node, or re-initialise the running one (a
+        reset node, with the new node-id when one is given: seed 004 §4.1.3);
+        False for values out of range or a node-id the line watches."""
         assert self.setup.node is not None
         if bps > 8 or node_id > 127:
             return False
         node_id = node_id or self.setup.node.node_id
-        if self.node is not None and node_id != self.node.node_id:
-            log.warning("InitCANopen: node-id %d while node %d runs: a new node-id needs a "
-                        "restart of the task", node_id, self.node.node_id)
-            return False
         self.bps = bps or self.setup.node.bps
         if self.node is not None:
+            if node_id != self.node.node_id:
+                try:
+                    self.node.set_node_id_at_reset(node_id)
+                except CanopenFDError as exc:
+                    log.warning("InitCANopen: %s", exc)
+                    return False
+                self.node_id = node_id
             self._own_reset = True       # the reset says 'n' 00 itself, then boots
             self.node.apply("RESET_NODE")
             return True

@@ -173,6 +173,7 @@ class NmtSlave:
         self._state_changed = CallbackList(f"node {node_id} state change")
         self._vetoed = CallbackList(f"node {node_id} veto")
         self._reset = CallbackList(f"node {node_id} reset")
+        self._renumber_hooks: List[Callable[[int], None]] = []
         context.subscribe(EventKind.NMT_STATE, self._event_state)
         context.subscribe(EventKind.NMT_VETOED, self._event_vetoed)
         context.subscribe(EventKind.NMT_RESET, self._event_reset)
@@ -252,10 +253,18 @@ class NmtSlave:
     def _event_vetoed(self, event: Event) -> Deferred:
         return self._vetoed.fire
 
+    def add_renumber_hook(self, hook: Callable[[int], None]) -> None:
+        """hook(node_id) on the dispatcher thread, before the reset's callbacks,
+        when a reset gave the node another node-id."""
+        self._renumber_hooks.append(hook)
+
     def _event_reset(self, event: Event) -> Deferred:
         # The runtime restored 0x1017 to its default (CiA 301 reset of the
         # communication parameters); mirror it (with an OD it is read there).
         self.heartbeat_ms = self.heartbeat_default_ms
+        if 1 <= event.node <= 127 and event.node != self.node_id:
+            for hook in self._renumber_hooks:   # the event names the node-id it now has
+                hook(event.node)
         try:
             command: Union[NmtCommand, int] = NmtCommand(event.a)
         except ValueError:

@@ -175,15 +175,17 @@ uint8_t co_api_init_canopen(co_api_t *api, uint8_t bps, uint8_t node_id)
     bps = bps ? bps : api->config.default_bps;
     node_id = node_id ? node_id : api->config.node.node_id;
     co_node_t *node = co_stack_node(api->stack);
-    if (api->started && node_id != node->nmt.node_id) {
-        return CO_API_FALSE;       /* a new node-id needs a new task */
-    }
     if (api->config.cb && api->config.cb->set_bit_rate &&
         !api->config.cb->set_bit_rate(bps, api->config.user)) {
         return CO_API_FALSE;
     }
     api->bps = bps;
     if (api->started) {
+        /* re-initialise: a reset node, with the new node-id (seed 004 §4.1.3) */
+        if (node_id != node->nmt.node_id &&
+            co_stack_set_node_id_at_reset(api->stack, node_id) != CO_STACK_OK) {
+            return CO_API_FALSE;
+        }
         api->own_reset = true;     /* the reset says 'initialising' itself */
         co_nmt_apply(&node->nmt, CO_NMT_CMD_RESET_NODE);
         return CO_API_TRUE;

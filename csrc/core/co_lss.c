@@ -412,3 +412,9 @@ uint8_t co_lss_slave_reset_communication(co_lss_slave_t *slave)
     slave->active_node_id = slave->pending_node_id;
     return slave->active_node_id;
 }
+
+void co_lss_slave_follow_node_id(co_lss_slave_t *slave, uint8_t node_id)
+{
+    slave->active_node_id = node_id;
+    slave->pending_node_id = node_id;
+}

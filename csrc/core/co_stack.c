@@ -705,29 +705,63 @@ static void lss_reset_communication(co_lss_slave_t *slave, uint8_t node_id, void
     }
 }
 
-/* A configured node's reset (communication or node): the pending node-id
- * becomes the active one (CiA 305). Another valid one renumbers the running
- * node (co_node_set_node_id, called by the node before its parameters
- * reload), the default SDO channel follows, the application is told before
- * the boot-up. A pending 255 keeps the node-id: a configured node leaving
- * the network for LSS-only operation is not implemented. */
-static uint8_t lss_node_id_at_reset(co_node_t *node, co_nmt_command_t kind, void *user)
+static void node_id_changed(co_stack_t *s, uint8_t node_id)
+{
+    if (s->ind && s->ind->node_id_changed) {
+        s->ind->node_id_changed(s, node_id, s->user);
+    }
+}
+
+/* The node-id a reset (communication or node) activates: the application's
+ * (co_stack_set_node_id_at_reset), else an LSS slave's pending one (CiA 305).
+ * Another valid one renumbers the running node (co_node_set_node_id, called
+ * by the node before its parameters reload), the default SDO channel
+ * follows, the application is told before the boot-up. A pending 255 keeps
+ * the node-id: a configured node leaving the network for LSS-only
+ * operation is not implemented. */
+static uint8_t node_id_at_reset(co_node_t *node, co_nmt_command_t kind, void *user)
 {
     (void)kind;
     co_stack_t *s = user;
-    uint8_t pending = co_lss_slave_pending_node_id(&s->lss_slave);
-    if (pending < 1u || pending > 127u || pending == node->nmt.node_id) {
-        return node->nmt.node_id;
+    uint8_t id = node->nmt.node_id;
+    bool by_lss = false;
+    if (s->node_id_at_reset != 0u) {
+        id = s->node_id_at_reset;
+        s->node_id_at_reset = 0;
+        if (s->has_lss_slave) {
+            co_lss_slave_follow_node_id(&s->lss_slave, id);
+        }
+    } else if (s->has_lss_slave) {
+        uint8_t pending = co_lss_slave_pending_node_id(&s->lss_slave);
+        if (pending >= 1u && pending <= 127u && pending != id) {
+            id = co_lss_slave_reset_communication(&s->lss_slave);
+            by_lss = true;
+        }
     }
-    uint8_t id = co_lss_slave_reset_communication(&s->lss_slave);
+    if (id == node->nmt.node_id) {
+        return id;
+    }
     (void)co_node_set_node_id(node, id);
     if (CO_CONFIG_CLASSIC && s->has_sdo_server) {
         co_sdo_server_refresh(&s->sdo_server);   /* channel 0: 0x600/0x580 + node-id */
     }
-    if (s->lss_app && s->lss_app->reset_communication) {
+    node_id_changed(s, id);
+    if (by_lss && s->lss_app && s->lss_app->reset_communication) {
         s->lss_app->reset_communication(&s->lss_slave, id, s->lss_user);
     }
     return id;
+}
+
+co_stack_status_t co_stack_set_node_id_at_reset(co_stack_t *stack, uint8_t node_id)
+{
+    if (!stack || !stack->has_node) {
+        return CO_STACK_ERR_STATE;
+    }
+    if (node_id < 1u || node_id > 127u) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    stack->node_id_at_reset = node_id;
+    return CO_STACK_OK;
 }
 
 static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t *config,
@@ -753,7 +787,7 @@ static void lss_configured(co_timer_t *timer, uint64_t now_us, void *user)
         return;                          /* co_stack_failed_part says which part */
     }
     s->unconfigured = false;
-    co_node_set_reset_node_id(&s->node, lss_node_id_at_reset, s);
+    node_id_changed(s, id);
     /* told before the boot-up, so the application knows the new node-id by the
      * time the node's first state change reaches it */
     if (s->lss_app && s->lss_app->reset_communication) {
@@ -782,18 +816,12 @@ static co_stack_status_t lss_start(co_stack_t *s, const co_stack_node_config_t *
         return fail(s, CO_STACK_PART_LSS, CO_STACK_ERR_TAKEN);
     }
     s->has_lss_slave = true;
-    if (s->has_node) {
-        co_node_set_reset_node_id(&s->node, lss_node_id_at_reset, s);
-    }
     return CO_STACK_OK;
 }
 
 static void lss_undo(co_stack_t *s)
 {
     if (s->has_lss_slave) {
-        if (s->has_node) {
-            co_node_set_reset_node_id(&s->node, NULL, NULL);
-        }
         co_timer_cancel(co_line_timers(s->line), &s->lss_timer);
         co_lss_slave_deinit(&s->lss_slave);
         s->has_lss_slave = false;
@@ -814,6 +842,8 @@ static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t
     }
     s->has_node = true;
     s->od = config->od;
+    s->node_id_at_reset = 0;
+    co_node_set_reset_node_id(&s->node, node_id_at_reset, s);
     if (config->leds) {
         co_led_config_t led = {.same_phase = config->led_same_phase,
                                .changed = config->led_changed,

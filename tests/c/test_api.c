@@ -193,7 +193,6 @@ static void test_init_canopen_and_nmt_changes(void **state)
     assert_int_equal(fx->nmt[0], 0x00);
     assert_int_equal(fx->nmt[1], 0x7F);
     assert_int_equal(co_api_get_status(&fx->api), CO_API_STATE_OPERATING);
-    assert_int_equal(co_api_init_canopen(&fx->api, 0, 5), CO_API_FALSE);   /* other node-id */
     /* a network reset: 81h; InitCANopen again: a reset without 81h */
     assert_true(co_nmt_master_send(&fx->tool_line.line, NULL, CO_NMT_CMD_RESET_NODE, NODE, false));
     tu_run_until(&fx->tb, 10 * TU_MS);
@@ -271,6 +270,41 @@ static void test_sdo_download_gives_received_data(void **state)
     fx_free(fx);
 }
 
+/* InitCANopen again with another node-id re-initialises under it (seed 004
+ * §4.1.3): boot-up, SDO server and $NODEID COB-IDs all follow. */
+static void test_init_canopen_again_takes_the_new_node_id(void **state)
+{
+    (void)state;
+    enum { NEW = 0x05 };
+    fx_t *fx = fx_new();
+    fx_start(fx);
+    assert_int_equal(co_api_init_canopen(&fx->api, 0, 128), CO_API_FALSE);
+    assert_int_equal(co_api_init_canopen(&fx->api, 0, NEW), CO_API_TRUE);
+    tu_run_until(&fx->tb, fx->tb.now + 5 * TU_MS);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x700 + NEW, 0), 0x700 + NEW,
+                     (const uint8_t[]){0x00}, 1);
+    assert_int_equal(co_stack_node(&fx->stack)->nmt.node_id, NEW);
+    uint32_t cob_id = 0;
+    assert_true(co_od_get_u32(&fx->od, 0x1800, 1, &cob_id));
+    assert_int_equal(cob_id, 0x180 + NEW);
+    assert_int_equal(fx->nmt[fx->nmt_count - 1], 0x7F);
+    /* the server answers under the new node-id, no longer under the old one */
+    size_t old_answers = tu_log_count_id(&fx->tb, 0x580 + NODE);
+    assert_true(co_line_send(&fx->tool_line.line, 0x600 + NODE,
+                             (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}, 8));
+    assert_true(co_line_send(&fx->tool_line.line, 0x600 + NEW,
+                             (const uint8_t[]){0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}, 8));
+    tu_run_until(&fx->tb, fx->tb.now + 5 * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x580 + NODE), old_answers);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x580 + NEW, 0), 0x580 + NEW,
+                     (const uint8_t[]){0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}, 8);
+    /* the same node-id again: a plain re-initialisation */
+    assert_int_equal(co_api_init_canopen(&fx->api, 0, NEW), CO_API_TRUE);
+    tu_run_until(&fx->tb, fx->tb.now + 5 * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x700 + NEW), 2);
+    fx_free(fx);
+}
+
 static void test_write_sends_the_tpdo(void **state)
 {
     (void)state;
@@ -337,6 +371,7 @@ int main(void)
         cmocka_unit_test(test_rpdo_gives_one_received_data),
         cmocka_unit_test(test_rpdo_to_scattered_bytes),
         cmocka_unit_test(test_sdo_download_gives_received_data),
+        cmocka_unit_test(test_init_canopen_again_takes_the_new_node_id),
         cmocka_unit_test(test_write_sends_the_tpdo),
         cmocka_unit_test(test_fatal_error),
         cmocka_unit_test(test_image_refuses_what_does_not_fit),

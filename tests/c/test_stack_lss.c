@@ -342,6 +342,47 @@ static void test_configured_node_new_id_at_reset(void **state)
     }
 }
 
+/* The application's node-id for the next reset (co_stack_set_node_id_at_reset)
+ * wins over an LSS pending one; the slave then reports it as active and
+ * pending, and the LSS "configured" indication stays silent (not LSS's). */
+static void test_application_node_id_at_reset(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new();
+    assert_int_equal(co_stack_set_node_id_at_reset(&fx->stack, 9), CO_STACK_ERR_STATE);
+    device_od(&fx->dev, NODE, true);
+    co_stack_node_config_t c = config_of(fx, NODE);
+    assert_int_equal(co_stack_node_init(&fx->stack, &c), CO_STACK_OK);
+    assert_int_equal(co_stack_boot(&fx->stack), CO_STACK_OK);
+    assert_int_equal(co_stack_set_node_id_at_reset(&fx->stack, 0), CO_STACK_ERR_ARGUMENT);
+    assert_int_equal(co_stack_set_node_id_at_reset(&fx->stack, 128), CO_STACK_ERR_ARGUMENT);
+    assert_true(co_lss_master_switch_global(master(fx), CO_LSS_STATE_CONFIGURATION));
+    assert_true(co_lss_master_configure_node_id(master(fx), 7));
+    assert_int_equal(wait_done(fx).status, CO_LSS_OK);
+    assert_true(co_lss_master_switch_global(master(fx), CO_LSS_STATE_WAITING));
+    assert_int_equal(co_stack_set_node_id_at_reset(&fx->stack, 9), CO_STACK_OK);
+    tu_log_clear(&fx->tb);
+    const uint8_t reset5[2] = {0x82, NODE};
+    tool_send(fx, 0x000, reset5, 2);
+    const uint8_t zero = 0;
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x709, 0), 0x709, &zero, 1);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x707), 0);
+    assert_int_equal(co_line_node_id(&fx->dev_line.line), 9);
+    co_lss_slave_t *slave = co_stack_lss_slave(&fx->stack);
+    assert_int_equal(co_lss_slave_active_node_id(slave), 9);
+    assert_int_equal(co_lss_slave_pending_node_id(slave), 9);
+    assert_int_equal(fx->resets, 0);
+    assert_true(co_lss_master_switch_global(master(fx), CO_LSS_STATE_CONFIGURATION));
+    assert_true(co_lss_master_inquire(master(fx), CO_LSS_CS_INQUIRE_NODE_ID));
+    assert_int_equal(wait_done(fx).value, 9);
+    /* used once: the next reset keeps 9 */
+    tu_log_clear(&fx->tb);
+    const uint8_t reset9[2] = {0x81, 9};
+    tool_send(fx, 0x000, reset9, 2);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x709), 1);
+    fx_free(fx);
+}
+
 /* Configure node-id 0 and 128..254: refused with error 1 (out of range) on
  * the wire, nothing pending; 255 is taken but a configured node keeps its
  * node-id at the reset (leaving for LSS-only operation is not implemented). */
@@ -388,6 +429,7 @@ int main(void)
         cmocka_unit_test(test_unconfigured_node),
         cmocka_unit_test(test_unconfigured_configured_before_boot),
         cmocka_unit_test(test_configured_node_new_id_at_reset),
+        cmocka_unit_test(test_application_node_id_at_reset),
         cmocka_unit_test(test_configure_node_id_out_of_range),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

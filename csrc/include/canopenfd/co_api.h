@@ -92,8 +92,8 @@ void co_api_deinit(co_api_t *api);
 void co_api_get_id(const co_api_t *api, uint8_t id[4]);
 uint8_t co_api_get_status(const co_api_t *api);
 /* bps 1..8 (0 = default), node_id 1..127 (0 = default); again = re-initialise
- * (reset node). CO_API_TRUE or CO_API_FALSE (out of range, the bit rate
- * refused, another node-id than the running node's, the stack refusing). */
+ * (reset node, under node_id when it differs: seed 004 §4.1.3). CO_API_TRUE or
+ * CO_API_FALSE (out of range, the bit rate refused, the stack refusing). */
 uint8_t co_api_init_canopen(co_api_t *api, uint8_t bps, uint8_t node_id);
 /* Copy image bytes out / in: the number copied, fewer at the end of the
  * image, 0 from offset past it; nothing outside the image is touched. A

@@ -199,6 +199,9 @@ bool co_lss_slave_store_answer(co_lss_slave_t *slave, uint8_t error);
 /* The node resets communication: the pending node-id becomes the active one
  * (returned). */
 uint8_t co_lss_slave_reset_communication(co_lss_slave_t *slave);
+/* The application renumbered the node (not LSS): node_id becomes the active
+ * and the pending one; the persistent one stays. */
+void co_lss_slave_follow_node_id(co_lss_slave_t *slave, uint8_t node_id);
 
 static inline co_lss_state_t co_lss_slave_state(const co_lss_slave_t *s) { return s->state; }
 static inline uint8_t co_lss_slave_active_node_id(const co_lss_slave_t *s)

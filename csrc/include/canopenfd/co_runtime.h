@@ -670,6 +670,9 @@ int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out);
 int co_rt_event_stats(co_rt_t *rt, int line, co_rt_event_stats_t *out);
 /* Local node state (co_nmt_state_t) or CO_RT_ERR_STATE when the line has none. */
 int co_rt_local_state(co_rt_t *rt, int line);
+/* The local node takes node_id (1..127) at its next reset, communication or
+ * node (co_stack_set_node_id_at_reset); CO_RT_ERR_STATE without a running one. */
+int co_rt_node_id_at_reset(co_rt_t *rt, int line, int node_id);
 /* Last state seen of a remote node (co_nmt_state_t, CO_NMT_UNKNOWN if none). */
 int co_rt_remote_state(co_rt_t *rt, int line, int node_id);
 uint64_t co_rt_now_us(void);

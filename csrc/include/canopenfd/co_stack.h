@@ -150,6 +150,9 @@ typedef struct co_stack_indications {
                   co_nmt_state_t state, void *user);
     /* the line's communication events (bus-off, overflow, ...) */
     void (*comm)(co_stack_t *stack, co_comm_event_t event, void *user);
+    /* the local node runs with a new node-id: LSS configured it, or a reset
+     * activated an LSS pending one or co_stack_set_node_id_at_reset's */
+    void (*node_id_changed)(co_stack_t *stack, uint8_t node_id, void *user);
 } co_stack_indications_t;
 
 typedef struct co_stack_line_config {
@@ -277,6 +280,7 @@ struct co_stack {
     co_lss_slave_indications_t lss_wiring;   /* the stack's own, forwarding to lss_app */
     const co_lss_slave_indications_t *lss_app;
     void *lss_user;
+    uint8_t node_id_at_reset;    /* co_stack_set_node_id_at_reset's, 0 = none */
     bool unconfigured;           /* node_id 255: the node waits for LSS */
     bool boot_requested;         /* co_stack_boot came while unconfigured */
     co_stack_node_config_t node_config;   /* kept to set the node up once configured */
@@ -319,6 +323,12 @@ co_stack_status_t co_stack_init(co_stack_t *stack, co_line_t *line,
 co_stack_status_t co_stack_node_init(co_stack_t *stack, const co_stack_node_config_t *config);
 /* Power-on of the node: parameters loaded, boot-up sent, pre-operational. */
 co_stack_status_t co_stack_boot(co_stack_t *stack);
+/* The running node takes node_id (1..127) at its next reset (communication
+ * or node), as a pending LSS node-id would: the $NODEID defaults reload
+ * with it and the boot-up carries it; an LSS slave reports it as active.
+ * It wins over an LSS pending node-id. CO_STACK_ERR_STATE without a
+ * running node (also while it waits for LSS). */
+co_stack_status_t co_stack_set_node_id_at_reset(co_stack_t *stack, uint8_t node_id);
 /* Undo co_stack_node_init (the client goes too when it was bound to the
  * node's OD). */
 void co_stack_node_deinit(co_stack_t *stack);

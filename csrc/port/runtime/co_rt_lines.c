@@ -24,6 +24,19 @@ static void on_comm(co_stack_t *stack, co_comm_event_t event, void *user)
     rt_post(user, CO_EV_COMM, 0, (uint32_t)event, 0, NULL);
 }
 
+/* The local node runs with a new node-id (LSS, or co_rt_node_id_at_reset at
+ * a reset): a gateway port answers under the node-id, so its table is
+ * rebuilt. Python learns it from the LSS or the reset event. */
+static void on_node_id_changed(co_stack_t *stack, uint8_t node_id, void *user)
+{
+    (void)stack;
+    (void)node_id;
+    rt_line_t *l = user;
+    if (l->network_id != 0) {
+        (void)rt_gateway_rebuild(l->rt);
+    }
+}
+
 /* What the line's services tell Python; each service's glue file posts its own. */
 static const co_stack_indications_t line_indications = {
     .heartbeat = on_heartbeat,
@@ -31,6 +44,7 @@ static const co_stack_indications_t line_indications = {
     .time = rt_time_on_received,
     .guard = rt_guard_on_event,
     .comm = on_comm,
+    .node_id_changed = on_node_id_changed,
 };
 
 rt_line_t *rt_checked_line(co_rt_t *rt, int line, bool host_only)

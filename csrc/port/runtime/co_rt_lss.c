@@ -268,14 +268,12 @@ static void slave_state(co_lss_slave_t *slave, co_lss_state_t state, void *user)
     rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_STATE, (uint32_t)state, NULL);
 }
 
-/* co_stack set the node up with the node-id LSS gave it. */
+/* co_stack set the node up with the node-id LSS gave it (the gateway heard
+ * it through the line's node_id_changed). */
 static void slave_configured(co_lss_slave_t *slave, uint8_t node_id, void *user)
 {
     (void)slave;
     rt_line_t *l = user;
-    if (l->network_id != 0) {
-        (void)rt_gateway_rebuild(l->rt);   /* hook the node's new OD and PDOs */
-    }
     rt_post(l, CO_EV_LSS, own_id(l), CO_RT_LSS_SLAVE_CONFIGURED, node_id, NULL);
 }
 

@@ -231,6 +231,26 @@ int co_rt_local_state(co_rt_t *rt, int line)
     return state;
 }
 
+int co_rt_node_id_at_reset(co_rt_t *rt, int line, int node_id)
+{
+    rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (node_id < 1 || node_id > 127) {
+        return rt_argument_error(rt, "line %d: node-id %d outside 1..127", line, node_id);
+    }
+    rt_mutex_lock(&rt->lock);
+    int status = CO_RT_OK;
+    if (co_stack_set_node_id_at_reset(&l->stack, (uint8_t)node_id) != CO_STACK_OK) {
+        rt_set_error(rt, "line %d: no running local node to give node-id %d (boot it first)",
+                     line, node_id);
+        status = CO_RT_ERR_STATE;
+    }
+    rt_mutex_unlock(&rt->lock);
+    return status;
+}
+
 int co_rt_remote_state(co_rt_t *rt, int line, int node_id)
 {
     rt_line_t *l = rt ? rt_checked_line(rt, line, false) : NULL;
