@@ -11,7 +11,7 @@ Through the gateway (node 1 on every line) a classic client line on network
 "relayed" with routing.sdo_buffering off (the C core relays every frame),
 "buffered" with it on (the default: the gateway answers the client's
 segments from its buffer while its own SDO client works the device,
-co_gateway_sdo_fd.c); "routed fd": the same client reaches fd device 6 (the
+co_gateway_sdo_buffered.c); "routed fd": the same client reaches fd device 6 (the
 same DOMAINs) on the fd network 2 ("cell"), the gateway translating the
 client's SDO transfer into USDO. Every routed column is given as a share of
 the direct classic one: what reaching the device through the gateway costs

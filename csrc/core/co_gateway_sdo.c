@@ -10,9 +10,9 @@
  * expedited, segmented and block transfers all pass; the gateway only reads
  * byte 0 (the indication, aborts) and bytes 1..3 (for its own aborts). A
  * node of an attached fd line is reached by translation instead
- * (co_gateway_sdo_fd.c). Segmented transfers to classic targets keep the two
+ * (co_gateway_sdo_buffered.c). Segmented transfers to classic targets keep the two
  * hops running side by side: downloads pipelined (co_gateway_sdo_pipe.c),
- * uploads read ahead by the gateway's own client (co_gateway_sdo_fd.c). */
+ * uploads read ahead by the gateway's own client (co_gateway_sdo_buffered.c). */
 #include "canopenfd/co_gateway.h"
 
 #include <string.h>
@@ -98,7 +98,7 @@ static void release(co_gateway_sdo_t *c)
     bool relayed = !c->fd;
     co_gateway_sdo_pipe_close(c);
     if (c->buffered) {
-        co_gateway_sdo_fd_close(c);
+        co_gateway_sdo_buffered_close(c);
     }
     if (relayed) {
         co_timer_cancel(co_line_timers(line_of(c->to)), &c->timer);
@@ -311,7 +311,7 @@ static bool indication(co_gateway_port_t *from, uint8_t channel, uint32_t reply_
         co_timer_init(&c->timer, on_timeout, c);
     }
     if (fd || (kind == CO_GATEWAY_ATTACHED && can_buffer(gw, to, target))) {
-        co_gateway_sdo_fd_open(c, fd);
+        co_gateway_sdo_buffered_open(c, fd);
     }
     if (kind == CO_GATEWAY_VIA) {
         /* the next gateway connects on: it confirms or aborts */
@@ -372,7 +372,7 @@ void co_gateway_sdo_end(co_gateway_t *gw)
         gw->stats.connections_ended++;
         remember_ended(gw, c);
         if (c->fd) {
-            co_gateway_sdo_fd_end(c, CO_GATEWAY_ABORT_ENDED);
+            co_gateway_sdo_buffered_end(c, CO_GATEWAY_ABORT_ENDED);
         } else {
             send_abort(gw, line_of(c->from), c->reply_id, c->mux, CO_GATEWAY_ABORT_ENDED);
             send_abort(gw, line_of(c->to), SDO_REQUEST_BASE + c->target, c->mux,
@@ -417,7 +417,7 @@ static bool on_request(co_sdo_server_t *server, uint8_t channel, uint32_t tx_id,
     }
     /* a relayed block download's segments (byte 0 = c | seqno) are no
      * requests of their own: never taken for pipelining or buffering */
-    if (!c->block_down && c->buffered && co_gateway_sdo_fd_request(c, f->data)) {
+    if (!c->block_down && c->buffered && co_gateway_sdo_buffered_request(c, f->data)) {
         return true;   /* fd targets; classic: uploads */
     }
     if (!c->block_down && co_gateway_sdo_pipe_request(c, f->data)) {

@@ -12,7 +12,7 @@
  * well inside its timeout. The target's abort ends the pipeline and reaches
  * the client at once (CiA 301 lets a server abort at any time); the
  * client's abort goes to the target; the relay's timeout covers a silent
- * target. Uploads and fd targets: co_gateway_sdo_fd.c. */
+ * target. Uploads and fd targets: co_gateway_sdo_buffered.c. */
 #include "canopenfd/co_gateway.h"
 
 #include <string.h>

@@ -27,7 +27,7 @@
  *     connects it to a node of another network; its frames then go to that
  *     node (or the next gateway) and the answers back, unchanged; a node of
  *     an attached fd network is reached by translation instead
- *     (co_gateway_sdo_fd.c): the gateway serves the client's SDO transfer
+ *     (co_gateway_sdo_buffered.c): the gateway serves the client's SDO transfer
  *     itself and moves the whole value with the fd line's USDO client
  *     through a buffer the caller gives (co_gateway_set_sdo_buffer);
  *   - forwards remote USDO (co_gateway_usdo.c): a routed request (cs | 0x80,
@@ -159,11 +159,11 @@ typedef struct co_gateway_sdo {
     bool pipe_last_in;               /* the client sent its last segment */
     bool pipe_last_sent;             /* ... and it went to the target */
     uint8_t pipe_frames[CO_GATEWAY_SDO_PIPE_DEPTH][8];
-    /* buffered transfers (co_gateway_sdo_fd.c): every transfer to an fd
+    /* buffered transfers (co_gateway_sdo_buffered.c): every transfer to an fd
      * target, uploads from a classic one */
     bool fd;                         /* the target is on an fd line */
     bool buffered;                   /* transfers may go through the buffer */
-    uint8_t xstate;                  /* co_gateway_sdo_fd.c's transfer state */
+    uint8_t xstate;                  /* co_gateway_sdo_buffered.c's transfer state */
     uint8_t toggle;                  /* segmented: toggle expected next */
     bool size_known;                 /* segmented download: the client gave its size */
     bool fetch_running;              /* the target's transfer has not ended yet */
@@ -328,22 +328,22 @@ void co_gateway_usdo_end(co_gateway_t *gw);
  * (unhook cancels the requests forwarded from or to the port). */
 void co_gateway_usdo_hook(struct co_gateway_port *port);
 void co_gateway_usdo_unhook(struct co_gateway_port *port);
-/* co_gateway_sdo_fd.c, for co_gateway_sdo.c: buffered transfers on a
+/* co_gateway_sdo_buffered.c, for co_gateway_sdo.c: buffered transfers on a
  * connection (to an fd target: all of them), a connected client's request
  * (false: a classic target's frame to relay), and the end of the connection. */
-void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd);
-bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *data);
-/* co_gateway_sdo.c, for co_gateway_sdo_fd.c / _pipe.c: relay a request to the target. */
+void co_gateway_sdo_buffered_open(co_gateway_sdo_t *c, bool fd);
+bool co_gateway_sdo_buffered_request(co_gateway_sdo_t *c, const uint8_t *data);
+/* co_gateway_sdo.c, for co_gateway_sdo_buffered.c / _pipe.c: relay a request to the target. */
 void co_gateway_sdo_relay(co_gateway_sdo_t *c, const uint8_t *data);
 /* co_gateway_sdo_pipe.c, for co_gateway_sdo.c: a client's request (true:
  * taken), the target's answer (true: taken, not for the client), the end. */
 bool co_gateway_sdo_pipe_request(co_gateway_sdo_t *c, const uint8_t *data);
 bool co_gateway_sdo_pipe_answer(co_gateway_sdo_t *c, const uint8_t *data);
 void co_gateway_sdo_pipe_close(co_gateway_sdo_t *c);
-void co_gateway_sdo_fd_close(co_gateway_sdo_t *c);
+void co_gateway_sdo_buffered_close(co_gateway_sdo_t *c);
 /* A rebuild ends the connection: the client hears `code`, a running USDO
  * transfer is stopped with its USDO counterpart. */
-void co_gateway_sdo_fd_end(co_gateway_sdo_t *c, uint32_t code);
+void co_gateway_sdo_buffered_end(co_gateway_sdo_t *c, uint32_t code);
 
 static inline const co_gateway_stats_t *co_gateway_stats(const co_gateway_t *gw)
 {

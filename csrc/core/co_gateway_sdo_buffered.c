@@ -423,7 +423,7 @@ static void upload_segment(co_gateway_sdo_t *c, const uint8_t *d)
     serve_segment(c);
 }
 
-void co_gateway_sdo_fd_open(co_gateway_sdo_t *c, bool fd)
+void co_gateway_sdo_buffered_open(co_gateway_sdo_t *c, bool fd)
 {
     c->fd = fd;
     c->buffered = true;
@@ -445,7 +445,7 @@ static bool buffers(const co_gateway_sdo_t *c, const uint8_t *d)
 /* The client's request on a buffered connection. False: a classic target's
  * frame to relay (no buffered transfer runs and this one does not start one;
  * one that ran is ended first when the client starts another kind). */
-bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *d)
+bool co_gateway_sdo_buffered_request(co_gateway_sdo_t *c, const uint8_t *d)
 {
     uint8_t ccs = d[0] >> 5;
     if (!c->fd && !buffers(c, d) && (c->xstate == X_IDLE || ccs == 1 || ccs == 2 || ccs >= 5)) {
@@ -495,7 +495,7 @@ bool co_gateway_sdo_fd_request(co_gateway_sdo_t *c, const uint8_t *d)
     return true;
 }
 
-void co_gateway_sdo_fd_close(co_gateway_sdo_t *c)
+void co_gateway_sdo_buffered_close(co_gateway_sdo_t *c)
 {
     if (c->fetch_running) {
         cancel_fetch(c, CO_ABORT_GENERAL);
@@ -510,7 +510,7 @@ void co_gateway_set_sdo_buffering(co_gateway_t *gw, bool on)
     gw->sdo_relay_only = !on;
 }
 
-void co_gateway_sdo_fd_end(co_gateway_sdo_t *c, uint32_t code)
+void co_gateway_sdo_buffered_end(co_gateway_sdo_t *c, uint32_t code)
 {
     if (c->fetch_running) {
         cancel_fetch(c, code);
