@@ -33,63 +33,67 @@ class _Channel:
             setattr(self._c, name, value)
 
 
-class DigitalInputGroup(_Channel):
+class _Input(_Channel):
+    """An input: `update` stores a new value and says whether its TPDO fires."""
+
+    _UPDATE = ""
+
+    @property
+    def value(self) -> int:
+        """What the input's OD entry (0x6000 / 0x6401) holds."""
+        return int(self._c.value)
+
+    def update(self, value: int) -> bool:
+        return bool(getattr(lib, self._UPDATE)(self._c, value))
+
+
+class _Output(_Channel):
+    """An output: `write` (0x6200 / 0x6411 written) and `fault` give the
+    physical level."""
+
+    _WRITE = ""
+    _FAULT = ""
+
+    @property
+    def physical(self) -> int:
+        return int(self._c.physical)
+
+    def write(self, value: int) -> int:
+        return int(getattr(lib, self._WRITE)(self._c, value))
+
+    def fault(self) -> int:
+        return int(getattr(lib, self._FAULT)(self._c))
+
+
+class DigitalInputGroup(_Input):
     """8 digital inputs: 0x6000 sub n with 0x6002/0x6003/0x6005..0x6008."""
 
     _TYPE = "co_cia401_din_t *"
-
-    @property
-    def value(self) -> int:
-        return int(self._c.value)
-
-    def update(self, raw: int) -> bool:
-        """New raw levels; True when the change triggers the TPDO."""
-        return bool(lib.co_cia401_din_update(self._c, raw))
+    _UPDATE = "co_cia401_din_update"
 
 
-class DigitalOutputGroup(_Channel):
+class DigitalOutputGroup(_Output):
     """8 digital outputs: 0x6200 sub n with 0x6202/0x6206/0x6207/0x6208."""
 
     _TYPE = "co_cia401_dout_t *"
-
-    @property
-    def physical(self) -> int:
-        return int(self._c.physical)
-
-    def write(self, value: int) -> int:
-        return int(lib.co_cia401_dout_write(self._c, value))
-
-    def fault(self) -> int:
-        return int(lib.co_cia401_dout_fault(self._c))
+    _WRITE = "co_cia401_dout_write"
+    _FAULT = "co_cia401_dout_fault"
 
 
-class AnalogInput(_Channel):
+class AnalogInput(_Input):
     """One 16-bit analogue input: 0x6401 sub n with 0x6421/0x6423..0x6428."""
 
     _TYPE = "co_cia401_ain_t *"
-
-    @property
-    def value(self) -> int:
-        return int(self._c.value)
+    _UPDATE = "co_cia401_ain_update"
 
     def reset(self, value: int) -> None:
+        """Value and delta reference set without a trigger."""
         lib.co_cia401_ain_reset(self._c, value)
 
-    def update(self, value: int) -> bool:
-        return bool(lib.co_cia401_ain_update(self._c, value))
 
-
-class AnalogOutput(_Channel):
+class AnalogOutput(_Output):
     """One 16-bit analogue output: 0x6411 sub n with 0x6443/0x6444."""
 
     _TYPE = "co_cia401_aout_t *"
-
-    @property
-    def physical(self) -> int:
-        return int(self._c.physical)
-
-    def write(self, value: int) -> int:
-        return int(lib.co_cia401_aout_write(self._c, value))
-
-    def fault(self) -> int:
-        return int(lib.co_cia401_aout_fault(self._c))
+    _WRITE = "co_cia401_aout_write"
+    _FAULT = "co_cia401_aout_fault"
