@@ -234,3 +234,20 @@ def test_python_canopen_reads_writes_and_receives_the_pdos(tmp_path):
         finally:
             peer.disconnect()
     time.sleep(0)   # the virtual bus is shut down by conftest
+
+
+def test_a_lost_master_heartbeat_sets_the_error_values(net, bus_name):
+    """The communication error of the docs: the application hands fault() to
+    the line's heartbeat watch of its master."""
+    rig = Rig(net, bus_name, "classic")
+    watch = rig.a.add_node(1, heartbeat_timeout_ms=300)
+    watch.on_heartbeat_lost(rig.dev.fault)
+    master = rig.b.create_local_node(1, heartbeat_ms=50)   # monitored from its boot-up
+    watch.wait_for_heartbeat(timeout=scaled(5))
+    rig.start()
+    rig.write(0x6206, 1, 0x80, 1)          # only output 8 has an error mode ...
+    rig.write(0x6207, 1, 0x80, 1)          # ... and goes on
+    rig.write(0x6200, 1, 0x01, 1)
+    assert rig.outputs.wait_count(1)[0] == Outputs(0x01, (0, 0))
+    master.heartbeat_ms = 0                # the master falls silent
+    assert rig.outputs.wait_count(2, timeout=scaled(5))[1] == Outputs(0x81, (0, 0))
