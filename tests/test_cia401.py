@@ -251,3 +251,20 @@ def test_a_lost_master_heartbeat_sets_the_error_values(net, bus_name):
     assert rig.outputs.wait_count(1)[0] == Outputs(0x01, (0, 0))
     master.heartbeat_ms = 0                # the master falls silent
     assert rig.outputs.wait_count(2, timeout=scaled(5))[1] == Outputs(0x81, (0, 0))
+
+
+def test_reset_node_keeps_the_inputs_and_outputs_follow_the_defaults(rig):
+    rig.dev.set_inputs(0x0301)
+    rig.dev.set_analog_input(2, -42)
+    rig.write(0x6200, 1, 0x0F, 1)
+    rig.write(0x6411, 1, 5, 2)
+    assert rig.outputs.wait_count(2)[1] == Outputs(0x0F, (5, 0))
+    booted = Recorder()
+    rig.master.on_bootup(booted)
+    rig.master.reset_node()
+    booted.wait_count(1)
+    assert rig.outputs.wait_count(3)[2] == Outputs(0, (5, 0))    # 0x6200 back to 0 ...
+    assert rig.outputs.wait_count(4)[3] == Outputs(0, (0, 0))    # ... then 0x6411
+    assert rig.master.read((0x6000, 1)) == b"\x01"
+    assert rig.master.read((0x6000, 2)) == b"\x03"
+    assert rig.master.read((0x6401, 2)) == (-42).to_bytes(2, "little", signed=True)

@@ -20,7 +20,7 @@ from ..._callbacks import CallbackList
 from ...errors import ConfigurationError
 from ...line import Line
 from ...node import LocalNode, LocalValue
-from ...services.nmt import NmtState
+from ...services.nmt import NmtCommand, NmtState
 from . import objects as o
 
 DigitalCallback = Callable[[int], None]
@@ -58,6 +58,7 @@ class IoDevice:
             group.set(filter_mask=0xFF)
         node.on_object_changed(self._written)
         node.on_state_change(self._state_changed)
+        node.on_reset(self._reset)
 
     def __repr__(self) -> str:
         layout = self.layout
@@ -216,6 +217,20 @@ class IoDevice:
                     self._analog_outputs[sub - 1].write(written)
             after = self._snapshot()
         self._tell(digital_before, analog_before, after)
+
+    def _reset(self, command: NmtCommand) -> None:
+        """Reset node reloaded every default: 0x6000/0x6401 get the inputs back
+        (the levels did not change) and the outputs follow the reloaded
+        0x6200/0x6411, which the application hears."""
+        if command != NmtCommand.RESET_NODE:
+            return
+        with self._lock:
+            for number, group in enumerate(self._inputs, start=1):
+                self._entry(o.READ_INPUT, number).raw = group.value
+            for channel, ain in enumerate(self._analog_inputs, start=1):
+                self._entry(o.READ_ANALOG_INPUT, channel).raw = ain.value
+        self._apply(o.WRITE_OUTPUT, tuple(range(1, self.layout.output_groups + 1)))
+        self._apply(o.WRITE_ANALOG_OUTPUT, tuple(range(1, self.layout.analog_outputs + 1)))
 
     def _state_changed(self, old: NmtState, new: NmtState) -> None:
         if new == NmtState.STOPPED:
