@@ -46,6 +46,11 @@ EXPECTED = {
     "interfaces.py": ((), ["opened <Line 'Virtual bus channel interfaces-example' fd",
                            "node 5: vendor 0x00000000"]),
     "interfaces.py --classic": (("--classic",), ["classic #0>", "node 5: vendor 0x00000000"]),
+    "io_device.py": ((), ["master:  device type 0x000F0191",
+                          "master:  TPDO1 digital inputs 03 00",
+                          "device:  digital outputs 10001111", "device:  analogue output 1 = -300",
+                          "device:  digital outputs 10001110",
+                          "device:  after NMT stop Outputs(digital=142, analog=(0, 0))"]),
 }
 #: examples that need a SocketCAN interface (tested on vcan below)
 NEEDS_VCAN = {"two_processes.py"}
