@@ -177,9 +177,10 @@ class LocalNode:
     def on_object_changed(self, callback: Callable[[LocalValue, str], None]
                           ) -> Callable[[LocalValue, str], None]:
         """callback(value, origin) after an entry was written by the network
-        (USDO/SDO download: origin 'network') or a received PDO ('pdo'); the
-        application's own writes are not echoed. `value.raw` reads the new
-        value."""
+        (USDO/SDO download: origin 'network'); the application's own writes
+        are not echoed. `value.raw` reads the new value. What a received RPDO
+        writes is not told entry by entry (that would put Python on every
+        frame): `node.rpdo[n].add_callback` hears each RPDO once."""
         return self._served.on_changed(callback)
 
     # ---------------------------------------------------------------- indications
