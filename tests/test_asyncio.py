@@ -285,3 +285,54 @@ def test_hundred_nodes_boot_state_and_emcy_awaited_in_one_loop(net, bus_name):
     heard = {(f.id, bytes(f.data)) for f in monitor.wait_for(
         lambda c: c if len(c) >= 400 else None, scaled(5), "the 400 frames")}
     assert all((0x700 + n, b"\x00") in heard and (0x700 + n, b"\x05") in heard for n in ids)
+
+
+def test_cancelling_an_awaited_transfer_aborts_it_on_the_bus(net, bus_name):
+    """Nobody serves node 5: the upload waits for its answer; cancelling the
+    awaiting task sends the SDO abort (general error 0x08000000) at once."""
+    master = net.open_line(bus_name, mode="classic")
+    remote = master.add_node(NODE, od=demo_od("classic"))
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+
+    async def main():
+        upload = asyncio.ensure_future(remote.aread(0x1017))
+        deadline = time.monotonic() + scaled(2)
+        while not any(f.id == 0x600 + NODE for f in frames.snapshot()):
+            assert time.monotonic() < deadline, "no upload request"
+            await asyncio.sleep(0.001)
+        upload.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await upload
+    run(main())
+    sent = frames.wait_for(lambda c: [bytes(f.data) for f in c if f.id == 0x600 + NODE][1:] or
+                           None, scaled(2), "the abort")
+    assert sent[0] == b"\x80\x17\x10\x00\x00\x00\x00\x08"
+
+
+def test_cancelling_an_awaited_configuration_cancels_it(net, bus_name):
+    """manager.configure's job awaited for a silent node: cancelling the
+    awaiting task ends the configuration (CANCELLED) and aborts its open
+    transfer on the bus instead of leaving it to its 5 s timeout."""
+    from canopenfd.od.concise import build_concise
+    from canopenfd.services.config import ConfigOutcome
+    master = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    job = master.manager.configure(43, build_concise([(0x1017, 0, b"\x21\x00")]),
+                                   timeout_ms=5000)
+
+    async def main():
+        waiting = asyncio.ensure_future(job)
+        deadline = time.monotonic() + scaled(2)
+        while not any(f.id == 0x600 + 43 for f in frames.snapshot()):
+            assert time.monotonic() < deadline, "no request to node 43"
+            await asyncio.sleep(0.001)
+        waiting.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await waiting
+    run(main())
+    assert job.result(scaled(2)).outcome is ConfigOutcome.CANCELLED
+    sent = frames.wait_for(lambda c: [bytes(f.data) for f in c if f.id == 0x600 + 43][1:] or
+                           None, scaled(2), "the abort")
+    assert sent[0][0] == 0x80
