@@ -8,10 +8,10 @@ predicates on the notifying thread, under the condition, and settles the
 future of each one that became true with loop.call_soon_threadsafe. No
 thread waits per waiter; a cancelled or timed-out await removes its entry.
 
-Callbacks: `on_loop(callback, loop)` gives the callable a CallbackList keeps
-when a registration got `loop=`: it schedules the callback on that loop
-(a coroutine function runs as a task there) instead of running it on the
-dispatcher thread.
+Callbacks: `LoopDelivery(callback, loop)` is the callable a CallbackList
+keeps when a registration got `loop=`: it schedules the callback on that
+loop (a coroutine function runs as a task there) instead of running it on
+the dispatcher thread.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
-from typing import Any, Callable, Generic, Optional, Set, TypeVar
+from typing import Any, Callable, Generic, Optional, Set, Tuple, TypeVar
 
 from .errors import ClosedError, ConfigurationError
 
@@ -143,29 +143,54 @@ async def await_predicate(cond: threading.Condition, waits: AsyncWaits,
             waits.discard(pending)
 
 
+#: Calls of one loop= callback waiting on its loop at most (a stalled loop).
+LOOP_BACKLOG = 10_000
+
+
 def _log_failure(task: "asyncio.Task[Any]") -> None:
     if not task.cancelled() and task.exception() is not None:
         log.error("callback task %r raised", task, exc_info=task.exception())
 
 
-def on_loop(callback: Callable[..., object],
-            loop: asyncio.AbstractEventLoop) -> Callable[..., None]:
+class LoopDelivery:
     """What a CallbackList runs for a callback registered with `loop=`: the
-    call is scheduled on `loop`; a coroutine it returns runs as a task there."""
-    if not isinstance(loop, asyncio.AbstractEventLoop):
-        raise ConfigurationError(f"loop= must be an asyncio event loop, got {loop!r}")
+    call is scheduled on `loop` (call_soon_threadsafe); a coroutine it
+    returns runs as a task there. While `backlog` calls already wait on a
+    stalled loop, newer ones are dropped and counted in `dropped` (the
+    dispatcher must never wait for a loop, nor memory grow without end)."""
 
-    def run(*args: object) -> None:
-        try:
-            result = callback(*args)
-            if asyncio.iscoroutine(result):
-                loop.create_task(result).add_done_callback(_log_failure)
-        except Exception:  # noqa: BLE001 - logged like a dispatcher callback
-            log.exception("callback %r raised", callback)
+    def __init__(self, callback: Callable[..., object], loop: asyncio.AbstractEventLoop,
+                 backlog: int = LOOP_BACKLOG) -> None:
+        if not isinstance(loop, asyncio.AbstractEventLoop):
+            raise ConfigurationError(f"loop= must be an asyncio event loop, got {loop!r}")
+        self._callback = callback
+        self._loop = loop
+        self._backlog = backlog
+        self._lock = threading.Lock()
+        self._waiting = 0
+        self.dropped = 0
 
-    def deliver(*args: object) -> None:
+    def __call__(self, *args: object) -> None:
+        with self._lock:
+            if self._waiting >= self._backlog:
+                self.dropped += 1
+                if self.dropped == 1:
+                    log.error("callback %r: its loop is not taking the calls; calls beyond "
+                              "%d waiting are dropped from now on", self._callback, self._backlog)
+                return
+            self._waiting += 1
         try:
-            loop.call_soon_threadsafe(run, *args)
+            self._loop.call_soon_threadsafe(self._run, args)
         except RuntimeError:
-            pass    # the loop closed: nobody listens there any more
-    return deliver
+            with self._lock:        # the loop closed: nobody listens there any more
+                self._waiting -= 1
+
+    def _run(self, args: Tuple[object, ...]) -> None:
+        with self._lock:
+            self._waiting -= 1
+        try:
+            result = self._callback(*args)
+            if asyncio.iscoroutine(result):
+                self._loop.create_task(result).add_done_callback(_log_failure)
+        except Exception:  # noqa: BLE001 - logged like a dispatcher callback
+            log.exception("callback %r raised", self._callback)

@@ -15,7 +15,7 @@ import time
 from typing import (Awaitable, Callable, Deque, Dict, Generic, List, Optional,
                     Tuple, TypeVar)
 
-from ._aio import AsyncCondition, AsyncWaits, LoopArg, await_predicate, on_loop
+from ._aio import AsyncCondition, AsyncWaits, LoopArg, LoopDelivery, await_predicate
 from .errors import ClosedError, ConfigurationError
 
 log = logging.getLogger("canopenfd")
@@ -52,7 +52,7 @@ class CallbackList:
         given (a coroutine function then runs as a task of that loop)."""
         if not callable(callback):
             raise ConfigurationError(f"{self._what} callback must be callable, got {callback!r}")
-        runs = callback if loop is None else on_loop(callback, loop)
+        runs = callback if loop is None else LoopDelivery(callback, loop)
         with self._lock:
             self._callbacks.append(runs)
             if runs is not callback:

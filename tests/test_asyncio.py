@@ -324,6 +324,7 @@ def test_cancelling_an_awaited_configuration_cancels_it(net, bus_name):
 
     async def main():
         waiting = asyncio.ensure_future(job)
+        await asyncio.sleep(0)       # a task cancelled before its first step never ran
         deadline = time.monotonic() + scaled(2)
         while not any(f.id == 0x600 + 43 for f in frames.snapshot()):
             assert time.monotonic() < deadline, "no request to node 43"
@@ -336,3 +337,27 @@ def test_cancelling_an_awaited_configuration_cancels_it(net, bus_name):
     sent = frames.wait_for(lambda c: [bytes(f.data) for f in c if f.id == 0x600 + 43][1:] or
                            None, scaled(2), "the abort")
     assert sent[0][0] == 0x80
+
+
+def test_a_stalled_loop_gets_at_most_the_backlog_and_the_rest_is_counted():
+    """loop= delivery never blocks the dispatcher: while `backlog` calls
+    wait on a loop that does not run, newer calls are dropped and counted;
+    once it runs it gets the waiting ones in order, and later ones again;
+    a closed loop gets nothing and raises nothing."""
+    from canopenfd._aio import LoopDelivery
+    loop = asyncio.new_event_loop()
+    got = []
+    deliver = LoopDelivery(got.append, loop, backlog=3)
+    try:
+        for n in range(5):
+            deliver(n)
+        assert deliver.dropped == 2
+        loop.run_until_complete(asyncio.sleep(0))
+        assert got == [0, 1, 2]
+        deliver(5)
+        loop.run_until_complete(asyncio.sleep(0))
+        assert got == [0, 1, 2, 5] and deliver.dropped == 2
+    finally:
+        loop.close()
+    deliver(6)
+    assert got == [0, 1, 2, 5]
