@@ -287,6 +287,26 @@ def test_hundred_nodes_boot_state_and_emcy_awaited_in_one_loop(net, bus_name):
     assert all((0x700 + n, b"\x00") in heard and (0x700 + n, b"\x05") in heard for n in ids)
 
 
+async def cancel_once_requested(awaitable, frames, node_id):
+    """Await in a task until the first SDO request to node_id is on the bus,
+    then cancel the task."""
+    task = asyncio.ensure_future(awaitable)
+    await asyncio.sleep(0)           # a task cancelled before its first step never ran
+    deadline = time.monotonic() + scaled(2)
+    while not any(f.id == 0x600 + node_id for f in frames.snapshot()):
+        assert time.monotonic() < deadline, f"no request to node {node_id}"
+        await asyncio.sleep(0.001)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+
+
+def abort_sent(frames, node_id):
+    """The client's frame to node_id after its request: the abort."""
+    return frames.wait_for(lambda c: [bytes(f.data) for f in c if f.id == 0x600 + node_id][1:]
+                           or None, scaled(2), "the abort")[0]
+
+
 def test_cancelling_an_awaited_transfer_aborts_it_on_the_bus(net, bus_name):
     """Nobody serves node 5: the upload waits for its answer; cancelling the
     awaiting task sends the SDO abort (general error 0x08000000) at once."""
@@ -295,19 +315,8 @@ def test_cancelling_an_awaited_transfer_aborts_it_on_the_bus(net, bus_name):
     frames = Recorder()
     net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
 
-    async def main():
-        upload = asyncio.ensure_future(remote.aread(0x1017))
-        deadline = time.monotonic() + scaled(2)
-        while not any(f.id == 0x600 + NODE for f in frames.snapshot()):
-            assert time.monotonic() < deadline, "no upload request"
-            await asyncio.sleep(0.001)
-        upload.cancel()
-        with pytest.raises(asyncio.CancelledError):
-            await upload
-    run(main())
-    sent = frames.wait_for(lambda c: [bytes(f.data) for f in c if f.id == 0x600 + NODE][1:] or
-                           None, scaled(2), "the abort")
-    assert sent[0] == b"\x80\x17\x10\x00\x00\x00\x00\x08"
+    run(cancel_once_requested(remote.aread(0x1017), frames, NODE))
+    assert abort_sent(frames, NODE) == b"\x80\x17\x10\x00\x00\x00\x00\x08"
 
 
 def test_cancelling_an_awaited_configuration_cancels_it(net, bus_name):
@@ -322,21 +331,9 @@ def test_cancelling_an_awaited_configuration_cancels_it(net, bus_name):
     job = master.manager.configure(43, build_concise([(0x1017, 0, b"\x21\x00")]),
                                    timeout_ms=5000)
 
-    async def main():
-        waiting = asyncio.ensure_future(job)
-        await asyncio.sleep(0)       # a task cancelled before its first step never ran
-        deadline = time.monotonic() + scaled(2)
-        while not any(f.id == 0x600 + 43 for f in frames.snapshot()):
-            assert time.monotonic() < deadline, "no request to node 43"
-            await asyncio.sleep(0.001)
-        waiting.cancel()
-        with pytest.raises(asyncio.CancelledError):
-            await waiting
-    run(main())
+    run(cancel_once_requested(job, frames, 43))
     assert job.result(scaled(2)).outcome is ConfigOutcome.CANCELLED
-    sent = frames.wait_for(lambda c: [bytes(f.data) for f in c if f.id == 0x600 + 43][1:] or
-                           None, scaled(2), "the abort")
-    assert sent[0][0] == 0x80
+    assert abort_sent(frames, 43)[0] == 0x80
 
 
 def test_a_stalled_loop_gets_at_most_the_backlog_and_the_rest_is_counted():
