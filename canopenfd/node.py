@@ -627,13 +627,13 @@ class RemoteNode:
         """Stop guarding the node."""
         self._guard.unguard()
 
-    def add_guard_callback(self, callback: Callable[[GuardEvent, NmtState], None]
-                           ) -> Callable[[GuardEvent, NmtState], None]:
+    def add_guard_callback(self, callback: Callable[[GuardEvent, NmtState], None],
+                           loop: LoopArg = None) -> Callable[[GuardEvent, NmtState], None]:
         """callback(event, state): event a GuardEvent (a str: 'started',
         'state-changed', 'lost', 'resumed', 'toggle-error', 'unexpected-state'),
         state the NmtState the node answered (its last one for 'lost').
         'lost' and 'resumed' also fire on_heartbeat_lost / on_heartbeat_started."""
-        return self._guard.add_callback(callback)
+        return self._guard.add_callback(callback, loop=loop)
 
     # ---------------------------------------------------------------- PDO configuration
     @property
