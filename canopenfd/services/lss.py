@@ -14,8 +14,8 @@ blocks until it ends (or is awaited with the `a...` form).
 
 from __future__ import annotations
 
+import asyncio
 import logging
-import threading
 from typing import (Any, Callable, Dict, Generator, Generic, List, Mapping, NamedTuple,
                     Optional, Sequence, Tuple, TypeVar)
 
@@ -93,10 +93,26 @@ class _Request(Generic[T]):
         return self._value()
 
     async def aresult(self, timeout: Optional[float] = None) -> T:
-        """result() for `await`. Cancelling it frees the wait only: the
-        request runs to its end (each step times out after lss.timeout_ms)."""
-        await self._context.waiter.await_until(self._until(), timeout)
+        """result() for `await`. Cancelling the awaiting task cancels the
+        request (the master is free for the next one at once)."""
+        try:
+            await self._context.waiter.await_until(self._until(), timeout)
+        except asyncio.CancelledError:
+            try:
+                self.cancel()
+            except CanopenFDError:
+                pass    # closed meanwhile: nothing runs any more
+            raise
         return self._value()
+
+    def cancel(self) -> None:
+        """End the request now: result() then raises LssError (cancelled).
+        Nothing goes on the bus; a slave keeps the state the frames sent so
+        far gave it."""
+        with self._context.cond:
+            running = self.outcome is None
+        if running:
+            self._context.runtime.lss_cancel(self._context.index, f"cancel of {self.what}")
 
     def __await__(self) -> Generator[Any, None, T]:
         return self.aresult().__await__()
