@@ -12,8 +12,10 @@ import collections
 import logging
 import threading
 import time
-from typing import Callable, Deque, List, Optional, Tuple, TypeVar
+from typing import (Awaitable, Callable, Deque, Dict, Generic, List, Optional,
+                    Tuple, TypeVar)
 
+from ._aio import AsyncCondition, AsyncWaits, LoopArg, LoopDelivery, await_predicate
 from .errors import ClosedError, ConfigurationError
 
 log = logging.getLogger("canopenfd")
@@ -37,23 +39,31 @@ class CallbackList:
     def __init__(self, what: str) -> None:
         self._what = what
         self._callbacks: List[Callable[..., object]] = []
+        # what runs for each callback given with loop= (its delivery to that loop)
+        self._delivered: Dict[Callable[..., object], Callable[..., object]] = {}
         self._lock = threading.Lock()
         self._runner: Optional[int] = None     # thread ident running the callbacks
         self._backlog: Deque[Tuple[object, ...]] = collections.deque()
         #: Calls dropped because the backlog behind a blocked callback was full.
         self.dropped = 0
 
-    def add(self, callback: C) -> C:
+    def add(self, callback: C, loop: LoopArg = None) -> C:
+        """Run callback on the dispatcher thread, or scheduled on `loop` when
+        given (a coroutine function then runs as a task of that loop)."""
         if not callable(callback):
             raise ConfigurationError(f"{self._what} callback must be callable, got {callback!r}")
+        runs = callback if loop is None else LoopDelivery(callback, loop)
         with self._lock:
-            self._callbacks.append(callback)
+            self._callbacks.append(runs)
+            if runs is not callback:
+                self._delivered[callback] = runs
         return callback  # so on_xxx() also works as a decorator
 
     def remove(self, callback: Callable[..., object]) -> None:
         with self._lock:
-            if callback in self._callbacks:
-                self._callbacks.remove(callback)
+            runs = self._delivered.pop(callback, callback)
+            if runs in self._callbacks:
+                self._callbacks.remove(runs)
 
     def __bool__(self) -> bool:
         return bool(self._callbacks)
@@ -97,6 +107,20 @@ class CallbackList:
                 log.exception("%s callback %r raised", self._what, callback)
 
 
+class Until(Generic[T]):
+    """What a wait waits for: shared by a blocking wait and its `await` form.
+    `what` names the wait in messages ("node 5: wait_for_bootup"),
+    describe_timeout() tells why it timed out ("no boot-up")."""
+
+    __slots__ = ("predicate", "what", "describe_timeout")
+
+    def __init__(self, predicate: Callable[[], T], what: str,
+                 describe_timeout: Callable[[], str]) -> None:
+        self.predicate = predicate
+        self.what = what
+        self.describe_timeout = describe_timeout
+
+
 class Waiter:
     """Blocking waits on a condition the dispatcher notifies.
 
@@ -109,6 +133,10 @@ class Waiter:
         self.cond = cond
         self._closed = closed
         self._is_dispatcher = is_dispatcher
+        #: The awaited predicates (wait_async) the condition's notify_all checks.
+        self.async_waits = AsyncWaits(closed)
+        if isinstance(cond, AsyncCondition):
+            cond.waits = self.async_waits
 
     def wait(self, predicate: Callable[[], T], timeout: Optional[float],
              what: str, describe_timeout: Callable[[], str]) -> T:
@@ -135,6 +163,24 @@ class Waiter:
                 if remaining is not None and remaining <= 0:
                     raise TimeoutError(f"{what}: {describe_timeout()} after {timeout:g} s")
                 self.cond.wait(remaining)
+
+    def wait_until(self, until: "Until[T]", timeout: Optional[float]) -> T:
+        return self.wait(until.predicate, timeout, until.what, until.describe_timeout)
+
+    def await_until(self, until: "Until[T]", timeout: Optional[float]) -> Awaitable[T]:
+        return self.wait_async(until.predicate, timeout, until.what, until.describe_timeout)
+
+    def wait_async(self, predicate: Callable[[], T], timeout: Optional[float],
+                   what: str, describe_timeout: Callable[[], str]) -> Awaitable[T]:
+        """wait() for `await`: the same value, TimeoutError and ClosedError,
+        without a thread per waiter (the condition must be an AsyncCondition).
+        Cancelling the await removes its entry from `async_waits`."""
+        if timeout is not None and timeout < 0:
+            raise ConfigurationError(f"{what}: timeout must be >= 0 s, got {timeout}")
+        if not isinstance(self.cond, AsyncCondition):
+            raise ConfigurationError(f"{what}: this condition cannot be awaited")
+        return await_predicate(self.cond, self.async_waits, predicate, timeout, what,
+                               describe_timeout, self._closed)
 
 
 def loop_waker(collect: Callable[[], T]) -> "Tuple[asyncio.Future[T], Callable[[], None]]":

@@ -16,7 +16,8 @@ from typing import (Callable, Dict, Iterable, Iterator, List, Optional, Protocol
 from ._binding.constants import CommandKind, CommEvent, EventKind
 from ._binding.context import Deferred, FrameHandler, RuntimeLineContext
 from ._binding.runtime import Event, status_text
-from ._callbacks import CallbackList
+from ._aio import LoopArg
+from ._callbacks import CallbackList, Until
 from ._checks import check_ms, check_node_id
 from .errors import ConfigurationError
 from .frame import Frame, fd_len_round
@@ -348,6 +349,14 @@ class Line:
         return self._context.events_behind
 
     @property
+    def pending_awaits(self) -> int:
+        """How many `await`s of this line's waits (await_for_state, emcy.await_,
+        ...) are registered now; a finished, timed-out or cancelled one
+        leaves none behind."""
+        with self._context.cond:
+            return len(self._context.waiter.async_waits)
+
+    @property
     def driver_stats(self) -> Dict[str, int]:
         """Counters below the core: frames the kernel's socket buffer lost
         (`kernel_drops`), error frames, sends put off or refused, interface
@@ -373,54 +382,63 @@ class Line:
             return list(self._comm_events)
 
     # ---------------------------------------------------------------- callbacks
-    def on_comm_event(self, callback: Callable[[CommEvent], None]
-                      ) -> Callable[[CommEvent], None]:
+    def on_comm_event(self, callback: Callable[[CommEvent], None],
+                      loop: LoopArg = None) -> Callable[[CommEvent], None]:
         """callback(CommEvent): bus-off, error passive, overflow, interface down/up..."""
-        return self._comm.add(callback)
+        return self._comm.add(callback, loop)
 
     def remove_comm_event_callback(self, callback: Callable[[CommEvent], None]) -> None:
         """Stop calling a callback on_comm_event registered."""
         self._comm.remove(callback)
 
     def on_emcy(self, callback: Callable[[Emcy], None],
-                nodes: Optional[Iterable[int]] = None) -> Callable[[Emcy], None]:
+                nodes: Optional[Iterable[int]] = None,
+                loop: LoopArg = None) -> Callable[[Emcy], None]:
         """callback(Emcy) for every EMCY the line consumes: those of the
         nodes whose `node.emcy` was used, of the local node's 0x1028 entries,
         and of `nodes` (node-ids this call starts consuming)."""
-        return self._emcy.add_callback(callback, nodes)
+        return self._emcy.add_callback(callback, nodes, loop=loop)
 
     def remove_emcy_callback(self, callback: Callable[[Emcy], None]) -> None:
         """Stop calling a callback on_emcy registered."""
         self._emcy.remove_callback(callback)
 
-    def on_node_event(self, callback: Callable[[int, HeartbeatEvent, NmtState], None]
-                      ) -> Callable[[int, HeartbeatEvent, NmtState], None]:
+    def on_node_event(self, callback: Callable[[int, HeartbeatEvent, NmtState], None],
+                      loop: LoopArg = None) -> Callable[[int, HeartbeatEvent, NmtState], None]:
         """callback(node_id, HeartbeatEvent, NmtState) for every node heard on
         this line, watched or not: BOOTUP, STATE_CHANGED, and STARTED / LOST
         for nodes with a heartbeat timeout (add_node)."""
-        return self._node_events.add(callback)
+        return self._node_events.add(callback, loop)
 
     def remove_node_event_callback(self, callback: Callable[[int, HeartbeatEvent, NmtState],
                                                             None]) -> None:
         self._node_events.remove(callback)
 
-    def on_frame(self, callback: Callable[[Frame], None]) -> Callable[[Frame], None]:
+    def on_frame(self, callback: Callable[[Frame], None],
+                 loop: LoopArg = None) -> Callable[[Frame], None]:
         """callback(Frame) for every frame on the line, ours included (tx=True).
         Monitor lines only: it costs Python code per frame."""
         if not self.monitor:
             raise ConfigurationError(
                 f"on_frame needs a monitor line: {self._where} was opened with "
                 "monitor=False (open another line with monitor=True)")
-        return self._frames.add(callback)
+        return self._frames.add(callback, loop)
+
+    def _comm_event_until(self, event: Union[CommEvent, int]) -> "Until[bool]":
+        wanted = CommEvent(event)
+        start = len(self._comm_events)
+        return Until(lambda: wanted in self._comm_events[start:],
+                     f"{self._where}: wait_for_comm_event({wanted.name})",
+                     lambda: f"no {wanted.name}")
 
     def wait_for_comm_event(self, event: Union[CommEvent, int],
                             timeout: Optional[float] = 10.0) -> None:
         """Block until `event` occurs after this call."""
-        event = CommEvent(event)
-        start = len(self._comm_events)
-        self._context.waiter.wait(lambda: event in self._comm_events[start:], timeout,
-                                  f"{self._where}: wait_for_comm_event({event.name})",
-                                  lambda: f"no {event.name}")
+        self._context.waiter.wait_until(self._comm_event_until(event), timeout)
+
+    async def await_for_comm_event(self, event: Union[CommEvent, int],
+                                   timeout: Optional[float] = 10.0) -> None:
+        await self._context.waiter.await_until(self._comm_event_until(event), timeout)
 
     # ---------------------------------------------------------------- raw frames
     def send_frame(self, can_id: int, data: bytes = b"", fd: Optional[bool] = None,

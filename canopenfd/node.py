@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, List, Optional, Protocol, Tuple, Union
 
+from ._aio import LoopArg
 from ._binding.context import RuntimeLineContext
 from ._checks import check_ms, check_node_id
 from .errors import ConfigurationError
@@ -174,14 +175,14 @@ class LocalNode:
         entry's current value as its ParameterValue (domains left out)."""
         return self._served.export_dcf(dest)
 
-    def on_object_changed(self, callback: Callable[[LocalValue, str], None]
-                          ) -> Callable[[LocalValue, str], None]:
+    def on_object_changed(self, callback: Callable[[LocalValue, str], None],
+                          loop: LoopArg = None) -> Callable[[LocalValue, str], None]:
         """callback(value, origin) after an entry was written by the network
         (USDO/SDO download: origin 'network'); the application's own writes
         are not echoed. `value.raw` reads the new value. What a received RPDO
         writes is not told entry by entry (that would put Python on every
         frame): `node.rpdo[n].add_callback` hears each RPDO once."""
-        return self._served.on_changed(callback)
+        return self._served.on_changed(callback, loop=loop)
 
     # ---------------------------------------------------------------- indications
     def on_read(self, key: Key, callback: Optional[IndicationCallback] = None
@@ -218,12 +219,12 @@ class LocalNode:
         `group`, so the next reset loads the defaults."""
         self._store.save_or_restore(group, False)
 
-    def on_store_problem(self, callback: Callable[[str, int], None]
-                         ) -> Callable[[str, int], None]:
+    def on_store_problem(self, callback: Callable[[str, int], None],
+                         loop: LoopArg = None) -> Callable[[str, int], None]:
         """callback(status, records_skipped) when saved parameters could not be
         used at boot or reset ('damaged', 'foreign', 'io-error', 'too-big'):
         the node then runs on its defaults."""
-        return self._store.on_problem(callback)
+        return self._store.on_problem(callback, loop=loop)
 
     @property
     def store_status(self) -> Optional[str]:
@@ -246,6 +247,9 @@ class LocalNode:
     def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
         """Block until the node is (or has passed through) `state`."""
         self._slave.wait_for_state(state, timeout)
+
+    async def await_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        await self._slave.await_for_state(state, timeout)
 
     def set_node_id_at_reset(self, node_id: int) -> None:
         """Run with `node_id` from the next reset (communication or node) on,
@@ -296,19 +300,20 @@ class LocalNode:
         self._slave.allow_operational = bool(allowed)
 
     # ---------------------------------------------------------------- callbacks
-    def on_state_change(self, callback: Callable[[NmtState, NmtState], None]
-                        ) -> Callable[[NmtState, NmtState], None]:
+    def on_state_change(self, callback: Callable[[NmtState, NmtState], None],
+                        loop: LoopArg = None) -> Callable[[NmtState, NmtState], None]:
         """callback(old_state, new_state) after every transition."""
-        return self._slave.on_state_change(callback)
+        return self._slave.on_state_change(callback, loop=loop)
 
-    def on_veto(self, callback: Callable[[], None]) -> Callable[[], None]:
+    def on_veto(self, callback: Callable[[], None], loop: LoopArg = None) -> Callable[[], None]:
         """callback() when a start was refused (allow_operational is False)."""
-        return self._slave.on_veto(callback)
+        return self._slave.on_veto(callback, loop=loop)
 
-    def on_reset(self, callback: Callable[[NmtCommand], None]) -> Callable[[NmtCommand], None]:
+    def on_reset(self, callback: Callable[[NmtCommand], None],
+                 loop: LoopArg = None) -> Callable[[NmtCommand], None]:
         """callback(kind) when a reset runs (RESET_NODE or RESET_COMMUNICATION),
         before the node's new boot-up message."""
-        return self._slave.on_reset(callback)
+        return self._slave.on_reset(callback, loop=loop)
 
     # ---------------------------------------------------------------- PDO configuration
     @property
@@ -358,14 +363,14 @@ class LocalNode:
         return self._errors
 
     # ---------------------------------------------------------------- LEDs (CiA 303-3)
-    def on_led(self, callback: Callable[[str, bool, str], None]
-               ) -> Callable[[str, bool, str], None]:
+    def on_led(self, callback: Callable[[str, bool, str], None],
+               loop: LoopArg = None) -> Callable[[str, bool, str], None]:
         """callback(led, on, pattern) for every change of the node's CiA 303-3
         indicators: led 'run' (green) or 'error' (red), on: lit now, pattern
         'off', 'on', 'flickering', 'blinking', 'single_flash', 'double_flash',
         'triple_flash' or 'quadruple_flash'. Enough to drive two GPIOs; the
         stack times the patterns (see canopenfd.services.leds)."""
-        return self._leds.add_callback(callback)
+        return self._leds.add_callback(callback, loop=loop)
 
     def remove_led_callback(self, callback: Callable[[str, bool, str], None]) -> None:
         """Forget an on_led callback (without any, no LED events are posted)."""
@@ -561,6 +566,16 @@ class RemoteNode:
         """Block until the node reports `state` (or has reported it since the call)."""
         self._monitor.wait_for_state(state, timeout)
 
+    # The waits above for `await` (same results and errors; no thread each).
+    async def await_for_bootup(self, timeout: Optional[float] = 10.0) -> None:
+        await self._monitor.await_for_bootup(timeout)
+
+    async def await_for_heartbeat(self, timeout: Optional[float] = 10.0) -> NmtState:
+        return await self._monitor.await_for_heartbeat(timeout)
+
+    async def await_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        await self._monitor.await_for_state(state, timeout)
+
     # ---------------------------------------------------------------- NMT shortcuts
     def start(self) -> None:
         self.nmt.start()
@@ -578,31 +593,34 @@ class RemoteNode:
         self.nmt.reset_communication()
 
     # ---------------------------------------------------------------- callbacks
-    def on_bootup(self, callback: Callable[[], None]) -> Callable[[], None]:
+    def on_bootup(self, callback: Callable[[], None], loop: LoopArg = None) -> Callable[[], None]:
         """callback() when the node sends its boot-up message."""
-        return self._monitor.on_bootup(callback)
+        return self._monitor.on_bootup(callback, loop=loop)
 
-    def on_state_change(self, callback: Callable[[NmtState], None]
-                        ) -> Callable[[NmtState], None]:
+    def on_state_change(self, callback: Callable[[NmtState], None],
+                        loop: LoopArg = None) -> Callable[[NmtState], None]:
         """callback(new_state) when the node reports another state."""
-        return self._monitor.on_state_change(callback)
+        return self._monitor.on_state_change(callback, loop=loop)
 
-    def on_heartbeat_lost(self, callback: Callable[[], None]) -> Callable[[], None]:
+    def on_heartbeat_lost(self, callback: Callable[[], None],
+                          loop: LoopArg = None) -> Callable[[], None]:
         """callback() when no heartbeat came within heartbeat_timeout_ms."""
-        return self._monitor.on_heartbeat_lost(callback)
+        return self._monitor.on_heartbeat_lost(callback, loop=loop)
 
-    def on_heartbeat_started(self, callback: Callable[[], None]) -> Callable[[], None]:
+    def on_heartbeat_started(self, callback: Callable[[], None],
+                             loop: LoopArg = None) -> Callable[[], None]:
         """callback() at the first heartbeat, and when heartbeats resume."""
-        return self._monitor.on_heartbeat_started(callback)
+        return self._monitor.on_heartbeat_started(callback, loop=loop)
 
     def add_heartbeat_callback(self, callback: Callable[[NmtState], None],
-                               min_interval_ms: int = DEFAULT_TICK_MS) -> None:
+                               min_interval_ms: int = DEFAULT_TICK_MS,
+                               loop: LoopArg = None) -> None:
         """python-canopen's callback(state) for every heartbeat of the node and
         its boot-up (state INITIALISING): a liveness tick. The C runtime tells
         at most one heartbeat per min_interval_ms (default 10), and only while
         callbacks exist, so no Python runs per frame when nobody asked; at most
         8 nodes of a line tick at once."""
-        self._monitor.add_heartbeat_callback(callback, min_interval_ms)
+        self._monitor.add_heartbeat_callback(callback, min_interval_ms, loop=loop)
 
     def remove_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
         """Remove a heartbeat callback (the last one stops the ticks)."""
@@ -631,13 +649,13 @@ class RemoteNode:
         """Stop guarding the node."""
         self._guard.unguard()
 
-    def add_guard_callback(self, callback: Callable[[GuardEvent, NmtState], None]
-                           ) -> Callable[[GuardEvent, NmtState], None]:
+    def add_guard_callback(self, callback: Callable[[GuardEvent, NmtState], None],
+                           loop: LoopArg = None) -> Callable[[GuardEvent, NmtState], None]:
         """callback(event, state): event a GuardEvent (a str: 'started',
         'state-changed', 'lost', 'resumed', 'toggle-error', 'unexpected-state'),
         state the NmtState the node answered (its last one for 'lost').
         'lost' and 'resumed' also fire on_heartbeat_lost / on_heartbeat_started."""
-        return self._guard.add_callback(callback)
+        return self._guard.add_callback(callback, loop=loop)
 
     # ---------------------------------------------------------------- PDO configuration
     @property

@@ -7,6 +7,7 @@ name the problem."""
 
 from __future__ import annotations
 
+import asyncio
 import threading
 import time
 from typing import List
@@ -109,6 +110,18 @@ def test_detect_capable_counts_the_others(candidates):
     _, nodes, _, sniffer = candidates
     nodes[1].flying_master.wait_for("master", timeout=scaled(5))
     assert nodes[0].flying_master.detect_capable(timeout=scaled(2)) == 2
+    assert sniffer.of(0x75) == [b""]
+    assert sniffer.of(0x74) == [b"", b""]
+
+
+def test_detect_capable_and_wait_for_awaited(candidates):
+    _, nodes, _, sniffer = candidates
+
+    async def main():
+        master = await nodes[1].flying_master.await_for("master", timeout=scaled(5))
+        assert master == nodes[1].node_id
+        return await nodes[0].flying_master.adetect_capable(timeout=scaled(2))
+    assert asyncio.run(main()) == 2
     assert sniffer.of(0x75) == [b""]
     assert sniffer.of(0x74) == [b"", b""]
 

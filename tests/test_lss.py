@@ -318,3 +318,56 @@ def test_fast_scan_filters_are_checked(rig):
         lss.fast_scan_identify(skip="revision")
     # configured devices take no part: nothing found
     assert lss.fast_scan_identify() is None
+
+
+def test_every_request_awaited(net, bus_name):
+    """The a-forms of the requests answer as the blocking ones do, bytes on
+    the bus included; an LssError and the refusal come through `await`;
+    cancelling an awaited request cancels it (no wait left behind, the
+    master free for the next one at once, long before the step timeout)."""
+    node = net.open_line(bus_name, mode="classic").create_local_node(7, od=identity_od(7))
+    line = net.open_line(bus_name, mode="classic")
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    lss = line.lss
+    lss.timeout_ms = 200
+    stored, states = Recorder(), Recorder()
+    node.lss.on_store(stored)
+    node.lss.accept_bit_timings([3])
+    node.lss.on_state_change(states)
+
+    async def main():
+        assert await lss.aidentify_remote(IDENTITY[0], IDENTITY[1]) == 1
+        assert await lss.aidentify_non_configured() == 0
+        assert await lss.ascan(IDENTITY[0], IDENTITY[1], serials=(7, 7)) == \
+            [LssDevice(*IDENTITY[:3], 7, 0)]
+        assert await lss.aswitch_selective(*IDENTITY[:3], 7) is True
+        await lss.aconfigure_node_id(12)
+        await lss.aconfigure_bit_timing(3)
+        await lss.astore()
+        with pytest.raises(LssError, match="error 1"):
+            await lss.aconfigure_bit_timing(4)
+        lss.switch_global("waiting")
+        states.wait_for(lambda c: c[-1:] == ["waiting"], 2, "waiting")
+        lss.timeout_ms = int(scaled(5) * 1000)                    # far beyond this test
+        request = lss.start_inquire("node_id")                     # nobody answers
+        pending = asyncio.ensure_future(request.aresult())
+        while not line.pending_awaits:
+            await asyncio.sleep(0.001)
+        started = time.monotonic()
+        pending.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await pending
+        assert line.pending_awaits == 0
+        with pytest.raises(LssError) as info:                       # the request ended too
+            await request
+        assert info.value.status == LssStatus.CANCELLED
+        assert await lss.aswitch_selective(*IDENTITY[:3], 7) is True   # the master is free
+        assert time.monotonic() - started < scaled(5) / 2
+    asyncio.run(asyncio.wait_for(main(), scaled(20)))
+    assert stored.snapshot() == [12]
+    sent = lss_frames(frames, 0x7E5)
+    assert bytes([0x11, 12, 0, 0, 0, 0, 0, 0]) in sent                 # configure node-id 12
+    assert bytes([0x13, 0, 3, 0, 0, 0, 0, 0]) in sent                  # bit timing table 0 idx 3
+    assert bytes([0x17, 0, 0, 0, 0, 0, 0, 0]) in sent                  # store
+    assert bytes([0x17, 0, 0, 0, 0, 0, 0, 0]) in lss_frames(frames, 0x7E4)   # store confirmed

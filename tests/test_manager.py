@@ -160,6 +160,8 @@ def test_wrong_device_type_halts_with_c(net, bus_name, mode):
         rig.manager.wait_started(scaled(5))
     assert (caught.value.node_id, caught.value.error) == (2, "C")
     assert "mandatory slave 2 failed with error 'C'" in str(caught.value)
+    with pytest.raises(NetworkStartError, match="error 'C'"):       # the awaited form too
+        asyncio.run(rig.manager.await_started(scaled(5)))
     assert rig.manager.phase == ManagerPhase.HALTED
     assert rig.manager.slave(2)[1] == "C"
     check = next(e for e in rig.manager.events if e.boot_event == "checked")
@@ -189,6 +191,7 @@ def test_hooks_answered_from_callbacks_and_awaited(net, bus_name):
 
     asyncio.run(run())
     assert answered.snapshot() == ["update-config", "ready-operational"]
+    asyncio.run(rig.manager.await_started(timeout=0))     # started already: at once
     rig.slaves[2].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
     with pytest.raises(canopenfd.CanopenFDError, match="does not wait"):
         rig.manager.continue_operational()      # nothing waits for it any more
@@ -236,6 +239,8 @@ def test_wrong_use_is_refused(net, bus_name):
         line.manager.start()
     with pytest.raises(ConfigurationError, match="start"):
         line.manager.wait_started(0.1)
+    with pytest.raises(ConfigurationError, match="start"):
+        asyncio.run(line.manager.await_started(0.1))
     line.create_local_node(MANAGER, od=manager_od("classic", 0x00, {2: 0x0D}))
     with pytest.raises(canopenfd.CanopenFDError, match="0x1F80 bit 0 is clear"):
         line.manager.start()

@@ -6,6 +6,7 @@ answering a query sent by plain python-can (an independent sender)."""
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import pytest
@@ -43,6 +44,26 @@ def network(net, bus_name):
 
 def _data(frames, can_id, start=0):
     return [bytes(f.data) for f in frames.snapshot()[start:] if f.id == can_id]
+
+
+def test_sleep_phases_awaited_together(network):
+    """The master and both devices awaited asleep in one loop; the sleep
+    command on the wire as with the blocking waits."""
+    master, devices, frames, _ = network
+    frames.wait_for(lambda c: [f for f in c if f.id == 0x706], 2, "heartbeats")
+
+    async def main():
+        waits = [line.sleep.await_for("asleep", timeout=scaled(3)) for line, _ in devices]
+        master.sleep.check()
+        return await asyncio.gather(master.sleep.await_for(SleepPhase.ASLEEP,
+                                                            timeout=scaled(3)), *waits)
+    assert asyncio.run(main()) == [SleepPhase.ASLEEP] * 3
+    assert _data(frames, 0x691) == [bytes([0x01]) + bytes(7), bytes([0x02]) + bytes(7)]
+
+    async def too_soon():
+        await master.sleep.await_for("awake", timeout=0.05)
+    with pytest.raises(TimeoutError, match="still asleep"):
+        asyncio.run(too_soon())
 
 
 def test_check_sleep_and_wake_on_the_wire(network):

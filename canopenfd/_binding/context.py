@@ -20,6 +20,7 @@ from __future__ import annotations
 import threading
 from typing import Callable, Dict, List, Optional, Protocol, Tuple
 
+from .._aio import AsyncCondition
 from .._callbacks import Waiter
 from ..frame import Frame
 from .constants import EventKind
@@ -103,7 +104,7 @@ class LineContext(Protocol):
     #: "line 'vcan0'": how messages name the line.
     where: str
     #: The condition event handlers run under; blocking calls wait on it.
-    cond: threading.Condition
+    cond: AsyncCondition
     waiter: Waiter
     pdo_watches: PdoWatches
 
@@ -153,7 +154,7 @@ class _LineShare:
 
     def __init__(self, runtime: Runtime, index: int, closed: Callable[[], bool],
                  on_dispatcher: Callable[[], bool]) -> None:
-        self.cond = threading.Condition()
+        self.cond = AsyncCondition()
         self.waiter = Waiter(self.cond, closed, on_dispatcher)
         self.pdo_watches = PdoWatches(runtime, index, self.cond, closed)
         self.handlers: Dict[_HandlerKey, EventHandler] = {}

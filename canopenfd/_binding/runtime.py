@@ -769,6 +769,10 @@ class Runtime:
         request.settle_ms = settle_ms
         self._call(what, lib.co_rt_lss_start, line, request)
 
+    def lss_cancel(self, line: int, what: str) -> None:
+        """End the running LSS request with CO_LSS_CANCELLED (co_rt_lss_cancel)."""
+        self._call(what, lib.co_rt_lss_cancel, line)
+
     def lss_result(self, line: int, what: str
                    ) -> Tuple[Dict[str, int], List[Tuple[Tuple[int, int, int, int], int]]]:
         """The last finished LSS request: its co_lss_master_result_t fields and

@@ -565,11 +565,11 @@ class AsciiGateway:
             elif command == "lss_set_node":
                 await lss.start_configure_node_id(args[0])
             elif command == "lss_conf_bitrate":
-                await asyncio.to_thread(lss.configure_bit_timing, args[1], args[0])
+                await lss.aconfigure_bit_timing(args[1], args[0])
             elif command == "lss_activate_bitrate":
                 lss.activate_bit_timing(args[0])
             elif command == "lss_store":
-                await asyncio.to_thread(lss.store)
+                await lss.astore()
             elif command == "lss_get_node":
                 return proto.format_answer(seq, f"0x{await lss.start_inquire('node_id'):02X}")
             elif command == "lss_inquire_addr":
@@ -622,7 +622,7 @@ class AsciiGateway:
                 break
             await lss.start_configure_node_id(node_id)
             if store:
-                await asyncio.to_thread(lss.store)
+                await lss.astore()
             lss.switch_global("waiting")
             lines.append(f"# Node-ID {node_id} assigned to: {_address(device)}")
             if node_id >= 127:

@@ -21,13 +21,14 @@ import os
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Dict, Generator, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Generator, List, Optional, Tuple, Union
 
 from .._binding.constants import EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._callbacks import loop_waker
 from .._checks import check_node_id
-from ..errors import ABORT_TEXT, ConfigurationError
+from ..errors import ABORT_TEXT, CanopenFDError, ConfigurationError
 from ..od import import_od
 from ..od.concise import concise_from_od, parse_concise
 
@@ -102,7 +103,7 @@ class Configuration:
         self._done = threading.Event()
         self._lock = threading.Lock()
         self._result: Optional[ConfigResult] = None
-        self._callbacks: List[Tuple[asyncio.AbstractEventLoop, "asyncio.Future[ConfigResult]"]] = []
+        self._wakers: List[Callable[[], None]] = []    # of awaiting tasks (loop_waker)
 
     def __repr__(self) -> str:
         return f"<Configuration {self.what} {'done' if self.done() else 'running'}>"
@@ -125,13 +126,31 @@ class Configuration:
 
     wait = result
 
-    def __await__(self) -> Generator[object, None, ConfigResult]:
-        loop = asyncio.get_running_loop()
-        future: "asyncio.Future[ConfigResult]" = loop.create_future()
+    def __await__(self) -> Generator[Any, None, ConfigResult]:
+        return self._awaited().__await__()
+
+    async def _awaited(self) -> ConfigResult:
+        future, wake = loop_waker(self._finished)
         with self._lock:
-            self._callbacks.append((loop, future))
+            self._wakers.append(wake)
         self._wake()
-        return future.__await__()
+        try:
+            return await future
+        except asyncio.CancelledError:
+            # The awaiting task gave up: end the configuration (its open
+            # transfer is aborted on the bus), as cancel() does.
+            with self._lock:
+                if wake in self._wakers:
+                    self._wakers.remove(wake)
+            try:
+                self.cancel()
+            except CanopenFDError:
+                pass    # ended or closed meanwhile: nothing left to free
+            raise
+
+    def _finished(self) -> ConfigResult:
+        assert self._result is not None    # woken only once it is there
+        return self._result
 
     def cancel(self) -> None:
         """End the configuration: the open transfer is aborted on the bus,
@@ -152,20 +171,13 @@ class Configuration:
         return finished
 
     def _wake(self) -> None:
-        """Settle the futures of awaiting tasks once the result is there."""
+        """Wake the awaiting tasks once the result is there."""
         with self._lock:
-            finished = self._result
-            if finished is None:
+            if self._result is None:
                 return
-            callbacks, self._callbacks = self._callbacks, []
-        for loop, future in callbacks:
-            def settle(future: "asyncio.Future[ConfigResult]" = future) -> None:
-                if not future.done():
-                    future.set_result(finished)
-            try:
-                loop.call_soon_threadsafe(settle)
-            except RuntimeError:
-                pass   # the loop closed meanwhile: nobody awaits any more
+            wakers, self._wakers = self._wakers, []
+        for wake in wakers:
+            wake()
 
     def notify_ended(self) -> None:
         """CO_EV_CONFIG heard (dispatcher thread)."""

@@ -29,7 +29,8 @@ from typing import Callable, Deque, Dict, Iterable, List, Optional, Set, Tuple, 
 from .._binding.constants import EmcyStatus, EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event, decode_emcy
-from .._callbacks import CallbackList, chain
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until, chain
 from .._checks import check_int as _int
 from .._checks import check_node_id
 from ..decode.emcy import emcy_code_text, emcy_status_text, error_register_text
@@ -323,9 +324,10 @@ class EmcyConsumer:
     def __repr__(self) -> str:
         return f"<EmcyConsumer of {self.node!r}>"
 
-    def add_callback(self, callback: Callable[[Emcy], None]) -> Callable[[Emcy], None]:
+    def add_callback(self, callback: Callable[[Emcy], None],
+                     loop: LoopArg = None) -> Callable[[Emcy], None]:
         """callback(Emcy) for every EMCY of the node (dispatcher thread)."""
-        return self._callbacks.add(callback)
+        return self._callbacks.add(callback, loop)
 
     def remove_callback(self, callback: Callable[[Emcy], None]) -> None:
         self._callbacks.remove(callback)
@@ -350,25 +352,33 @@ class EmcyConsumer:
             self.log.clear()
             self._active.clear()
 
-    def wait(self, code: Optional[int] = None, timeout: Optional[float] = 10.0) -> Emcy:
-        """Block until an EMCY (of `code`, when given) arrives after this call;
-        returns it. TimeoutError when none came in time."""
+    def _until(self, code: Optional[int]) -> "Until[Optional[Emcy]]":
+        """An EMCY (of `code`) arriving after this call; the predicate gives it."""
         with self._context.cond:
             start = self._seq
-        found: List[Emcy] = []
 
-        def arrived() -> bool:
+        def arrived() -> Optional[Emcy]:
             fresh = list(self.log)[-(self._seq - start):] if self._seq > start else []
             for emcy in fresh:
                 if code is None or emcy.code == code:
-                    found.append(emcy)
-                    return True
-            return False
+                    return emcy
+            return None
 
         what = "an EMCY" if code is None else f"EMCY 0x{code:04X}"
-        self._context.waiter.wait(arrived, timeout, f"{self._where}: wait for {what}",
-                                  lambda: f"no {what}")
-        return found[0]
+        return Until(arrived, f"{self._where}: wait for {what}", lambda: f"no {what}")
+
+    def wait(self, code: Optional[int] = None, timeout: Optional[float] = 10.0) -> Emcy:
+        """Block until an EMCY (of `code`, when given) arrives after this call;
+        returns it. TimeoutError when none came in time."""
+        found = self._context.waiter.wait_until(self._until(code), timeout)
+        assert found is not None    # the wait ends only once one arrived
+        return found
+
+    async def await_(self, code: Optional[int] = None, timeout: Optional[float] = 10.0) -> Emcy:
+        """wait() for `await` (`await` is a keyword: PEP 8's trailing underscore)."""
+        found = await self._context.waiter.await_until(self._until(code), timeout)
+        assert found is not None
+        return found
 
     def _event(self, emcy: Emcy) -> Callable[[], None]:
         """Record (under the line's condition); returns the callbacks to run."""
@@ -403,13 +413,14 @@ class LineEmcy:
         context.subscribe(EventKind.EMCY, self._event)
 
     def add_callback(self, callback: Callable[[Emcy], None],
-                     nodes: Optional[Iterable[int]] = None) -> Callable[[Emcy], None]:
+                     nodes: Optional[Iterable[int]] = None,
+                     loop: LoopArg = None) -> Callable[[Emcy], None]:
         """line.on_emcy: callback(Emcy) for every EMCY consumed; start
         consuming those of `nodes`."""
         context = self._context
         wanted = tuple(check_node_id(node_id, f"on_emcy on {context.where}")
                        for node_id in (nodes or ()))
-        self._callbacks.add(callback)    # checks it is callable before anything is watched
+        self._callbacks.add(callback, loop)    # checks it is callable before anything is watched
         with context.cond:
             for node_id in wanted:
                 if node_id not in self._nodes and node_id not in self._consuming:

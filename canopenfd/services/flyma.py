@@ -18,7 +18,8 @@ from typing import Callable, Dict, NamedTuple, Optional, Union
 from .._binding.constants import EventKind, FlymaAction, FlymaEvent, FlymaState
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import CallbackList
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until
 from .._checks import enum_member
 from ..errors import ConfigurationError
 
@@ -101,14 +102,22 @@ class FlyingMaster:
     def detect_capable(self, timeout: Optional[float] = None) -> int:
         """Ask which nodes can be master (0x75) and wait for the answer window
         (0x1F91:1) to close; the number of nodes that answered (0x74)."""
+        self._context.waiter.wait_until(self._ask_capable(), timeout)
+        return self._capable or 0
+
+    async def adetect_capable(self, timeout: Optional[float] = None) -> int:
+        await self._context.waiter.await_until(self._ask_capable(), timeout)
+        return self._capable or 0
+
+    def _ask_capable(self) -> "Until[bool]":
+        """Send 0x75; the Until of its answer window closing."""
         where = self._where("detect_capable()")
         with self._context.cond:
             asked = self._capable_asked = self._capable_asked + 1
         self._context.runtime.flyma_act(self._context.index, int(FlymaAction.DETECT_CAPABLE),
                                         where)
-        self._context.waiter.wait(lambda: self._capable_done >= asked, timeout, where,
-                                  lambda: "the answer window did not close")
-        return self._capable or 0
+        return Until(lambda: self._capable_done >= asked, where,
+                     lambda: "the answer window did not close")
 
     @property
     def state(self) -> FlymaState:
@@ -137,16 +146,24 @@ class FlyingMaster:
                  ) -> Optional[int]:
         """Block until the negotiation reports `state` ('master', 'slave', ...);
         the active master's node-id then. TimeoutError names the state last heard."""
-        where = self._where(f"wait_for({state!r})")
-        wanted = enum_member(FlymaState, state, "state", where)
-        self._context.waiter.wait(lambda: self._state == wanted, timeout, where,
-                                  lambda: f"still {self._state.name.lower()}")
+        self._context.waiter.wait_until(self._state_until(state), timeout)
         return self._master or None
 
-    def add_callback(self, callback: Callable[[FlymaNotice], None]
-                     ) -> Callable[[FlymaNotice], None]:
+    async def await_for(self, state: Union[FlymaState, str], timeout: Optional[float] = None
+                        ) -> Optional[int]:
+        await self._context.waiter.await_until(self._state_until(state), timeout)
+        return self._master or None
+
+    def _state_until(self, state: Union[FlymaState, str]) -> "Until[bool]":
+        where = self._where(f"wait_for({state!r})")
+        wanted = enum_member(FlymaState, state, "state", where)
+        return Until(lambda: self._state == wanted, where,
+                     lambda: f"still {self._state.name.lower()}")
+
+    def add_callback(self, callback: Callable[[FlymaNotice], None],
+                     loop: LoopArg = None) -> Callable[[FlymaNotice], None]:
         """callback(FlymaNotice) for every event of the negotiation."""
-        return self._callbacks.add(callback)
+        return self._callbacks.add(callback, loop)
 
     def remove_callback(self, callback: Callable[[FlymaNotice], None]) -> None:
         self._callbacks.remove(callback)

@@ -13,6 +13,7 @@ from typing import Callable, List, Optional
 from .._binding.constants import EventKind, GuardEventCode, NmtState
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._aio import LoopArg
 from .._callbacks import CallbackList, chain
 from .._checks import check_ms
 from ..errors import ConfigurationError
@@ -99,9 +100,9 @@ class NodeGuard:
         self._context.runtime.guard(self._context.index, self.node_id, 0, 0, what)
         self.guarded = False
 
-    def add_callback(self, callback: Callable[[GuardEvent, NmtState], None]
-                     ) -> Callable[[GuardEvent, NmtState], None]:
-        return self._callbacks.add(callback)
+    def add_callback(self, callback: Callable[[GuardEvent, NmtState], None],
+                     loop: LoopArg = None) -> Callable[[GuardEvent, NmtState], None]:
+        return self._callbacks.add(callback, loop)
 
     def _event(self, event: Event) -> Deferred:
         """CO_EV_GUARD of this node: a = co_guard_event_t, b = the state answered."""

@@ -20,6 +20,7 @@ from typing import Callable, FrozenSet, NamedTuple
 from .._binding.constants import EventKind, LedCause, LedPattern, LedWhich
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._aio import LoopArg
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
 from .views import LocalNodeView
@@ -74,13 +75,13 @@ class LocalLeds:
     def __repr__(self) -> str:
         return f"<LocalLeds of {self.node!r}>"
 
-    def add_callback(self, callback: LedCallback) -> LedCallback:
+    def add_callback(self, callback: LedCallback, loop: LoopArg = None) -> LedCallback:
         """callback(led, on, pattern) for every change of either LED: led is
         'run' or 'error', on whether it is lit now, pattern its pattern's
         name (see LedIndicator). Registered before boot, it hears the boot."""
         context = self._context
         with context.cond:
-            self._callbacks.add(callback)
+            self._callbacks.add(callback, loop)
             if not self._listening:
                 context.runtime.led_listen(context.index, True, f"LED callbacks of {self._where}")
                 self._listening = True

@@ -14,15 +14,16 @@ blocks until it ends (or is awaited with the `a...` form).
 
 from __future__ import annotations
 
+import asyncio
 import logging
-import threading
 from typing import (Any, Callable, Dict, Generator, Generic, List, Mapping, NamedTuple,
                     Optional, Sequence, Tuple, TypeVar)
 
 from .._binding.constants import EventKind, LssRequest, LssStatus
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import CallbackList, chain, loop_waker
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until
 from ..errors import CanopenFDError, ConfigurationError
 
 __all__ = ["LssDevice", "LssError", "LssMaster", "LssSlave"]
@@ -73,34 +74,48 @@ class _Request(Generic[T]):
         self.kind = kind
         self.what = what
         self._finish = finish
-        self._done = threading.Event()
-        self._wakers: List[Callable[[], None]] = []
         self.outcome: Optional[Tuple[Result, List[LssDevice]]] = None
 
-    def ended(self, outcome: Tuple[Result, List[LssDevice]]) -> Callable[[], None]:
-        """Under the line's condition: keep the outcome; returns what wakes awaiters."""
+    def ended(self, outcome: Tuple[Result, List[LssDevice]]) -> None:
+        """Under the line's condition: keep the outcome (its notify wakes the waits)."""
         self.outcome = outcome
-        self._done.set()
-        wakers, self._wakers = self._wakers, []
-        return chain(wakers)
 
     def _value(self) -> T:
         assert self.outcome is not None
         return self._finish(*self.outcome)
 
+    def _until(self) -> "Until[bool]":
+        return Until(lambda: self.outcome is not None, self.what,
+                     lambda: "the LSS request has not ended")
+
     def result(self, timeout: Optional[float] = None) -> T:
-        self._context.waiter.wait(lambda: self.outcome is not None, timeout, self.what,
-                            lambda: "the LSS request has not ended")
+        self._context.waiter.wait_until(self._until(), timeout)
         return self._value()
 
-    def __await__(self) -> Generator[Any, None, T]:
-        future, wake = loop_waker(self._value)
+    async def aresult(self, timeout: Optional[float] = None) -> T:
+        """result() for `await`. Cancelling the awaiting task cancels the
+        request (the master is free for the next one at once)."""
+        try:
+            await self._context.waiter.await_until(self._until(), timeout)
+        except asyncio.CancelledError:
+            try:
+                self.cancel()
+            except CanopenFDError:
+                pass    # closed meanwhile: nothing runs any more
+            raise
+        return self._value()
+
+    def cancel(self) -> None:
+        """End the request now: result() then raises LssError (cancelled).
+        Nothing goes on the bus; a slave keeps the state the frames sent so
+        far gave it."""
         with self._context.cond:
-            if self.outcome is None:
-                self._wakers.append(wake)
-                return future.__await__()
-        wake()   # ended already
-        return future.__await__()
+            running = self.outcome is None
+        if running:
+            self._context.runtime.lss_cancel(self._context.index, f"cancel of {self.what}")
+
+    def __await__(self) -> Generator[Any, None, T]:
+        return self.aresult().__await__()
 
 
 def _check_u32(value: object, name: str, where: str) -> int:
@@ -165,6 +180,10 @@ class LssMaster:
         return self.start_switch_selective(vendor_id, product_code, revision,
                                            serial).result()
 
+    async def aswitch_selective(self, vendor_id: int, product_code: int, revision: int,
+                                serial: int) -> bool:
+        return await self.start_switch_selective(vendor_id, product_code, revision, serial)
+
     def start_configure_node_id(self, node_id: int) -> "_Request[None]":
         where = f"lss.configure_node_id({node_id!r}) on {self._where}"
         if isinstance(node_id, bool) or not isinstance(node_id, int) or \
@@ -177,18 +196,34 @@ class LssMaster:
         LssError when it refuses or does not answer."""
         self.start_configure_node_id(node_id).result()
 
-    def configure_bit_timing(self, table_index: int, table_selector: int = 0) -> None:
+    async def aconfigure_node_id(self, node_id: int) -> None:
+        await self.start_configure_node_id(node_id)
+
+    def start_configure_bit_timing(self, table_index: int, table_selector: int = 0
+                                   ) -> "_Request[None]":
         where = f"lss.configure_bit_timing({table_index!r}) on {self._where}"
         for value, name in ((table_index, "table_index"), (table_selector, "table_selector")):
             if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 255:
                 raise ConfigurationError(f"{where}: {name} must be an int 0..255")
-        self._start(LssRequest.CONFIGURE_BIT_TIMING, [table_selector, table_index], [], where,
-                    _confirmed).result()
+        return self._start(LssRequest.CONFIGURE_BIT_TIMING, [table_selector, table_index], [],
+                           where, _confirmed)
+
+    def configure_bit_timing(self, table_index: int, table_selector: int = 0) -> None:
+        self.start_configure_bit_timing(table_index, table_selector).result()
+
+    async def aconfigure_bit_timing(self, table_index: int, table_selector: int = 0) -> None:
+        await self.start_configure_bit_timing(table_index, table_selector)
+
+    def start_store(self) -> "_Request[None]":
+        return self._start(LssRequest.STORE, [], [], f"lss.store() on {self._where}",
+                           _confirmed)
 
     def store(self) -> None:
         """The slave in configuration stores its pending node-id (and bit timing)."""
-        self._start(LssRequest.STORE, [], [], f"lss.store() on {self._where}",
-                    _confirmed).result()
+        self.start_store().result()
+
+    async def astore(self) -> None:
+        await self.start_store()
 
     def start_inquire(self, what: str) -> "_Request[int]":
         where = f"lss.inquire({what!r}) on {self._where}"
@@ -204,23 +239,36 @@ class LssMaster:
     async def ainquire(self, what: str) -> int:
         return await self.start_inquire(what)
 
+    def start_identify_remote(self, vendor_id: int, product_code: int,
+                              revisions: Tuple[int, int] = (0, _U32),
+                              serials: Tuple[int, int] = (0, _U32)) -> "_Request[int]":
+        where = f"lss.identify_remote(...) on {self._where}"
+        values = self._address_ranges(vendor_id, product_code, revisions, serials, where)
+        return self._start(LssRequest.IDENTIFY_REMOTE, values, [], where, _answers)
+
     def identify_remote(self, vendor_id: int, product_code: int,
                         revisions: Tuple[int, int] = (0, _U32),
                         serials: Tuple[int, int] = (0, _U32)) -> int:
         """How many slaves with this vendor/product and a revision and serial in
         the ranges answered (0 = none)."""
-        where = f"lss.identify_remote(...) on {self._where}"
-        values = [_check_u32(vendor_id, "vendor_id", where),
-                  _check_u32(product_code, "product_code", where),
-                  *_check_range(revisions, "revisions", where),
-                  *_check_range(serials, "serials", where)]
-        return self._start(LssRequest.IDENTIFY_REMOTE, values, [], where, _answers).result()
+        return self.start_identify_remote(vendor_id, product_code, revisions,
+                                          serials).result()
+
+    async def aidentify_remote(self, vendor_id: int, product_code: int,
+                               revisions: Tuple[int, int] = (0, _U32),
+                               serials: Tuple[int, int] = (0, _U32)) -> int:
+        return await self.start_identify_remote(vendor_id, product_code, revisions, serials)
+
+    def start_identify_non_configured(self) -> "_Request[int]":
+        return self._start(LssRequest.IDENTIFY_NON_CONFIGURED, [], [],
+                           f"lss.identify_non_configured() on {self._where}", _answers)
 
     def identify_non_configured(self) -> int:
         """How many slaves without a node-id answered (0 = none)."""
-        return self._start(LssRequest.IDENTIFY_NON_CONFIGURED, [], [],
-                           f"lss.identify_non_configured() on {self._where}",
-                           _answers).result()
+        return self.start_identify_non_configured().result()
+
+    async def aidentify_non_configured(self) -> int:
+        return await self.start_identify_non_configured()
 
     def start_fast_scan(self, node_ids: Sequence[int], *,
                         match: Optional[Mapping[str, int]] = None,
@@ -278,12 +326,27 @@ class LssMaster:
              serials: Tuple[int, int] = (0, _U32)) -> List[LssDevice]:
         """Every device of vendor/product (configured or not) whose revision and
         serial lie in the ranges, found by halving them (identify remote slave)."""
+        return self.start_scan(vendor_id, product_code, revisions, serials).result()
+
+    def start_scan(self, vendor_id: int, product_code: int,
+                   revisions: Tuple[int, int] = (0, _U32),
+                   serials: Tuple[int, int] = (0, _U32)) -> "_Request[List[LssDevice]]":
         where = f"lss.scan(...) on {self._where}"
-        values = [_check_u32(vendor_id, "vendor_id", where),
-                  _check_u32(product_code, "product_code", where),
-                  *_check_range(revisions, "revisions", where),
-                  *_check_range(serials, "serials", where)]
-        return self._start(LssRequest.SCAN, values, [], where, _found).result()
+        values = self._address_ranges(vendor_id, product_code, revisions, serials, where)
+        return self._start(LssRequest.SCAN, values, [], where, _found)
+
+    async def ascan(self, vendor_id: int, product_code: int,
+                    revisions: Tuple[int, int] = (0, _U32),
+                    serials: Tuple[int, int] = (0, _U32)) -> List[LssDevice]:
+        return await self.start_scan(vendor_id, product_code, revisions, serials)
+
+    @staticmethod
+    def _address_ranges(vendor_id: int, product_code: int, revisions: Tuple[int, int],
+                        serials: Tuple[int, int], where: str) -> List[int]:
+        return [_check_u32(vendor_id, "vendor_id", where),
+                _check_u32(product_code, "product_code", where),
+                *_check_range(revisions, "revisions", where),
+                *_check_range(serials, "serials", where)]
 
     @property
     def stats(self) -> Dict[str, int]:
@@ -338,7 +401,8 @@ class LssMaster:
         self._running = None
         result, devices = self._context.runtime.lss_result(self._context.index, request.what)
         found = [LssDevice(*address, node_id) for address, node_id in devices]
-        return request.ended((result, found))
+        request.ended((result, found))
+        return None
 
 
 def _fastscan_filter(match: Optional[Mapping[str, int]], skip: Sequence[str], where: str
@@ -472,25 +536,27 @@ class LssSlave:
         self._bit_timings = mask
         self._configure(where)
 
-    def on_state_change(self, callback: Callable[[str], None]) -> Callable[[str], None]:
+    def on_state_change(self, callback: Callable[[str], None],
+                        loop: LoopArg = None) -> Callable[[str], None]:
         """callback('waiting' or 'configuration') at each LSS state change."""
-        return self._state_callbacks.add(callback)
+        return self._state_callbacks.add(callback, loop)
 
-    def on_configured(self, callback: Callable[[int], None]) -> Callable[[int], None]:
+    def on_configured(self, callback: Callable[[int], None],
+                      loop: LoopArg = None) -> Callable[[int], None]:
         """callback(node_id): a node created with node-id 255 got node_id from LSS,
         or a configured node took its pending node-id at NMT reset communication
         (CiA 305); it runs (and boots) with it now."""
-        return self._configured_callbacks.add(callback)
+        return self._configured_callbacks.add(callback, loop)
 
     def add_configured_hook(self, hook: Callable[[int], None]) -> None:
         """For the node itself: hook(node_id) runs under the line's condition
         as soon as the event is handled, before any waiter wakes."""
         self._configured_hooks.append(hook)
 
-    def on_activate_bit_timing(self, callback: Callable[[int], None]
-                               ) -> Callable[[int], None]:
+    def on_activate_bit_timing(self, callback: Callable[[int], None],
+                               loop: LoopArg = None) -> Callable[[int], None]:
         """callback(delay_ms): switch to the accepted bit timing after delay_ms."""
-        return self._activate_callbacks.add(callback)
+        return self._activate_callbacks.add(callback, loop)
 
     @property
     def info(self) -> Dict[str, Any]:

@@ -17,7 +17,6 @@ canopenfd.services.config.
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import struct
 import threading
@@ -27,7 +26,8 @@ from .._binding.constants import (BootError, BootEvent, BootStep, EventKind, Man
                                   ManagerPhase, NmtCommand, SlaveStatus)
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import CallbackList, chain
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until, chain
 from .._checks import check_node_id
 from ..errors import CanopenFDError, ConfigurationError
 from ..od import ObjectDictionary
@@ -151,7 +151,6 @@ class NetworkManager:
         self._events: List[ManagerEvent] = []
         # network start: None while running, else (started, halting event)
         self._outcome: Optional[Tuple[bool, Optional[ManagerEvent]]] = None
-        self._waiters: List[Callable[[], None]] = []
         self._running = False
         context.subscribe(EventKind.MANAGER, self._event)
 
@@ -208,10 +207,10 @@ class NetworkManager:
         """Stop every boot process (slaves stay as they are)."""
         self._context.runtime.manager_stop(self._context.index, f"stop() of the {self._where}")
 
-    def add_callback(self, callback: Callable[[ManagerEvent], None]
-                     ) -> Callable[[ManagerEvent], None]:
+    def add_callback(self, callback: Callable[[ManagerEvent], None],
+                     loop: LoopArg = None) -> Callable[[ManagerEvent], None]:
         """callback(ManagerEvent) for every report (on the dispatcher thread)."""
-        return self._callbacks.add(callback)
+        return self._callbacks.add(callback, loop)
 
     @property
     def events(self) -> List[ManagerEvent]:
@@ -257,15 +256,22 @@ class NetworkManager:
             raise ConfigurationError(f"{where}: the manager was not started")
         return SlaveStatus(value & 0xFF), _letter((value >> 8) & 0xFF)
 
+    def _started_until(self, name: str) -> "Until[Optional[Tuple[bool, Optional[ManagerEvent]]]]":
+        where = f"{name} of the {self._where}"
+        if not self._running:
+            raise ConfigurationError(f"{where}: start() first")
+        return Until(lambda: self._outcome, where, self._not_started)
+
     def wait_started(self, timeout: Optional[float] = 10.0) -> None:
         """Block until the network started; NetworkStartError when a mandatory
         slave failed, TimeoutError when neither happened in time."""
-        where = f"wait_started() of the {self._where}"
-        if not self._running:
-            raise ConfigurationError(f"{where}: start() first")
-        outcome = self._context.waiter.wait(
-            lambda: self._outcome, timeout, where, self._not_started)
-        self._raise_halt(outcome)
+        until = self._started_until("wait_started()")
+        self._raise_halt(self._context.waiter.wait_until(until, timeout))
+
+    async def await_started(self, timeout: Optional[float] = 10.0) -> None:
+        """wait_started() for `await`."""
+        until = self._started_until("await_started()")
+        self._raise_halt(await self._context.waiter.await_until(until, timeout))
 
     def _not_started(self) -> str:
         """Why the network is not started yet (under the line's condition)."""
@@ -275,29 +281,11 @@ class NetworkManager:
                 "network not started")
 
     async def started(self) -> None:
-        """Await the network start (NetworkStartError when it halted)."""
+        """Await the network start, however long it takes (NetworkStartError
+        when it halted): await_started(timeout=None)."""
         if not self._running:
             raise ConfigurationError(f"started() of the {self._where}: start() first")
-        loop = asyncio.get_running_loop()
-        future: "asyncio.Future[Tuple[bool, Optional[ManagerEvent]]]" = loop.create_future()
-
-        def settle() -> None:
-            if not future.done() and self._outcome is not None:
-                future.set_result(self._outcome)
-
-        def wake() -> None:
-            try:
-                loop.call_soon_threadsafe(settle)
-            except RuntimeError:
-                pass   # the loop closed: nobody awaits any more
-
-        with self._context.cond:
-            if self._outcome is not None:
-                outcome = self._outcome
-            else:
-                self._waiters.append(wake)
-                outcome = None
-        self._raise_halt(outcome if outcome is not None else await future)
+        await self.await_started(None)
 
     @staticmethod
     def _raise_halt(outcome: Optional[Tuple[bool, Optional[ManagerEvent]]]) -> None:
@@ -373,8 +361,6 @@ class NetworkManager:
         if report.kind in ("network-started", "halted") and self._outcome is None:
             self._outcome = (report.kind == "network-started",
                              report if report.kind == "halted" else None)
-            calls.extend(self._waiters)
-            self._waiters.clear()
         if report.kind == "slave-failed":
             log.warning("%s: %s", self._where, report)
         calls.append(lambda: self._callbacks.fire(report))

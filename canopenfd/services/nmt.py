@@ -20,7 +20,8 @@ from typing import Callable, Deque, List, Optional, Tuple, Union
 from .._binding.constants import CommandKind, EventKind, HeartbeatEvent, NmtCommand, NmtState
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event, now_us
-from .._callbacks import CallbackList, chain
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until, chain
 from .._checks import check_ms
 from ..errors import ConfigurationError
 
@@ -201,13 +202,18 @@ class NmtSlave:
                                 what=f"NMT {command.label} on {self._where}",
                                 command=int(command))
 
-    def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+    def _state_until(self, state: StateLike) -> "Until[bool]":
         target = NmtState.parse(state)
         start = self._history.seq
-        self._context.waiter.wait(
-            lambda: self._history.seen_since(start, target) or self.state == target,
-            timeout, f"{self._where}: wait_for_state({target.label})",
-            lambda: f"still {self.state.label}, not {target.label}")
+        return Until(lambda: self._history.seen_since(start, target) or self.state == target,
+                     f"{self._where}: wait_for_state({target.label})",
+                     lambda: f"still {self.state.label}, not {target.label}")
+
+    def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        self._context.waiter.wait_until(self._state_until(state), timeout)
+
+    async def await_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        await self._context.waiter.await_until(self._state_until(state), timeout)
 
     def set_heartbeat(self, ms: int) -> None:
         """The heartbeat producer time without an OD: the runtime's once booted,
@@ -234,15 +240,16 @@ class NmtSlave:
                                 allow=int(allowed))
         self._allow_operational = allowed
 
-    def on_state_change(self, callback: Callable[[NmtState, NmtState], None]
-                        ) -> Callable[[NmtState, NmtState], None]:
-        return self._state_changed.add(callback)
+    def on_state_change(self, callback: Callable[[NmtState, NmtState], None],
+                        loop: LoopArg = None) -> Callable[[NmtState, NmtState], None]:
+        return self._state_changed.add(callback, loop)
 
-    def on_veto(self, callback: Callable[[], None]) -> Callable[[], None]:
-        return self._vetoed.add(callback)
+    def on_veto(self, callback: Callable[[], None], loop: LoopArg = None) -> Callable[[], None]:
+        return self._vetoed.add(callback, loop)
 
-    def on_reset(self, callback: Callable[[NmtCommand], None]) -> Callable[[NmtCommand], None]:
-        return self._reset.add(callback)
+    def on_reset(self, callback: Callable[[NmtCommand], None],
+                 loop: LoopArg = None) -> Callable[[NmtCommand], None]:
+        return self._reset.add(callback, loop)
 
     # ------------------------------------------------------------ events
     def _event_state(self, event: Event) -> Deferred:
@@ -320,49 +327,70 @@ class HeartbeatMonitor:
                                                             self._where))
 
     # ------------------------------------------------------------ waits
-    def wait_for_bootup(self, timeout: Optional[float] = 10.0) -> None:
+    # Each wait accepts only what happens after the call: the Until is made then.
+    def _bootup_until(self) -> "Until[bool]":
         start = now_us()
-        self._context.waiter.wait(lambda: self._last_bootup_us >= start, timeout,
-                                  f"{self._where}: wait_for_bootup", lambda: "no boot-up")
+        return Until(lambda: self._last_bootup_us >= start,
+                     f"{self._where}: wait_for_bootup", lambda: "no boot-up")
+
+    def _heartbeat_until(self) -> "Until[bool]":
+        start = now_us()
+        return Until(lambda: self._last_heartbeat_us >= start or self.alive is True,
+                     f"{self._where}: wait_for_heartbeat", lambda: "no heartbeat")
+
+    def _state_until(self, state: StateLike) -> "Until[bool]":
+        target = NmtState.parse(state)
+        start = self._history.seq
+        return Until(lambda: self._history.seen_since(start, target) or self.state == target,
+                     f"{self._where}: wait_for_state({target.label})",
+                     lambda: f"last state {self.state.label}, not {target.label}")
+
+    def wait_for_bootup(self, timeout: Optional[float] = 10.0) -> None:
+        self._context.waiter.wait_until(self._bootup_until(), timeout)
+
+    async def await_for_bootup(self, timeout: Optional[float] = 10.0) -> None:
+        await self._context.waiter.await_until(self._bootup_until(), timeout)
 
     def wait_for_heartbeat(self, timeout: Optional[float] = 10.0) -> NmtState:
-        start = now_us()
-        self._context.waiter.wait(
-            lambda: self._last_heartbeat_us >= start or self.alive is True, timeout,
-            f"{self._where}: wait_for_heartbeat", lambda: "no heartbeat")
+        self._context.waiter.wait_until(self._heartbeat_until(), timeout)
+        return self.state
+
+    async def await_for_heartbeat(self, timeout: Optional[float] = 10.0) -> NmtState:
+        await self._context.waiter.await_until(self._heartbeat_until(), timeout)
         return self.state
 
     def wait_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
-        target = NmtState.parse(state)
-        start = self._history.seq
-        self._context.waiter.wait(
-            lambda: self._history.seen_since(start, target) or self.state == target,
-            timeout, f"{self._where}: wait_for_state({target.label})",
-            lambda: f"last state {self.state.label}, not {target.label}")
+        self._context.waiter.wait_until(self._state_until(state), timeout)
+
+    async def await_for_state(self, state: StateLike, timeout: Optional[float] = 10.0) -> None:
+        await self._context.waiter.await_until(self._state_until(state), timeout)
 
     # ------------------------------------------------------------ callbacks
-    def on_bootup(self, callback: Callable[[], None]) -> Callable[[], None]:
-        return self._bootup.add(callback)
+    def on_bootup(self, callback: Callable[[], None], loop: LoopArg = None) -> Callable[[], None]:
+        return self._bootup.add(callback, loop)
 
-    def on_state_change(self, callback: Callable[[NmtState], None]
-                        ) -> Callable[[NmtState], None]:
-        return self._state_changed.add(callback)
+    def on_state_change(self, callback: Callable[[NmtState], None],
+                        loop: LoopArg = None) -> Callable[[NmtState], None]:
+        return self._state_changed.add(callback, loop)
 
-    def on_heartbeat_lost(self, callback: Callable[[], None]) -> Callable[[], None]:
-        return self._lost.add(callback)
+    def on_heartbeat_lost(self, callback: Callable[[], None],
+                          loop: LoopArg = None) -> Callable[[], None]:
+        return self._lost.add(callback, loop)
 
-    def on_heartbeat_started(self, callback: Callable[[], None]) -> Callable[[], None]:
-        return self._started.add(callback)
+    def on_heartbeat_started(self, callback: Callable[[], None],
+                             loop: LoopArg = None) -> Callable[[], None]:
+        return self._started.add(callback, loop)
 
     def add_heartbeat_callback(self, callback: Callable[[NmtState], None],
-                               min_interval_ms: int = DEFAULT_TICK_MS) -> None:
+                               min_interval_ms: int = DEFAULT_TICK_MS,
+                               loop: LoopArg = None) -> None:
         """callback(state) for every heartbeat (and boot-up, state 0); the C
         runtime tells at most one heartbeat per min_interval_ms (per node), so
         a node sending too fast cannot flood Python. The first callback asks
         the runtime for the ticks; a later one with another interval changes it."""
         what = f"add_heartbeat_callback of {self._where}"
         check_ms(min_interval_ms, "min_interval_ms", what)
-        self._heartbeat.add(callback)
+        self._heartbeat.add(callback, loop)
         if min_interval_ms != self._tick_ms:
             context = self._context
             context.runtime.command(CommandKind.HB_TICK, context.index, what=what,
@@ -435,9 +463,9 @@ class NodeEvents:
         self._callbacks = CallbackList(f"{context.where} node event")
         context.observe(EventKind.HEARTBEAT, self._event)
 
-    def add(self, callback: Callable[[int, HeartbeatEvent, NmtState], None]
-            ) -> Callable[[int, HeartbeatEvent, NmtState], None]:
-        return self._callbacks.add(callback)
+    def add(self, callback: Callable[[int, HeartbeatEvent, NmtState], None],
+            loop: LoopArg = None) -> Callable[[int, HeartbeatEvent, NmtState], None]:
+        return self._callbacks.add(callback, loop)
 
     def remove(self, callback: Callable[[int, HeartbeatEvent, NmtState], None]) -> None:
         self._callbacks.remove(callback)
@@ -475,6 +503,10 @@ class LocalNmt:
 
     def wait_for_state(self, state: Union[NmtState, str, int], timeout: float = 10.0) -> None:
         self._slave.wait_for_state(state, timeout)
+
+    async def await_for_state(self, state: Union[NmtState, str, int],
+                              timeout: float = 10.0) -> None:
+        await self._slave.await_for_state(state, timeout)
 
 
 class RemoteNmt:
@@ -524,11 +556,22 @@ class RemoteNmt:
     def wait_for_state(self, state: Union[NmtState, str, int], timeout: float = 10.0) -> None:
         self._monitor.wait_for_state(state, timeout)
 
+    async def await_for_bootup(self, timeout: float = 10.0) -> None:
+        await self._monitor.await_for_bootup(timeout)
+
+    async def await_for_heartbeat(self, timeout: float = 10.0) -> NmtState:
+        return await self._monitor.await_for_heartbeat(timeout)
+
+    async def await_for_state(self, state: Union[NmtState, str, int],
+                              timeout: float = 10.0) -> None:
+        await self._monitor.await_for_state(state, timeout)
+
     def add_heartbeat_callback(self, callback: Callable[[NmtState], None],
-                               min_interval_ms: int = DEFAULT_TICK_MS) -> None:
+                               min_interval_ms: int = DEFAULT_TICK_MS,
+                               loop: LoopArg = None) -> None:
         """python-canopen's callback(state) for every heartbeat (see
         HeartbeatMonitor.add_heartbeat_callback)."""
-        self._monitor.add_heartbeat_callback(callback, min_interval_ms)
+        self._monitor.add_heartbeat_callback(callback, min_interval_ms, loop=loop)
 
     def remove_heartbeat_callback(self, callback: Callable[[NmtState], None]) -> None:
         self._monitor.remove_heartbeat_callback(callback)

@@ -77,12 +77,14 @@ from typing import (Callable, Dict, Iterator, List, NamedTuple, Optional, Protoc
 from .._binding.constants import EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import CallbackList
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until
 from ..errors import AbortError, ConfigurationError
 from ..frame import Frame
 from ..od import ODArray, ODRecord, ODVariable, ObjectDictionary
 from ..od.errors import OdValueError
 from ..od.datatypes import DataType, Value, decode
+from . import pdo_steps
 from .served_od import LocalValue, ServedDictionary
 from .views import LocalNodeView, NodeView
 
@@ -145,6 +147,12 @@ class RemoteTransfers(Protocol):
     def download(self, key: Tuple[int, int], data: bytes) -> None:
         ...
 
+    async def aupload(self, key: Tuple[int, int]) -> bytes:
+        ...
+
+    async def adownload(self, key: Tuple[int, int], data: bytes) -> None:
+        ...
+
 
 class RemotePdoAccess:
     """A remote node's PDO objects, through its transfer API (USDO on fd
@@ -161,6 +169,12 @@ class RemotePdoAccess:
 
     def write(self, index: int, sub: int, data: bytes) -> None:
         self._transfers.download((index, sub), data)
+
+    async def aread(self, index: int, sub: int) -> bytes:
+        return await self._transfers.aupload((index, sub))
+
+    async def awrite(self, index: int, sub: int, data: bytes) -> None:
+        await self._transfers.adownload((index, sub), data)
 
 
 class LocalPdoAccess:
@@ -293,6 +307,15 @@ class PdoMaps(Mapping[int, "PdoMap"]):
         for pdo_map in self.maps.values():
             if pdo_map.cob_id is not None:
                 pdo_map.save()
+
+    async def aread(self, from_od: bool = False) -> None:
+        for pdo_map in self.maps.values():
+            await pdo_map.aread(from_od=from_od)
+
+    async def asave(self) -> None:
+        for pdo_map in self.maps.values():
+            if pdo_map.cob_id is not None:
+                await pdo_map.asave()
 
     def stop_watching(self, what: str) -> None:
         """Stop hearing this node's PDOs on their CAN-IDs (the line calls it
@@ -774,7 +797,8 @@ class PdoMap:
         if self._remote and not self._callbacks and self._waits == 0:
             self._stop_watch(f"{self.where}: {what}")
 
-    def add_callback(self, callback: Callable[["PdoMap"], None]) -> Callable[["PdoMap"], None]:
+    def add_callback(self, callback: Callable[["PdoMap"], None],
+                     loop: LoopArg = None) -> Callable[["PdoMap"], None]:
         """callback(pdo_map) on the dispatcher thread after each reception,
         `data` holding the received values (python-canopen's name). The
         local node: its RPDOs. A remote node: its TPDOs (what it sends) and
@@ -782,7 +806,7 @@ class PdoMap:
         or set here, else the OD's (its default, with $NODEID), and the OD's
         mapping when none was read or made here; a COB-ID changed later by
         read(), save() or `cob_id =` is followed."""
-        return self._listen("add_callback").add(callback)
+        return self._listen("add_callback").add(callback, loop)
 
     def remove_callback(self, callback: Callable[["PdoMap"], None]) -> None:
         """Remove a callback; a remote PDO is no longer heard once no
@@ -791,21 +815,38 @@ class PdoMap:
             self._callbacks.remove(callback)
             self._release("remove_callback")
 
-    def wait_for_reception(self, timeout: Optional[float] = 10.0) -> float:
-        """Block until the PDO is received after this call; returns the
-        reception time (time.time()). TimeoutError when none came in time."""
-        context = self._context
-        with context.cond:
+    def _reception_until(self) -> "Until[bool]":
+        """A reception after this call; the PDO is heard until _reception_done()."""
+        with self._context.cond:
             self._listen("wait_for_reception")
             self._waits += 1
             start = self._received
+        return Until(lambda: self._received > start, f"{self.where}: wait_for_reception",
+                     lambda: "no reception")
+
+    def _reception_done(self) -> None:
+        with self._context.cond:
+            self._waits -= 1
+            self._release("wait_for_reception")
+
+    def wait_for_reception(self, timeout: Optional[float] = 10.0) -> float:
+        """Block until the PDO is received after this call; returns the
+        reception time (time.time()). TimeoutError when none came in time."""
+        until = self._reception_until()
         try:
-            context.waiter.wait(lambda: self._received > start, timeout,
-                                f"{self.where}: wait_for_reception", lambda: "no reception")
+            self._context.waiter.wait_until(until, timeout)
         finally:
-            with context.cond:
-                self._waits -= 1
-                self._release("wait_for_reception")
+            self._reception_done()
+        return self.timestamp  # type: ignore[return-value]
+
+    async def await_for_reception(self, timeout: Optional[float] = 10.0) -> float:
+        """wait_for_reception() for `await`; cancelling it stops hearing the
+        PDO as wait_for_reception's end does."""
+        until = self._reception_until()
+        try:
+            await self._context.waiter.await_until(until, timeout)
+        finally:
+            self._reception_done()
         return self.timestamp  # type: ignore[return-value]
 
     def _received_now(self, skipped: int) -> None:
@@ -1193,12 +1234,23 @@ class PdoMap:
         entries become PdoVariables of the node's OD (dummies and entries
         the OD lacks are kept by index:sub). Sub-entries the OD lacks are
         not read (None)."""
-        fetch = self._from_od if from_od else self._from_node
+        pdo_steps.run(self._read_steps(from_od), self._access)
+
+    async def aread(self, from_od: bool = False) -> None:
+        """read() for `await` (a remote node's transfers are awaited)."""
+        await pdo_steps.arun(self._read_steps(from_od), self._access)
+
+    def _read_steps(self, from_od: bool) -> "pdo_steps.Steps[None]":
+        def fetch(index: int, sub: int, size: int, step: str,
+                  optional: bool = False) -> "pdo_steps.Steps[Optional[int]]":
+            if from_od:
+                return pdo_steps.done(self._from_od(index, sub, size, step, optional))
+            return self._from_node(index, sub, size, step, optional)
         values: Dict[int, Optional[int]] = {}
         for sub, (_attr, what, size) in _COMM_SUBS.items():
             if self._has(self.com_index, sub):
-                values[sub] = fetch(self.com_index, sub, size, f"reading the {what}",
-                                    optional=sub != 1)
+                values[sub] = yield from fetch(self.com_index, sub, size, f"reading the {what}",
+                                               optional=sub != 1)
         self._read_values = values
         raw_cob = values.get(1)
         if raw_cob is None:
@@ -1214,9 +1266,10 @@ class PdoMap:
         self._sync_start_value = values.get(6)
         self.map, self.length, self.data = [], 0, bytearray()
         if self._has(self.map_index, 0):
-            count = fetch(self.map_index, 0, 1, "reading the number of mapped entries") or 0
+            count = (yield from fetch(self.map_index, 0, 1,
+                                      "reading the number of mapped entries")) or 0
             for sub in range(1, min(count, _MAX_ENTRIES) + 1):
-                value = fetch(self.map_index, sub, 4, f"reading mapping entry {sub}")
+                value = yield from fetch(self.map_index, sub, 4, f"reading mapping entry {sub}")
                 if not value or not value & 0xFF:
                     log.warning("%s: mapping entry %d is 0x%08X (no object or 0 bits); ignored",
                                 self.where, sub, value or 0)
@@ -1242,11 +1295,11 @@ class PdoMap:
         return standard
 
     def _from_node(self, index: int, sub: int, size: int, step: str,
-                   optional: bool = False) -> Optional[int]:
+                   optional: bool = False) -> "pdo_steps.Steps[Optional[int]]":
         size = self._size(index, sub, size)
         step = f"{step} (0x{index:04X}:{sub:02X})"
         try:
-            data = self._access.read(index, sub)
+            data = yield (index, sub, None)
         except AbortError as exc:
             if optional and exc.code in _ABSENT:
                 return None
@@ -1359,11 +1412,16 @@ class PdoMap:
         stays invalid). Everything is checked before the first write; a
         refusal raises the abort exception naming this PDO and the step, and
         the procedure stops there (the PDO stays invalid)."""
-        plan = self._plan()
-        access = self._access
-        for step, index, sub, value, size in plan:
+        pdo_steps.run(self._save_steps(), self._access)
+
+    async def asave(self) -> None:
+        """save() for `await` (a remote node's transfers are awaited)."""
+        await pdo_steps.arun(self._save_steps(), self._access)
+
+    def _save_steps(self) -> "pdo_steps.Steps[None]":
+        for step, index, sub, value, size in self._plan():
             try:
-                access.write(index, sub, value.to_bytes(size, "little"))
+                yield (index, sub, value.to_bytes(size, "little"))
             except AbortError as exc:
                 _add_context(exc, self.where, step)
                 raise

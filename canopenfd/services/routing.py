@@ -24,6 +24,7 @@ from typing import Callable, Dict, Iterable, NamedTuple, Optional, Protocol
 from .._binding.constants import EventKind, GatewayEvent, GatewayRouteKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event, Runtime
+from .._aio import LoopArg
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
 
@@ -82,8 +83,9 @@ class RoutingService:
         notice = RoutingNotice(GatewayEvent(ev.a), ev.node, ev.b)
         return lambda: self._callbacks.fire(notice)
 
-    def add_callback(self, callback: Callable[[RoutingNotice], None]) -> None:
-        self._callbacks.add(callback)
+    def add_callback(self, callback: Callable[[RoutingNotice], None],
+                     loop: LoopArg = None) -> None:
+        self._callbacks.add(callback, loop)
 
     def remove_callback(self, callback: Callable[[RoutingNotice], None]) -> None:
         self._callbacks.remove(callback)

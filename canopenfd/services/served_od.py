@@ -18,6 +18,7 @@ from typing import Callable, Dict, List, Mapping, Optional, Tuple, Union
 from .._binding.constants import EventKind, OdOrigin
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._aio import LoopArg
 from .._callbacks import CallbackList
 from ..errors import AbortError, ConfigurationError
 from ..od import (ODArray, ODRecord, ODVariable, ObjectDictionary, OdStateError, export_dcf,
@@ -199,9 +200,9 @@ class ServedDictionary:
         return export_dcf(snapshot, dest)
 
     # ------------------------------------------------------------ changes
-    def on_changed(self, callback: Callable[["LocalValue", str], None]
-                   ) -> Callable[["LocalValue", str], None]:
-        return self._changed.add(callback)
+    def on_changed(self, callback: Callable[["LocalValue", str], None],
+                   loop: LoopArg = None) -> Callable[["LocalValue", str], None]:
+        return self._changed.add(callback, loop)
 
     def _event_changed(self, event: Event) -> Deferred:
         """CO_EV_OD_CHANGED: a = index << 8 | sub, b = co_od_origin_t."""

@@ -14,12 +14,13 @@ since the answer is due while the frame is handled, without Python.
 
 from __future__ import annotations
 
-from typing import Callable, Dict, NamedTuple, Optional, Union
+from typing import Callable, Dict, NamedTuple, Optional, Tuple, Union
 
 from .._binding.constants import EventKind, SleepAction, SleepCause, SleepEvent, SleepPhase
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
-from .._callbacks import CallbackList
+from .._aio import LoopArg
+from .._callbacks import CallbackList, Until
 from .._checks import enum_member
 from ..errors import ConfigurationError
 
@@ -154,20 +155,31 @@ class SleepService:
         _, stats = self._context.runtime.sleep_state(self._context.index, self._where("stats"))
         return stats
 
+    def _phase_until(self, phase: Union[SleepPhase, str]
+                     ) -> "Tuple[Until[bool], SleepPhase]":
+        where = self._where(f"wait_for({phase!r})")
+        wanted = enum_member(SleepPhase, phase, "phase", where)
+        return Until(lambda: self._phase == wanted, where,
+                     lambda: f"still {self._phase.name.lower()}"), wanted
+
     def wait_for(self, phase: Union[SleepPhase, str], timeout: Optional[float] = None
                  ) -> SleepPhase:
         """Block until the service reports `phase` (a SleepPhase or its name,
         e.g. 'asleep'); TimeoutError names the phase last heard."""
-        where = self._where(f"wait_for({phase!r})")
-        wanted = enum_member(SleepPhase, phase, "phase", where)
-        self._context.waiter.wait(lambda: self._phase == wanted, timeout, where,
-                                  lambda: f"still {self._phase.name.lower()}")
+        until, wanted = self._phase_until(phase)
+        self._context.waiter.wait_until(until, timeout)
         return wanted
 
-    def add_callback(self, callback: Callable[[SleepNotice], None]
-                     ) -> Callable[[SleepNotice], None]:
+    async def await_for(self, phase: Union[SleepPhase, str], timeout: Optional[float] = None
+                        ) -> SleepPhase:
+        until, wanted = self._phase_until(phase)
+        await self._context.waiter.await_until(until, timeout)
+        return wanted
+
+    def add_callback(self, callback: Callable[[SleepNotice], None],
+                     loop: LoopArg = None) -> Callable[[SleepNotice], None]:
         """callback(SleepNotice) for every event of the line's sleep service."""
-        return self._callbacks.add(callback)
+        return self._callbacks.add(callback, loop)
 
     def remove_callback(self, callback: Callable[[SleepNotice], None]) -> None:
         self._callbacks.remove(callback)

@@ -24,6 +24,7 @@ from typing import Callable, Optional, Protocol, Union
 from .._binding.constants import AbortCode, EventKind, StoreStatus
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._aio import LoopArg
 from .._callbacks import CallbackList
 from ..errors import AbortError, ConfigurationError
 from .store_groups import DEFAULT_GROUPS, GroupTable
@@ -244,8 +245,9 @@ class ParameterStore:
         code = context.runtime.store_status(context.index, f"store status of {self._where}")
         return STORE_STATUS.get(code, str(code))
 
-    def on_problem(self, callback: Callable[[str, int], None]) -> Callable[[str, int], None]:
-        return self._problems.add(callback)
+    def on_problem(self, callback: Callable[[str, int], None],
+                   loop: LoopArg = None) -> Callable[[str, int], None]:
+        return self._problems.add(callback, loop)
 
     def _event(self, event: Event) -> Deferred:
         """CO_EV_STORE: a = co_store_status_t, b = records skipped."""

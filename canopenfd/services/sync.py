@@ -17,6 +17,7 @@ from typing import Callable, Optional
 from .._binding.constants import EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._aio import LoopArg
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
 
@@ -80,12 +81,13 @@ class SyncService:
                                             f"stop of the {self._where}")
         self.period = None
 
-    def add_callback(self, callback: Callable[[int], None]) -> Callable[[int], None]:
+    def add_callback(self, callback: Callable[[int], None],
+                     loop: LoopArg = None) -> Callable[[int], None]:
         """callback(counter) for every SYNC on the line (ours included);
         counter 0 when the SYNC has none. Costs one event per SYNC."""
         context = self._context
         with context.cond:
-            self._callbacks.add(callback)
+            self._callbacks.add(callback, loop)
             if not self._listening:
                 context.runtime.sync_listen(context.index, True,
                                             f"SYNC callbacks of {context.where}")

@@ -12,6 +12,7 @@ from typing import Callable, Union
 from .._binding.constants import EventKind
 from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
+from .._aio import LoopArg
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
 
@@ -56,10 +57,10 @@ class TimeService:
             raise ConfigurationError(f"{where}: CANopen TIME starts on 1984-01-01")
         self._context.runtime.time_send(self._context.index, round(seconds * 1_000_000), where)
 
-    def add_callback(self, callback: Callable[[_dt.datetime], None]) \
+    def add_callback(self, callback: Callable[[_dt.datetime], None], loop: LoopArg = None) \
             -> Callable[[_dt.datetime], None]:
         """callback(datetime, UTC) for every TIME stamp the line receives."""
-        return self._callbacks.add(callback)
+        return self._callbacks.add(callback, loop)
 
     def remove_callback(self, callback: Callable[[_dt.datetime], None]) -> None:
         self._callbacks.remove(callback)

@@ -7,6 +7,7 @@ runs in the C runtime: no Python per frame. The per-node views
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
 import os
@@ -65,6 +66,11 @@ class Completion:
                 self._callbacks.append(callback)
                 return
         callback()
+
+    def remove_callback(self, callback: Callable[[], None]) -> None:
+        with self._lock:
+            if callback in self._callbacks:
+                self._callbacks.remove(callback)
 
     def set(self) -> None:
         with self._lock:
@@ -134,14 +140,28 @@ class Transfer:
 
     wait = result
 
-    def __await__(self) -> Generator[object, None, Result]:
+    def __await__(self) -> Generator[Any, None, Result]:
+        return self._awaited().__await__()
+
+    async def _awaited(self) -> Result:
         future, wake_loop = loop_waker(self._collect)
         # Transfers start without a done event (a caller blocking in C hears
         # the end directly); an awaiting task needs it, so ask now.
         if self._engine.notify_end(self._handle):
             self._completion.set()   # ended already: no event comes
         self._completion.add_callback(wake_loop)
-        return future.__await__()
+        try:
+            return await future
+        except asyncio.CancelledError:
+            # The awaiting task gave up: abort the transfer on the bus, so the
+            # server and this client's channel are free for the next one.
+            self._completion.remove_callback(wake_loop)
+            if not self.done():
+                try:
+                    self.cancel()
+                except CanopenFDError as exc:   # ended or closed meanwhile
+                    log.debug("%s: cancel after the await's cancellation: %s", self.what, exc)
+            raise
 
     def cancel(self, code: Optional[int] = None) -> None:
         """Abort the transfer (the abort frame goes to the server); result()

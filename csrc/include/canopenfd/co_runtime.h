@@ -631,6 +631,10 @@ typedef struct co_rt_lss_device {
 /* Start a request: CO_RT_ERR_STATE while one runs, CO_RT_ERR_ARGUMENT for
  * bad values (the error text says which). */
 int co_rt_lss_start(co_rt_t *rt, int line, const co_rt_lss_request_t *request);
+/* Ends the running request (if any) with CO_LSS_CANCELLED, posted as
+ * CO_EV_LSS like any end: the master is free at once (an application that
+ * stopped waiting). */
+int co_rt_lss_cancel(co_rt_t *rt, int line);
 /* The last finished request's result and up to max of the devices it found;
  * returns the devices copied, CO_RT_ERR_STATE when none finished yet. */
 int co_rt_lss_result(co_rt_t *rt, int line, co_lss_master_result_t *out,

@@ -173,6 +173,20 @@ int co_rt_lss_start(co_rt_t *rt, int line, const co_rt_lss_request_t *request)
     return rt_kick_unlock(rt, status);
 }
 
+int co_rt_lss_cancel(co_rt_t *rt, int line)
+{
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        return CO_RT_ERR_ARGUMENT;
+    }
+    rt_mutex_lock(&rt->lock);
+    co_lss_master_t *m = co_stack_lss_master(&l->stack);
+    if (m) {
+        co_lss_master_cancel(m);    /* no-op when idle; else on_done posts CANCELLED */
+    }
+    return rt_kick_unlock(rt, CO_RT_OK);
+}
+
 int co_rt_lss_result(co_rt_t *rt, int line, co_lss_master_result_t *out,
                      co_rt_lss_device_t *devices, int max)
 {
