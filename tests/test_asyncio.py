@@ -219,6 +219,10 @@ def test_pdo_reception_and_configuration_awaited(net, bus_name):
         tpdo.trans_type = 254
         tpdo.enabled = True
         await tpdo.asave()
+        valid = b"\x23\x00\x18\x01\x85\x01\x00\x00"
+        # the monitor hears the frames after the stacks acted: wait for the last
+        frames.wait_for(lambda c: any(f.id == 0x600 + NODE and bytes(f.data) == valid
+                                      for f in c), 5, "the valid COB-ID written")
         sent = sdo_requests()
         assert b"\x2f\x00\x18\x02\xfe\x00\x00\x00" in sent                # 0x1800:02 = 254
         assert sent[-1] == b"\x23\x00\x18\x01\x85\x01\x00\x00"             # valid COB-ID last
