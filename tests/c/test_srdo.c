@@ -6,6 +6,7 @@
 
 #include "canopenfd/co_gfc.h"
 #include "canopenfd/co_srdo.h"
+#include "canopenfd/co_stack.h"
 
 #define NORMAL 0x103u
 #define INVERTED 0x104u
@@ -444,6 +445,85 @@ static void test_producer_tx_full(void **state)
     assert_int_equal(co_srdo_stats(&fx->sp)->pairs_sent, 0);
 }
 
+/* ------------------------------------------------ in the node assembly */
+
+typedef struct stack_fx {
+    co_stack_t stack;
+    co_stack_arena_t arena;
+    unsigned char memory[32 * 1024];
+    co_srdo_t *told[4];
+    co_srdo_violation_t why[4];
+    int events;
+} stack_fx_t;
+
+static void on_stack_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
+{
+    stack_fx_t *sf = user;
+    assert_true(sf->events < 4);
+    sf->told[sf->events] = srdo;
+    sf->why[sf->events++] = why;
+}
+
+static void nmt(fx_t *fx, uint8_t command, uint8_t node, uint64_t at)
+{
+    const uint8_t data[2] = {command, node};
+    inject(fx, 0x000, data, 2, at);
+}
+
+/* co_stack runs the SRDOs with the node's NMT state and hands a GFC to every
+ * one of them; the memory goes back with the node. */
+static void test_stack_wires_nmt_and_gfc(void **state)
+{
+    fx_t *fx = *state;
+    stack_fx_t *sf = calloc(1, sizeof *sf);
+    assert_non_null(sf);
+    co_srdo_deinit(&fx->sc);                   /* line c now belongs to the stack */
+    co_gfc_deinit(&fx->gc);
+    co_stack_arena_init(&sf->arena, sf->memory, sizeof sf->memory);
+    co_stack_line_config_t lc = {0};
+    co_stack_node_config_t nc = {.node_id = 7};
+    assert_int_equal(co_stack_init(&sf->stack, fx->c, &lc, co_stack_arena_allocator(&sf->arena)),
+                     CO_STACK_OK);
+    assert_int_equal(co_stack_srdo_init(&sf->stack, 2, on_stack_safe, sf), CO_STACK_ERR_STATE);
+    assert_int_equal(co_stack_failed_part(&sf->stack), CO_STACK_PART_SRDO);
+    assert_int_equal(co_stack_node_init(&sf->stack, &nc), CO_STACK_OK);
+    assert_int_equal(co_stack_boot(&sf->stack), CO_STACK_OK);
+    size_t before = sf->arena.used;
+    assert_int_equal(co_stack_srdo_init(&sf->stack, 0, NULL, NULL), CO_STACK_ERR_ARGUMENT);
+    assert_int_equal(co_stack_srdo_init(&sf->stack, 2, on_stack_safe, sf), CO_STACK_OK);
+    assert_null(co_stack_srdo(&sf->stack, 3));
+    co_srdo_t *one = co_stack_srdo(&sf->stack, 1), *two = co_stack_srdo(&sf->stack, 2);
+    co_srdo_config_t c1 = config(CO_SRDO_CONSUME), c2 = config(CO_SRDO_CONSUME);
+    c2.cob_id_normal = 0x105;
+    c2.cob_id_inverted = 0x106;
+    assert_true(co_srdo_configure(one, &c1, CO_SRDO_CONFIG_VALID, co_srdo_crc(&c1)));
+    assert_true(co_srdo_configure(two, &c2, CO_SRDO_CONFIG_VALID, co_srdo_crc(&c2)));
+    assert_true(co_gfc_set_enabled(co_stack_gfc(&sf->stack), true));
+    assert_true(co_gfc_set_enabled(&fx->gm, true));
+    assert_int_equal(co_srdo_state(one), CO_SRDO_STOPPED);     /* pre-operational */
+    nmt(fx, 0x01, 7, 1 * TU_MS);                                /* start remote node */
+    assert_int_equal(co_srdo_state(one), CO_SRDO_WAITING);
+    assert_int_equal(co_srdo_state(two), CO_SRDO_WAITING);
+    inject_pair(fx, 2 * TU_MS);
+    assert_int_equal(co_srdo_state(one), CO_SRDO_RUNNING);
+    assert_true(co_gfc_send(&fx->gm));
+    tu_step(&fx->tb, 4 * TU_MS);
+    assert_int_equal(sf->events, 2);
+    assert_ptr_equal(sf->told[0], one);
+    assert_ptr_equal(sf->told[1], two);
+    assert_int_equal(sf->why[0], CO_SRDO_GFC);
+    assert_int_equal(sf->why[1], CO_SRDO_GFC);
+    nmt(fx, 0x80, 7, 5 * TU_MS);                                /* pre-operational */
+    assert_int_equal(co_srdo_state(one), CO_SRDO_STOPPED);
+    nmt(fx, 0x01, 7, 6 * TU_MS);                                /* starts over */
+    assert_int_equal(co_srdo_state(one), CO_SRDO_WAITING);
+    co_stack_node_deinit(&sf->stack);
+    assert_null(co_stack_srdo(&sf->stack, 1));
+    assert_true(sf->arena.used <= before);
+    co_stack_deinit(&sf->stack);
+    free(sf);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -469,6 +549,7 @@ int main(void)
         T(test_gfc_enters_safe_state_at_once),
         T(test_restart_after_safe_state),
         T(test_producer_tx_full),
+        T(test_stack_wires_nmt_and_gfc),
 #undef T
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
