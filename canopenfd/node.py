@@ -25,6 +25,7 @@ from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtComma
                            NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
 from .services.served_od import Key, LocalObject, LocalValue, ServedDictionary
+from .services.srdo import SrdoService
 from .services.store import STORE_STATUS, StoreMedium, ParameterStore
 from .services.store_groups import GroupTable
 from .od.fileio import Source
@@ -79,6 +80,8 @@ class LocalNode:
         #: Flying master (CiA 302-2): start() once the node booted.
         self.flying_master = FlyingMaster(context, where)
         self._leds = LocalLeds(context, self, where)
+        #: SRDOs and GFC (CiA 304): start(count) first.
+        self.srdo = SrdoService(context, where)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
         self.lss = LssSlave(context, node_id, where)
         self.lss.add_configured_hook(self._lss_configured)

@@ -24,6 +24,7 @@
 #include "canopenfd/co_nmt.h"
 #include "canopenfd/co_timer.h"
 
+/* cffi:begin */
 enum {
     CO_SRDO_MAX_DATA = 8,            /* classic CAN payload */
     CO_SRDO_MAX_MAPPED = 16,         /* 0x1381+n sub 1..16: normal, inverted alternating */
@@ -39,7 +40,6 @@ typedef enum co_srdo_direction {
     CO_SRDO_CONSUME = 2
 } co_srdo_direction_t;
 
-/* cffi:begin */
 typedef enum co_srdo_state {
     CO_SRDO_STOPPED = 0,     /* not NMT operational, or direction 0 */
     CO_SRDO_WAITING = 1,     /* operational, no pair produced / checked yet */
@@ -69,7 +69,6 @@ typedef struct co_srdo_stats {
     uint32_t violations;         /* safe-state entries */
     uint32_t ignored;            /* frames received while stopped or safe */
 } co_srdo_stats_t;
-/* cffi:end */
 
 /* 0x1301+n and 0x1381+n of one SRDO. */
 typedef struct co_srdo_config {
@@ -82,6 +81,8 @@ typedef struct co_srdo_config {
     uint8_t map_count;           /* 0x1381+n sub 0: even, 0..16 */
     uint32_t map[CO_SRDO_MAX_MAPPED];   /* index << 16 | sub << 8 | bits */
 } co_srdo_config_t;
+/* cffi:end */
+
 
 /* Which parameter a configuration check refused (CO_SRDO_PARAM_OK: none). */
 typedef enum co_srdo_param {
