@@ -526,3 +526,4 @@ class SrdoViolation(enum.IntEnum):
     BAD_PARAMETER = 9
     GFC = 10
     TX_FAILED = 11
+    APPLICATION = 12

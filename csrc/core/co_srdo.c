@@ -105,6 +105,7 @@ const char *co_srdo_violation_name(co_srdo_violation_t why)
     case CO_SRDO_BAD_PARAMETER: return "parameter out of range";
     case CO_SRDO_GFC: return "global fail-safe command";
     case CO_SRDO_TX_FAILED: return "tx queue full";
+    case CO_SRDO_APPLICATION: return "the application's reason";
     }
     return "unknown";
 }
@@ -125,7 +126,7 @@ static void stop_timers(co_srdo_t *s)
 
 void co_srdo_fail(co_srdo_t *srdo, co_srdo_violation_t why)
 {
-    if (srdo->state == CO_SRDO_SAFE) {
+    if (srdo->state == CO_SRDO_SAFE || why == CO_SRDO_NONE) {
         return;   /* latched: the first cause is the one reported */
     }
     stop_timers(srdo);

@@ -436,8 +436,11 @@ static void test_producer_tx_full(void **state)
         k++;
     }
     assert_true(k > 0);
-    co_srdo_fail(&fx->sp, CO_SRDO_NONE);                /* an application reason */
+    co_srdo_fail(&fx->sp, CO_SRDO_NONE);                /* no reason: nothing happens */
+    assert_int_equal(co_srdo_state(&fx->sp), CO_SRDO_STOPPED);
+    co_srdo_fail(&fx->sp, CO_SRDO_APPLICATION);
     assert_int_equal(co_srdo_state(&fx->sp), CO_SRDO_SAFE);
+    assert_int_equal(co_srdo_violation(&fx->sp), CO_SRDO_APPLICATION);
     co_line_set_time(fx->p, 0);
     co_srdo_set_nmt_state(&fx->sp, CO_NMT_OPERATIONAL);
     (void)co_line_process(fx->p, 0);

@@ -60,7 +60,8 @@ typedef enum co_srdo_violation {
     CO_SRDO_CRC_MISMATCH = 8,        /* 0x13FF's signature is not the configuration's CRC */
     CO_SRDO_BAD_PARAMETER = 9,       /* a 0x1301+n / 0x1381+n value out of range */
     CO_SRDO_GFC = 10,                /* a global fail-safe command (co_srdo_fail) */
-    CO_SRDO_TX_FAILED = 11           /* a producer's frame found the tx queue full */
+    CO_SRDO_TX_FAILED = 11,          /* a producer's frame found the tx queue full */
+    CO_SRDO_APPLICATION = 12         /* the application's own reason (co_srdo_fail) */
 } co_srdo_violation_t;
 
 typedef struct co_srdo_stats {
@@ -154,7 +155,8 @@ bool co_srdo_set_data(co_srdo_t *srdo, const uint8_t *data, size_t length);
  * bytes room) and returns their length while RUNNING; 0 when the data are
  * not valid (nothing checked yet, stopped or safe). */
 size_t co_srdo_data(const co_srdo_t *srdo, uint8_t *out);
-/* Enter the safe state now (a GFC, or the application's own reason). */
+/* Enter the safe state now (a GFC, or CO_SRDO_APPLICATION); CO_SRDO_NONE
+ * is no reason and changes nothing. */
 void co_srdo_fail(co_srdo_t *srdo, co_srdo_violation_t why);
 /* Leave the safe state: start again as on entering operational. */
 void co_srdo_restart(co_srdo_t *srdo);
