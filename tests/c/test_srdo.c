@@ -260,18 +260,23 @@ static void test_srvt_exceeded_without_inverted(void **state)
     assert_safe(fx, CO_SRDO_SRVT_EXCEEDED, 10 * TU_MS + SRVT_MS * TU_MS + 1);
 }
 
+/* A frame that waited in the consumer's rx queue and is handled at `at`
+ * (rx runs before the timers in a line's turn). */
+static void deliver_late(fx_t *fx, uint32_t id, const uint8_t *data, uint64_t at)
+{
+    co_frame_t f = tu_frame(id, 0, data, 4);
+    assert_true(co_line_receive(fx->c, &f));
+    fx->tb.now = at;
+    (void)co_line_process(fx->c, at);
+}
+
 static void test_late_inverted_judged_on_arrival(void **state)
 {
     fx_t *fx = *state;
-    co_frame_t n = tu_frame(NORMAL, 0, good, 4), i = tu_frame(INVERTED, 0, good_inv, 4);
     co_line_set_time(fx->c, 0);
     co_srdo_set_nmt_state(&fx->sc, CO_NMT_OPERATIONAL);
-    assert_true(co_line_receive(fx->c, &n));
-    (void)co_line_process(fx->c, 1 * TU_MS);
-    /* the inverted frame waited in the rx queue: rx runs before the timers */
-    assert_true(co_line_receive(fx->c, &i));
-    fx->tb.now = 1 * TU_MS + SRVT_MS * TU_MS + 1;
-    (void)co_line_process(fx->c, fx->tb.now);
+    deliver_late(fx, NORMAL, good, 1 * TU_MS);
+    deliver_late(fx, INVERTED, good_inv, 1 * TU_MS + SRVT_MS * TU_MS + 1);
     assert_safe(fx, CO_SRDO_SRVT_EXCEEDED, fx->tb.now);
 }
 
@@ -326,12 +331,9 @@ static void test_sct_exceeded_without_first_pair(void **state)
 static void test_late_normal_judged_on_arrival(void **state)
 {
     fx_t *fx = *state;
-    co_frame_t n = tu_frame(NORMAL, 0, good, 4);
     co_line_set_time(fx->c, 0);
     co_srdo_set_nmt_state(&fx->sc, CO_NMT_OPERATIONAL);
-    assert_true(co_line_receive(fx->c, &n));
-    fx->tb.now = CONSUMER_SCT_MS * TU_MS + 1;
-    (void)co_line_process(fx->c, fx->tb.now);
+    deliver_late(fx, NORMAL, good, CONSUMER_SCT_MS * TU_MS + 1);
     assert_safe(fx, CO_SRDO_SCT_EXCEEDED, fx->tb.now);
 }
 

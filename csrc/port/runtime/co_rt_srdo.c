@@ -36,15 +36,22 @@ int co_rt_srdo_start(co_rt_t *rt, int line, uint8_t count)
     return CO_RT_OK;
 }
 
-/* The SRDO under rt->lock, or NULL (lock released, error set). */
-static co_srdo_t *locked_srdo(co_rt_t *rt, rt_line_t *l, int line, uint8_t number)
+/* The SRDO under rt->lock, or NULL with *status set (no lock held, error
+ * text set). */
+static co_srdo_t *locked_srdo(co_rt_t *rt, int line, uint8_t number, int *status)
 {
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    *status = l ? CO_RT_ERR_STATE : CO_RT_ERR_ARGUMENT;
+    if (!l) {
+        return NULL;
+    }
     rt_mutex_lock(&rt->lock);
     co_srdo_t *srdo = co_stack_srdo(&l->stack, number);
     if (!srdo) {
+        unsigned count = l->stack.srdo_count;
         rt_mutex_unlock(&rt->lock);
         rt_set_error(rt, "line %d: SRDO %u does not run (co_rt_srdo_start: 1..%u)", line,
-                     number, l->stack.srdo_count);
+                     number, count);
     } else {
         co_line_set_time(&l->line, co_rt_now_us());
     }
@@ -71,8 +78,7 @@ static const char *param_text(co_srdo_param_t p)
 int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_config_t *config,
                          uint8_t valid, uint16_t signature)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l || !config) {
+    if (!config) {
         return CO_RT_ERR_ARGUMENT;
     }
     co_srdo_param_t param = co_srdo_check(config, NULL);
@@ -81,9 +87,10 @@ int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_co
                                  (param >= CO_SRDO_PARAM_MAP_COUNT ? 0x1380u : 0x1300u) + number,
                                  param_text(param));
     }
-    co_srdo_t *srdo = locked_srdo(rt, l, line, number);
+    int status;
+    co_srdo_t *srdo = locked_srdo(rt, line, number, &status);
     if (!srdo) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     bool done = co_srdo_configure(srdo, config, valid, signature);
     rt_mutex_unlock(&rt->lock);
@@ -99,13 +106,13 @@ int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_co
 int co_rt_srdo_set_data(co_rt_t *rt, int line, uint8_t number, const uint8_t *data,
                         size_t length)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l || (!data && length)) {
+    if (!data && length) {
         return CO_RT_ERR_ARGUMENT;
     }
-    co_srdo_t *srdo = locked_srdo(rt, l, line, number);
+    int status;
+    co_srdo_t *srdo = locked_srdo(rt, line, number, &status);
     if (!srdo) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     bool done = co_srdo_set_data(srdo, data, length);
     uint8_t want = srdo->length;
@@ -122,13 +129,13 @@ int co_rt_srdo_set_data(co_rt_t *rt, int line, uint8_t number, const uint8_t *da
 
 int co_rt_srdo_read(co_rt_t *rt, int line, uint8_t number, co_rt_srdo_status_t *out)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l || !out) {
+    if (!out) {
         return CO_RT_ERR_ARGUMENT;
     }
-    co_srdo_t *srdo = locked_srdo(rt, l, line, number);
+    int status;
+    co_srdo_t *srdo = locked_srdo(rt, line, number, &status);
     if (!srdo) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     memset(out, 0, sizeof *out);
     out->state = (int)co_srdo_state(srdo);
@@ -141,21 +148,24 @@ int co_rt_srdo_read(co_rt_t *rt, int line, uint8_t number, co_rt_srdo_status_t *
 
 int co_rt_srdo_restart(co_rt_t *rt, int line, uint8_t number)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    co_srdo_t *srdo = locked_srdo(rt, l, line, number);
+    int status;
+    co_srdo_t *srdo = locked_srdo(rt, line, number, &status);
     if (!srdo) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     co_srdo_restart(srdo);
     return rt_kick_unlock(rt, CO_RT_OK);
 }
 
-/* The GFC under rt->lock, or NULL (lock released, error set). */
-static co_gfc_t *locked_gfc(co_rt_t *rt, rt_line_t *l, int line)
+/* The GFC under rt->lock, or NULL with *status set (no lock held, error
+ * text set). */
+static co_gfc_t *locked_gfc(co_rt_t *rt, int line, int *status)
 {
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    *status = l ? CO_RT_ERR_STATE : CO_RT_ERR_ARGUMENT;
+    if (!l) {
+        return NULL;
+    }
     rt_mutex_lock(&rt->lock);
     co_gfc_t *gfc = co_stack_gfc(&l->stack);
     if (!gfc) {
@@ -169,13 +179,10 @@ static co_gfc_t *locked_gfc(co_rt_t *rt, rt_line_t *l, int line)
 
 int co_rt_gfc_enable(co_rt_t *rt, int line, bool on)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    co_gfc_t *gfc = locked_gfc(rt, l, line);
+    int status;
+    co_gfc_t *gfc = locked_gfc(rt, line, &status);
     if (!gfc) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     bool done = co_gfc_set_enabled(gfc, on);
     rt_mutex_unlock(&rt->lock);
@@ -188,13 +195,10 @@ int co_rt_gfc_enable(co_rt_t *rt, int line, bool on)
 
 int co_rt_gfc_send(co_rt_t *rt, int line)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l) {
-        return CO_RT_ERR_ARGUMENT;
-    }
-    co_gfc_t *gfc = locked_gfc(rt, l, line);
+    int status;
+    co_gfc_t *gfc = locked_gfc(rt, line, &status);
     if (!gfc) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     if (!co_gfc_send(gfc)) {
         rt_set_error(rt, "line %d: GFC not sent: %s", line,
@@ -206,13 +210,13 @@ int co_rt_gfc_send(co_rt_t *rt, int line)
 
 int co_rt_gfc_stats(co_rt_t *rt, int line, co_gfc_stats_t *out)
 {
-    rt_line_t *l = rt_checked_line(rt, line, false);
-    if (!l || !out) {
+    if (!out) {
         return CO_RT_ERR_ARGUMENT;
     }
-    co_gfc_t *gfc = locked_gfc(rt, l, line);
+    int status;
+    co_gfc_t *gfc = locked_gfc(rt, line, &status);
     if (!gfc) {
-        return CO_RT_ERR_STATE;
+        return status;
     }
     *out = gfc->stats;
     rt_mutex_unlock(&rt->lock);
