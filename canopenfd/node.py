@@ -81,7 +81,7 @@ class LocalNode:
         self.flying_master = FlyingMaster(context, where)
         self._leds = LocalLeds(context, self, where)
         #: SRDOs and GFC (CiA 304): start(count) first.
-        self.srdo = SrdoService(context, where)
+        self.srdo = SrdoService(context, where, self._entry_value)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
         self.lss = LssSlave(context, node_id, where)
         self.lss.add_configured_hook(self._lss_configured)
@@ -95,6 +95,21 @@ class LocalNode:
 
     def __repr__(self) -> str:
         return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
+
+    def _entry_value(self, index: int, sub: int) -> int:
+        """An integer entry of the OD this node serves (KeyError: none)."""
+        if self.od is None:
+            raise KeyError(f"0x{index:04X} sub {sub} (the node serves no OD)")
+        try:
+            value = self[(index, sub)]
+        except KeyError:
+            raise KeyError(f"0x{index:04X} sub {sub}") from None
+        if not isinstance(value, LocalValue):
+            raise KeyError(f"0x{index:04X} sub {sub}")
+        raw = value.raw
+        if not isinstance(raw, int):
+            raise KeyError(f"0x{index:04X} sub {sub} is not an integer")
+        return raw
 
     def _lss_configured(self, node_id: int) -> None:
         """LSS gave the node node_id (created unconfigured, or its pending one at a

@@ -14,7 +14,8 @@ import pytest
 
 from canopenfd import ConfigurationError
 from canopenfd.services.srdo import (CONFIG_VALID, GFC_COB_ID, SrdoConfig, SrdoNotice,
-                                     SrdoState, SrdoViolation, srdo_signature)
+                                     SrdoState, SrdoViolation, srdo_config_writes,
+                                     srdo_signature, write_srdo_config)
 from helpers import Recorder, scaled
 
 PRODUCER, CONSUMER = 5, 6
@@ -189,3 +190,76 @@ def test_wrong_use_is_refused_with_a_clear_error(pair):
     with pytest.raises(Exception, match="node is operational"):
         pair.c.srdo.configure(1, CONSUME)
     assert CONFIG_VALID == 0xA5
+
+
+def srdo_od():
+    """A safety device's SRDO objects (SRDO 1, 0x13FE, 0x13FF) on the demo OD."""
+    from canopenfd.od import DataType, ODArray, ODRecord, ODVariable, demo_od
+    U8, U16, U32 = DataType.UNSIGNED8, DataType.UNSIGNED16, DataType.UNSIGNED32
+    od = demo_od("classic")
+    comm = ODRecord("SRDO 1 communication parameter", 0x1301)
+    comm.add_member(ODVariable("Highest sub-index supported", 0x1301, 0, U8, "ro", 6))
+    for sub, name, dtype in ((1, "Direction", U8), (2, "SCT", U16), (3, "SRVT", U8),
+                             (4, "Transmission type", U8), (5, "COB-ID 1", U32),
+                             (6, "COB-ID 2", U32)):
+        comm.add_member(ODVariable(name, 0x1301, sub, dtype, "rw", 0))
+    od.add_object(comm)
+    mapping = ODArray("SRDO 1 mapping parameter", 0x1381)
+    mapping.add_member(ODVariable("Number of mapped objects", 0x1381, 0, U8, "rw", 0))
+    for sub in range(1, 17):
+        mapping.add_member(ODVariable(f"Mapped object {sub}", 0x1381, sub, U32, "rw", 0))
+    od.add_object(mapping)
+    od.add_object(ODVariable("Configuration valid", 0x13FE, 0, U8, "rw", 0))
+    signature = ODArray("Safety configuration signature", 0x13FF)
+    signature.add_member(ODVariable("Highest sub-index supported", 0x13FF, 0, U8, "ro", 1))
+    signature.add_member(ODVariable("Signature of SRDO 1", 0x13FF, 1, U16, "rw", 0))
+    od.add_object(signature)
+    return od
+
+
+def test_config_writes_are_in_order_with_signature_and_valid_flag_last():
+    writes = srdo_config_writes(1, CONSUME)
+    assert writes == [
+        (0x1301, 1, b"\x00"), (0x1381, 0, b"\x00"),
+        (0x1381, 1, struct.pack("<I", MAPPING[0])), (0x1381, 2, struct.pack("<I", MAPPING[1])),
+        (0x1381, 0, b"\x02"), (0x1301, 2, struct.pack("<H", 200)), (0x1301, 3, b"\x64"),
+        (0x1301, 4, b"\xfe"), (0x1301, 5, struct.pack("<I", NORMAL)),
+        (0x1301, 6, struct.pack("<I", NORMAL + 1)), (0x1301, 1, b"\x02"),
+        (0x13FF, 1, struct.pack("<H", srdo_signature(CONSUME))), (0x13FE, 0, b"\xa5")]
+    with pytest.raises(ConfigurationError, match="SRDO number must be 1..64"):
+        srdo_config_writes(65, CONSUME)
+
+
+def test_a_tool_writes_the_configuration_and_the_device_runs_it(net, bus_name):
+    device = net.open_line(bus_name, mode="classic").create_local_node(CONSUMER, od=srdo_od())
+    tool = net.open_line(bus_name, mode="classic")
+    remote = tool.add_node(CONSUMER)
+    signature = write_srdo_config(remote, 1, CONSUME)
+    assert device[(0x13FF, 1)].raw == signature == srdo_signature(CONSUME)
+    assert device[(0x13FE, 0)].raw == CONFIG_VALID
+    device.srdo.start(1)
+    assert device.srdo.configure_from_od(1) == CONSUME._replace(mapping=MAPPING)
+    device.apply("start")
+    device.wait_for_state("OPERATIONAL")
+    tool.send_frame(NORMAL, DATA)
+    tool.send_frame(NORMAL + 1, inverted(DATA))
+    deadline = time.monotonic() + scaled(3.0)
+    while device.srdo.read(1).data != DATA:
+        assert time.monotonic() < deadline, device.srdo.read(1)
+        time.sleep(0.005)
+    # a signature that no longer matches keeps the SRDO from running
+    device.apply("pre-operational")
+    device.wait_for_state("PRE-OPERATIONAL")
+    device[(0x1301, 3)].raw = 99
+    device.srdo.configure_from_od(1)
+    notices = Recorder()
+    device.srdo.add_callback(notices)
+    device.apply("start")
+    notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.CRC_MISMATCH) in calls, 3.0,
+                     "CRC mismatch")
+
+
+def test_configure_from_od_without_the_objects_is_refused(pair):
+    pair.c.srdo.start(1)
+    with pytest.raises(ConfigurationError, match="lacks an SRDO object"):
+        pair.c.srdo.configure_from_od(1)

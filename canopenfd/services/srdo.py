@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import binascii
 import struct
-from typing import Callable, Dict, NamedTuple, Optional, Sequence
+from typing import Callable, Dict, List, NamedTuple, Optional, Protocol, Sequence, Tuple
 
 from .._binding.constants import EventKind, SrdoState, SrdoViolation
 from .._binding.context import Deferred, LineContext
@@ -27,13 +27,20 @@ from .._callbacks import CallbackList
 from ..errors import ConfigurationError
 
 __all__ = ["SrdoConfig", "SrdoNotice", "SrdoService", "SrdoState", "SrdoStatus",
-           "SrdoViolation", "srdo_signature", "CONFIG_VALID", "GFC_COB_ID"]
+           "SrdoViolation", "srdo_signature", "srdo_config_writes", "write_srdo_config",
+           "CONFIG_VALID", "GFC_COB_ID", "COMMUNICATION_BASE", "MAPPING_BASE", "VALID_INDEX",
+           "SIGNATURE_INDEX", "GFC_INDEX"]
 
 #: 0x13FE: the value that declares the SRDO configuration valid.
 CONFIG_VALID = 0xA5
 #: The GFC's CAN-ID (one frame, no data).
 GFC_COB_ID = 0x001
+#: SRDO n's objects: 0x1300 + n (communication), 0x1380 + n (mapping); 0x13FE
+#: configuration valid, 0x13FF sub n signature, 0x1300 the GFC parameter.
+COMMUNICATION_BASE, MAPPING_BASE = 0x1300, 0x1380
+VALID_INDEX, SIGNATURE_INDEX, GFC_INDEX = 0x13FE, 0x13FF, 0x1300
 _DIRECTIONS = {"off": 0, "produce": 1, "consume": 2}
+_DIRECTION_NAMES = {code: name for name, code in _DIRECTIONS.items()}
 _TRANSMISSION_TYPE = 254
 
 
@@ -104,12 +111,55 @@ def srdo_signature(config: SrdoConfig) -> int:
     return binascii.crc_hqx(data, 0)
 
 
+def srdo_config_writes(number: int, config: SrdoConfig, *, valid: int = CONFIG_VALID
+                       ) -> List[Tuple[int, int, bytes]]:
+    """The (index, sub, bytes) writes that give a device's SRDO `number` this
+    configuration, in an order a CiA 304 device takes: the SRDO switched off
+    and its mapping emptied first (a device may refuse mapping changes
+    otherwise), the entries, the count, the timing and COB-IDs, the direction,
+    then the signature (0x13FF) and last the valid flag (0x13FE)."""
+    where = f"srdo_config_writes({number!r})"
+    if isinstance(number, bool) or not isinstance(number, int) or not 1 <= number <= 64:
+        raise ConfigurationError(f"{where}: SRDO number must be 1..64, got {number!r}")
+    fields = _fields(config, where)
+    comm, mapping = COMMUNICATION_BASE + number, MAPPING_BASE + number
+    writes = [(comm, 1, b"\x00"), (mapping, 0, b"\x00")]
+    writes += [(mapping, sub, struct.pack("<I", entry))
+               for sub, entry in enumerate(config.mapping, start=1)]
+    writes += [(mapping, 0, bytes([len(config.mapping)])),
+               (comm, 2, struct.pack("<H", config.sct_ms)), (comm, 3, bytes([config.srvt_ms])),
+               (comm, 4, bytes([fields["transmission_type"]])),
+               (comm, 5, struct.pack("<I", config.cob_id)),
+               (comm, 6, struct.pack("<I", config.cob_id + 1)),
+               (comm, 1, bytes([fields["direction"]])),
+               (SIGNATURE_INDEX, number, struct.pack("<H", srdo_signature(config))),
+               (VALID_INDEX, 0, bytes([valid]))]
+    return writes
+
+
+class EntryWriter(Protocol):
+    """What write_srdo_config writes through: a RemoteNode (SDO / USDO)."""
+
+    def write(self, key: Tuple[int, int], value: bytes) -> None: ...
+
+
+def write_srdo_config(node: EntryWriter, number: int, config: SrdoConfig, *,
+                      valid: int = CONFIG_VALID) -> int:
+    """Write SRDO `number`'s configuration, its signature and the valid flag
+    to a device (srdo_config_writes, in order); returns the signature."""
+    for index, sub, data in srdo_config_writes(number, config, valid=valid):
+        node.write((index, sub), data)
+    return srdo_signature(config)
+
+
 class SrdoService:
     """The SRDOs and the GFC of our local node (`node.srdo`)."""
 
-    def __init__(self, context: LineContext, where: str) -> None:
+    def __init__(self, context: LineContext, where: str,
+                 read_entry: Callable[[int, int], int]) -> None:
         self._context = context
         self._where = where
+        self._read_entry = read_entry      # the local node's OD value at (index, sub)
         self._count = 0
         self._configs: Dict[int, SrdoConfig] = {}
         self._callbacks = CallbackList(f"{where} SRDO")
@@ -157,6 +207,34 @@ class SrdoService:
                                              list(config.mapping), valid, signature, where)
         self._configs[number] = config
         return signature
+
+    def configure_from_od(self, number: int) -> SrdoConfig:
+        """Give SRDO `number` the configuration its objects in the node's own
+        OD hold (0x1300 + n, 0x1380 + n, 0x13FE, 0x13FF sub n: written by a
+        configuration tool, see write_srdo_config), as configure() takes it;
+        returns that configuration. The OD must have these objects."""
+        where = self._call_where(f"configure_from_od({number!r})")
+        self._number(number, where)
+        comm, mapping = COMMUNICATION_BASE + number, MAPPING_BASE + number
+        try:
+            direction = self._read_entry(comm, 1)
+            config = SrdoConfig(_DIRECTION_NAMES.get(direction, str(direction)),
+                                sct_ms=self._read_entry(comm, 2),
+                                srvt_ms=self._read_entry(comm, 3),
+                                cob_id=self._read_entry(comm, 5),
+                                mapping=tuple(self._read_entry(mapping, sub) for sub in
+                                              range(1, self._read_entry(mapping, 0) + 1)))
+            valid = self._read_entry(VALID_INDEX, 0)
+            signature = self._read_entry(SIGNATURE_INDEX, number)
+            inverted = self._read_entry(comm, 6)
+        except KeyError as missing:
+            raise ConfigurationError(f"{where}: the node's OD lacks an SRDO object: "
+                                     f"{missing}") from None
+        if inverted != config.cob_id + 1:
+            raise ConfigurationError(f"{where}: 0x{comm:04X} sub 6 (inverted COB-ID) must be "
+                                     f"sub 5 + 1 = 0x{config.cob_id + 1:X}, got 0x{inverted:X}")
+        self.configure(number, config, valid=valid, signature=signature)
+        return config
 
     # ------------------------------------------------------------ data
     def set_data(self, number: int, data: bytes) -> None:
