@@ -31,6 +31,17 @@ def inverted(data: bytes) -> bytes:
     return bytes(b ^ 0xFF for b in data)
 
 
+def wait_srdo(node, accept, what, timeout=3.0):
+    """Poll SRDO 1 of node until accept(status) holds; its status then."""
+    deadline = time.monotonic() + scaled(timeout)
+    while True:
+        status = node.srdo.read(1)
+        if accept(status):
+            return status
+        assert time.monotonic() < deadline, f"SRDO 1 stayed {status} (waited for {what})"
+        time.sleep(0.005)
+
+
 class Pair:
     """Producer node 5 (line p), consumer node 6 (line c), tool line t, monitor."""
 
@@ -49,14 +60,8 @@ class Pair:
         self.c.apply("start")
         self.c.wait_for_state("OPERATIONAL")
 
-    def wait_status(self, node, state, timeout=3.0):
-        deadline = time.monotonic() + scaled(timeout)
-        while True:
-            status = node.srdo.read(1)
-            if status.state == state:
-                return status
-            assert time.monotonic() < deadline, f"SRDO stayed {status} (waited for {state!r})"
-            time.sleep(0.005)
+    def wait_status(self, node, state):
+        return wait_srdo(node, lambda status: status.state == state, repr(state))
 
     def wait_notice(self, violation):
         return self.notices.wait_for(lambda calls: SrdoNotice(1, violation) in calls, 3.0,
@@ -96,10 +101,7 @@ def test_producer_pair_bytes_and_consumer_data(pair):
     assert status.data == DATA
     assert status.violation == SrdoViolation.NONE
     pair.p.srdo.set_data(1, b"\x00\xff\xa5\x01")
-    deadline = time.monotonic() + scaled(3.0)
-    while pair.c.srdo.read(1).data != b"\x00\xff\xa5\x01":
-        assert time.monotonic() < deadline, "the new data never arrived"
-        time.sleep(0.005)
+    wait_srdo(pair.c, lambda status: status.data == b"\x00\xff\xa5\x01", "the new data")
     assert pair.p.srdo.read(1).stats["pairs_sent"] >= 3
     assert len(pair.notices) == 0
 
@@ -118,10 +120,7 @@ def test_corrupted_inverted_frame_ends_in_the_safe_state(pair):
     # nothing wedges: the line still serves, later pairs are counted and ignored
     pair.t.send_frame(NORMAL, DATA)
     pair.t.send_frame(NORMAL + 1, inverted(DATA))
-    deadline = time.monotonic() + scaled(3.0)
-    while pair.c.srdo.read(1).stats["ignored"] < 2:
-        assert time.monotonic() < deadline
-        time.sleep(0.005)
+    wait_srdo(pair.c, lambda status: status.stats["ignored"] >= 2, "2 ignored frames")
     pair.c.srdo.restart(1)
     pair.t.send_frame(NORMAL, DATA)
     pair.t.send_frame(NORMAL + 1, inverted(DATA))
@@ -243,10 +242,7 @@ def test_a_tool_writes_the_configuration_and_the_device_runs_it(net, bus_name):
     device.wait_for_state("OPERATIONAL")
     tool.send_frame(NORMAL, DATA)
     tool.send_frame(NORMAL + 1, inverted(DATA))
-    deadline = time.monotonic() + scaled(3.0)
-    while device.srdo.read(1).data != DATA:
-        assert time.monotonic() < deadline, device.srdo.read(1)
-        time.sleep(0.005)
+    wait_srdo(device, lambda status: status.data == DATA, "the tool's pair")
     # a signature that no longer matches keeps the SRDO from running
     device.apply("pre-operational")
     device.wait_for_state("PRE-OPERATIONAL")
