@@ -48,6 +48,8 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_manager.h",
     "csrc/include/canopenfd/co_sleep.h",
     "csrc/include/canopenfd/co_flyma.h",
+    "csrc/include/canopenfd/co_srdo.h",
+    "csrc/include/canopenfd/co_gfc.h",
     "csrc/include/canopenfd/co_gateway.h",
     "csrc/include/canopenfd/co_cia401.h",
     "csrc/include/canopenfd/co_runtime.h",

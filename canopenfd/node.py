@@ -26,6 +26,7 @@ from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtComma
                            NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
 from .services.served_od import Key, LocalObject, LocalValue, ServedDictionary
+from .services.srdo import SrdoService
 from .services.store import STORE_STATUS, StoreMedium, ParameterStore
 from .services.store_groups import GroupTable
 from .od.fileio import Source
@@ -84,6 +85,8 @@ class LocalNode:
         #: Flying master (CiA 302-2): start() once the node booted.
         self.flying_master = FlyingMaster(context, where)
         self._leds = LocalLeds(context, self, where)
+        #: SRDOs and GFC (CiA 304): start(count) first.
+        self.srdo = SrdoService(context, where, self._entry_value)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
         self.lss = LssSlave(context, node_id, where)
         self.lss.add_configured_hook(self._renumbered)
@@ -98,6 +101,21 @@ class LocalNode:
 
     def __repr__(self) -> str:
         return f"<LocalNode {self.node_id} on {self.line.channel!r}>"
+
+    def _entry_value(self, index: int, sub: int) -> int:
+        """An integer entry of the OD this node serves (KeyError: none)."""
+        if self.od is None:
+            raise KeyError(f"0x{index:04X} sub {sub} (the node serves no OD)")
+        try:
+            value = self[(index, sub)]
+        except KeyError:
+            raise KeyError(f"0x{index:04X} sub {sub}") from None
+        if not isinstance(value, LocalValue):
+            raise KeyError(f"0x{index:04X} sub {sub}")
+        raw = value.raw
+        if not isinstance(raw, int):
+            raise KeyError(f"0x{index:04X} sub {sub} is not an integer")
+        return raw
 
     def _renumbered(self, node_id: int) -> None:
         """LSS gave the node node_id (created unconfigured, or its pending one at a

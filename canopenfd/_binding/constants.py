@@ -35,7 +35,7 @@ __all__ = [
     "OdOrigin", "ParameterGroup", "RtStatus", "SleepAction", "SleepCause", "SleepEvent",
     "SleepPhase", "StoreStatus", "BootError", "BootEvent", "BootStep", "ManagerEventCode",
     "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
-    "LedPattern", "LedWhich", "LedCause",
+    "LedPattern", "LedWhich", "LedCause", "SrdoState", "SrdoViolation",
 ]
 
 
@@ -105,6 +105,12 @@ SleepCause = _c_enum("SleepCause", "CO_SLEEP_BY_", "co_sleep_cause_t",
                      doc="What woke a node (co_sleep_cause_t).")
 SleepAction = _c_enum("SleepAction", "CO_RT_SLEEP_", "co_rt_sleep_action_t",
                       doc="What the application asks of the sleep service (co_rt_sleep_action_t).")
+
+# ---------------------------------------------------------------- SRDO (CiA 304)
+SrdoState = _c_enum("SrdoState", "CO_SRDO_", "co_srdo_state_t",
+                    doc="What an SRDO does now (co_srdo_state_t).")
+SrdoViolation = _c_enum("SrdoViolation", "CO_SRDO_", "co_srdo_violation_t",
+                        doc="Why an SRDO entered the safe state (co_srdo_violation_t).")
 
 # ---------------------------------------------------------------- flying master
 FlymaState = _c_enum("FlymaState", "CO_FLYMA_", "co_flyma_state_t",

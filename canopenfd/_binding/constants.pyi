@@ -50,6 +50,8 @@ __all__ = [
     "LedPattern",
     "LedWhich",
     "LedCause",
+    "SrdoState",
+    "SrdoViolation",
 ]
 
 _NOT_IN_CDEF: Dict[str, Tuple[str, Dict[str, int]]]
@@ -186,6 +188,7 @@ class EventKind(enum.IntEnum):
     FLYMA = 25
     GATEWAY = 26
     STORE_PERSIST = 27
+    SRDO = 28
 
 
 class FrameFlag(enum.IntEnum):
@@ -499,3 +502,28 @@ class LedCause(enum.IntEnum):
     SYNC = 8
     EVENT_TIMER = 16
     CONFIG = 32
+
+
+class SrdoState(enum.IntEnum):
+    """What an SRDO does now (co_srdo_state_t)."""
+    STOPPED = 0
+    WAITING = 1
+    RUNNING = 2
+    SAFE = 3
+
+
+class SrdoViolation(enum.IntEnum):
+    """Why an SRDO entered the safe state (co_srdo_violation_t)."""
+    NONE = 0
+    INVERTED_MISMATCH = 1
+    SRVT_EXCEEDED = 2
+    SCT_EXCEEDED = 3
+    WRONG_LENGTH = 4
+    INVERTED_MISSING = 5
+    INVERTED_UNEXPECTED = 6
+    CONFIG_INVALID = 7
+    CRC_MISMATCH = 8
+    BAD_PARAMETER = 9
+    GFC = 10
+    TX_FAILED = 11
+    APPLICATION = 12

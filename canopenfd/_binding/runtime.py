@@ -670,6 +670,44 @@ class Runtime:
     def time_send(self, line: int, unix_us: int, what: str) -> None:
         self._call(what, lib.co_rt_time_send, line, unix_us)
 
+    # ---------------------------------------------------------------- SRDO and GFC
+    def srdo_start(self, line: int, count: int, what: str) -> None:
+        self._call(what, lib.co_rt_srdo_start, line, count)
+
+    def srdo_configure(self, line: int, number: int, fields: Mapping[str, int],
+                       mapping: Sequence[int], valid: int, signature: int, what: str) -> None:
+        config = ffi.new("co_srdo_config_t *")
+        for name, value in fields.items():
+            setattr(config, name, value)
+        config.map_count = len(mapping)
+        for i, entry in enumerate(mapping):
+            config.map[i] = entry
+        self._call(what, lib.co_rt_srdo_configure, line, number, config, valid, signature)
+
+    def srdo_set_data(self, line: int, number: int, data: bytes, what: str) -> None:
+        self._call(what, lib.co_rt_srdo_set_data, line, number, data, len(data))
+
+    def srdo_read(self, line: int, number: int, what: str) -> Tuple[int, int, bytes, Dict[str, int]]:
+        """(state, violation, valid data (b'' when not valid), counters)."""
+        out = ffi.new("co_rt_srdo_status_t *")
+        self._call(what, lib.co_rt_srdo_read, line, number, out)
+        stats = {name: getattr(out.stats, name) for name, _ in ffi.typeof("co_srdo_stats_t").fields}
+        return out.state, out.violation, bytes(out.data[0:out.length]), stats
+
+    def srdo_restart(self, line: int, number: int, what: str) -> None:
+        self._call(what, lib.co_rt_srdo_restart, line, number)
+
+    def gfc_enable(self, line: int, on: bool, what: str) -> None:
+        self._call(what, lib.co_rt_gfc_enable, line, on)
+
+    def gfc_send(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_gfc_send, line)
+
+    def gfc_stats(self, line: int, what: str) -> Dict[str, int]:
+        out = ffi.new("co_gfc_stats_t *")
+        self._call(what, lib.co_rt_gfc_stats, line, out)
+        return {name: getattr(out, name) for name, _ in ffi.typeof("co_gfc_stats_t").fields}
+
     def sleep_start(self, line: int, master: bool, check_ms: int, prepare_ms: int,
                     silent_ms: int, wake_repeat_ms: int, objection: int, what: str) -> None:
         config = ffi.new("co_rt_sleep_config_t *")

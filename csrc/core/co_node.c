@@ -28,6 +28,9 @@ static void services_set_state(co_node_t *node, co_nmt_state_t state)
     if (s->led) {
         co_led_set_nmt_state(s->led, state);
     }
+    for (uint8_t i = 0; i < s->srdo_count; i++) {
+        co_srdo_set_nmt_state(&s->srdo[i], state);
+    }
 }
 
 static void on_state_changed(co_nmt_t *nmt, co_nmt_state_t old_state,
@@ -417,6 +420,15 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
 void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma)
 {
     node->services.flyma = flyma;
+}
+
+void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count)
+{
+    node->services.srdo = srdo;
+    node->services.srdo_count = srdo ? count : 0;
+    for (uint8_t i = 0; i < node->services.srdo_count; i++) {
+        co_srdo_set_nmt_state(&srdo[i], node->nmt.state);
+    }
 }
 
 /* Resets reload what the OD now says; the errors the node detected start

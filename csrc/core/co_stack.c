@@ -6,7 +6,7 @@
 
 #include <string.h>
 
-enum { OWNER_LINE = 0, OWNER_NODE = 1, OWNER_CLIENT = 2, OWNER_MANAGER = 3 };
+enum { OWNER_LINE = 0, OWNER_NODE = 1, OWNER_CLIENT = 2, OWNER_MANAGER = 3, OWNER_SRDO = 4 };
 
 /* ---------------------------------------------------------------- arena */
 
@@ -421,6 +421,7 @@ static bool od_has(const co_stack_t *s, uint16_t index)
 static void node_undo(co_stack_t *s)
 {
     co_stack_manager_deinit(s);   /* it runs over the node */
+    co_stack_srdo_deinit(s);   /* they run for the node */
     co_stack_flyma_deinit(s);   /* it runs for the node */
     if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
         co_stack_client_deinit(s);   /* bound to the node's OD */
@@ -1250,6 +1251,68 @@ void co_stack_manager_deinit(co_stack_t *stack)
     give_back(stack, OWNER_MANAGER);
 }
 
+/* ---------------------------------------------------------------- SRDO and GFC */
+
+static void on_srdo_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
+{
+    co_stack_t *s = user;
+    if (s->srdo_ind) {
+        s->srdo_ind(srdo, why, s->srdo_user);
+    }
+}
+
+/* A GFC puts every SRDO of the node in the safe state at once. */
+static void on_gfc(co_gfc_t *gfc, void *user)
+{
+    (void)gfc;
+    co_stack_t *s = user;
+    for (uint8_t i = 0; i < s->srdo_count; i++) {
+        co_srdo_fail(&s->srdo[i], CO_SRDO_GFC);
+    }
+}
+
+co_stack_status_t co_stack_srdo_init(co_stack_t *stack, uint8_t count, co_srdo_fn on_safe,
+                                     void *user)
+{
+    if (!stack || !stack->line || count == 0 || count > 64) {
+        return CO_STACK_ERR_ARGUMENT;
+    }
+    if (!stack->has_node || stack->has_srdo) {
+        return fail(stack, CO_STACK_PART_SRDO, CO_STACK_ERR_STATE);
+    }
+    co_srdo_t *srdo = take(stack, OWNER_SRDO, sizeof *srdo * count);
+    if (!srdo) {
+        return fail(stack, CO_STACK_PART_SRDO, CO_STACK_ERR_NO_MEMORY);
+    }
+    stack->srdo = srdo;
+    stack->srdo_count = count;
+    stack->srdo_ind = on_safe;
+    stack->srdo_user = user;
+    for (uint8_t i = 0; i < count; i++) {
+        co_srdo_init(&srdo[i], stack->line, on_srdo_safe, stack);
+    }
+    co_gfc_init(&stack->gfc, stack->line, on_gfc, stack);
+    co_node_attach_srdo(&stack->node, srdo, count);
+    stack->has_srdo = true;
+    return CO_STACK_OK;
+}
+
+void co_stack_srdo_deinit(co_stack_t *stack)
+{
+    if (!stack || !stack->has_srdo) {
+        return;
+    }
+    co_node_attach_srdo(&stack->node, NULL, 0);
+    co_gfc_deinit(&stack->gfc);
+    for (uint8_t i = 0; i < stack->srdo_count; i++) {
+        co_srdo_deinit(&stack->srdo[i]);
+    }
+    stack->has_srdo = false;
+    stack->srdo = NULL;
+    stack->srdo_count = 0;
+    give_back(stack, OWNER_SRDO);
+}
+
 /* ---------------------------------------------------------------- all */
 
 void co_stack_deinit(co_stack_t *stack)
@@ -1290,6 +1353,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_SLEEP: return "sleep and wake-up";
     case CO_STACK_PART_FLYMA: return "flying master";
     case CO_STACK_PART_LED: return "LED indicators";
+    case CO_STACK_PART_SRDO: return "SRDO and GFC";
     }
     return "unknown part";
 }

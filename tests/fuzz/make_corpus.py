@@ -391,6 +391,33 @@ def gateway_seeds():
     return seeds
 
 
+def srdo_seeds():
+    """fuzz_srdo.c: byte 0 bit 0 = classic; actions by number (p): even p acts on
+    the consumer, odd on the producer; (p >> 1) % 7 = nmt, configure, data,
+    restart, gfc on/off, gfc send, fail."""
+    def frame(p, data):
+        return bytes([p << 3, 0, len(data)]) + data
+
+    def time(ms):
+        return bytes([ms << 3 | 2])
+
+    def act(p, *args):
+        return bytes([p << 3 | 3]) + bytes(args)
+
+    good = bytes([0x12, 0x34, 0x56, 0x78])
+    inv = bytes(b ^ 0xFF for b in good)
+    mapping = bytes([0x20, 0x20] + [0] * 14)
+    return {
+        "pairs": b"\x01" + act(0, 1) + act(1, 1) + time(20) + time(20) + time(20),
+        "inject": b"\x01" + act(0, 1) + frame(0, good) + time(1) + frame(1, inv) + time(10)
+        + frame(0, good) + frame(1, inv[:3] + b"\0") + time(5),
+        "gfc": b"\x00" + act(0, 1) + act(8, 1) + act(9, 1) + act(11) + time(3) + act(6)
+        + time(2),
+        "config": b"\x01" + act(2, 0x3F, 0, 0, 0, 2) + mapping + bytes([1, 0xA5, 1, 0])
+        + act(0, 1) + time(16),
+    }
+
+
 def main():
     for h in ("usdo_server", "sdo_server"):
         write(h, {k: v.b for k, v in server_seeds(h, h.startswith("sdo")).items()})
@@ -402,6 +429,7 @@ def main():
     write("store", store_seeds())
     write("concise_dcf", concise_dcf_seeds())
     write("gateway", {k: v.b for k, v in gateway_seeds().items()})
+    write("srdo", srdo_seeds())
 
 
 if __name__ == "__main__":

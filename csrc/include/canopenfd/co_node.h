@@ -14,6 +14,7 @@
 #include "canopenfd/co_led.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
+#include "canopenfd/co_srdo.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -60,6 +61,9 @@ typedef struct co_node_services {
      * tracks (bus-off, warning, heartbeat/guarding lost, SYNC and RPDO
      * deadline errors); may be NULL. */
     co_led_t *led;
+    /* SRDOs (CiA 304): run only in operational (co_node_attach_srdo). */
+    co_srdo_t *srdo;
+    uint8_t srdo_count;
 } co_node_services_t;
 
 enum {
@@ -126,6 +130,9 @@ void co_node_boot(co_node_t *node);
 void co_node_attach_services(co_node_t *node, const co_node_services_t *services);
 /* The flying master the node runs (NULL: none); every reset starts it over. */
 void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma);
+/* The node's SRDOs (count of them, NULL/0: none), told the NMT state now and
+ * at every change. */
+void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count);
 /* Errors the stack detects outside the node's services, told by the
  * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and
  * 0x1029:01), and the line's communication events (bus-off 0x8140 with

@@ -21,6 +21,8 @@
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sleep.h"
+#include "canopenfd/co_srdo.h"
+#include "canopenfd/co_gfc.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
 #include "canopenfd/co_usdo_server.h"
@@ -142,9 +144,12 @@ typedef enum co_rt_event_kind {
     CO_EV_GATEWAY = 26,        /* gateway between the lines (co_rt_gateway_join): node =
                                   network, a = co_gateway_event_t, b = abort code; posted
                                   on the first joined line */
-    CO_EV_STORE_PERSIST = 27   /* an autonomous save staged an image of the application
+    CO_EV_STORE_PERSIST = 27,  /* an autonomous save staged an image of the application
                                   store: persist it (co_rt_store_staged, then
                                   co_rt_store_finish) */
+    CO_EV_SRDO = 28            /* an SRDO of the local node entered the safe state
+                                  (co_rt_srdo_start): node = SRDO number,
+                                  a = co_srdo_violation_t */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -763,6 +768,31 @@ int co_rt_gateway_stats(co_rt_t *rt, co_gateway_stats_t *out);
 /* SDO networking into classic networks: segmented transfers with the two
  * hops overlapped (on, the default) or every frame relayed (off). */
 int co_rt_gateway_sdo_buffering(co_rt_t *rt, bool on);
+
+/* ---- SRDOs and GFC of the local node (CiA 304; co_rt_srdo.c) */
+/* What co_rt_srdo_read reports of one SRDO. */
+typedef struct co_rt_srdo_status {
+    int state;                 /* co_srdo_state_t */
+    int violation;             /* co_srdo_violation_t, why it is safe */
+    uint8_t length;            /* valid data bytes (0: not valid) */
+    uint8_t data[8];
+    co_srdo_stats_t stats;
+} co_rt_srdo_status_t;
+/* count SRDOs (1..64) and the GFC for the line's node; CO_EV_SRDO tells
+ * every safe-state entry. */
+int co_rt_srdo_start(co_rt_t *rt, int line, uint8_t count);
+/* SRDO number (1..count): its 0x1301+n / 0x1381+n values, the 0x13FE value
+ * and its 0x13FF signature; refused while the node is operational. */
+int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_config_t *config,
+                         uint8_t valid, uint16_t signature);
+int co_rt_srdo_set_data(co_rt_t *rt, int line, uint8_t number, const uint8_t *data,
+                        size_t length);
+int co_rt_srdo_read(co_rt_t *rt, int line, uint8_t number, co_rt_srdo_status_t *out);
+int co_rt_srdo_restart(co_rt_t *rt, int line, uint8_t number);
+/* 0x1300 (on: send and hear GFCs), and send one GFC. */
+int co_rt_gfc_enable(co_rt_t *rt, int line, bool on);
+int co_rt_gfc_send(co_rt_t *rt, int line);
+int co_rt_gfc_stats(co_rt_t *rt, int line, co_gfc_stats_t *out);
 /* cffi:end */
 
 #endif

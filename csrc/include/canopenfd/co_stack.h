@@ -40,6 +40,8 @@
 #include "canopenfd/co_sdo_client.h"
 #include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sleep.h"
+#include "canopenfd/co_srdo.h"
+#include "canopenfd/co_gfc.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -89,7 +91,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_LED = 14,      /* CiA 303-3 indicators */
     CO_STACK_PART_MANAGER = 16,  /* CiA 302-2 network manager (co_manager) */
     CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
-    CO_STACK_PART_FLYMA = 18     /* flying master (CiA 302-2) */
+    CO_STACK_PART_FLYMA = 18,    /* flying master (CiA 302-2) */
+    CO_STACK_PART_SRDO = 19      /* SRDOs and GFC (CiA 304) */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -305,6 +308,13 @@ struct co_stack {
     /* the node's indicators */
     bool has_led;
     co_led_t led;
+    /* SRDOs and the GFC of the node (CiA 304) */
+    bool has_srdo;
+    co_srdo_t *srdo;
+    uint8_t srdo_count;
+    co_gfc_t gfc;
+    co_srdo_fn srdo_ind;             /* the application's safe-state indication */
+    void *srdo_user;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -366,6 +376,14 @@ typedef struct co_stack_flyma_config {
 } co_stack_flyma_config_t;
 co_stack_status_t co_stack_flyma_init(co_stack_t *stack, const co_stack_flyma_config_t *config);
 void co_stack_flyma_deinit(co_stack_t *stack);
+/* count SRDOs (1..64, off until co_srdo_configure) and the GFC (off until
+ * co_gfc_set_enabled) of the local node: they follow the
+ * node's NMT state, a GFC received puts every SRDO in the safe state, and
+ * on_safe (may be NULL) hears every safe-state entry. They go when the node
+ * goes. CO_STACK_ERR_STATE without a node or when they run already. */
+co_stack_status_t co_stack_srdo_init(co_stack_t *stack, uint8_t count, co_srdo_fn on_safe,
+                                     void *user);
+void co_stack_srdo_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -431,6 +449,12 @@ static inline co_manager_t *co_stack_manager(co_stack_t *s)
 static inline co_sleep_t *co_stack_sleep(co_stack_t *s) { return s->has_sleep ? &s->sleep : NULL; }
 static inline co_flyma_t *co_stack_flyma(co_stack_t *s) { return s->has_flyma ? &s->flyma : NULL; }
 static inline co_led_t *co_stack_led(co_stack_t *s) { return s->has_led ? &s->led : NULL; }
+/* SRDO number 1..srdo_count, NULL otherwise or when they do not run. */
+static inline co_srdo_t *co_stack_srdo(co_stack_t *s, uint8_t number)
+{
+    return s->has_srdo && number >= 1 && number <= s->srdo_count ? &s->srdo[number - 1] : NULL;
+}
+static inline co_gfc_t *co_stack_gfc(co_stack_t *s) { return s->has_srdo ? &s->gfc : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */

@@ -12,7 +12,7 @@
  *   co_rt_node.c     the local node: creation, its OD hooks, NMT/heartbeat view
  *   co_rt_od.c, co_rt_store.c, co_rt_client.c        OD access, app store, clients
  *   co_rt_emcy.c, co_rt_pdo.c, co_rt_sync.c, co_rt_time.c, co_rt_guard.c,
- *   co_rt_sleep.c
+ *   co_rt_sleep.c, co_rt_srdo.c
  *                    one service's runtime glue each (its state: rt_<service>_t)
  *   co_rt_stats.c    counter snapshots
  * The OS itself is reached through co_rt_os.h only (../posix, ../windows).

@@ -1,0 +1,354 @@
+/* SRDO producer and consumer (see co_srdo.h). */
+#include "canopenfd/co_srdo.h"
+
+#include "co_crc.h"
+
+#include <string.h>
+
+#define US_PER_MS 1000u
+
+/* ------------------------------------------------------ configuration */
+
+static uint16_t crc_le(uint16_t crc, uint32_t value, size_t bytes)
+{
+    uint8_t b[4];
+    for (size_t i = 0; i < bytes; i++) {
+        b[i] = (uint8_t)(value >> (8u * i));
+    }
+    return co_crc16_ccitt(crc, b, bytes);
+}
+
+uint16_t co_srdo_crc(const co_srdo_config_t *config)
+{
+    uint16_t crc = crc_le(0, config->direction, 1);
+    crc = crc_le(crc, config->sct_ms, 2);
+    crc = crc_le(crc, config->srvt_ms, 1);
+    crc = crc_le(crc, config->cob_id_normal, 4);
+    crc = crc_le(crc, config->cob_id_inverted, 4);
+    crc = crc_le(crc, config->map_count, 1);
+    uint8_t count = config->map_count <= CO_SRDO_MAX_MAPPED ? config->map_count
+                                                            : CO_SRDO_MAX_MAPPED;
+    for (uint8_t i = 0; i < count; i++) {
+        crc = crc_le(crc, (uint32_t)i + 1u, 1);
+        crc = crc_le(crc, config->map[i], 4);
+    }
+    return crc;
+}
+
+/* Odd sub-indices map the normal frame, even ones the inverted frame: both
+ * halves must be whole bytes and add up to the same 1..8 bytes. */
+static co_srdo_param_t check_mapping(const co_srdo_config_t *config, uint8_t *length)
+{
+    if (config->map_count == 0 || config->map_count > CO_SRDO_MAX_MAPPED ||
+        (config->map_count & 1u) != 0) {
+        return CO_SRDO_PARAM_MAP_COUNT;
+    }
+    unsigned bytes[2] = {0, 0};
+    for (uint8_t i = 0; i < config->map_count; i++) {
+        uint8_t bits = (uint8_t)config->map[i];
+        if (bits == 0 || (bits & 7u) != 0) {
+            return CO_SRDO_PARAM_MAP_LENGTH;
+        }
+        bytes[i & 1u] += bits / 8u;
+    }
+    if (bytes[0] != bytes[1] || bytes[0] > CO_SRDO_MAX_DATA) {
+        return CO_SRDO_PARAM_MAP_LENGTH;
+    }
+    if (length) {
+        *length = (uint8_t)bytes[0];
+    }
+    return CO_SRDO_PARAM_OK;
+}
+
+co_srdo_param_t co_srdo_check(const co_srdo_config_t *config, uint8_t *length)
+{
+    if (length) {
+        *length = 0;
+    }
+    if (config->direction > CO_SRDO_CONSUME) {
+        return CO_SRDO_PARAM_DIRECTION;
+    }
+    if (config->direction == CO_SRDO_OFF) {
+        return CO_SRDO_PARAM_OK;
+    }
+    if (config->sct_ms == 0) {
+        return CO_SRDO_PARAM_SCT;
+    }
+    if (config->srvt_ms == 0) {
+        return CO_SRDO_PARAM_SRVT;
+    }
+    if (config->transmission_type != CO_SRDO_TRANSMISSION_TYPE) {
+        return CO_SRDO_PARAM_TRANSMISSION_TYPE;
+    }
+    uint32_t normal = config->cob_id_normal;
+    if (normal < CO_SRDO_COB_ID_FIRST || normal >= CO_SRDO_COB_ID_LAST || (normal & 1u) == 0) {
+        return CO_SRDO_PARAM_COB_ID_NORMAL;
+    }
+    if (config->cob_id_inverted != normal + 1u) {
+        return CO_SRDO_PARAM_COB_ID_INVERTED;
+    }
+    return check_mapping(config, length);
+}
+
+const char *co_srdo_violation_name(co_srdo_violation_t why)
+{
+    switch (why) {
+    case CO_SRDO_NONE: return "none";
+    case CO_SRDO_INVERTED_MISMATCH: return "inverted frame does not match";
+    case CO_SRDO_SRVT_EXCEEDED: return "SRVT exceeded";
+    case CO_SRDO_SCT_EXCEEDED: return "SCT exceeded";
+    case CO_SRDO_WRONG_LENGTH: return "wrong length";
+    case CO_SRDO_INVERTED_MISSING: return "inverted frame missing";
+    case CO_SRDO_INVERTED_UNEXPECTED: return "inverted frame without normal frame";
+    case CO_SRDO_CONFIG_INVALID: return "configuration not valid (0x13FE)";
+    case CO_SRDO_CRC_MISMATCH: return "configuration CRC mismatch (0x13FF)";
+    case CO_SRDO_BAD_PARAMETER: return "parameter out of range";
+    case CO_SRDO_GFC: return "global fail-safe command";
+    case CO_SRDO_TX_FAILED: return "tx queue full";
+    case CO_SRDO_APPLICATION: return "the application's reason";
+    }
+    return "unknown";
+}
+
+/* ------------------------------------------------------------ running */
+
+static bool running(const co_srdo_t *s)
+{
+    return s->state == CO_SRDO_WAITING || s->state == CO_SRDO_RUNNING;
+}
+
+static void stop_timers(co_srdo_t *s)
+{
+    co_timer_cancel(co_line_timers(s->line), &s->cycle_timer);
+    co_timer_cancel(co_line_timers(s->line), &s->srvt_timer);
+    s->inverted_due = false;
+}
+
+void co_srdo_fail(co_srdo_t *srdo, co_srdo_violation_t why)
+{
+    if (srdo->state == CO_SRDO_SAFE || why == CO_SRDO_NONE) {
+        return;   /* latched: the first cause is the one reported */
+    }
+    stop_timers(srdo);
+    srdo->state = CO_SRDO_SAFE;
+    srdo->violation = why;
+    srdo->stats.violations++;
+    if (srdo->on_safe) {
+        srdo->on_safe(srdo, why, srdo->user);
+    }
+}
+
+static void send_pair(co_srdo_t *s)
+{
+    uint8_t inverted[CO_SRDO_MAX_DATA];
+    for (uint8_t i = 0; i < s->length; i++) {
+        inverted[i] = (uint8_t)(~s->data[i]);
+    }
+    /* Both frames queued together: the inverted one follows at once, well
+     * within any SRVT, and the line keeps their order. */
+    if (co_line_tx_room(s->line) < 2 ||
+        !co_line_send(s->line, s->config.cob_id_normal, s->data, s->length) ||
+        !co_line_send(s->line, s->config.cob_id_inverted, inverted, s->length)) {
+        co_srdo_fail(s, CO_SRDO_TX_FAILED);
+        return;
+    }
+    s->stats.pairs_sent++;
+    s->state = CO_SRDO_RUNNING;
+}
+
+static void on_cycle(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    (void)now_us;
+    co_srdo_t *s = user;
+    if (s->config.direction == CO_SRDO_CONSUME) {
+        co_srdo_fail(s, CO_SRDO_SCT_EXCEEDED);
+        return;
+    }
+    send_pair(s);
+    if (running(s)) {
+        co_timer_start(co_line_timers(s->line), timer,
+                       timer->deadline_us + (uint64_t)s->config.sct_ms * US_PER_MS);
+    }
+}
+
+static void on_srvt(co_timer_t *timer, uint64_t now_us, void *user)
+{
+    (void)timer;
+    (void)now_us;
+    co_srdo_fail(user, CO_SRDO_SRVT_EXCEEDED);
+}
+
+static void arm_sct(co_srdo_t *s, uint64_t from_us)
+{
+    s->sct_deadline_us = from_us + (uint64_t)s->config.sct_ms * US_PER_MS;
+    /* a frame at the deadline itself is in time: the timer fires just after */
+    co_timer_start(co_line_timers(s->line), &s->cycle_timer, s->sct_deadline_us + 1u);
+}
+
+static void on_normal(co_srdo_t *s, const co_frame_t *frame, uint64_t now)
+{
+    /* rx runs before the timers in a line's turn: late frames are judged here */
+    if (now > s->sct_deadline_us) {
+        co_srdo_fail(s, CO_SRDO_SCT_EXCEEDED);
+    } else if (s->inverted_due) {
+        co_srdo_fail(s, CO_SRDO_INVERTED_MISSING);
+    } else if (frame->len != s->length) {
+        co_srdo_fail(s, CO_SRDO_WRONG_LENGTH);
+    } else {
+        memcpy(s->normal, frame->data, s->length);
+        s->inverted_due = true;
+        s->normal_at_us = now;
+        co_timer_start(co_line_timers(s->line), &s->srvt_timer,
+                       now + (uint64_t)s->config.srvt_ms * US_PER_MS + 1u);
+        arm_sct(s, now);
+    }
+}
+
+static void on_inverted(co_srdo_t *s, const co_frame_t *frame, uint64_t now)
+{
+    if (!s->inverted_due) {
+        co_srdo_fail(s, CO_SRDO_INVERTED_UNEXPECTED);
+        return;
+    }
+    if (now > s->normal_at_us + (uint64_t)s->config.srvt_ms * US_PER_MS) {
+        co_srdo_fail(s, CO_SRDO_SRVT_EXCEEDED);
+        return;
+    }
+    if (frame->len != s->length) {
+        co_srdo_fail(s, CO_SRDO_WRONG_LENGTH);
+        return;
+    }
+    for (uint8_t i = 0; i < s->length; i++) {
+        if ((s->normal[i] ^ frame->data[i]) != 0xFFu) {
+            co_srdo_fail(s, CO_SRDO_INVERTED_MISMATCH);
+            return;
+        }
+    }
+    co_timer_cancel(co_line_timers(s->line), &s->srvt_timer);
+    s->inverted_due = false;
+    memcpy(s->data, s->normal, s->length);
+    s->state = CO_SRDO_RUNNING;
+    s->stats.pairs_valid++;
+}
+
+static void on_frame(co_line_t *line, const co_frame_t *frame, void *user)
+{
+    co_srdo_t *s = user;
+    if (!running(s)) {
+        s->stats.ignored++;
+        return;
+    }
+    uint64_t now = co_line_now(line);
+    if (frame->id == s->config.cob_id_normal) {
+        on_normal(s, frame, now);
+    } else {
+        on_inverted(s, frame, now);
+    }
+}
+
+/* Entry into operational, or a restart. */
+static void start(co_srdo_t *s)
+{
+    stop_timers(s);
+    s->violation = CO_SRDO_NONE;
+    if (!s->operational || s->config.direction == CO_SRDO_OFF) {
+        s->state = CO_SRDO_STOPPED;
+        return;
+    }
+    s->state = CO_SRDO_WAITING;
+    if (s->config_fault != CO_SRDO_NONE) {
+        co_srdo_fail(s, s->config_fault);
+        return;
+    }
+    uint64_t now = co_line_now(s->line);
+    if (s->config.direction == CO_SRDO_PRODUCE) {
+        co_timer_start(co_line_timers(s->line), &s->cycle_timer, now);
+    } else {
+        arm_sct(s, now);
+    }
+}
+
+void co_srdo_init(co_srdo_t *srdo, co_line_t *line, co_srdo_fn on_safe, void *user)
+{
+    memset(srdo, 0, sizeof *srdo);
+    srdo->line = line;
+    srdo->on_safe = on_safe;
+    srdo->user = user;
+    co_timer_init(&srdo->cycle_timer, on_cycle, srdo);
+    co_timer_init(&srdo->srvt_timer, on_srvt, srdo);
+}
+
+static void unsubscribe(co_srdo_t *s)
+{
+    if (s->subscribed) {
+        co_line_unsubscribe(s->line, on_frame, s);
+        s->subscribed = false;
+    }
+}
+
+void co_srdo_deinit(co_srdo_t *srdo)
+{
+    stop_timers(srdo);
+    unsubscribe(srdo);
+    srdo->state = CO_SRDO_STOPPED;
+}
+
+bool co_srdo_configure(co_srdo_t *srdo, const co_srdo_config_t *config, uint8_t valid,
+                       uint16_t signature)
+{
+    if (srdo->operational) {
+        return false;
+    }
+    unsubscribe(srdo);
+    srdo->config = *config;
+    srdo->param_error = co_srdo_check(config, &srdo->length);
+    srdo->config_fault = valid != CO_SRDO_CONFIG_VALID              ? CO_SRDO_CONFIG_INVALID
+                         : srdo->param_error != CO_SRDO_PARAM_OK    ? CO_SRDO_BAD_PARAMETER
+                         : co_srdo_crc(config) != signature         ? CO_SRDO_CRC_MISMATCH
+                                                                    : CO_SRDO_NONE;
+    memset(srdo->data, 0, sizeof srdo->data);
+    srdo->state = CO_SRDO_STOPPED;
+    srdo->violation = CO_SRDO_NONE;
+    if (config->direction == CO_SRDO_CONSUME && srdo->param_error == CO_SRDO_PARAM_OK) {
+        if (!co_line_subscribe(srdo->line, config->cob_id_normal, config->cob_id_inverted,
+                               on_frame, srdo)) {
+            return false;
+        }
+        srdo->subscribed = true;
+    }
+    return true;
+}
+
+void co_srdo_set_nmt_state(co_srdo_t *srdo, co_nmt_state_t state)
+{
+    bool operational = state == CO_NMT_OPERATIONAL;
+    if (operational == srdo->operational) {
+        return;
+    }
+    srdo->operational = operational;
+    start(srdo);
+}
+
+bool co_srdo_set_data(co_srdo_t *srdo, const uint8_t *data, size_t length)
+{
+    if (srdo->config.direction != CO_SRDO_PRODUCE || srdo->param_error != CO_SRDO_PARAM_OK ||
+        length != srdo->length) {
+        return false;
+    }
+    memcpy(srdo->data, data, length);
+    return true;
+}
+
+size_t co_srdo_data(const co_srdo_t *srdo, uint8_t *out)
+{
+    if (srdo->state != CO_SRDO_RUNNING || srdo->config.direction != CO_SRDO_CONSUME) {
+        return 0;
+    }
+    memcpy(out, srdo->data, srdo->length);
+    return srdo->length;
+}
+
+void co_srdo_restart(co_srdo_t *srdo)
+{
+    start(srdo);
+}
