@@ -49,6 +49,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_sleep.h",
     "csrc/include/canopenfd/co_flyma.h",
     "csrc/include/canopenfd/co_gateway.h",
+    "csrc/include/canopenfd/co_redundancy.h",
     "csrc/include/canopenfd/co_runtime.h",
 ]
 # Public headers: csrc/include/canopenfd (included as "canopenfd/co_x.h"); the

@@ -50,6 +50,7 @@ __all__ = [
     "LedPattern",
     "LedWhich",
     "LedCause",
+    "RedundancyEvent",
 ]
 
 _NOT_IN_CDEF: Dict[str, Tuple[str, Dict[str, int]]]
@@ -186,6 +187,7 @@ class EventKind(enum.IntEnum):
     FLYMA = 25
     GATEWAY = 26
     STORE_PERSIST = 27
+    REDUNDANCY = 28
 
 
 class FrameFlag(enum.IntEnum):
@@ -499,3 +501,9 @@ class LedCause(enum.IntEnum):
     SYNC = 8
     EVENT_TIMER = 16
     CONFIG = 32
+
+
+class RedundancyEvent(enum.IntEnum):
+    """What bus redundancy reports (co_rdn_event_t)."""
+    BUS_SWITCH = 1
+    NO_MASTER = 2

@@ -59,20 +59,7 @@ static void fx_free(rdn_fx_t *fx)
     free(fx);
 }
 
-/* Run the line up to ms, stopping at every deadline on the way as a driver
- * does, so each timer fires at its own time. */
-static void run_line_to(co_line_t *line, uint64_t ms)
-{
-    uint64_t until = ms * TU_MS;
-    uint64_t next = co_timer_list_next(co_line_timers(line));
-    while (next < until) {
-        co_line_process(line, next);
-        next = co_timer_list_next(co_line_timers(line));
-    }
-    co_line_process(line, until);
-}
-
-static void at_ms(rdn_fx_t *fx, uint64_t ms) { run_line_to(&fx->tl.line, ms); }
+static void at_ms(rdn_fx_t *fx, uint64_t ms) { tu_line_run_until(&fx->tl.line, ms * TU_MS); }
 
 /* ---------------------------------------------------------------- checks */
 
@@ -411,7 +398,7 @@ static void master_heartbeat_on(two_bus_t *tb, uint8_t bus)
 
 static void drive_to(two_bus_t *tb, uint64_t ms)
 {
-    run_line_to(&tb->fx->tl.line, ms);
+    tu_line_run_until(&tb->fx->tl.line, ms * TU_MS);
     co_frame_t f;
     while (co_line_tx_pop(&tb->fx->tl.line, &f)) {
         uint8_t bus = co_rdn_active_bus(&tb->fx->rdn);

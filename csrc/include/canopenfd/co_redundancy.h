@@ -34,10 +34,12 @@ typedef enum co_rdn_role {
     CO_RDN_MASTER = 1                 /* decides the bus (co_rdn_master_select) */
 } co_rdn_role_t;
 
+/* cffi:begin */
 typedef enum co_rdn_event {
     CO_RDN_EV_BUS_SWITCH = 1,         /* the active bus changed; bus = the new one */
     CO_RDN_EV_NO_MASTER = 2           /* a slave gave up after Ntoggle switches; bus = where it stays */
 } co_rdn_event_t;
+/* cffi:end */
 
 typedef enum co_rdn_result {
     CO_RDN_OK = 0,

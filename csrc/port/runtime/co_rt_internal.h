@@ -32,6 +32,7 @@
 #include "canopenfd/co_usdo_server.h"
 #include "canopenfd/co_store_file.h"
 #include "canopenfd/co_membus.h"
+#include "canopenfd/co_redundancy.h"
 #include "canopenfd/co_socketcan.h"
 
 #include "co_rt_os.h"
@@ -208,6 +209,12 @@ typedef struct rt_lss {
     bool store_by_app;
     uint32_t bit_timings;            /* bit n: table 0 index n accepted */
 } rt_lss_t;
+/* Bus redundancy glue (co_rt_redundancy.c): the two in-process buses. */
+typedef struct rt_redundancy {
+    bool on;
+    co_rdn_t rdn;
+    struct rt_bus *bus[2];
+} rt_redundancy_t;
 /* Sleep and wake-up glue (co_rt_sleep.c). */
 typedef struct rt_sleep {
     uint8_t objection;                       /* the device's answer to a query */
@@ -258,6 +265,7 @@ typedef struct rt_line {
     rt_rpdo_out_t rpdo_out[RT_RPDO_PRODUCERS];
     rt_sync_t sync;
     rt_sleep_t sleep;
+    rt_redundancy_t redundancy;
     rt_socket_t sc;
     rt_host_t host;
     rt_led_t led;
@@ -457,6 +465,10 @@ int rt_gateway_rebuild(co_rt_t *rt);
 /* ---------------------------------------------------------------- drivers */
 /* co_rt_membus.c: under rt->lock, join (or create) the line's named bus. */
 int rt_membus_join(co_rt_t *rt, rt_line_t *l);
+/* co_rt_membus.c: under rt->lock, the bus named name (created when new). */
+int rt_membus_bus(co_rt_t *rt, const char *name, co_mode_t mode, rt_bus_t **out);
+/* co_rt_redundancy.c: the heartbeat consumer's events of the redundancy master. */
+void rt_redundancy_on_heartbeat(rt_line_t *l, uint8_t node_id, co_hb_event_t event);
 /* Move the frames of every bus; returns how many moved. */
 uint32_t rt_membus_transfer(co_rt_t *rt);
 void rt_membus_free_all(co_rt_t *rt);
