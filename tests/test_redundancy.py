@@ -77,6 +77,19 @@ def test_slave_follows_the_master_to_bus_b(net, buses):
     assert slave.redundancy.object["Ctoggle"] == 0
     assert _heartbeats(on_a, 2, mark_a) == [] and _heartbeats(on_a, 1, mark_a) == []
 
+    # reset communication (sent by the master on B): the slave restarts on its
+    # default bus A (told as a switch), its boot-up goes out there, and it
+    # finds the master on B again after Ttoggle periods
+    mark_a, mark_b = len(on_a), len(on_b)
+    master.nmt.reset_communication(2)
+    back = notices.wait_for(lambda c: c[1:], scaled(3), "switch back to A")
+    assert back[0] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "A", 0)
+    on_a.wait_for(lambda c: [f for f in c[mark_a:] if f.id == 0x702 and f.data[0] == 0],
+                  scaled(3), "boot-up of node 2 on A")
+    assert slave.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+    assert notices.snapshot()[2] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1)
+    assert b"\x00" not in _heartbeats(on_b, 2, mark_b)
+
 
 def test_slave_without_master_gives_up(net, buses):
     a, b, on_a, on_b = buses

@@ -121,9 +121,13 @@ void co_rdn_deinit(co_rdn_t *rdn)
 
 void co_rdn_start(co_rdn_t *rdn)
 {
+    uint8_t was = rdn->active;
     co_timer_cancel(co_line_timers(rdn->line), &rdn->toggle_timer);
     rdn->ctoggle = 0;
     use_bus(rdn, rdn->config.bdefault);
+    /* A reset that takes the node off the bus it was on is a switch too. */
+    if (was != rdn->active)
+        tell(rdn, CO_RDN_EV_BUS_SWITCH);
     if (may_switch(rdn))
         arm_after_periods(rdn, rdn->config.ttoggle);
 }

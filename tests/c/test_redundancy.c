@@ -227,6 +227,31 @@ static void test_gives_up_on_other_bus_updates_bdefault(void **state)
     fx_free(fx);
 }
 
+/* A reset (start again) after following the master to B: back on
+ * Bdefault, told as a switch, counting from 0 again. */
+static void test_restart_returns_to_bdefault(void **state)
+{
+    (void)state;
+    co_rdn_config_t c = slave_config();
+    rdn_fx_t *fx = fx_new(&c);
+    at_ms(fx, 0);
+    co_rdn_start(&fx->rdn);
+    assert_int_equal(fx->event_count, 0);   /* the first start leaves nothing */
+    at_ms(fx, TTOGGLE * PERIOD_MS);
+    co_rdn_master_heard(&fx->rdn);         /* found on B */
+    assert_int_equal(co_rdn_active_bus(&fx->rdn), CO_RDN_BUS_B);
+    at_ms(fx, 1000);
+    co_rdn_start(&fx->rdn);
+    assert_int_equal(co_rdn_active_bus(&fx->rdn), CO_RDN_BUS_A);
+    assert_int_equal(fx->event_count, 2);
+    assert_int_equal(fx->events[1], CO_RDN_EV_BUS_SWITCH);
+    assert_int_equal(fx->event_bus[1], CO_RDN_BUS_A);
+    assert_int_equal(co_rdn_read(&fx->rdn, CO_RDN_SUB_CTOGGLE), 0);
+    at_ms(fx, 1000 + TTOGGLE * PERIOD_MS);   /* silent on A: back to B after Ttoggle */
+    assert_int_equal(co_rdn_active_bus(&fx->rdn), CO_RDN_BUS_B);
+    fx_free(fx);
+}
+
 /* The master heard between switches: counting stops, Ctoggle back to 0;
  * lost again, the full Ntoggle switches are available again. */
 static void test_master_heard_resets_counting(void **state)
@@ -482,6 +507,7 @@ int main(void)
         cmocka_unit_test(test_lost_switches_after_remaining_periods),
         cmocka_unit_test(test_repeats_then_gives_up),
         cmocka_unit_test(test_gives_up_on_other_bus_updates_bdefault),
+        cmocka_unit_test(test_restart_returns_to_bdefault),
         cmocka_unit_test(test_master_heard_resets_counting),
         cmocka_unit_test(test_ttoggle_zero_never_switches),
         cmocka_unit_test(test_ttoggle_one_switches_at_lost),

@@ -91,8 +91,9 @@ const char *co_rdn_result_text(co_rdn_result_t result);
 bool co_rdn_init(co_rdn_t *rdn, co_line_t *line, const co_rdn_config_t *config,
                  co_rdn_select_fn select, co_rdn_event_fn on_event, void *user);
 void co_rdn_deinit(co_rdn_t *rdn);
-/* At boot and each communication reset: select Bdefault, Ctoggle 0; a slave
- * that may switch starts counting at once (the master may never be heard). */
+/* At boot and each communication reset: select Bdefault (a BUS_SWITCH event
+ * when that leaves the bus in use), Ctoggle 0; a slave that may switch
+ * starts counting at once (the master may never be heard). */
 void co_rdn_start(co_rdn_t *rdn);
 /* The heartbeat consumer's STARTED for the master (its heartbeat arrived
  * after none or after LOST): a slave stops counting and Ctoggle returns to 0. */

@@ -36,6 +36,13 @@ void rt_redundancy_on_heartbeat(rt_line_t *l, uint8_t node_id, co_hb_event_t eve
     }
 }
 
+void rt_redundancy_on_reset(rt_line_t *l)
+{
+    if (l->redundancy.on) {
+        co_rdn_start(&l->redundancy.rdn);
+    }
+}
+
 static int check_start(co_rt_t *rt, int line, rt_line_t *l, const co_rt_redundancy_config_t *c,
                        const co_rdn_config_t *rc)
 {
