@@ -121,7 +121,7 @@ def test_errors_name_the_problem(net, buses):
         line.redundancy.active_bus
     with pytest.raises(ConfigurationError, match="role must be 'master' or 'slave'"):
         line.redundancy.start(b, "boss")
-    with pytest.raises(ConfigurationError, match="'mem:NAME'"):
+    with pytest.raises(ConfigurationError, match="in-process line must be 'mem:NAME'"):
         line.redundancy.start("vcan1", "master")
     with pytest.raises(ConfigurationError, match="bus must be 'A'"):
         line.redundancy.start(b, "master", default="C")

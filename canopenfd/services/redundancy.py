@@ -1,6 +1,7 @@
 """Bus redundancy (the ECSS-E-ST-50-15C scheme CiA 302-6 stands for):
-`line.redundancy`. An in-process line runs on two buses, its own (A) and a
-redundant one (B), and uses one at a time.
+`line.redundancy`. A line runs on two buses, its own (A) and a redundant one
+(B), and uses one at a time: an in-process line ('mem:NAME') with another
+in-process bus, a SocketCAN line with another interface ('vcan1', 'can1').
 
     line.redundancy.start("mem:busB", "slave", master=1, period=0.1,
                           ttoggle=3, ntoggle=4)     # follow node 1's heartbeat
@@ -72,17 +73,23 @@ class BusRedundancy:
     def start(self, redundant: str, role: str = "slave", *, master: int = 0,
               period: float = 0.0, default: str = "A", ttoggle: int = 0,
               ntoggle: int = 1) -> None:
-        """Run on the line's own bus (A) and `redundant` ('mem:NAME', B),
-        starting on `default`. A slave follows node `master`'s heartbeat
+        """Run on the line's own bus (A) and `redundant` (B: 'mem:NAME' for an
+        in-process line, an interface name for a SocketCAN line), starting on
+        `default`. A slave follows node `master`'s heartbeat
         (its period in s); ttoggle: periods without it before a switch
         (0: never switch); ntoggle: switches before it stays (1..255)."""
         where = self._where(f"start({redundant!r}, {role!r})")
         if role not in _ROLES:
             raise ConfigurationError(f"{where}: role must be 'master' or 'slave', got {role!r}")
-        if not isinstance(redundant, str) or not redundant.startswith("mem:") or \
-                len(redundant) == 4:
-            raise ConfigurationError(f"{where}: the redundant bus must be 'mem:NAME', "
-                                     f"got {redundant!r}")
+        in_process = self._context.channel.startswith("mem:")
+        if in_process and (not isinstance(redundant, str) or not redundant.startswith("mem:")
+                           or len(redundant) == 4):
+            raise ConfigurationError(f"{where}: the redundant bus of an in-process line must "
+                                     f"be 'mem:NAME', got {redundant!r}")
+        if not in_process and (not isinstance(redundant, str) or not redundant.strip()
+                               or redundant.startswith("mem:")):
+            raise ConfigurationError(f"{where}: the redundant bus of a SocketCAN line must be "
+                                     f"an interface name, got {redundant!r}")
         values = {"bdefault": _bus(default, where),
                   "ttoggle": _count(ttoggle, "ttoggle", 0, where),
                   "ntoggle": _count(ntoggle, "ntoggle", 1, where)}
@@ -96,7 +103,8 @@ class BusRedundancy:
                 raise ConfigurationError(f"{where}: period must be the master's heartbeat "
                                          f"period in s, 0.001..65.535, got {period!r}")
             values.update(master_id=master, master_period_ms=max(1, round(period * 1000)))
-        self._context.runtime.redundancy_start(self._context.index, redundant[4:],
+        self._context.runtime.redundancy_start(self._context.index,
+                                               redundant[4:] if in_process else redundant,
                                                role == "master", values, where)
         self._role = role
         self._bus = default

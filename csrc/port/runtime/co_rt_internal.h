@@ -209,11 +209,13 @@ typedef struct rt_lss {
     bool store_by_app;
     uint32_t bit_timings;            /* bit n: table 0 index n accepted */
 } rt_lss_t;
-/* Bus redundancy glue (co_rt_redundancy.c): the two in-process buses. */
+/* Bus redundancy glue (co_rt_redundancy.c): the two buses, in-process
+ * buses or SocketCAN interfaces. */
 typedef struct rt_redundancy {
     bool on;
     co_rdn_t rdn;
-    struct rt_bus *bus[2];
+    struct rt_bus *bus[2];                   /* mem: lines */
+    char iface[2][RT_CHANNEL_SIZE];          /* SocketCAN lines */
 } rt_redundancy_t;
 /* Sleep and wake-up glue (co_rt_sleep.c). */
 typedef struct rt_sleep {
@@ -490,7 +492,25 @@ void rt_socket_reopen_due(co_rt_t *rt, uint64_t now);
 void rt_socket_ready(co_rt_t *rt, rt_line_t *l, uint32_t events);
 /* Send what the line queued; returns when to try again. */
 uint64_t rt_socket_flush(co_rt_t *rt, rt_line_t *l, uint64_t now);
+/* Bus redundancy: use interface iface instead of the one in use (l->channel
+ * becomes iface); one that cannot be opened counts as lost: IFACE_DOWN, retried. */
+void rt_socket_switch(co_rt_t *rt, rt_line_t *l, const char *iface);
+/* CO_RT_OK when iface can be opened in mode, else the status with the error set. */
+int rt_socket_probe(co_rt_t *rt, const char *iface, co_mode_t mode);
 #else
+static inline void rt_socket_switch(co_rt_t *rt, rt_line_t *l, const char *iface)
+{
+    (void)rt;
+    (void)l;
+    (void)iface;
+}
+static inline int rt_socket_probe(co_rt_t *rt, const char *iface, co_mode_t mode)
+{
+    (void)rt;
+    (void)iface;
+    (void)mode;
+    return CO_RT_ERR_SOCKET;
+}
 static inline void rt_socket_init(rt_line_t *l) { l->sc.sock.fd = -1; }
 static inline int rt_socket_register(co_rt_t *rt, rt_line_t *l)
 {

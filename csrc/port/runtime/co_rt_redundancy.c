@@ -1,16 +1,25 @@
-/* Runtime glue of bus redundancy: an in-process line on two buses, A (its
- * own) and B (the redundant one), attached to the active one only, so only
- * that bus carries what it sends and gives it what it receives. The core's
- * co_rdn decides; the stack's heartbeat indication tells it about the
- * redundancy master; every switch is posted to the application. */
+/* Runtime glue of bus redundancy: a line on two buses, A (its own) and B
+ * (the redundant one), using the active one only, so only that bus carries
+ * what it sends and gives it what it receives: an in-process line is
+ * attached to that bus alone, a SocketCAN line has a socket on that
+ * interface alone. The core's co_rdn decides; the stack's heartbeat
+ * indication tells it about the redundancy master; every switch is posted
+ * to the application. */
 #include "co_rt_internal.h"
 
+#include <stdio.h>
 #include <string.h>
 
 static void on_select(co_rdn_t *rdn, uint8_t bus, void *user)
 {
     rt_line_t *l = user;
     (void)rdn;
+    if (l->driver == CO_DRIVER_SOCKETCAN) {
+        if (strcmp(l->channel, l->redundancy.iface[bus]) != 0) {
+            rt_socket_switch(l->rt, l, l->redundancy.iface[bus]);
+        }
+        return;
+    }
     co_membus_detach(&l->redundancy.bus[CO_RDN_BUS_A]->bus, &l->line);
     co_membus_detach(&l->redundancy.bus[CO_RDN_BUS_B]->bus, &l->line);
     /* Room was checked at start: the line held a place on both buses. */
@@ -47,14 +56,15 @@ static int check_start(co_rt_t *rt, int line, rt_line_t *l, const co_rt_redundan
                        const co_rdn_config_t *rc)
 {
     co_rdn_result_t result = co_rdn_check_config(rc);
-    if (l->driver != CO_DRIVER_MEMBUS) {
-        rt_set_error(rt, "line %d (%s): bus redundancy runs on in-process (mem:) lines only",
-                     line, l->channel);
+    if (l->driver != CO_DRIVER_MEMBUS && l->driver != CO_DRIVER_SOCKETCAN) {
+        rt_set_error(rt, "line %d (%s): bus redundancy runs on in-process and SocketCAN "
+                     "lines only", line, l->channel);
         return CO_RT_ERR_STATE;
     }
     if (!c->redundant || c->redundant[0] == '\0' || strcmp(c->redundant, l->channel) == 0) {
-        return rt_argument_error(rt, "line %d (%s): the redundant bus must be another "
-                                 "in-process bus, got %s", line, l->channel,
+        return rt_argument_error(rt, "line %d (%s): the redundant bus must be another %s, "
+                                 "got %s", line, l->channel,
+                                 l->driver == CO_DRIVER_MEMBUS ? "in-process bus" : "interface",
                                  c->redundant && c->redundant[0] ? c->redundant : "none");
     }
     if (strlen(c->redundant) >= RT_CHANNEL_SIZE) {
@@ -74,10 +84,16 @@ static int check_start(co_rt_t *rt, int line, rt_line_t *l, const co_rt_redundan
 }
 
 /* Under rt->lock: both buses found or made, the line placed on B once to
- * learn there is room (then taken off again by the first selection). */
+ * learn there is room (then taken off again by the first selection); for
+ * SocketCAN, B must open now, so a wrong name is told at once. */
 static int join_buses(co_rt_t *rt, rt_line_t *l, const char *redundant)
 {
     co_mode_t mode = co_line_mode(&l->line);
+    snprintf(l->redundancy.iface[CO_RDN_BUS_A], RT_CHANNEL_SIZE, "%s", l->channel);
+    snprintf(l->redundancy.iface[CO_RDN_BUS_B], RT_CHANNEL_SIZE, "%s", redundant);
+    if (l->driver == CO_DRIVER_SOCKETCAN) {
+        return rt_socket_probe(rt, redundant, mode);
+    }
     int status = rt_membus_bus(rt, l->channel, mode, &l->redundancy.bus[CO_RDN_BUS_A]);
     if (status == CO_RT_OK) {
         status = rt_membus_bus(rt, redundant, mode, &l->redundancy.bus[CO_RDN_BUS_B]);
