@@ -10,7 +10,8 @@ import time
 
 import pytest
 
-from canopenfd import CanopenFDError, ConfigurationError, RedundancyEvent, RedundancyNotice
+from canopenfd import (CanopenFDError, CommEvent, ConfigurationError, RedundancyEvent,
+                       RedundancyNotice)
 from canopenfd.od import demo_od
 from helpers import Recorder, scaled
 
@@ -139,3 +140,18 @@ def test_errors_name_the_problem(net, buses):
     with pytest.raises(CanopenFDError, match="only the redundancy master selects the bus"):
         line.redundancy.select("B")
     assert line.redundancy.active_bus == "A"
+
+
+def test_switch_to_a_full_bus_reports_interface_down(net, buses):
+    a, b, _, _ = buses                  # b has its monitor line
+    for _ in range(30):
+        net.open_line(b, mode="classic")
+    slave = _node(net, a, 5)
+    comm = Recorder()
+    slave.on_comm_event(comm)
+    slave.redundancy.start(b, "slave", master=1, period=PERIOD_S, ttoggle=3, ntoggle=1)
+    net.open_line(b, mode="classic")    # the 32nd line: B is full now
+    got = comm.wait_for(lambda c: [e for e in c if e == CommEvent.IFACE_DOWN], scaled(3),
+                        "interface down")
+    assert got == [CommEvent.IFACE_DOWN]
+    assert slave.redundancy.active_bus == "B"

@@ -22,8 +22,11 @@ static void on_select(co_rdn_t *rdn, uint8_t bus, void *user)
     }
     co_membus_detach(&l->redundancy.bus[CO_RDN_BUS_A]->bus, &l->line);
     co_membus_detach(&l->redundancy.bus[CO_RDN_BUS_B]->bus, &l->line);
-    /* Room was checked at start: the line held a place on both buses. */
-    (void)co_membus_attach(&l->redundancy.bus[bus]->bus, &l->line);
+    /* Start checked the room, but lines opened since may have filled the
+     * bus: then the line is on no bus, and says so like a lost interface. */
+    if (!co_membus_attach(&l->redundancy.bus[bus]->bus, &l->line)) {
+        co_line_comm_event(&l->line, CO_COMM_IFACE_DOWN);
+    }
 }
 
 static void on_event(co_rdn_t *rdn, co_rdn_event_t event, uint8_t bus, void *user)
