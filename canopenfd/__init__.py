@@ -28,6 +28,7 @@ from .services.emcy import Emcy
 from .services.indications import ODRequest
 from .services.flyma import FlymaEvent, FlymaNotice, FlymaState
 from .services.nmt import NmtCommand, NmtState
+from .services.redundancy import RedundancyEvent, RedundancyNotice
 from .services.sleep import SleepCause, SleepEvent, SleepNotice, SleepPhase
 from .transfer import SdoAbortError, Transfer, UsdoAbortError, UsdoTransfer
 
@@ -40,4 +41,5 @@ __all__ = [
     "UsdoAbortError", "UsdoTransfer", "SdoAbortError", "Transfer",
     "SleepCause", "SleepEvent", "SleepNotice", "SleepPhase",
     "FlymaEvent", "FlymaNotice", "FlymaState",
+    "RedundancyEvent", "RedundancyNotice",
 ]

@@ -31,6 +31,7 @@ from .services.manager import NetworkManager
 from .services.nmt import HeartbeatEvent, NmtMaster, NmtState, NodeEvents, remote_state_of
 from .services.store import StoreLike, check_store
 from .services.store_groups import GroupTable, StoreGroup, declare_groups
+from .services.redundancy import BusRedundancy
 from .services.sleep import SleepService
 from .services.sync import SyncService
 from .services.time import TimeService
@@ -86,6 +87,8 @@ class Line:
         self.time = TimeService(context)
         #: Sleep and wake-up, master or device (see canopenfd.services.sleep).
         self.sleep = SleepService(context)
+        #: Bus redundancy over two in-process buses (see canopenfd.services.redundancy).
+        self.redundancy = BusRedundancy(context)
         self._emcy = LineEmcy(context)
         self._node_events = NodeEvents(context)
         # USDO on fd lines, SDO on classic lines (C sets it up at the first transfer)

@@ -36,6 +36,7 @@ __all__ = [
     "SleepPhase", "StoreStatus", "BootError", "BootEvent", "BootStep", "ManagerEventCode",
     "ManagerPhase", "SlaveStatus", "C_ENUMS", "c_members",
     "LedPattern", "LedWhich", "LedCause", "SrdoState", "SrdoViolation",
+    "RedundancyEvent",
 ]
 
 
@@ -119,6 +120,9 @@ FlymaEvent = _c_enum("FlymaEvent", "CO_FLYMA_EV_", "co_flyma_event_t",
                      doc="What the flying master reports (co_flyma_event_t).")
 FlymaAction = _c_enum("FlymaAction", "CO_RT_FLYMA_", "co_rt_flyma_action_t",
                       doc="What the application asks of the flying master.")
+# ---------------------------------------------------------------- bus redundancy
+RedundancyEvent = _c_enum("RedundancyEvent", "CO_RDN_EV_", "co_rdn_event_t",
+                          doc="What bus redundancy reports (co_rdn_event_t).")
 # ---------------------------------------------------------------- gateway between lines
 GatewayRouteKind = _c_enum("GatewayRouteKind", "CO_GATEWAY_", "co_gateway_route_kind_t",
                            doc="How a network is reached (co_gateway_route_kind_t).")

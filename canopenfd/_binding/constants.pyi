@@ -52,6 +52,7 @@ __all__ = [
     "LedCause",
     "SrdoState",
     "SrdoViolation",
+    "RedundancyEvent",
 ]
 
 _NOT_IN_CDEF: Dict[str, Tuple[str, Dict[str, int]]]
@@ -189,6 +190,7 @@ class EventKind(enum.IntEnum):
     GATEWAY = 26
     STORE_PERSIST = 27
     SRDO = 28
+    REDUNDANCY = 28
 
 
 class FrameFlag(enum.IntEnum):
@@ -527,3 +529,7 @@ class SrdoViolation(enum.IntEnum):
     GFC = 10
     TX_FAILED = 11
     APPLICATION = 12
+class RedundancyEvent(enum.IntEnum):
+    """What bus redundancy reports (co_rdn_event_t)."""
+    BUS_SWITCH = 1
+    NO_MASTER = 2

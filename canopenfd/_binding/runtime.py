@@ -757,6 +757,26 @@ class Runtime:
         return phase, {name: getattr(stats, name)
                        for name, _ in ffi.typeof("co_sleep_stats_t").fields}
 
+    def redundancy_start(self, line: int, redundant: str, master: bool,
+                         values: Mapping[str, int], what: str) -> None:
+        """values: co_rt_redundancy_config_t's integer fields."""
+        config = ffi.new("co_rt_redundancy_config_t *")
+        name = ffi.new("char[]", redundant.encode())
+        config.redundant = name
+        config.master = int(master)
+        for field, value in values.items():
+            setattr(config, field, value)
+        self._call(what, lib.co_rt_redundancy_start, line, config)
+
+    def redundancy_select(self, line: int, bus: int, what: str) -> None:
+        self._call(what, lib.co_rt_redundancy_select, line, bus)
+
+    def redundancy_state(self, line: int, what: str) -> Tuple[int, Tuple[int, ...]]:
+        """(active bus, the redundancy object's subs 0..4)."""
+        out = ffi.new("uint8_t[5]")
+        active = self._call(what, lib.co_rt_redundancy_state, line, out)
+        return active, tuple(out)
+
     def gateway_join(self, line: int, network_id: int, what: str) -> None:
         self._call(what, lib.co_rt_gateway_join, line, network_id)
 

@@ -1,7 +1,7 @@
 """The services of lines and nodes; each takes a narrow line context, never a Line.
 
 nmt (NMT master and slave, heartbeat), emcy, pdo, sync, time, guard (node
-guarding), sleep (sleep and wake-up, CiA 320), indications (on_read / on_write), store (parameter stores),
+guarding), sleep (sleep and wake-up, CiA 320), redundancy (bus redundancy over two buses), indications (on_read / on_write), store (parameter stores),
 served_od (the local node's values, domains and change callbacks), manager
 (CiA 302-2 network start-up); views:
 what services see of their node (Protocols).
@@ -9,9 +9,10 @@ what services see of their node (Protocols).
 
 from .guard import GuardEvent
 from .manager import ManagerEvent, NetworkManager, NetworkStartError
+from .redundancy import BusRedundancy, RedundancyNotice
 from .sleep import SleepNotice, SleepService
 from .sync import SyncService
 from .time import TIME_EPOCH, TimeService
 
-__all__ = ["SleepNotice", "SleepService", "SyncService", "TimeService", "GuardEvent",
+__all__ = ["BusRedundancy", "RedundancyNotice", "SleepNotice", "SleepService", "SyncService", "TimeService", "GuardEvent",
            "TIME_EPOCH", "ManagerEvent", "NetworkManager", "NetworkStartError"]

@@ -68,15 +68,7 @@ static void world_free(world_t *w)
 /* Run the line's timers up to until_ms, each at its deadline. */
 static void run_until(world_t *w, uint64_t until_ms)
 {
-    uint64_t until = until_ms * TU_MS;
-    for (int guard = 0; guard < 100000; guard++) {
-        uint64_t next = co_timer_list_next(co_line_timers(&w->line.line));
-        if (next > until) {
-            break;
-        }
-        (void)co_line_process(&w->line.line, next);
-    }
-    co_line_set_time(&w->line.line, until);
+    tu_line_run_until(&w->line.line, until_ms * TU_MS);
 }
 
 static void at(world_t *w, uint64_t t_ms)

@@ -147,9 +147,12 @@ typedef enum co_rt_event_kind {
     CO_EV_STORE_PERSIST = 27,  /* an autonomous save staged an image of the application
                                   store: persist it (co_rt_store_staged, then
                                   co_rt_store_finish) */
-    CO_EV_SRDO = 28            /* an SRDO of the local node entered the safe state
+    CO_EV_SRDO = 28,           /* an SRDO of the local node entered the safe state
                                   (co_rt_srdo_start): node = SRDO number,
                                   a = co_srdo_violation_t */
+    CO_EV_REDUNDANCY = 29      /* bus redundancy (co_rt_redundancy_start): a =
+                                  co_rdn_event_t, node = the bus now active (0 A, 1 B),
+                                  b = Ctoggle */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -537,6 +540,25 @@ int co_rt_sleep_objection(co_rt_t *rt, int line, uint8_t reason);
 int co_rt_sleep_act(co_rt_t *rt, int line, int action, uint8_t status, uint8_t reason);
 /* The phase (co_sleep_phase_t) and counters. */
 int co_rt_sleep_state(co_rt_t *rt, int line, co_sleep_stats_t *stats);
+
+/* ---- bus redundancy (ECSS-E-ST-50-15C; co_rt_redundancy.c) */
+typedef struct co_rt_redundancy_config {
+    const char *redundant;     /* bus B: another in-process bus's NAME (the line's own is A) */
+    int master;                /* 1: the redundancy master, 0: a slave */
+    uint8_t master_id;         /* slave: the master's node-id, watched by the heartbeat consumer */
+    uint16_t master_period_ms; /* slave: its heartbeat consumer time */
+    uint8_t bdefault;          /* the redundancy object's subs (co_redundancy.h) */
+    uint8_t ttoggle;
+    uint8_t ntoggle;
+} co_rt_redundancy_config_t;
+/* An in-process line runs on one of two buses: its own (A) and config's
+ * redundant one (B); it starts on Bdefault at once (once per line;
+ * CO_EV_REDUNDANCY tells every switch). */
+int co_rt_redundancy_start(co_rt_t *rt, int line, const co_rt_redundancy_config_t *config);
+/* Master: use bus 0 (A) or 1 (B) from now on. */
+int co_rt_redundancy_select(co_rt_t *rt, int line, uint8_t bus);
+/* The redundancy object (subs 0..4) into object[5]; returns the active bus. */
+int co_rt_redundancy_state(co_rt_t *rt, int line, uint8_t *object);
 
 /* ---- flying master of the local node (CiA 302-2; co_rt_flyma.c) */
 typedef struct co_rt_flyma_config {

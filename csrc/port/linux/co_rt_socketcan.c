@@ -8,6 +8,7 @@
 #include "co_rt_internal.h"
 
 #include <errno.h>
+#include <stdio.h>
 #include <string.h>
 #include <sys/epoll.h>
 
@@ -22,10 +23,9 @@ void rt_socket_close(rt_line_t *l)
     co_sc_close(&l->sc.sock);
 }
 
-int rt_socket_open(co_rt_t *rt, rt_line_t *l)
+static int open_status(co_rt_t *rt, co_sc_open_result_t result, const char *err)
 {
-    char err[RT_ERROR_SIZE];
-    switch (co_sc_open(&l->sc.sock, l->channel, co_line_mode(&l->line), err, sizeof err)) {
+    switch (result) {
     case CO_SC_OPEN_OK:
         return CO_RT_OK;
     case CO_SC_OPEN_NO_INTERFACE:
@@ -44,6 +44,23 @@ int rt_socket_open(co_rt_t *rt, rt_line_t *l)
         rt_set_error(rt, "%s", err);
         return CO_RT_ERR_ARGUMENT;
     }
+}
+
+int rt_socket_open(co_rt_t *rt, rt_line_t *l)
+{
+    char err[RT_ERROR_SIZE];
+    return open_status(rt, co_sc_open(&l->sc.sock, l->channel, co_line_mode(&l->line), err,
+                                      sizeof err), err);
+}
+
+int rt_socket_probe(co_rt_t *rt, const char *iface, co_mode_t mode)
+{
+    char err[RT_ERROR_SIZE];
+    co_socketcan_t probe;
+    co_sc_init(&probe);
+    co_sc_open_result_t result = co_sc_open(&probe, iface, mode, err, sizeof err);
+    co_sc_close(&probe);
+    return open_status(rt, result, err);
 }
 
 static bool socket_watch(co_rt_t *rt, rt_line_t *l, int op, bool want_out)
@@ -92,6 +109,28 @@ static void socket_reopen(co_rt_t *rt, rt_line_t *l, uint64_t now)
     }
     l->sc.down = false;
     co_line_comm_event(&l->line, CO_COMM_IFACE_UP);
+}
+
+void rt_socket_switch(co_rt_t *rt, rt_line_t *l, const char *iface)
+{
+    char err[RT_ERROR_SIZE];
+    snprintf(l->channel, sizeof l->channel, "%s", iface);
+    co_sc_close(&l->sc.sock);   /* closing also leaves the epoll set */
+    l->sc.want_out = false;
+    l->sc.retry_at = 0;
+    if (co_sc_open(&l->sc.sock, iface, co_line_mode(&l->line), err, sizeof err) ==
+            CO_SC_OPEN_OK && socket_watch(rt, l, EPOLL_CTL_ADD, false)) {
+        if (l->sc.down) {
+            l->sc.down = false;
+            co_line_comm_event(&l->line, CO_COMM_IFACE_UP);
+        }
+        return;
+    }
+    if (l->sc.down) {
+        l->sc.reopen_at = co_rt_now_us() + RT_REOPEN_US;   /* already told: retry iface */
+        return;
+    }
+    socket_down(l);
 }
 
 void rt_socket_reopen_due(co_rt_t *rt, uint64_t now)

@@ -32,6 +32,7 @@
 #include "canopenfd/co_usdo_server.h"
 #include "canopenfd/co_store_file.h"
 #include "canopenfd/co_membus.h"
+#include "canopenfd/co_redundancy.h"
 #include "canopenfd/co_socketcan.h"
 
 #include "co_rt_os.h"
@@ -208,6 +209,14 @@ typedef struct rt_lss {
     bool store_by_app;
     uint32_t bit_timings;            /* bit n: table 0 index n accepted */
 } rt_lss_t;
+/* Bus redundancy glue (co_rt_redundancy.c): the two buses, in-process
+ * buses or SocketCAN interfaces. */
+typedef struct rt_redundancy {
+    bool on;
+    co_rdn_t rdn;
+    struct rt_bus *bus[2];                   /* mem: lines */
+    char iface[2][RT_CHANNEL_SIZE];          /* SocketCAN lines */
+} rt_redundancy_t;
 /* Sleep and wake-up glue (co_rt_sleep.c). */
 typedef struct rt_sleep {
     uint8_t objection;                       /* the device's answer to a query */
@@ -258,6 +267,7 @@ typedef struct rt_line {
     rt_rpdo_out_t rpdo_out[RT_RPDO_PRODUCERS];
     rt_sync_t sync;
     rt_sleep_t sleep;
+    rt_redundancy_t redundancy;
     rt_socket_t sc;
     rt_host_t host;
     rt_led_t led;
@@ -457,6 +467,12 @@ int rt_gateway_rebuild(co_rt_t *rt);
 /* ---------------------------------------------------------------- drivers */
 /* co_rt_membus.c: under rt->lock, join (or create) the line's named bus. */
 int rt_membus_join(co_rt_t *rt, rt_line_t *l);
+/* co_rt_membus.c: under rt->lock, the bus named name (created when new). */
+int rt_membus_bus(co_rt_t *rt, const char *name, co_mode_t mode, rt_bus_t **out);
+/* co_rt_redundancy.c: the heartbeat consumer's events of the redundancy master. */
+void rt_redundancy_on_heartbeat(rt_line_t *l, uint8_t node_id, co_hb_event_t event);
+/* co_rt_redundancy.c: the local node reset (node or communication): back to Bdefault. */
+void rt_redundancy_on_reset(rt_line_t *l);
 /* Move the frames of every bus; returns how many moved. */
 uint32_t rt_membus_transfer(co_rt_t *rt);
 void rt_membus_free_all(co_rt_t *rt);
@@ -476,7 +492,25 @@ void rt_socket_reopen_due(co_rt_t *rt, uint64_t now);
 void rt_socket_ready(co_rt_t *rt, rt_line_t *l, uint32_t events);
 /* Send what the line queued; returns when to try again. */
 uint64_t rt_socket_flush(co_rt_t *rt, rt_line_t *l, uint64_t now);
+/* Bus redundancy: use interface iface instead of the one in use (l->channel
+ * becomes iface); one that cannot be opened counts as lost: IFACE_DOWN, retried. */
+void rt_socket_switch(co_rt_t *rt, rt_line_t *l, const char *iface);
+/* CO_RT_OK when iface can be opened in mode, else the status with the error set. */
+int rt_socket_probe(co_rt_t *rt, const char *iface, co_mode_t mode);
 #else
+static inline void rt_socket_switch(co_rt_t *rt, rt_line_t *l, const char *iface)
+{
+    (void)rt;
+    (void)l;
+    (void)iface;
+}
+static inline int rt_socket_probe(co_rt_t *rt, const char *iface, co_mode_t mode)
+{
+    (void)rt;
+    (void)iface;
+    (void)mode;
+    return CO_RT_ERR_SOCKET;
+}
 static inline void rt_socket_init(rt_line_t *l) { l->sc.sock.fd = -1; }
 static inline int rt_socket_register(co_rt_t *rt, rt_line_t *l)
 {

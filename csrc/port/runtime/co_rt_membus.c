@@ -40,36 +40,47 @@ static rt_bus_t *find_bus(co_rt_t *rt, const char *name)
     return NULL;
 }
 
-static int new_bus(co_rt_t *rt, const rt_line_t *l, rt_bus_t **out)
+static int new_bus(co_rt_t *rt, const char *name, co_mode_t mode, rt_bus_t **out)
 {
     if (rt->bus_count == RT_MAX_BUSES) {
-        rt_set_error(rt, "membus %s: already %d buses in this runtime", l->channel, RT_MAX_BUSES);
+        rt_set_error(rt, "membus %s: already %d buses in this runtime", name, RT_MAX_BUSES);
         return CO_RT_ERR_FULL;
     }
     rt_bus_t *bus = calloc(1, sizeof *bus);
     if (!bus) {
         return CO_RT_ERR_NO_MEMORY;
     }
-    snprintf(bus->name, sizeof bus->name, "%s", l->channel);
-    bus->mode = co_line_mode(&l->line);
+    snprintf(bus->name, sizeof bus->name, "%s", name);
+    bus->mode = mode;
     co_membus_init(&bus->bus);
     rt->buses[rt->bus_count++] = bus;
     *out = bus;
     return CO_RT_OK;
 }
 
-int rt_membus_join(co_rt_t *rt, rt_line_t *l)
+int rt_membus_bus(co_rt_t *rt, const char *name, co_mode_t mode, rt_bus_t **out)
 {
     static const char *const mode_names[] = {"classic", "fd"};
-    rt_bus_t *bus = find_bus(rt, l->channel);
-    int status = bus ? CO_RT_OK : new_bus(rt, l, &bus);
+    rt_bus_t *bus = find_bus(rt, name);
+    int status = bus ? CO_RT_OK : new_bus(rt, name, mode, &bus);
     if (status != CO_RT_OK) {
         return status;
     }
-    if (bus->mode != co_line_mode(&l->line)) {
+    if (bus->mode != mode) {
         rt_set_error(rt, "membus %s: open in %s mode, a %s line cannot join it", bus->name,
-                  mode_names[bus->mode], mode_names[co_line_mode(&l->line)]);
+                  mode_names[bus->mode], mode_names[mode]);
         return CO_RT_ERR_MODE;
+    }
+    *out = bus;
+    return CO_RT_OK;
+}
+
+int rt_membus_join(co_rt_t *rt, rt_line_t *l)
+{
+    rt_bus_t *bus = NULL;
+    int status = rt_membus_bus(rt, l->channel, co_line_mode(&l->line), &bus);
+    if (status != CO_RT_OK) {
+        return status;
     }
     if (!co_membus_attach(&bus->bus, &l->line)) {
         rt_set_error(rt, "membus %s: already %d lines", bus->name, CO_MEMBUS_MAX_LINES);

@@ -1,0 +1,157 @@
+"""Bus redundancy through the Python API on two in-process buses (A = the
+line's own, B = the redundant one), every frame checked on each bus by its
+own monitor line: a slave follows the redundancy master from A to B after
+Ttoggle missed heartbeat periods; a slave that never hears a master switches
+Ntoggle times and gives up; errors that name the problem."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from canopenfd import (CanopenFDError, CommEvent, ConfigurationError, RedundancyEvent,
+                       RedundancyNotice)
+from canopenfd.od import demo_od
+from helpers import Recorder, scaled
+
+HB_MS = 50            # heartbeat of every local node here
+PERIOD_S = 0.2        # the master's heartbeat period as the slave watches it
+
+
+@pytest.fixture
+def buses(net, bus_name):
+    """(name of A, name of B, monitor of A, monitor of B)."""
+    other = bus_name + "-B"
+    monitors = []
+    for name in (bus_name, other):
+        frames = Recorder()
+        net.open_line(name, mode="classic", monitor=True).on_frame(frames)
+        monitors.append(frames)
+    return bus_name, other, monitors[0], monitors[1]
+
+
+def _node(net, bus, node_id):
+    line = net.open_line(bus, mode="classic")
+    node = line.create_local_node(node_id, od=demo_od("classic"))
+    node[0x1017].raw = HB_MS
+    return line
+
+
+def _heartbeats(frames, node_id, start=0):
+    return [bytes(f.data) for f in frames.snapshot()[start:] if f.id == 0x700 + node_id]
+
+
+def test_slave_follows_the_master_to_bus_b(net, buses):
+    a, b, on_a, on_b = buses
+    master = _node(net, a, 1)
+    master.redundancy.start(b, "master")
+    slave = _node(net, a, 2)
+    notices = Recorder()
+    slave.redundancy.add_callback(notices)
+    slave.redundancy.start(b, "slave", master=1, period=PERIOD_S, ttoggle=3, ntoggle=4)
+    assert slave.redundancy.active_bus == "A"
+    assert slave.redundancy.object == {"Bdefault": 0, "Ttoggle": 3, "Ntoggle": 4, "Ctoggle": 0}
+
+    # both on A: the slave's heartbeat (pre-operational, 0x7F) only there
+    on_a.wait_for(lambda c: len([f for f in c if f.id == 0x702]) >= 3, scaled(3), "0x702 on A")
+    assert _heartbeats(on_a, 2)[-1] == b"\x7f"
+    assert _heartbeats(on_a, 1)[-1] == b"\x7f"
+    time.sleep(scaled(0.9))            # longer than Ttoggle periods: the master was heard
+    assert notices.snapshot() == []
+    assert _heartbeats(on_b, 2) == [] and _heartbeats(on_b, 1) == []
+
+    # the master moves to B: the slave misses it on A and follows
+    moved = time.monotonic()
+    master.redundancy.select("B")
+    assert master.redundancy.active_bus == "B"
+    assert slave.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+    waited = time.monotonic() - moved
+    assert waited >= 3 * PERIOD_S * 0.9, f"switched after {waited:.3f} s"
+    assert notices.snapshot()[0] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1)
+    mark_a = len(on_a)
+    on_b.wait_for(lambda c: len([f for f in c if f.id == 0x702]) >= 3, scaled(3), "0x702 on B")
+    assert set(_heartbeats(on_b, 2)) == {b"\x7f"} and set(_heartbeats(on_b, 1)) == {b"\x7f"}
+    time.sleep(scaled(0.9))            # heard on B: no further switch, counting reset
+    assert len(notices) == 1
+    assert slave.redundancy.active_bus == "B"
+    assert slave.redundancy.object["Ctoggle"] == 0
+    assert _heartbeats(on_a, 2, mark_a) == [] and _heartbeats(on_a, 1, mark_a) == []
+
+    # reset communication (sent by the master on B): the slave restarts on its
+    # default bus A (told as a switch), its boot-up goes out there, and it
+    # finds the master on B again after Ttoggle periods
+    mark_a, mark_b = len(on_a), len(on_b)
+    master.nmt.reset_communication(2)
+    back = notices.wait_for(lambda c: c[1:], scaled(3), "switch back to A")
+    assert back[0] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "A", 0)
+    on_a.wait_for(lambda c: [f for f in c[mark_a:] if f.id == 0x702 and f.data[0] == 0],
+                  scaled(3), "boot-up of node 2 on A")
+    assert slave.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+    assert notices.snapshot()[2] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1)
+    assert b"\x00" not in _heartbeats(on_b, 2, mark_b)
+
+
+def test_slave_without_master_gives_up(net, buses):
+    a, b, on_a, on_b = buses
+    slave = _node(net, a, 3)
+    notices = Recorder()
+    slave.redundancy.add_callback(notices)
+    slave.redundancy.start(b, "slave", master=1, period=0.05, ttoggle=2, ntoggle=3)
+    got = notices.wait_for(lambda c: [n for n in c if n.event == RedundancyEvent.NO_MASTER],
+                           scaled(3), "no master")
+    assert notices.snapshot() == [
+        RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1),
+        RedundancyNotice(RedundancyEvent.BUS_SWITCH, "A", 2),
+        RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 3),
+        RedundancyNotice(RedundancyEvent.NO_MASTER, "B", 3)]
+    assert got
+    assert slave.redundancy.object == {"Bdefault": 1, "Ttoggle": 2, "Ntoggle": 3, "Ctoggle": 3}
+    mark = len(on_b)
+    on_b.wait_for(lambda c: [f for f in c[mark:] if f.id == 0x703], scaled(3), "0x703 on B")
+    mark_a = len(on_a)
+    time.sleep(scaled(0.3))            # it stays on B
+    assert len(notices) == 4
+    assert _heartbeats(on_a, 3, mark_a) == []
+
+
+def test_errors_name_the_problem(net, buses):
+    a, b, _, _ = buses
+    line = _node(net, a, 4)
+    with pytest.raises(CanopenFDError, match="not started"):
+        line.redundancy.active_bus
+    with pytest.raises(ConfigurationError, match="role must be 'master' or 'slave'"):
+        line.redundancy.start(b, "boss")
+    with pytest.raises(ConfigurationError, match="in-process line must be 'mem:NAME'"):
+        line.redundancy.start("vcan1", "master")
+    with pytest.raises(ConfigurationError, match="bus must be 'A'"):
+        line.redundancy.start(b, "master", default="C")
+    with pytest.raises(ConfigurationError, match="ntoggle must be an int 1..255"):
+        line.redundancy.start(b, "master", ntoggle=0)
+    with pytest.raises(ConfigurationError, match="node-id 1..127, got 0"):
+        line.redundancy.start(b, "slave", period=0.1, ttoggle=3)
+    with pytest.raises(ConfigurationError, match="period must be"):
+        line.redundancy.start(b, "slave", master=1, ttoggle=3)
+    with pytest.raises(CanopenFDError, match="another in-process bus"):
+        line.redundancy.start(a, "master")
+    line.redundancy.start(b, "slave", master=1, period=0.1)   # ttoggle 0: never switches
+    with pytest.raises(CanopenFDError, match="runs on this line already"):
+        line.redundancy.start(b, "slave", master=1, period=0.1)
+    with pytest.raises(CanopenFDError, match="only the redundancy master selects the bus"):
+        line.redundancy.select("B")
+    assert line.redundancy.active_bus == "A"
+
+
+def test_switch_to_a_full_bus_reports_interface_down(net, buses):
+    a, b, _, _ = buses                  # b has its monitor line
+    for _ in range(30):
+        net.open_line(b, mode="classic")
+    slave = _node(net, a, 5)
+    comm = Recorder()
+    slave.on_comm_event(comm)
+    slave.redundancy.start(b, "slave", master=1, period=PERIOD_S, ttoggle=3, ntoggle=1)
+    net.open_line(b, mode="classic")    # the 32nd line: B is full now
+    got = comm.wait_for(lambda c: [e for e in c if e == CommEvent.IFACE_DOWN], scaled(3),
+                        "interface down")
+    assert got == [CommEvent.IFACE_DOWN]
+    assert slave.redundancy.active_bus == "B"
