@@ -663,6 +663,12 @@ class Runtime:
     def time_send(self, line: int, unix_us: int, what: str) -> None:
         self._call(what, lib.co_rt_time_send, line, unix_us)
 
+    def cia402_sim_start(self, line: int, tick_us: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia402_sim_start, line, tick_us)
+
+    def cia402_sim_fault(self, line: int, code: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia402_sim_fault, line, code)
+
     def sleep_start(self, line: int, master: bool, check_ms: int, prepare_ms: int,
                     silent_ms: int, wake_repeat_ms: int, objection: int, what: str) -> None:
         config = ffi.new("co_rt_sleep_config_t *")

@@ -307,6 +307,8 @@ static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t orig
             sim->homing_attained = sim->set_point_ack = false;
             publish(sim);
         }
+    } else if (e->key == KEY(0x60FF, 0)) {
+        publish(sim);     /* target reached (bit 10) no longer holds for a new target */
     }
 }
 
@@ -474,7 +476,7 @@ bool co_cia402_sim_init(co_cia402_sim_t *sim, co_line_t *line, co_od_t *od, co_s
             return false;
         }
     }
-    if (!co_od_subscribe(od, 0x6040, 0, 0x6060, 0, &handler, sim)) {
+    if (!co_od_subscribe(od, 0x6040, 0, 0x60FF, 0, &handler, sim)) {
         return false;
     }
     sim->subscribed = true;

@@ -329,6 +329,7 @@ static void test_profile_velocity_and_quick_stop(void **state)
     enable(f, CO_CIA402_MODE_PROFILE_VELOCITY);
     assert_true(statusword(f) & CO_CIA402_SW_MODE_BIT12);       /* speed 0 */
     put(f, 0x60FF, -400);
+    assert_false(statusword(f) & CO_CIA402_SW_TARGET_REACHED);  /* at once, not at the tick */
     run_ms(f, 10);
     assert_int_equal(od_int(f, 0x606C, true), -100);            /* 10000 u/s² for 10 ms */
     assert_false(statusword(f) & CO_CIA402_SW_TARGET_REACHED);
