@@ -245,3 +245,17 @@ def test_cyclic_synchronous_position(rig):
 def test_cyclic_refuses_a_profile_mode(rig):
     with pytest.raises(ConfigurationError, match="not cyclic synchronous"):
         rig.drive.cyclic("pp")
+
+
+def test_event_tpdo1_carries_each_new_statusword(rig):
+    """The drive's default TPDO1 (statusword, type 255) goes out at each change."""
+    rig.node.start()
+    rig.sim.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    start = len(rig.frames)
+    rig.drive.enable()
+
+    def words(_calls):
+        got = [bytes(f.data)[:2] for f in rig.frames_on(0x180 + NODE, start)]
+        wanted = [bytes([sw, 0x02]) for sw in (0x31, 0x33, 0x37)]
+        return got if [w for w in got if w in wanted] == wanted else None
+    rig.frames.wait_for(words, 2.0, "TPDO1 with 0x0231, 0x0233, 0x0237")

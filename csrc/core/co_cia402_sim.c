@@ -141,6 +141,9 @@ static void publish(co_cia402_sim_t *sim)
     put_int(sim, 0x606C, clamp_i32(sim->velocity));
     if ((uint16_t)get_int(sim, 0x6041, 0, false) != sw) {
         put_int(sim, 0x6041, sw);   /* only on change: an event TPDO sends changes */
+        if (sim->pdo) {
+            (void)co_pdo_trigger_object(sim->pdo, 0x6041, 0);
+        }
     }
 }
 
@@ -266,6 +269,36 @@ static void apply_controlword(co_cia402_sim_t *sim, uint16_t cw)
 
 /* ------------------------------------------------------------ OD handlers */
 
+static bool mode_supported(const co_cia402_sim_t *sim, int64_t mode);
+
+static void apply_mode(co_cia402_sim_t *sim)
+{
+    int64_t mode = get_int(sim, 0x6060, 0, true);
+    if (mode_supported(sim, mode) || mode == 0) {
+        put_int(sim, 0x6061, mode);
+        if (sim->pdo) {
+            (void)co_pdo_trigger_object(sim->pdo, 0x6061, 0);
+        }
+        sim->moving = sim->has_pending = sim->homing = false;
+        sim->homing_attained = sim->set_point_ack = false;
+        publish(sim);
+    }
+}
+
+/* RPDOs write the OD without after-write indications: what they wrote is
+ * taken at the next tick or SYNC (a value overwritten within one tick is
+ * not seen, so an edge must last a tick). */
+static void follow_pdo_writes(co_cia402_sim_t *sim)
+{
+    uint16_t cw = (uint16_t)get_int(sim, 0x6040, 0, false);
+    if (get_int(sim, 0x6060, 0, true) != get_int(sim, 0x6061, 0, true)) {
+        apply_mode(sim);
+    }
+    if (cw != sim->controlword) {
+        apply_controlword(sim, cw);
+    }
+}
+
 static bool mode_supported(const co_cia402_sim_t *sim, int64_t mode)
 {
     if (mode != CO_CIA402_MODE_PROFILE_POSITION && mode != CO_CIA402_MODE_PROFILE_VELOCITY &&
@@ -300,13 +333,7 @@ static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t orig
     if (e->key == KEY(0x6040, 0)) {
         apply_controlword(sim, (uint16_t)get_int(sim, 0x6040, 0, false));
     } else if (e->key == KEY(0x6060, 0)) {
-        int64_t mode = get_int(sim, 0x6060, 0, true);
-        if (mode_supported(sim, mode) || mode == 0) {
-            put_int(sim, 0x6061, mode);
-            sim->moving = sim->has_pending = sim->homing = false;
-            sim->homing_attained = sim->set_point_ack = false;
-            publish(sim);
-        }
+        apply_mode(sim);
     } else if (e->key == KEY(0x60FF, 0)) {
         publish(sim);     /* target reached (bit 10) no longer holds for a new target */
     }
@@ -362,6 +389,7 @@ void co_cia402_sim_step(co_cia402_sim_t *sim, uint32_t dt_us)
 {
     double dt = (double)dt_us / 1e6;
     double dec = (double)get_int(sim, 0x6084, 0, false);
+    follow_pdo_writes(sim);
     if (sim->state == CO_CIA402_FAULT_REACTION_ACTIVE) {
         sim->velocity = 0.0;               /* the reaction: stop, then Fault */
         enter(sim, CO_CIA402_FAULT);
@@ -405,6 +433,7 @@ void co_cia402_sim_on_sync(uint8_t counter, void *user)
     co_cia402_sim_t *sim = user;
     double period;
     (void)counter;
+    follow_pdo_writes(sim);
     if (sim->state != CO_CIA402_OPERATION_ENABLED) {
         return;
     }
@@ -497,6 +526,11 @@ bool co_cia402_sim_init(co_cia402_sim_t *sim, co_line_t *line, co_od_t *od, co_s
     co_timer_init(&sim->tick, on_tick, sim);
     co_timer_start(co_line_timers(line), &sim->tick, co_line_now(line) + tick_us);
     return true;
+}
+
+void co_cia402_sim_set_pdo(co_cia402_sim_t *sim, co_pdo_t *pdo)
+{
+    sim->pdo = pdo;
 }
 
 void co_cia402_sim_deinit(co_cia402_sim_t *sim)

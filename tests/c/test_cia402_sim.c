@@ -398,6 +398,33 @@ static void test_cyclic_torque(void **state)
     assert_int_equal(od_int(f, 0x6077, true), -300);
 }
 
+/* An RPDO writes the OD in place, without after-write indications. */
+static void pdo_write(fixture_t *f, uint16_t index, int64_t v)
+{
+    const co_od_entry_t *e = co_od_find(&f->od, index, 0);
+    assert_non_null(e);
+    tu_le_put(co_od_value(&f->od, e), (uint64_t)v, e->size);
+}
+
+static void test_pdo_writes_taken_at_tick_and_sync(void **state)
+{
+    fixture_t *f = *state;
+    pdo_write(f, 0x6040, 0x06);
+    assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_SWITCH_ON_DISABLED);
+    run_ms(f, 1);
+    assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_READY_TO_SWITCH_ON);
+    pdo_write(f, 0x6060, CO_CIA402_MODE_CSP);
+    pdo_write(f, 0x6040, 0x0F);
+    pdo_write(f, 0x607A, 42);
+    co_cia402_sim_on_sync(0, &f->sim);              /* mode, controlword, then the target */
+    assert_int_equal(od_int(f, 0x6061, true), CO_CIA402_MODE_CSP);
+    assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_OPERATION_ENABLED);
+    assert_int_equal(od_int(f, 0x6064, true), 42);
+    pdo_write(f, 0x6060, CO_CIA402_MODE_CST);       /* not in 0x6502: stays CSP */
+    run_ms(f, 1);
+    assert_int_equal(od_int(f, 0x6061, true), CO_CIA402_MODE_CSP);
+}
+
 /* ---------------------------------------------------------------- refusals */
 
 static void test_unsupported_mode_refused(void **state)
@@ -448,6 +475,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_homing, setup, teardown),
         cmocka_unit_test_setup_teardown(test_cyclic_modes_on_sync, setup, teardown),
         cmocka_unit_test_setup_teardown(test_cyclic_torque, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_pdo_writes_taken_at_tick_and_sync, setup, teardown),
         cmocka_unit_test_setup_teardown(test_unsupported_mode_refused, setup, teardown),
         cmocka_unit_test(test_missing_object_named),
     };

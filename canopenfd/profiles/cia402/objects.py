@@ -11,10 +11,11 @@ from ...od import ODRecord, ODVariable, ObjectDictionary
 from ...od.datatypes import DataType
 from ...od.demo import demo_od
 
-__all__ = ["drive_od", "DEVICE_TYPE_402", "SUPPORTED_MODES_ALL"]
+__all__ = ["drive_od", "DEVICE_TYPE_402", "SUPPORTED_MODES_ALL", "TPDO_EVENT_TIMER_MS"]
 
 DEVICE_TYPE_402 = 0x00020192
 #: 0x6502 bits (mode - 1): PP, PV, homing, CSP, CSV, CST.
+TPDO_EVENT_TIMER_MS = 100
 SUPPORTED_MODES_ALL = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8) | (1 << 9)
 
 I8, I16, I32 = DataType.INTEGER8, DataType.INTEGER16, DataType.INTEGER32
@@ -49,7 +50,8 @@ def _set(od: ObjectDictionary, index: int, sub: int, value: int) -> None:
 
 def _map(od: ObjectDictionary, kind: str, number: int,
          entries: Tuple[Tuple[int, int], ...]) -> None:
-    """A default mapping: valid COB-ID (predefined + node-id), type 255."""
+    """A default mapping: valid COB-ID (predefined + node-id), type 255; a
+    TPDO also every TPDO_EVENT_TIMER_MS, so a master's view never stays stale."""
     comm, mapping = (0x1400, 0x1600) if kind == "RPDO" else (0x1800, 0x1A00)
     base = (0x200 if kind == "RPDO" else 0x180) + 0x100 * (number - 1)
     cob_id = od.get_variable(comm + number - 1, 1)
@@ -58,6 +60,8 @@ def _map(od: ObjectDictionary, kind: str, number: int,
     for sub, (index, bits) in enumerate(entries, 1):
         _set(od, mapping + number - 1, sub, index << 16 | bits)
     _set(od, mapping + number - 1, 0, len(entries))
+    if kind == "TPDO":
+        _set(od, comm + number - 1, 5, TPDO_EVENT_TIMER_MS)
 
 
 def drive_od(mode: str = "classic", node_id: Optional[int] = None, *,

@@ -16,6 +16,7 @@
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_line.h"
 #include "canopenfd/co_od.h"
+#include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sync.h"
 
 /* The power states, numbered as the Python helper names them. */
@@ -64,6 +65,7 @@ typedef struct co_cia402_sim {
     co_line_t *line;
     co_sync_t *sync;             /* NULL: cyclic modes follow co_cia402_sim_on_sync calls */
     co_emcy_t *emcy;             /* NULL: faults send no EMCY */
+    co_pdo_t *pdo;               /* NULL: no event TPDO triggered on a new statusword */
     co_timer_t tick;
     uint32_t tick_us;
     co_cia402_state_t state;
@@ -90,6 +92,9 @@ typedef struct co_cia402_sim {
 bool co_cia402_sim_init(co_cia402_sim_t *sim, co_line_t *line, co_od_t *od, co_sync_t *sync,
                         co_emcy_t *emcy, uint32_t tick_us);
 void co_cia402_sim_deinit(co_cia402_sim_t *sim);
+/* Event TPDOs (types 0, 254, 255) mapping the statusword or the mode display
+ * are triggered when they change, as a real drive sends them (NULL: none). */
+void co_cia402_sim_set_pdo(co_cia402_sim_t *sim, co_pdo_t *pdo);
 
 /* A device fault: 0x603F = code, EMCY raised with it, Fault reaction active
  * (motion stops), Fault at the next tick. Ignored while already in fault. */

@@ -1,5 +1,5 @@
 /* Runtime glue of the simulated CiA 402 drive (co_cia402_sim): one per local
- * node, made on request over the node's OD, SYNC and EMCY producer, so the
+ * node, made on request over the node's OD, SYNC, EMCY producer and PDOs, so the
  * drive answers controlwords and SYNCs in the runtime thread (no Python on
  * the per-SYNC path). Freed with the line. */
 #include "co_rt_internal.h"
@@ -39,6 +39,7 @@ int co_rt_cia402_sim_start(co_rt_t *rt, int line, uint32_t tick_us)
         free(sim);
         return rt_kick_unlock(rt, CO_RT_ERR_STATE);
     }
+    co_cia402_sim_set_pdo(sim, co_stack_pdo(&l->stack));
     l->cia402 = sim;
     return rt_kick_unlock(rt, CO_RT_OK);
 }
