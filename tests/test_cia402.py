@@ -8,10 +8,13 @@ cyclic RPDO/TPDO exchange, the fault's EMCY)."""
 
 from __future__ import annotations
 
+import pathlib
+import subprocess
+import sys
 import threading
 
 import pytest
-from helpers import Recorder, scaled
+from helpers import NEUTRAL_CWD, Recorder, package_env, scaled
 
 from canopenfd import ConfigurationError
 from canopenfd.errors import TransferAbortError
@@ -259,3 +262,18 @@ def test_event_tpdo1_carries_each_new_statusword(rig):
         wanted = [bytes([sw, 0x02]) for sw in (0x31, 0x33, 0x37)]
         return got if [w for w in got if w in wanted] == wanted else None
     rig.frames.wait_for(words, 2.0, "TPDO1 with 0x0231, 0x0233, 0x0237")
+
+
+@pytest.mark.parametrize("args", [(), ("--fd",)])
+def test_the_example_runs(args):
+    example = pathlib.Path(__file__).resolve().parent.parent / "examples" / "cia402_drive.py"
+    done = subprocess.run([sys.executable, str(example), *args], cwd=NEUTRAL_CWD,
+                          env=package_env(), capture_output=True, text=True,
+                          timeout=scaled(120))
+    assert done.returncode == 0, done.stderr
+    for line in ("drive state: SWITCH ON DISABLED", "drive state: OPERATION ENABLED",
+                 "profile position: at 2000",
+                 "cyclic synchronous position: at 3000 after 50 targets",
+                 "drive state: READY TO SWITCH ON",
+                 "refused: drive node 5: move_to(0) needs mode profile_position"):
+        assert line in done.stdout, done.stdout
