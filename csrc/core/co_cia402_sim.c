@@ -287,7 +287,8 @@ static void apply_mode(co_cia402_sim_t *sim)
 
 /* RPDOs write the OD without after-write indications: what they wrote is
  * taken at the next tick or SYNC (a value overwritten within one tick is
- * not seen, so an edge must last a tick). */
+ * not seen, so an edge must last a tick). The power commands are levels, as
+ * in a real drive: the one in 0x6040 is evaluated again at every tick. */
 static void follow_pdo_writes(co_cia402_sim_t *sim)
 {
     uint16_t cw = (uint16_t)get_int(sim, 0x6040, 0, false);
@@ -296,6 +297,9 @@ static void follow_pdo_writes(co_cia402_sim_t *sim)
     }
     if (cw != sim->controlword) {
         apply_controlword(sim, cw);
+    } else if (sim->state != CO_CIA402_FAULT && sim->state != CO_CIA402_FAULT_REACTION_ACTIVE &&
+               sim->state != CO_CIA402_NOT_READY_TO_SWITCH_ON) {
+        power_command(sim, cw);
     }
 }
 

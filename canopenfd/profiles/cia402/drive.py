@@ -53,6 +53,9 @@ class DriveFaultError(DriveError):
         self.state = state
 
 
+#: enable() sends a step's controlword again after this long without its state.
+RESEND_S = 0.1
+
 # Which controlword moves each state one step towards Operation enabled.
 _TOWARDS_ENABLED = {
     DriveState.SWITCH_ON_DISABLED: Command.SHUTDOWN,
@@ -92,9 +95,11 @@ class Drive:
 
     def command(self, controlword: int) -> None:
         if self._cyclic is not None:
-            # the cyclic RPDO carries the controlword too: it must not undo this one
+            # the cyclic RPDO is the controlword's one writer (an SDO write would
+            # race the RPDO frames in flight): the drive takes it at the next SYNC
             self._cyclic.rpdo[self._cyclic.controlword_name].raw = int(controlword)
-        self.write(0x6040, controlword)
+        else:
+            self.write(0x6040, controlword)
         self.controlword = controlword
 
     # ------------------------------------------------------------ state
@@ -156,6 +161,7 @@ class Drive:
         A drive in Fault raises DriveFaultError: call fault_reset() first."""
         limit = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + limit
+        sent_at = 0.0
         while True:
             state = self.state
             if state is DriveState.OPERATION_ENABLED:
@@ -163,8 +169,12 @@ class Drive:
             if state in (DriveState.FAULT, DriveState.FAULT_REACTION_ACTIVE):
                 raise self._fault(state, "enable()")
             step = _TOWARDS_ENABLED.get(state)
-            if step is not None and self.controlword != step:
+            # sent again when the state did not follow: another writer (an RPDO
+            # still in flight with an older controlword) may have undone it
+            if step is not None and (self.controlword != step or
+                                     time.monotonic() - sent_at > RESEND_S):
                 self.command(step)
+                sent_at = time.monotonic()
             if time.monotonic() >= deadline:
                 raise DriveTimeoutError(
                     f"{self._where()}: enable(): wanted {DriveState.OPERATION_ENABLED}, "
@@ -291,14 +301,15 @@ class Drive:
         """Map the drive's PDOs for `mode` (see pdo_setup): {"rpdo", "tpdo"}."""
         return setup_pdos(self.node, mode)
 
-    def cyclic(self, mode: object, period: float = 0.001) -> Cyclic:
+    def cyclic(self, mode: object, period: float = 0.001, sync: bool = True) -> Cyclic:
         """Cyclic synchronous position, velocity or torque: mode set, PDOs
         mapped (synchronous), the node started, SYNC every `period` s from
-        the master's line and the target RPDO after each. Then enable() and
-        set `.target`; `.stop()` ends SYNC and the RPDO."""
+        the master's line (sync=False: the caller runs SYNC, once for many
+        drives) and the target RPDO after each. Then enable() and set
+        `.target`; `.stop()` ends SYNC and the RPDO."""
         if self._cyclic is not None:
             self._cyclic.stop()
-        self._cyclic = Cyclic(self, mode, period)
+        self._cyclic = Cyclic(self, mode, period, sync)
         return self._cyclic
 
     def stop_cyclic(self) -> None:

@@ -62,10 +62,11 @@ def setup_pdos(node: Any, mode: object) -> Dict[str, Any]:
 
 class Cyclic:
     """A running cyclic synchronous exchange: the master's line produces SYNC
-    every `period` s and, after each, the RPDO with the target set here; the
+    every `period` s (sync=False: another producer does, e.g. one SYNC for
+    many drives) and, after each, the RPDO with the target set here; the
     drive's TPDO brings the actual value and statusword back."""
 
-    def __init__(self, drive: Any, mode: object, period: float) -> None:
+    def __init__(self, drive: Any, mode: object, period: float, sync: bool = True) -> None:
         self.drive = drive
         self.mode = mode_number(mode)
         if self.mode not in _CYCLIC:
@@ -86,7 +87,9 @@ class Cyclic:
         node.start()                                  # PDOs run in OPERATIONAL
         self.rpdo.start_sync(every=1)
         self.line = node.line
-        self.line.sync.start(period)
+        self._sync = sync
+        if sync:
+            self.line.sync.start(period)
 
     @staticmethod
     def _interpolation_period(node: Any, period: float) -> None:
@@ -123,5 +126,6 @@ class Cyclic:
         return int(self.tpdo[self._entry(self.tpdo, self._actual_index)].raw)
 
     def stop(self) -> None:
-        self.line.sync.stop()
+        if self._sync:
+            self.line.sync.stop()
         self.rpdo.stop()
