@@ -423,6 +423,14 @@ static void test_pdo_writes_taken_at_tick_and_sync(void **state)
     pdo_write(f, 0x6060, CO_CIA402_MODE_CST);       /* not in 0x6502: stays CSP */
     run_ms(f, 1);
     assert_int_equal(od_int(f, 0x6061, true), CO_CIA402_MODE_CSP);
+    /* the power command is a level: a controlword already seen still acts at
+     * the next tick when the state did not follow it (here: forced back) */
+    put(f, 0x6040, 0x07);
+    assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_SWITCHED_ON);
+    pdo_write(f, 0x6040, 0x0F);
+    f->sim.controlword = 0x0F;
+    run_ms(f, 1);
+    assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_OPERATION_ENABLED);
 }
 
 /* ---------------------------------------------------------------- refusals */
