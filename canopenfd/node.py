@@ -15,6 +15,7 @@ from ._checks import check_ms, check_node_id
 from .errors import ConfigurationError
 from .od import ODVariable, ObjectDictionary
 from .od.datatypes import Value
+from .services.cia402_sim import DriveSimulation
 from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
 from .services.errors import ErrorBits
 from .services.flyma import FlyingMaster
@@ -91,6 +92,8 @@ class LocalNode:
         self.lss = LssSlave(context, node_id, where)
         self.lss.add_configured_hook(self._renumbered)
         self._slave.add_renumber_hook(self._renumbered)
+        #: A simulated CiA 402 drive over this node's OD (canopenfd.profiles.cia402).
+        self.drive_simulation = DriveSimulation(context, where)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         self._frozen_as: Optional[str] = None   # how self.od names us while we serve it

@@ -56,6 +56,7 @@ EXPECTED = {
 NEEDS_VCAN = {"two_processes.py"}
 #: examples whose test lives with their feature's tests
 TESTED_ELSEWHERE = {"master_drives_rpdo.py": "tests/test_master_rpdo.py",
+                    "cia402_drive.py": "tests/test_cia402.py",
                     "mqtt_gateway.py": "tests/test_gateway_mqtt.py"}
 
 

@@ -708,6 +708,13 @@ class Runtime:
         self._call(what, lib.co_rt_gfc_stats, line, out)
         return {name: getattr(out, name) for name, _ in ffi.typeof("co_gfc_stats_t").fields}
 
+    # ---------------------------------------------------------------- CiA 402 simulated drive
+    def cia402_sim_start(self, line: int, tick_us: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia402_sim_start, line, tick_us)
+
+    def cia402_sim_fault(self, line: int, code: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia402_sim_fault, line, code)
+
     def sleep_start(self, line: int, master: bool, check_ms: int, prepare_ms: int,
                     silent_ms: int, wake_repeat_ms: int, objection: int, what: str) -> None:
         config = ffi.new("co_rt_sleep_config_t *")

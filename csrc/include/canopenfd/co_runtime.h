@@ -516,6 +516,13 @@ int co_rt_sync_listen(co_rt_t *rt, int line, int listen);
 /* Send a TIME stamp (microseconds since 1970, UTC). */
 int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
 
+/* ---- simulated CiA 402 drive on the local node (co_rt_cia402.c) */
+/* Start it over the node's OD (which holds the 402 objects; a missing one is
+ * named in the error), SYNC and EMCY; its profile modes step every tick_us. */
+int co_rt_cia402_sim_start(co_rt_t *rt, int line, uint32_t tick_us);
+/* Inject a device fault: 0x603F = code, EMCY, Fault reaction active, Fault. */
+int co_rt_cia402_sim_fault(co_rt_t *rt, int line, uint16_t code);
+
 /* ---- sleep and wake-up (CiA 320; co_rt_sleep.c) */
 typedef struct co_rt_sleep_config {
     int master;                /* 1: power management master, 0: device */

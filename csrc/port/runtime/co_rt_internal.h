@@ -34,6 +34,7 @@
 #include "canopenfd/co_membus.h"
 #include "canopenfd/co_redundancy.h"
 #include "canopenfd/co_socketcan.h"
+#include "canopenfd/co_cia402_sim.h"
 
 #include "co_rt_os.h"
 
@@ -60,8 +61,8 @@ enum {
     RT_CHANNEL_SIZE = 64,
     RT_INDICATIONS = 16,          /* key ranges with Python indications */
     RT_DOMAINS = 8,               /* memory-backed DOMAIN entries per node */
-    /* the stack's parts, indications, domains, app store (2) */
-    RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2 +
+    /* the stack's parts, indications, domains, app store (2), simulated drive (1) */
+    RT_OD_SUBSCRIPTIONS = CO_STACK_OD_SUBSCRIPTIONS + RT_INDICATIONS + RT_DOMAINS + 2 + 1 +
                           CO_GATEWAY_OD_SUBSCRIPTIONS,
     RT_GUARD_NODES = 32,          /* remote nodes guarded by a classic line */
     RT_PDO_WATCHES = 64,          /* CAN-IDs of other nodes' PDOs Python hears */
@@ -272,6 +273,7 @@ typedef struct rt_line {
     rt_host_t host;
     rt_led_t led;
     struct rt_config *config;        /* configurations (co_rt_config.c): at the first one */
+    co_cia402_sim_t *cia402;         /* simulated drive (co_rt_cia402.c), or NULL */
     rt_lss_t lss;
     /* gateway (co_rt_gateway.c): the network-id (0: not joined) and the
      * 0x1F2F routes given through the API, kept across rebuilds */
@@ -604,6 +606,7 @@ bool rt_client_cores(co_rt_t *rt, rt_line_t *l, co_usdo_client_t **usdo,
 /* ---------------------------------------------------------------- co_rt_config.c */
 /* Before the client goes: running configurations end (nothing posted). */
 void rt_config_free(rt_line_t *l);
+void rt_cia402_free(rt_line_t *l);
 /* Under rt->lock: the line's client exists (created now if needed); false
  * with the reason set. */
 bool rt_client_ready(co_rt_t *rt, rt_line_t *l);

@@ -114,6 +114,7 @@ void rt_line_free(rt_line_t *l)
 {
     /* the services first: their deinit still sees the OD and the domains */
     rt_config_free(l);   /* before the client its configurations use */
+    rt_cia402_free(l);   /* before the node whose OD, SYNC and EMCY it uses */
     rt_client_free(l);
     co_stack_deinit(&l->stack);
     rt_socket_close(l);
