@@ -190,7 +190,7 @@ class EventKind(enum.IntEnum):
     GATEWAY = 26
     STORE_PERSIST = 27
     SRDO = 28
-    REDUNDANCY = 28
+    REDUNDANCY = 29
 
 
 class FrameFlag(enum.IntEnum):
@@ -529,6 +529,8 @@ class SrdoViolation(enum.IntEnum):
     GFC = 10
     TX_FAILED = 11
     APPLICATION = 12
+
+
 class RedundancyEvent(enum.IntEnum):
     """What bus redundancy reports (co_rdn_event_t)."""
     BUS_SWITCH = 1
