@@ -38,6 +38,8 @@ itself; Python hears only what it asks for):
     me.rpdo[1].wait_for_reception(timeout=1)   # returns the reception time
     me[0x2200][1].raw = 7; me.tpdo[1].transmit()  # an event TPDO goes out now
     me.trigger_pdo(0x2006)                      # every event TPDO mapping 0x2006
+    me.tpdo[2].send_dam(6, 0x2300, 1, bytes(4))  # MPDO (mapping sub 0 = 0xFF)
+    me.tpdo[3].send_sam(0x2300, 1)              # MPDO (sub 0 = 0xFE), scanner list 0x1FA0
 
 Each reception of a listened RPDO sets its `data` (the mapped values, laid
 out as in the PDO) before the callbacks run, so `pdo["name"].raw` and
@@ -869,6 +871,42 @@ class PdoMap:
             raise ConfigurationError(f"{self.where}: the node is not booted yet")
         context = self._context
         context.runtime.pdo_trigger(context.index, self.number, f"{self.where}: transmit()")
+
+    # ------------------------------------------------------------ MPDO
+    # A TPDO of the local node whose mapping sub 0 is 0xFF (DAM) or 0xFE
+    # (SAM) is a multiplexed PDO (CiA 301): each frame carries one object
+    # with its address (co_mpdo.h; docs/protocol-notes.md "MPDO").
+    def _local_mpdo(self, what: str) -> LineContext:
+        where = f"{self.where}: {what}"
+        if self._remote or self.is_rpdo:
+            raise ConfigurationError(f"{where}: MPDOs are sent through a TPDO of the local "
+                                     "node (mapping sub 0 = 0xFF DAM / 0xFE SAM)")
+        if not self._access.booted:
+            raise ConfigurationError(f"{where}: the node is not booted yet")
+        return self._context
+
+    def send_dam(self, node: int, index: int, sub: int, data: bytes) -> None:
+        """DAM MPDO: write `data` (1..4 bytes, little-endian as in the OD)
+        into index:sub of node `node` (0 = every consumer), through this
+        TPDO (mapping sub 0 = 0xFF, type 254/255, OPERATIONAL). The error
+        names why it was not sent."""
+        what = f"send_dam({node}, 0x{index:04X}, {sub}, {bytes(data)!r})"
+        context = self._local_mpdo(what)
+        if not isinstance(data, (bytes, bytearray)) or not 1 <= len(data) <= 4:
+            raise ConfigurationError(f"{self.where}: {what}: data must be 1..4 bytes, got "
+                                     f"{data!r}")
+        context.runtime.mpdo_send_dam(context.index, self.number, node, index, sub, bytes(data),
+                                      f"{self.where}: {what}")
+
+    def send_sam(self, index: int, sub: int) -> None:
+        """SAM MPDO: send the local object index:sub (named by the object
+        scanner list 0x1FA0..0x1FCF, at most 4 bytes) through this TPDO
+        (mapping sub 0 = 0xFE, type 254/255, OPERATIONAL); consumers find
+        their own object for it in their dispatcher list 0x1FD0..0x1FFF."""
+        what = f"send_sam(0x{index:04X}, {sub})"
+        context = self._local_mpdo(what)
+        context.runtime.mpdo_send_sam(context.index, self.number, index, sub,
+                                      f"{self.where}: {what}")
 
     # ------------------------------------------------------------ master side
     # A remote node's RPDO, produced by the master in the C runtime: the

@@ -48,6 +48,7 @@ typedef struct co_mpdo_msg {
     uint8_t data[CO_MPDO_DATA_MAX];
 } co_mpdo_msg_t;
 
+/* cffi:begin */
 typedef struct co_mpdo_stats {
     uint32_t tx_frames;             /* MPDOs handed to the PDO service and sent */
     uint32_t tx_refused;            /* send calls refused (argument, channel, object, line) */
@@ -58,6 +59,7 @@ typedef struct co_mpdo_stats {
     uint32_t rx_not_dispatched;     /* SAM frames the dispatcher list does not name */
     uint32_t rx_refused;            /* the target object missing or refusing the value */
 } co_mpdo_stats_t;
+/* cffi:end */
 
 typedef enum co_mpdo_status {
     CO_MPDO_OK = 0,
