@@ -19,7 +19,7 @@ RUNNABLE_PAGES = ["docs/from-python-canopen.md", "docs/network-manager-requests.
                   "docs/error-bits.md",
                   "docs/gateway-ascii.md", "docs/remote-access.md", "docs/usdo-transfers.md",
                   "docs/routing.md", "docs/process-image.md", "docs/parameter-store.md",
-                  "docs/live-objects.md"]
+                  "docs/live-objects.md", "docs/mpdo.md"]
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
