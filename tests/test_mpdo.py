@@ -48,6 +48,17 @@ def make_mpdo(node, kind: str, number: int, marker: int, cob_id: int) -> None:
     node[comm + number - 1][1].raw = cob_id
 
 
+def make_pair_mpdos(node, me: int, other: int) -> None:
+    """DAM (TPDO 1 on 0x180 + me) and SAM (TPDO 2 on 0x280 + me) producers,
+    consumers of the other node's (RPDO 1 / 2), then OPERATIONAL."""
+    make_mpdo(node, "tpdo", 1, 0xFF, 0x180 + me)
+    make_mpdo(node, "tpdo", 2, 0xFE, 0x280 + me)
+    make_mpdo(node, "rpdo", 1, 0xFF, 0x180 + other)
+    make_mpdo(node, "rpdo", 2, 0xFE, 0x280 + other)
+    node.nmt.state = "OPERATIONAL"
+    node.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+
+
 @pytest.fixture(params=["classic", "fd"])
 def mode(request):
     return request.param
@@ -66,13 +77,7 @@ class Pair:
         self.nodes = {n: self.lines[n].create_local_node(n, od=mpdo_od(mode, A + B - n))
                       for n in (A, B)}
         for me, other in ((A, B), (B, A)):
-            node = self.nodes[me]
-            make_mpdo(node, "tpdo", 1, 0xFF, 0x180 + me)
-            make_mpdo(node, "tpdo", 2, 0xFE, 0x280 + me)
-            make_mpdo(node, "rpdo", 1, 0xFF, 0x180 + other)
-            make_mpdo(node, "rpdo", 2, 0xFE, 0x280 + other)
-            node.nmt.state = "OPERATIONAL"
-            node.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+            make_pair_mpdos(self.nodes[me], me, other)
 
     def wait_frame(self, can_id: int, start: int):
         def found(calls):

@@ -89,14 +89,7 @@ static const co_mpdo_indications_t indications = {on_received, on_refused, on_er
 static void def(node_t *n, uint16_t index, uint8_t sub, uint8_t obj, uint8_t type,
                 uint8_t access, uint16_t flags, uint64_t value)
 {
-    co_od_def_t d;
-    uint8_t v[8];
-    uint32_t size = co_od_type_size(type);
-    d = tu_od_def(index, sub, obj, type, access, flags, size);
-    tu_le_put(v, value, size);
-    d.default_value = v;
-    d.default_length = size;
-    assert_int_equal(co_od_add(&n->od, &d), CO_OD_ADDED);
+    tu_od_add_value(&n->od, index, sub, obj, type, access, flags, value);
 }
 
 /* An MPDO: communication (COB-ID, type, inhibit, event timer) and a
@@ -215,11 +208,7 @@ static void carry(fx_t *fx)
 
 static uint64_t get(node_t *n, uint16_t index, uint8_t sub, uint32_t len)
 {
-    uint8_t buf[8] = {0};
-    uint32_t got = 0;
-    assert_int_equal(co_od_get(&n->od, index, sub, buf, sizeof buf, &got), 0);
-    assert_int_equal(got, len);
-    return tu_le_get(buf, len);
+    return tu_od_value(&n->od, index, sub, len);
 }
 
 static void inject(fx_t *fx, uint32_t id, const uint8_t *data, uint8_t len)
@@ -533,21 +522,6 @@ static void test_inhibit(void **state)
     fx_free(fx);
 }
 
-/* A network write (SDO/USDO server path): begin, one chunk, end. */
-static uint32_t net_write(node_t *n, uint16_t index, uint8_t sub, uint64_t value, uint32_t len)
-{
-    uint8_t scratch[64], buf[8];
-    co_od_xfer_t x;
-    uint32_t r;
-    co_od_xfer_init(&x, scratch, sizeof scratch);
-    tu_le_put(buf, value, len);
-    r = co_od_write_begin(&n->od, &x, index, sub, len);
-    if (r == 0) {
-        r = co_od_write_chunk(&x, buf, len);
-    }
-    return r == 0 ? co_od_write_end(&x) : r;
-}
-
 /* Configuring an MPDO over the network as CiA 301's mapping procedure
  * does: invalidate, sub 0 = 0xFE/0xFF, validate; a type other than
  * 254/255 is refused (our choice: MPDOs are event-driven). */
@@ -556,15 +530,16 @@ static void test_configure_over_od(void **state)
     fx_t *fx = pair(CO_MODE_CLASSIC);
     (void)state;
     /* while valid, the kind cannot change */
-    assert_int_equal(net_write(&fx->b, 0x1600, 0, CO_PDO_MAP_SAM, 1), CO_ABORT_INVALID_VALUE);
-    assert_int_equal(net_write(&fx->b, 0x1400, 1, INVALID | DAM_ID, 4), 0);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1600, 0, CO_PDO_MAP_SAM, 1),
+                     CO_ABORT_INVALID_VALUE);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1400, 1, INVALID | DAM_ID, 4), 0);
     assert_false(co_pdo_is_active(&fx->b.pdo, true, 1));
-    assert_int_equal(net_write(&fx->b, 0x1600, 0, 0, 1), 0);
-    assert_int_equal(net_write(&fx->b, 0x1600, 0, CO_PDO_MAP_SAM, 1), 0);
-    assert_int_equal(net_write(&fx->b, 0x1400, 2, 1, 1), 0);
-    assert_int_equal(net_write(&fx->b, 0x1400, 1, DAM_ID, 4), CO_ABORT_INVALID_VALUE);
-    assert_int_equal(net_write(&fx->b, 0x1400, 2, 255, 1), 0);
-    assert_int_equal(net_write(&fx->b, 0x1400, 1, DAM_ID, 4), 0);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1600, 0, 0, 1), 0);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1600, 0, CO_PDO_MAP_SAM, 1), 0);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1400, 2, 1, 1), 0);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1400, 1, DAM_ID, 4), CO_ABORT_INVALID_VALUE);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1400, 2, 255, 1), 0);
+    assert_int_equal(tu_od_net_write(&fx->b.od, 0x1400, 1, DAM_ID, 4), 0);
     assert_true(co_pdo_is_active(&fx->b.pdo, true, 1));
     assert_int_equal(co_pdo_channel(&fx->b.pdo, true, 1)->mpdo, CO_PDO_MAP_SAM);
     /* RPDO1 now takes a's SAM MPDOs if they come on 0x185: a DAM frame is the wrong mode */
