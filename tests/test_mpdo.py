@@ -169,3 +169,35 @@ def test_refusals_name_the_cause(pair):
     node.nmt.wait_for_state("PRE-OPERATIONAL", timeout=scaled(2))
     with pytest.raises(CanopenFDError, match="not operational"):
         node.tpdo[1].send_dam(B, DATA, 1, bytes([1]))
+
+
+def test_configured_over_the_network(net, bus_name, mode):
+    """A master makes the device's RPDO 1 a DAM MPDO with `rpdo.mpdo = 'DAM'`
+    and save() (SDO/USDO, the CiA 301 procedure), reads it back, and its own
+    DAM MPDO then writes the device."""
+    device = net.open_line(bus_name, mode=mode).create_local_node(B, od=mpdo_od(mode, A))
+    line = net.open_line(bus_name, mode=mode)
+    me = line.create_local_node(A, od=mpdo_od(mode, B))
+    make_mpdo(me, "tpdo", 1, 0xFF, 0x180 + A)
+    drive = line.add_node(B, od=mpdo_od(mode, A))
+    rpdo = drive.rpdo[1]
+    rpdo.read()
+    assert rpdo.mpdo is None
+    rpdo.mpdo = "DAM"
+    rpdo.cob_id = 0x180 + A
+    rpdo.trans_type = 1
+    with pytest.raises(ConfigurationError, match="MPDO .DAM. needs trans_type 254 or 255"):
+        rpdo.save()
+    rpdo.trans_type = 254
+    rpdo.enabled = True
+    rpdo.save()
+    assert device[0x1600][0].raw == 0xFF
+    drive.rpdo[1].read()
+    assert drive.rpdo[1].mpdo == "DAM" and drive.rpdo[1].enabled and not drive.rpdo[1].map
+    with pytest.raises(ConfigurationError, match="'DAM', 'SAM' or None"):
+        rpdo.mpdo = "BOTH"
+    for node in (me, device):
+        node.nmt.state = "OPERATIONAL"
+        node.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    me.tpdo[1].send_dam(B, DATA, 5, bytes([0x5A]))
+    wait_value(device, DATA, 5, 0x5A)

@@ -89,7 +89,8 @@ from .served_od import LocalValue, ServedDictionary
 from .views import LocalNodeView, NodeView
 
 __all__ = ["PdoMaps", "PdoMap", "PdoVariable", "PdoAccess", "LocalPdoAccess",
-           "RemotePdoAccess", "PDO_NOT_VALID", "RTR_NOT_ALLOWED", "FRAME_29BIT", "DUMMY_BITS"]
+           "RemotePdoAccess", "PDO_NOT_VALID", "RTR_NOT_ALLOWED", "FRAME_29BIT", "DUMMY_BITS",
+           "MPDO_MARKERS"]
 
 log = logging.getLogger(__name__)
 
@@ -107,6 +108,8 @@ EntryKey = Union[int, str, Tuple[int, int]]
 SubKey = Union[int, str, None]
 
 _MAX_ENTRIES = 64
+#: Mapping sub 0 values that make a PDO a multiplexed PDO (CiA 301).
+MPDO_MARKERS = {"SAM": 0xFE, "DAM": 0xFF}
 _BITS = {"classic": 64, "fd": 512}
 _COMM = {"rpdo": 0x1400, "tpdo": 0x1800}
 _MAP = {"rpdo": 0x1600, "tpdo": 0x1A00}
@@ -516,6 +519,7 @@ class PdoMap:
         self.data = bytearray()
         # The mapping is written by save() only when it was changed here.
         self._map_changed = False
+        self._mpdo: Optional[str] = None
         # Communication values as read (sub -> value): read-only ones are not rewritten.
         self._read_values: Dict[int, Optional[int]] = {}
         # Receptions (local RPDOs listened to): callbacks, count, last time.
@@ -1119,6 +1123,23 @@ class PdoMap:
         self.map = []
         self.length = 0
         self.data = bytearray()
+        self._mpdo = None
+        self._map_changed = True
+
+    @property
+    def mpdo(self) -> Optional[str]:
+        """'DAM' or 'SAM' when this PDO is a multiplexed PDO (mapping sub 0 =
+        0xFF / 0xFE, as read() found or set here), else None. Setting it
+        makes save() write that sub 0 (no entries; trans_type 254 or 255)."""
+        return self._mpdo
+
+    @mpdo.setter
+    def mpdo(self, value: Optional[str]) -> None:
+        if value is not None and value not in MPDO_MARKERS:
+            raise ConfigurationError(f"{self.where}: mpdo must be 'DAM', 'SAM' or None, got "
+                                     f"{value!r}")
+        self.map, self.length, self.data = [], 0, bytearray()
+        self._mpdo = value
         self._map_changed = True
 
     def _resolve(self, index: EntryKey, subindex: SubKey
@@ -1186,6 +1207,7 @@ class PdoMap:
         self._check_room(len(self.map) + 1, self.length + bits, where)
         var = PdoVariable(index, subindex, bits, variable)
         self._append(var)
+        self._mpdo = None           # mapped entries make it a plain PDO again
         self._map_changed = True
         return var
 
@@ -1251,9 +1273,11 @@ class PdoMap:
         self._event_timer = values.get(5)
         self._sync_start_value = values.get(6)
         self.map, self.length, self.data = [], 0, bytearray()
+        self._mpdo = None
         if self._has(self.map_index, 0):
             count = fetch(self.map_index, 0, 1, "reading the number of mapped entries") or 0
-            for sub in range(1, min(count, _MAX_ENTRIES) + 1):
+            self._mpdo = next((k for k, v in MPDO_MARKERS.items() if v == count), None)
+            for sub in range(1, min(count, _MAX_ENTRIES) + 1 if self._mpdo is None else 1):
                 value = fetch(self.map_index, sub, 4, f"reading mapping entry {sub}")
                 if not value or not value & 0xFF:
                     log.warning("%s: mapping entry %d is 0x%08X (no object or 0 bits); ignored",
@@ -1369,6 +1393,14 @@ class PdoMap:
         if not self._writable(mapping, 0):
             raise ConfigurationError(f"{where}: 0x{mapping:04X}:00 is read-only in the OD "
                                      "(a fixed mapping cannot be changed)")
+        if self._mpdo is not None:
+            if self._trans_type not in (254, 255):
+                raise ConfigurationError(f"{where}: an MPDO ({self._mpdo}) needs trans_type 254 "
+                                         f"or 255, got {self._trans_type!r}")
+            marker = MPDO_MARKERS[self._mpdo]
+            return [(f"clearing the mapping (0x{mapping:04X}:00 = 0)", mapping, 0, 0, 1),
+                    (f"making it a {self._mpdo} MPDO (0x{mapping:04X}:00 = 0x{marker:02X})",
+                     mapping, 0, marker, 1)]
         bits = sum(var.length for var in self.map)
         self._check_room(len(self.map), bits, where)
         for var in self.map:
