@@ -36,6 +36,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_emcy.h",
     "csrc/include/canopenfd/co_errors.h",
     "csrc/include/canopenfd/co_pdo.h",
+    "csrc/include/canopenfd/co_mpdo.h",
     "csrc/include/canopenfd/co_sync.h",
     "csrc/include/canopenfd/co_time.h",
     "csrc/include/canopenfd/co_guard.h",

@@ -7,7 +7,7 @@ methods hand over to them.
 
 from __future__ import annotations
 
-from typing import Any, Callable, List, Optional, Protocol, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Protocol, Tuple, Union
 
 from ._aio import LoopArg
 from ._binding.context import RuntimeLineContext
@@ -364,6 +364,18 @@ class LocalNode:
         context = self._context
         return context.runtime.pdo_trigger_object(context.index, entry.index, entry.subindex,
                                                   where)
+
+    def mpdo_stats(self) -> Dict[str, int]:
+        """The node's MPDO counters (co_mpdo_stats_t): frames sent and send
+        calls refused, values applied, frames ignored (bad length, wrong
+        mode, another node's DAM, a SAM the dispatcher list does not name)
+        and refused (the target object missing or refusing the value: a
+        DAM one also sends EMCY 0x8230)."""
+        where = f"mpdo_stats() on {self._where}"
+        if not self.booted:
+            raise ConfigurationError(f"{where}: the node is not booted yet")
+        context = self._context
+        return context.runtime.mpdo_stats(context.index, where)
 
     # ---------------------------------------------------------------- EMCY
     @property

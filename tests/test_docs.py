@@ -20,7 +20,7 @@ RUNNABLE_PAGES = ["docs/from-python-canopen.md", "docs/network-manager-requests.
                   "docs/gateway-ascii.md", "docs/remote-access.md", "docs/usdo-transfers.md",
                   "docs/routing.md", "docs/process-image.md", "docs/parameter-store.md",
                   "docs/live-objects.md", "docs/asyncio.md",
-                  "docs/cia401.md", "docs/srdo.md", "docs/cia402.md"]
+                  "docs/cia401.md", "docs/srdo.md", "docs/cia402.md", "docs/mpdo.md"]
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 

@@ -601,6 +601,18 @@ class Runtime:
     def pdo_trigger_object(self, line: int, index: int, sub: int, what: str) -> int:
         return self._call(what, lib.co_rt_pdo_trigger_object, line, index, sub)
 
+    def mpdo_send_dam(self, line: int, number: int, node: int, index: int, sub: int,
+                      data: bytes, what: str) -> None:
+        self._call(what, lib.co_rt_mpdo_send_dam, line, number, node, index, sub, data, len(data))
+
+    def mpdo_send_sam(self, line: int, number: int, index: int, sub: int, what: str) -> None:
+        self._call(what, lib.co_rt_mpdo_send_sam, line, number, index, sub)
+
+    def mpdo_stats(self, line: int, what: str) -> Dict[str, int]:
+        out = ffi.new("co_mpdo_stats_t *")
+        self._call(what, lib.co_rt_mpdo_stats, line, out)
+        return {name: getattr(out, name) for name, _ in ffi.typeof("co_mpdo_stats_t").fields}
+
     def pdo_listen(self, line: int, number: int, listen: bool, what: str) -> None:
         self._call(what, lib.co_rt_pdo_listen, line, number, int(listen))
 

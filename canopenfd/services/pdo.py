@@ -38,6 +38,8 @@ itself; Python hears only what it asks for):
     me.rpdo[1].wait_for_reception(timeout=1)   # returns the reception time
     me[0x2200][1].raw = 7; me.tpdo[1].transmit()  # an event TPDO goes out now
     me.trigger_pdo(0x2006)                      # every event TPDO mapping 0x2006
+    me.tpdo[2].send_dam(6, 0x2300, 1, bytes(4))  # MPDO (mapping sub 0 = 0xFF)
+    me.tpdo[3].send_sam(0x2300, 1)              # MPDO (sub 0 = 0xFE), scanner list 0x1FA0
 
 Each reception of a listened RPDO sets its `data` (the mapped values, laid
 out as in the PDO) before the callbacks run, so `pdo["name"].raw` and
@@ -89,7 +91,8 @@ from .served_od import LocalValue, ServedDictionary
 from .views import LocalNodeView, NodeView
 
 __all__ = ["PdoMaps", "PdoMap", "PdoVariable", "PdoAccess", "LocalPdoAccess",
-           "RemotePdoAccess", "PDO_NOT_VALID", "RTR_NOT_ALLOWED", "FRAME_29BIT", "DUMMY_BITS"]
+           "RemotePdoAccess", "PDO_NOT_VALID", "RTR_NOT_ALLOWED", "FRAME_29BIT", "DUMMY_BITS",
+           "MPDO_MARKERS"]
 
 log = logging.getLogger(__name__)
 
@@ -107,6 +110,8 @@ EntryKey = Union[int, str, Tuple[int, int]]
 SubKey = Union[int, str, None]
 
 _MAX_ENTRIES = 64
+#: Mapping sub 0 values that make a PDO a multiplexed PDO (CiA 301).
+MPDO_MARKERS = {"SAM": 0xFE, "DAM": 0xFF}
 _BITS = {"classic": 64, "fd": 512}
 _COMM = {"rpdo": 0x1400, "tpdo": 0x1800}
 _MAP = {"rpdo": 0x1600, "tpdo": 0x1A00}
@@ -537,6 +542,7 @@ class PdoMap:
         self.data = bytearray()
         # The mapping is written by save() only when it was changed here.
         self._map_changed = False
+        self._mpdo: Optional[str] = None
         # Communication values as read (sub -> value): read-only ones are not rewritten.
         self._read_values: Dict[int, Optional[int]] = {}
         # Receptions (local RPDOs listened to): callbacks, count, last time.
@@ -911,6 +917,42 @@ class PdoMap:
         context = self._context
         context.runtime.pdo_trigger(context.index, self.number, f"{self.where}: transmit()")
 
+    # ------------------------------------------------------------ MPDO
+    # A TPDO of the local node whose mapping sub 0 is 0xFF (DAM) or 0xFE
+    # (SAM) is a multiplexed PDO (CiA 301): each frame carries one object
+    # with its address (co_mpdo.h; docs/protocol-notes.md "MPDO").
+    def _local_mpdo(self, what: str) -> LineContext:
+        where = f"{self.where}: {what}"
+        if self._remote or self.is_rpdo:
+            raise ConfigurationError(f"{where}: MPDOs are sent through a TPDO of the local "
+                                     "node (mapping sub 0 = 0xFF DAM / 0xFE SAM)")
+        if not self._access.booted:
+            raise ConfigurationError(f"{where}: the node is not booted yet")
+        return self._context
+
+    def send_dam(self, node: int, index: int, sub: int, data: bytes) -> None:
+        """DAM MPDO: write `data` (1..4 bytes, little-endian as in the OD)
+        into index:sub of node `node` (0 = every consumer), through this
+        TPDO (mapping sub 0 = 0xFF, type 254/255, OPERATIONAL). The error
+        names why it was not sent."""
+        what = f"send_dam({node}, 0x{index:04X}, {sub}, {bytes(data)!r})"
+        context = self._local_mpdo(what)
+        if not isinstance(data, (bytes, bytearray)) or not 1 <= len(data) <= 4:
+            raise ConfigurationError(f"{self.where}: {what}: data must be 1..4 bytes, got "
+                                     f"{data!r}")
+        context.runtime.mpdo_send_dam(context.index, self.number, node, index, sub, bytes(data),
+                                      f"{self.where}: {what}")
+
+    def send_sam(self, index: int, sub: int) -> None:
+        """SAM MPDO: send the local object index:sub (named by the object
+        scanner list 0x1FA0..0x1FCF, at most 4 bytes) through this TPDO
+        (mapping sub 0 = 0xFE, type 254/255, OPERATIONAL); consumers find
+        their own object for it in their dispatcher list 0x1FD0..0x1FFF."""
+        what = f"send_sam(0x{index:04X}, {sub})"
+        context = self._local_mpdo(what)
+        context.runtime.mpdo_send_sam(context.index, self.number, index, sub,
+                                      f"{self.where}: {what}")
+
     # ------------------------------------------------------------ master side
     # A remote node's RPDO, produced by the master in the C runtime: the
     # mapped bytes live in a runtime slot; each `raw =` writes its bits there
@@ -1122,6 +1164,23 @@ class PdoMap:
         self.map = []
         self.length = 0
         self.data = bytearray()
+        self._mpdo = None
+        self._map_changed = True
+
+    @property
+    def mpdo(self) -> Optional[str]:
+        """'DAM' or 'SAM' when this PDO is a multiplexed PDO (mapping sub 0 =
+        0xFF / 0xFE, as read() found or set here), else None. Setting it
+        makes save() write that sub 0 (no entries; trans_type 254 or 255)."""
+        return self._mpdo
+
+    @mpdo.setter
+    def mpdo(self, value: Optional[str]) -> None:
+        if value is not None and value not in MPDO_MARKERS:
+            raise ConfigurationError(f"{self.where}: mpdo must be 'DAM', 'SAM' or None, got "
+                                     f"{value!r}")
+        self.map, self.length, self.data = [], 0, bytearray()
+        self._mpdo = value
         self._map_changed = True
 
     def _resolve(self, index: EntryKey, subindex: SubKey
@@ -1189,6 +1248,7 @@ class PdoMap:
         self._check_room(len(self.map) + 1, self.length + bits, where)
         var = PdoVariable(index, subindex, bits, variable)
         self._append(var)
+        self._mpdo = None           # mapped entries make it a plain PDO again
         self._map_changed = True
         return var
 
@@ -1265,10 +1325,12 @@ class PdoMap:
         self._event_timer = values.get(5)
         self._sync_start_value = values.get(6)
         self.map, self.length, self.data = [], 0, bytearray()
+        self._mpdo = None
         if self._has(self.map_index, 0):
             count = (yield from fetch(self.map_index, 0, 1,
                                       "reading the number of mapped entries")) or 0
-            for sub in range(1, min(count, _MAX_ENTRIES) + 1):
+            self._mpdo = next((k for k, v in MPDO_MARKERS.items() if v == count), None)
+            for sub in range(1, min(count, _MAX_ENTRIES) + 1 if self._mpdo is None else 1):
                 value = yield from fetch(self.map_index, sub, 4, f"reading mapping entry {sub}")
                 if not value or not value & 0xFF:
                     log.warning("%s: mapping entry %d is 0x%08X (no object or 0 bits); ignored",
@@ -1384,6 +1446,14 @@ class PdoMap:
         if not self._writable(mapping, 0):
             raise ConfigurationError(f"{where}: 0x{mapping:04X}:00 is read-only in the OD "
                                      "(a fixed mapping cannot be changed)")
+        if self._mpdo is not None:
+            if self._trans_type not in (254, 255):
+                raise ConfigurationError(f"{where}: an MPDO ({self._mpdo}) needs trans_type 254 "
+                                         f"or 255, got {self._trans_type!r}")
+            marker = MPDO_MARKERS[self._mpdo]
+            return [(f"clearing the mapping (0x{mapping:04X}:00 = 0)", mapping, 0, 0, 1),
+                    (f"making it a {self._mpdo} MPDO (0x{mapping:04X}:00 = 0x{marker:02X})",
+                     mapping, 0, marker, 1)]
         bits = sum(var.length for var in self.map)
         self._check_room(len(self.map), bits, where)
         for var in self.map:

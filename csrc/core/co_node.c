@@ -389,6 +389,20 @@ const co_pdo_indications_t co_node_pdo_indications = {
     .rx_error_changed = on_rpdo_error_changed,
 };
 
+/* A refused DAM MPDO is an event, not a condition: EMCY 0x8230 (the RPDO
+ * number in the manufacturer bytes), then its error reset. */
+static void on_mpdo_error(co_mpdo_t *mpdo, uint16_t code, uint16_t rpdo_number, void *user)
+{
+    (void)mpdo;
+    co_node_t *node = user;
+    raise_error(node, code, rpdo_number);
+    clear_error(node, code);
+}
+
+const co_mpdo_indications_t co_node_mpdo_indications = {
+    .error = on_mpdo_error,
+};
+
 static void on_comm_bit(co_errors_t *errors, void *user)
 {
     (void)errors;

@@ -115,6 +115,12 @@ static bool is_event_type(uint8_t type)
     return type >= CO_PDO_TYPE_EVENT_MANUFACTURER;
 }
 
+/* Mapping sub 0 values that make the PDO an MPDO (CiA 301). */
+static bool is_mpdo_count(uint8_t count)
+{
+    return count == CO_PDO_MAP_SAM || count == CO_PDO_MAP_DAM;
+}
+
 /* 0 or the abort code for a transmission type on this kind of PDO/line. */
 static uint32_t check_type(const co_pdo_t *pdo, bool is_rpdo, uint8_t type)
 {
@@ -216,7 +222,8 @@ static bool transmit(co_pdo_t *pdo, co_pdo_channel_t *ch)
 
 static void arm_event_timer(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
-    if (ch->event_ms != 0 && is_event_type(ch->type)) {
+    /* an MPDO has no values of its own to send again */
+    if (ch->event_ms != 0 && is_event_type(ch->type) && ch->mpdo == 0) {
         co_timer_start(co_line_timers(pdo->line), &ch->timer,
                        co_line_now(pdo->line) + ms_to_us(ch->event_ms));
     }
@@ -372,6 +379,7 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
     stop_channel(pdo, ch);
     ch->map_count = 0;
     ch->bits = 0;
+    ch->mpdo = 0;
     ch->inhibit_100us = 0;
     ch->event_ms = 0;
     ch->sync_start = 0;
@@ -390,9 +398,18 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
     if (cob & COB_INVALID) {
         return;
     }
-    if (count == 0 || check_type(pdo, ch->is_rpdo, type) != 0 || check_cob_id_value(cob) != 0 ||
-        co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, count, ch->map_capacity, ch->map,
-                           &bits) != 0) {
+    if (is_mpdo_count(count)) {
+        /* our choice: MPDOs are event-driven only (see protocol-notes "MPDO") */
+        if (!is_event_type(type) || check_cob_id_value(cob) != 0) {
+            pdo->stats.config_invalid++;
+            return;
+        }
+        ch->mpdo = count;
+        count = 0;
+    } else if (count == 0 || check_type(pdo, ch->is_rpdo, type) != 0 ||
+               check_cob_id_value(cob) != 0 ||
+               co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, count, ch->map_capacity,
+                                  ch->map, &bits) != 0) {
         pdo->stats.config_invalid++;
         return;
     }
@@ -411,7 +428,8 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
             take_id(pdo, ch, true);
         }
     } else {
-        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && co_line_mode(pdo->line) == CO_MODE_CLASSIC;
+        ch->rtr_allowed = (cob & COB_NO_RTR) == 0 && co_line_mode(pdo->line) == CO_MODE_CLASSIC &&
+                          ch->mpdo == 0;
         if (ch->rtr_allowed && !ch->ext && id_slot(pdo, true, ch->can_id) == 0) {
             take_id(pdo, ch, true);
         }
@@ -454,10 +472,14 @@ static uint32_t check_comm(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entr
             return abort;
         }
         /* enabling needs a usable mapping and transmission type */
-        if (mapping_count(pdo, ch) == 0 ||
-            co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, mapping_count(pdo, ch),
-                               ch->map_capacity, NULL, &bits) != 0 ||
-            check_type(pdo, ch->is_rpdo, ch->type) != 0) {
+        if (is_mpdo_count(mapping_count(pdo, ch))) {
+            if (!is_event_type(ch->type)) {
+                return CO_ABORT_INVALID_VALUE;
+            }
+        } else if (mapping_count(pdo, ch) == 0 ||
+                   co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, mapping_count(pdo, ch),
+                                      ch->map_capacity, NULL, &bits) != 0 ||
+                   check_type(pdo, ch->is_rpdo, ch->type) != 0) {
             return CO_ABORT_INVALID_VALUE;
         }
         id = cob & COB_ID_11;
@@ -508,8 +530,8 @@ static uint32_t check_map(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entry
         if (od_valid(pdo, ch)) {
             return CO_ABORT_INVALID_VALUE;
         }
-        if (value[0] == 0) {
-            return 0;
+        if (value[0] == 0 || is_mpdo_count(value[0])) {
+            return 0;   /* an MPDO's entries are not used */
         }
         return co_pdo_map_compile(pdo->od, map_index(ch), ch->is_rpdo, value[0],
                                   ch->map_capacity, NULL, &bits);
@@ -621,6 +643,14 @@ static void on_rpdo(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_frame_t *f)
     uint8_t allowed = co_line_mode(pdo->line) == CO_MODE_FD ? co_fd_len_round(need) : need;
     if (!pdo->operational) {
         pdo->stats.rx_not_operational++;
+        return;
+    }
+    if (ch->mpdo != 0) {
+        if (pdo->mpdo_rx != NULL) {
+            pdo->mpdo_rx(pdo, ch->number, ch->mpdo, f, pdo->mpdo_rx_user);
+        } else {
+            pdo->stats.rx_not_ours++;
+        }
         return;
     }
     if (f->len < need) {
@@ -986,7 +1016,7 @@ void co_pdo_set_operational(co_pdo_t *pdo, bool operational)
 bool co_pdo_trigger(co_pdo_t *pdo, uint16_t tpdo_number)
 {
     co_pdo_channel_t *ch = channel_of(pdo, false, tpdo_number);
-    if (ch == NULL || !ch->active || !pdo->operational || ch->sampling) {
+    if (ch == NULL || !ch->active || !pdo->operational || ch->sampling || ch->mpdo != 0) {
         return false;
     }
     if (ch->type == CO_PDO_TYPE_SYNC_ACYCLIC) {
@@ -1055,4 +1085,32 @@ void co_pdo_set_rx_tap(co_pdo_t *pdo, co_pdo_rx_tap_fn fn, void *user)
 {
     pdo->rx_tap = fn;
     pdo->rx_tap_user = fn != NULL ? user : NULL;
+}
+
+void co_pdo_set_mpdo_rx(co_pdo_t *pdo, co_pdo_mpdo_rx_fn fn, void *user)
+{
+    pdo->mpdo_rx = fn;
+    pdo->mpdo_rx_user = fn != NULL ? user : NULL;
+}
+
+bool co_pdo_send_mpdo(co_pdo_t *pdo, uint16_t tpdo_number, const uint8_t *data, uint8_t len)
+{
+    co_pdo_channel_t *ch = channel_of(pdo, false, tpdo_number);
+    uint64_t now = co_line_now(pdo->line);
+    if (ch == NULL || !ch->active || ch->mpdo == 0 || !pdo->operational ||
+        len > sizeof ch->buf) {
+        return false;
+    }
+    if (ch->has_data && now < ch->inhibit_end_us) {
+        pdo->stats.tx_inhibited++;   /* refused, not queued: each MPDO is its own message */
+        return false;
+    }
+    memcpy(ch->buf, data, len);
+    ch->len = len;
+    if (!transmit(pdo, ch)) {
+        return false;
+    }
+    ch->has_data = true;
+    ch->inhibit_end_us = now + (uint64_t)ch->inhibit_100us * 100u;
+    return true;
 }

@@ -430,6 +430,10 @@ static void node_undo(co_stack_t *s)
         co_guard_slave_deinit(&s->guard_slave);
         s->has_guard_slave = false;
     }
+    if (s->has_mpdo) {
+        co_mpdo_deinit(&s->mpdo);
+        s->has_mpdo = false;
+    }
     if (s->has_pdo) {
         co_pdo_deinit(&s->pdo);
         s->has_pdo = false;
@@ -558,7 +562,12 @@ static co_stack_status_t start_pdo(co_stack_t *s, const node_sizes_t *n)
         return fail(s, CO_STACK_PART_PDO, CO_STACK_ERR_NO_MEMORY);
     }
     s->has_pdo = co_pdo_init(&s->pdo, s->line, s->od, &config);
-    return s->has_pdo ? CO_STACK_OK : fail(s, CO_STACK_PART_PDO, CO_STACK_ERR_TAKEN);
+    if (!s->has_pdo) {
+        return fail(s, CO_STACK_PART_PDO, CO_STACK_ERR_TAKEN);
+    }
+    co_mpdo_init(&s->mpdo, &s->pdo, &co_node_mpdo_indications, &s->node);
+    s->has_mpdo = true;
+    return CO_STACK_OK;
 }
 
 /* The OD now says what SYNC, TIME and the EMCY consumer of the line do. */

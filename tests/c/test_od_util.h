@@ -95,6 +95,30 @@ static inline void tu_od_def_from(co_od_def_t *d, const tu_od_row_t *t, uint8_t 
     }
 }
 
+/* Add one entry with a fixed-size type and its default value; it must be added. */
+static inline void tu_od_add_value(co_od_t *od, uint16_t index, uint8_t sub, uint8_t obj,
+                                   uint8_t type, uint8_t access, uint16_t flags, uint64_t value)
+{
+    co_od_def_t d;
+    uint8_t v[8];
+    uint32_t size = co_od_type_size(type);
+    d = tu_od_def(index, sub, obj, type, access, flags, size);
+    tu_le_put(v, value, size);
+    d.default_value = v;
+    d.default_length = size;
+    assert_int_equal(co_od_add(od, &d), CO_OD_ADDED);
+}
+
+/* The value of index:sub, which must be readable and len bytes long. */
+static inline uint64_t tu_od_value(const co_od_t *od, uint16_t index, uint8_t sub, uint32_t len)
+{
+    uint8_t buf[8] = {0};
+    uint32_t got = 0;
+    assert_int_equal(co_od_get(od, index, sub, buf, sizeof buf, &got), 0);
+    assert_int_equal(got, len);
+    return tu_le_get(buf, len);
+}
+
 /* Add every row; each one must be added. */
 static inline void tu_od_add_rows(co_od_t *od, const tu_od_row_t *rows, size_t n)
 {
@@ -109,22 +133,30 @@ static inline void tu_od_add_rows(co_od_t *od, const tu_od_row_t *rows, size_t n
 
 /* ------------------------------------------------- network access (U32) */
 
+/* A network download of len (1..8) bytes of v through a transfer (begin,
+ * one chunk, end, as a server makes it): 0 or the abort code. */
+static inline uint32_t tu_od_net_write(co_od_t *od, uint16_t index, uint8_t sub, uint64_t v,
+                                       uint32_t len)
+{
+    co_od_xfer_t x;
+    uint8_t scratch[64], b[8];
+    uint32_t r;
+    co_od_xfer_init(&x, scratch, sizeof scratch);
+    tu_le_put(b, v, len);
+    r = co_od_write_begin(od, &x, index, sub, len);
+    if (r != 0)
+        return r;
+    r = co_od_write_chunk(&x, b, len);
+    if (r != 0)
+        return r;
+    return co_od_write_end(&x);
+}
+
 /* A network download of 4 bytes through a transfer: 0 or the abort code. */
 static inline uint32_t tu_od_net_write_u32(co_od_t *od, uint16_t index, uint8_t sub,
                                            uint32_t v)
 {
-    co_od_xfer_t x;
-    uint8_t scratch[64], b[4];
-    uint32_t r;
-    co_od_xfer_init(&x, scratch, sizeof scratch);
-    tu_le_put(b, v, 4);
-    r = co_od_write_begin(od, &x, index, sub, 4);
-    if (r != 0)
-        return r;
-    r = co_od_write_chunk(&x, b, 4);
-    if (r != 0)
-        return r;
-    return co_od_write_end(&x);
+    return tu_od_net_write(od, index, sub, v, 4);
 }
 
 /* A network upload of a 4-byte value: 0 (value in *out) or the abort code. */

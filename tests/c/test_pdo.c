@@ -120,14 +120,7 @@ static const co_pdo_indications_t indications = {on_error, on_received, on_befor
 static void def(node_t *n, uint16_t index, uint8_t sub, uint8_t obj, uint8_t type,
                 uint8_t access, uint16_t flags, uint64_t value)
 {
-    co_od_def_t d;
-    uint8_t v[8];
-    uint32_t size = co_od_type_size(type);
-    d = tu_od_def(index, sub, obj, type, access, flags, size);
-    tu_le_put(v, value, size);
-    d.default_value = v;
-    d.default_length = size;
-    assert_int_equal(co_od_add(&n->od, &d), CO_OD_ADDED);
+    tu_od_add_value(&n->od, index, sub, obj, type, access, flags, value);
 }
 
 /* Every test runs twice: the RPDO / RTR lookup by CAN-ID tables, then by a
@@ -272,20 +265,7 @@ static void fx_free(fx_t *fx)
 /* A network write (SDO/USDO server path): begin, one chunk, end. */
 static uint32_t net_write(node_t *n, uint16_t index, uint8_t sub, uint64_t value, uint32_t len)
 {
-    uint8_t scratch[64], buf[8];
-    co_od_xfer_t x;
-    uint32_t r;
-    co_od_xfer_init(&x, scratch, sizeof scratch);
-    tu_le_put(buf, value, len);
-    r = co_od_write_begin(&n->od, &x, index, sub, len);
-    if (r != 0) {
-        return r;
-    }
-    r = co_od_write_chunk(&x, buf, len);
-    if (r != 0) {
-        return r;
-    }
-    return co_od_write_end(&x);
+    return tu_od_net_write(&n->od, index, sub, value, len);
 }
 
 static void put(node_t *n, uint16_t index, uint8_t sub, uint64_t value, uint32_t len)
@@ -297,11 +277,7 @@ static void put(node_t *n, uint16_t index, uint8_t sub, uint64_t value, uint32_t
 
 static uint64_t get(node_t *n, uint16_t index, uint8_t sub, uint32_t len)
 {
-    uint8_t buf[8] = {0};
-    uint32_t got = 0;
-    assert_int_equal(co_od_get(&n->od, index, sub, buf, sizeof buf, &got), 0);
-    assert_int_equal(got, len);
-    return tu_le_get(buf, len);
+    return tu_od_value(&n->od, index, sub, len);
 }
 
 /* Application call at time t: the lines' clocks first, then frames carried. */

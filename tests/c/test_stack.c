@@ -402,6 +402,55 @@ static void tool_nmt(fx_t *fx, uint8_t command)
     tool_send(fx, 0x000, (const uint8_t[]){command, NODE}, 2);
 }
 
+/* RPDO 1 turned into a DAM MPDO through its OD (the mapping procedure): a
+ * DAM frame for the node writes 0x2000; one for an object the device
+ * lacks writes nothing and reaches the tool as EMCY 0x8230 (RPDO 1 in the
+ * manufacturer bytes) followed by its error reset, the line still working. */
+static void put_u32(co_od_t *od, uint16_t index, uint8_t sub, uint32_t v)
+{
+    uint8_t b[4] = {(uint8_t)v, (uint8_t)(v >> 8), (uint8_t)(v >> 16), (uint8_t)(v >> 24)};
+    assert_int_equal(co_od_put(od, index, sub, b, 4), 0);
+}
+
+static void test_mpdo_dam_on_a_stack_node(void **state)
+{
+    (void)state;
+    fx_t *fx = fx_new(CO_MODE_CLASSIC);
+    fx_device(fx);
+    co_od_t *od = co_stack_od(&fx->stack);
+    assert_non_null(co_stack_mpdo(&fx->stack));
+    assert_true(co_emcy_consumer_watch(co_stack_emcy_consumer(&fx->tool), NODE));
+    put_u32(od, 0x1400, 1, 0x80000000u | (0x200 + NODE));
+    assert_int_equal(co_od_put(od, 0x1600, 0, (const uint8_t[]){CO_PDO_MAP_DAM}, 1), 0);
+    put_u32(od, 0x1400, 1, 0x200 + NODE);
+    assert_int_equal(co_pdo_channel(co_stack_pdo(&fx->stack), true, 1)->mpdo, CO_PDO_MAP_DAM);
+    tu_run_until(&fx->tb, 2 * TU_MS);
+    co_nmt_apply(&co_stack_node(&fx->stack)->nmt, CO_NMT_CMD_START);
+    tu_run_until(&fx->tb, 4 * TU_MS);
+    tu_log_clear(&fx->tb);
+    tool_send(fx, 0x200 + NODE, (const uint8_t[]){0x80 | NODE, 0x00, 0x20, 0x00, 0x22, 0x11, 0, 0},
+              8);
+    uint16_t value = 0;
+    assert_true(co_od_get_u16(od, 0x2000, 0, &value));
+    assert_int_equal(value, 0x1122);
+    assert_int_equal(fx->emcy_count, 0);
+    tool_send(fx, 0x200 + NODE, (const uint8_t[]){0x80, 0x00, 0x30, 0x00, 0x01, 0, 0, 0}, 8);
+    tu_run_until(&fx->tb, fx->tb.now + 2 * TU_MS);
+    long k = tu_log_find_id(&fx->tb, 0x80 + NODE, 0);
+    /* EMCY: code 0x8230, error register 0x11 (generic | communication), RPDO 1 */
+    tu_assert_logged(&fx->tb, k, 0x80 + NODE,
+                     (const uint8_t[]){0x30, 0x82, 0x11, 0x01, 0x00, 0, 0, 0}, 8);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x80 + NODE, 1), 0x80 + NODE,
+                     (const uint8_t[]){0x00, 0x00, 0x00, 0, 0, 0, 0, 0}, 8);
+    assert_int_equal(fx->emcy_count, 2);
+    assert_int_equal(co_mpdo_stats(co_stack_mpdo(&fx->stack))->rx_refused, 1);
+    /* nothing wedged: the next DAM is applied */
+    tool_send(fx, 0x200 + NODE, (const uint8_t[]){0x80, 0x00, 0x20, 0x00, 0x44, 0x33, 0, 0}, 8);
+    assert_true(co_od_get_u16(od, 0x2000, 0, &value));
+    assert_int_equal(value, 0x3344);
+    fx_free(fx);
+}
+
 /* A node made without an OD (NMT and heartbeat only) still answers every
  * SDO / USDO request at once, "object does not exist" (0x06020000 / 0x33)
  * with the request's multiplexer, instead of leaving the client to its
@@ -581,6 +630,7 @@ int main(void)
         cmocka_unit_test(test_no_memory_leaves_nothing_behind),
         cmocka_unit_test(test_wrong_use_is_refused),
         cmocka_unit_test(test_services_are_wired),
+        cmocka_unit_test(test_mpdo_dam_on_a_stack_node),
         cmocka_unit_test(test_classic_device_serves_sdo_and_guarding),
         cmocka_unit_test(test_stopped_classic_device_serves_no_sdo),
         cmocka_unit_test(test_stopped_fd_device_serves_no_usdo),

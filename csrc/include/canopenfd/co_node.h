@@ -12,6 +12,7 @@
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_hb.h"
 #include "canopenfd/co_led.h"
+#include "canopenfd/co_mpdo.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_srdo.h"
@@ -110,6 +111,9 @@ struct co_node {
 };
 
 extern const co_pdo_indications_t co_node_pdo_indications;
+/* The MPDO service's indications to the node: a DAM MPDO not processed
+ * sends EMCY 0x8230 and, being an event, clears it at once (user = node). */
+extern const co_mpdo_indications_t co_node_mpdo_indications;
 
 /* Sets up the node on the line (node_id 1..127, the line's node-id becomes
  * node_id); nothing is sent until co_node_boot(). */

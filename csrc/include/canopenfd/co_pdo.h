@@ -22,6 +22,11 @@
  * RPDOs 0..240 are applied at the next SYNC, 254/255 at once; sub 5 of an
  * RPDO is its reception deadline.
  *
+ * A mapping sub 0 of 0xFE (SAM) or 0xFF (DAM) makes the PDO a multiplexed
+ * PDO (MPDO, CiA 301): it has no compiled mapping, needs type 254/255, its
+ * received frames go to the MPDO service (co_pdo_set_mpdo_rx, co_mpdo.h)
+ * and it sends only what that service hands to co_pdo_send_mpdo.
+ *
  * Reception goes through co_line_subscribe_other (COB-IDs are configurable):
  * an 11-bit id finds its RPDO in a 2048-entry table, a 29-bit id by a
  * bounded search of the RPDOs with 29-bit COB-IDs. Nothing allocates; all
@@ -39,7 +44,9 @@ enum {
     CO_PDO_RPDO_COMM = 0x1400,
     CO_PDO_RPDO_MAP = 0x1600,
     CO_PDO_TPDO_COMM = 0x1800,
-    CO_PDO_TPDO_MAP = 0x1A00
+    CO_PDO_TPDO_MAP = 0x1A00,
+    CO_PDO_MAP_SAM = 0xFE,          /* mapping sub 0: source address mode MPDO */
+    CO_PDO_MAP_DAM = 0xFF           /* mapping sub 0: destination address mode MPDO */
 };
 
 /* EMCY error codes handed to the error callback (CiA 301). */
@@ -97,6 +104,7 @@ typedef struct co_pdo_channel {
     bool takes_id;                  /* RPDO: receives on can_id (11-bit); TPDO: answers RTRs
                                        on it (the CAN-ID tables or the scan see it) */
     uint8_t type;
+    uint8_t mpdo;                   /* CO_PDO_MAP_SAM / _DAM, 0 = a plain PDO */
     uint32_t can_id;
     uint16_t inhibit_100us;
     uint16_t event_ms;
@@ -124,6 +132,10 @@ typedef struct co_pdo co_pdo_t;
 /* A second listener of applied RPDOs, beside the node's indications: the
  * gateway forwards what an RPDO wrote (co_pdo_set_rx_tap). */
 typedef void (*co_pdo_rx_tap_fn)(co_pdo_t *pdo, uint16_t rpdo_number, void *user);
+/* The receiver of an active MPDO RPDO's frames (kind: CO_PDO_MAP_SAM/_DAM),
+ * told only while operational; it checks the frame itself. */
+typedef void (*co_pdo_mpdo_rx_fn)(co_pdo_t *pdo, uint16_t rpdo_number, uint8_t kind,
+                                  const co_frame_t *f, void *user);
 
 /* Why an RPDO's reception error began or ended (rx_error_changed). */
 typedef enum co_pdo_rx_cause {
@@ -190,6 +202,8 @@ struct co_pdo {
     co_timer_t retry_timer;         /* sends synchronous TPDOs the tx queue refused */
     co_pdo_rx_tap_fn rx_tap;        /* told after `received` (NULL: none) */
     void *rx_tap_user;
+    co_pdo_mpdo_rx_fn mpdo_rx;      /* MPDO RPDO frames (NULL: counted in rx_not_ours) */
+    void *mpdo_rx_user;
     co_pdo_stats_t stats;
 };
 
@@ -236,6 +250,13 @@ const co_pdo_channel_t *co_pdo_channel(const co_pdo_t *pdo, bool is_rpdo, uint16
 /* Set (fn NULL: clear) the one rx tap: told after every applied RPDO, after
  * the node's `received` indication. Survives co_pdo_reload, not deinit. */
 void co_pdo_set_rx_tap(co_pdo_t *pdo, co_pdo_rx_tap_fn fn, void *user);
+/* Set (fn NULL: clear) the receiver of MPDO RPDO frames (the MPDO service). */
+void co_pdo_set_mpdo_rx(co_pdo_t *pdo, co_pdo_mpdo_rx_fn fn, void *user);
+/* Send an MPDO frame (len bytes of data) on TPDO n's COB-ID. False when it
+ * is no active MPDO TPDO, the node is not operational, its inhibit time
+ * (sub 3) has not ended since the last one (tx_inhibited) or the line
+ * refused it (tx_failed). */
+bool co_pdo_send_mpdo(co_pdo_t *pdo, uint16_t tpdo_number, const uint8_t *data, uint8_t len);
 static inline const co_pdo_stats_t *co_pdo_stats(const co_pdo_t *pdo) { return &pdo->stats; }
 
 #endif

@@ -18,6 +18,7 @@
 #include "canopenfd/co_gateway.h"
 #include "canopenfd/co_guard.h"
 #include "canopenfd/co_lss_master.h"
+#include "canopenfd/co_mpdo.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sleep.h"
@@ -469,6 +470,15 @@ int co_rt_pdo_listen(co_rt_t *rt, int line, int rpdo_number, int listen);
  * id), e.g. another node's TPDO; a local RPDO on the same id still gets it.
  * watch = 0 stops. At most 64 ids per line. */
 int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch);
+/* Multiplexed PDOs of the local node (co_rt_mpdo.c, co_mpdo.h). DAM: write
+ * data (1..4 bytes) into index:sub of node (0 = all) through DAM TPDO n.
+ * SAM: send the local object index:sub (named by the scanner list 0x1FA0..)
+ * through SAM TPDO n. 0 = sent; < 0 = refused, the reason in the error. */
+int co_rt_mpdo_send_dam(co_rt_t *rt, int line, int tpdo_number, int node, int index, int sub,
+                        const uint8_t *data, int len);
+int co_rt_mpdo_send_sam(co_rt_t *rt, int line, int tpdo_number, int index, int sub);
+/* The local node's MPDO counters (received, refused, sent). */
+int co_rt_mpdo_stats(co_rt_t *rt, int line, co_mpdo_stats_t *out);
 /* RPDOs of other nodes produced by this line (a master driving a device's
  * RPDO), at most 32 per line, slots taken at co_rt_rpdo_open. The frame
  * carries the mapped bytes as the application wrote them (bit-wise on

@@ -266,6 +266,8 @@ struct co_stack {
     co_errors_t errors;
     bool has_pdo;
     co_pdo_t pdo;
+    bool has_mpdo;
+    co_mpdo_t mpdo;              /* the PDOs whose mapping says MPDO (no memory of its own) */
     bool has_guard_slave;
     co_guard_slave_t guard_slave;
     bool has_usdo_server;
@@ -412,6 +414,7 @@ static inline co_errors_t *co_stack_errors(co_stack_t *s)
     return s->has_errors ? &s->errors : NULL;
 }
 static inline co_pdo_t *co_stack_pdo(co_stack_t *s) { return s->has_pdo ? &s->pdo : NULL; }
+static inline co_mpdo_t *co_stack_mpdo(co_stack_t *s) { return s->has_mpdo ? &s->mpdo : NULL; }
 static inline co_guard_slave_t *co_stack_guard_slave(co_stack_t *s)
 {
     return s->has_guard_slave ? &s->guard_slave : NULL;
