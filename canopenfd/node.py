@@ -23,6 +23,7 @@ from .services.guard import GuardEvent, NodeGuard
 from .services.indications import READ, WRITE, Answer, Indications, ODRequest
 from .services.leds import LedStates, LocalLeds
 from .services.lss import LssSlave
+from .services.mpdo import LocalMpdo, MpdoCallback
 from .services.nmt import (DEFAULT_TICK_MS, HeartbeatMonitor, LocalNmt, NmtCommand,
                            NmtMaster, NmtSlave, NmtState, RemoteNmt, StateLike)
 from .services.pdo import LocalPdoAccess, PdoMaps, RemotePdoAccess
@@ -86,6 +87,7 @@ class LocalNode:
         #: Flying master (CiA 302-2): start() once the node booted.
         self.flying_master = FlyingMaster(context, where)
         self._leds = LocalLeds(context, self, where)
+        self._mpdo = LocalMpdo(context, where)
         #: SRDOs and GFC (CiA 304): start(count) first.
         self.srdo = SrdoService(context, where, self._entry_value)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
@@ -376,6 +378,16 @@ class LocalNode:
             raise ConfigurationError(f"{where}: the node is not booted yet")
         context = self._context
         return context.runtime.mpdo_stats(context.index, where)
+
+    def on_mpdo(self, callback: MpdoCallback, loop: LoopArg = None) -> MpdoCallback:
+        """callback(notice) for each MPDO addressed to this node, applied or
+        refused: an MpdoNotice (mode, node, index, sub, local_index,
+        local_sub, data, abort, rpdo, coalesced; see canopenfd.services.mpdo)."""
+        return self._mpdo.add_callback(callback, loop=loop)
+
+    def remove_mpdo_callback(self, callback: MpdoCallback) -> None:
+        """Forget an on_mpdo callback (without any, no MPDO events are posted)."""
+        self._mpdo.remove_callback(callback)
 
     # ---------------------------------------------------------------- EMCY
     @property

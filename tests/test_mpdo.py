@@ -13,6 +13,7 @@ from helpers import Recorder, scaled
 from canopenfd import CanopenFDError, ConfigurationError
 from canopenfd.od import DataType, demo_od
 from canopenfd.od.model import ODArray, ODVariable
+from canopenfd.services.mpdo import MpdoNotice
 
 A, B = 5, 6
 DATA = 0x2300          # demo_od's "Process data": 16 UNSIGNED32, mappable
@@ -201,3 +202,49 @@ def test_configured_over_the_network(net, bus_name, mode):
         node.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
     me.tpdo[1].send_dam(B, DATA, 5, bytes([0x5A]))
     wait_value(device, DATA, 5, 0x5A)
+
+
+def test_on_mpdo_tells_applied_and_refused(pair):
+    """node.on_mpdo: one MpdoNotice per MPDO addressed to the node, DAM and
+    SAM, applied or refused (abort code), nothing for another node's DAM."""
+    notices = Recorder()
+    pair.nodes[B].on_mpdo(notices)
+    pair.nodes[A].tpdo[1].send_dam(B, DATA, 3, bytes([0x44, 0x33, 0x22, 0x11]))
+    pair.nodes[A].tpdo[1].send_dam(42, DATA, 3, bytes([1]))          # not for B: no notice
+    pair.nodes[A].tpdo[1].send_dam(B, 0x2FFF, 0, bytes([1, 2]))      # refused
+    pair.nodes[A][DATA][2].raw = 0xCAFE0042
+    pair.nodes[A].tpdo[2].send_sam(DATA, 2)
+    got = notices.wait_count(3, scaled(2))
+    assert got[0] == MpdoNotice("DAM", B, DATA, 3, DATA, 3, bytes([0x44, 0x33, 0x22, 0x11]),
+                                0, 1, 0)
+    assert got[0].applied
+    assert got[1] == MpdoNotice("DAM", B, 0x2FFF, 0, 0x2FFF, 0, bytes([1, 2, 0, 0]),
+                                0x06020000, 1, 0)
+    assert not got[1].applied
+    assert got[2] == MpdoNotice("SAM", A, DATA, 2, DATA, 10, bytes([0x42, 0x00, 0xFE, 0xCA]),
+                                0, 2, 0)
+    assert len(notices) == 3
+    pair.nodes[B].remove_mpdo_callback(notices)
+    pair.nodes[A].tpdo[1].send_dam(B, DATA, 4, bytes([5]))
+    wait_value(pair.nodes[B], DATA, 4, 5)
+    assert len(notices) == 3
+
+
+def test_dam_sends_the_mapped_object(pair):
+    """send_dam(node): the object the DAM TPDO's mapping sub 1 names goes to
+    the same index:sub of the node (CiA 301's DAM producer)."""
+    node = pair.nodes[A]
+    with pytest.raises(CanopenFDError, match="mapping sub 1 names no readable object"):
+        node.tpdo[1].send_dam(B)
+    node[0x1800][1].raw = 0x80000000 | (0x180 + A)    # the mapping changes only while
+    node[0x1A00][0].raw = 0                           # the PDO is invalid and sub 0 = 0
+    node[0x1A00][1].raw = (DATA << 16) | (6 << 8) | 32
+    node[0x1A00][0].raw = 0xFF
+    node[0x1800][1].raw = 0x180 + A
+    node[DATA][6].raw = 0x01020304
+    start = len(pair.frames)
+    node.tpdo[1].send_dam(B)
+    pair.check_frame(0x180 + A, start, bytes([0x80 | B, 0x00, 0x23, 0x06, 4, 3, 2, 1]))
+    wait_value(pair.nodes[B], DATA, 6, 0x01020304)
+    with pytest.raises(ConfigurationError, match="give index, sub and data"):
+        node.tpdo[1].send_dam(B, DATA)

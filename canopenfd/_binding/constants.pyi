@@ -191,6 +191,7 @@ class EventKind(enum.IntEnum):
     STORE_PERSIST = 27
     SRDO = 28
     REDUNDANCY = 29
+    MPDO = 30
 
 
 class FrameFlag(enum.IntEnum):

@@ -51,8 +51,9 @@ class Event(NamedTuple):
     time_us: int              # CLOCK_MONOTONIC
     frame: Optional[Frame]    # FRAME (monitor lines), PDO_FRAME
     data: bytes               # EMCY: the encoded EMCY; PDO: the RPDO's mapped values;
-    #                           MANAGER: a boot report's index, values, abort
-    coalesced: int = 0        # PDO, PDO_FRAME: older values of the source it replaced
+    #                           MANAGER: a boot report's index, values, abort;
+    #                           MPDO: the frame, RPDO, local index:sub
+    coalesced: int = 0        # PDO, PDO_FRAME, MPDO: older values of the source it replaced
 
 
 def status_text(status: int) -> str:
@@ -605,6 +606,12 @@ class Runtime:
                       data: bytes, what: str) -> None:
         self._call(what, lib.co_rt_mpdo_send_dam, line, number, node, index, sub, data, len(data))
 
+    def mpdo_send_dam_mapped(self, line: int, number: int, node: int, what: str) -> None:
+        self._call(what, lib.co_rt_mpdo_send_dam_mapped, line, number, node)
+
+    def mpdo_listen(self, line: int, listen: bool, what: str) -> None:
+        self._call(what, lib.co_rt_mpdo_listen, line, int(listen))
+
     def mpdo_send_sam(self, line: int, number: int, index: int, sub: int, what: str) -> None:
         self._call(what, lib.co_rt_mpdo_send_sam, line, number, index, sub)
 
@@ -946,7 +953,8 @@ class Runtime:
 # an IntEnum member lookup costs ~0.1 us each.
 _EV_FRAME = int(EventKind.FRAME)
 _EV_PDO_FRAME = int(EventKind.PDO_FRAME)
-_EV_WITH_DATA = (int(EventKind.EMCY), int(EventKind.PDO), int(EventKind.MANAGER))
+_EV_WITH_DATA = (int(EventKind.EMCY), int(EventKind.PDO), int(EventKind.MANAGER),
+                 int(EventKind.MPDO))
 
 
 def _event(ev: CData) -> Event:
@@ -959,8 +967,8 @@ def _event(ev: CData) -> Event:
     elif kind == _EV_PDO_FRAME:
         frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
     elif kind in _EV_WITH_DATA:
-        # the encoded EMCY / the RPDO's mapped values / a boot report's details
-        # (no CAN frame flags)
+        # the encoded EMCY / the RPDO's mapped values / a boot report's details /
+        # an MPDO and where it went (no CAN frame flags)
         data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
     return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data, ev.coalesced)
 

@@ -930,11 +930,25 @@ class PdoMap:
             raise ConfigurationError(f"{where}: the node is not booted yet")
         return self._context
 
-    def send_dam(self, node: int, index: int, sub: int, data: bytes) -> None:
-        """DAM MPDO: write `data` (1..4 bytes, little-endian as in the OD)
-        into index:sub of node `node` (0 = every consumer), through this
-        TPDO (mapping sub 0 = 0xFF, type 254/255, OPERATIONAL). The error
-        names why it was not sent."""
+    def send_dam(self, node: int, index: Optional[int] = None, sub: Optional[int] = None,
+                 data: Optional[bytes] = None) -> None:
+        """DAM MPDO through this TPDO (mapping sub 0 = 0xFF, type 254/255,
+        OPERATIONAL) to node `node` (0 = every consumer). `send_dam(node)`:
+        the local object the mapping's sub 1 names (index, sub, 8..32 bits),
+        written to the same index:sub there (the CiA 301 producer).
+        `send_dam(node, index, sub, data)`: `data` (1..4 bytes,
+        little-endian as in the OD) into index:sub there. The error names
+        why it was not sent."""
+        if index is None and sub is None and data is None:
+            what = f"send_dam({node})"
+            context = self._local_mpdo(what)
+            context.runtime.mpdo_send_dam_mapped(context.index, self.number, node,
+                                                 f"{self.where}: {what}")
+            return
+        what = f"send_dam({node}, {index!r}, {sub!r}, {data!r})"
+        if index is None or sub is None or data is None:
+            raise ConfigurationError(f"{self.where}: {what}: give index, sub and data, or only "
+                                     "the node (the mapped object)")
         what = f"send_dam({node}, 0x{index:04X}, {sub}, {bytes(data)!r})"
         context = self._local_mpdo(what)
         if not isinstance(data, (bytes, bytearray)) or not 1 <= len(data) <= 4:

@@ -139,10 +139,11 @@ static uint32_t write_local(co_mpdo_t *mpdo, uint16_t index, uint8_t sub, const 
     return abort;
 }
 
-static void refuse(co_mpdo_t *mpdo, uint16_t rpdo, const co_mpdo_msg_t *msg, uint32_t abort)
+static void refuse(co_mpdo_t *mpdo, uint16_t rpdo, const co_mpdo_msg_t *msg, uint16_t index,
+                   uint8_t sub, uint32_t abort)
 {
     if (mpdo->ind != NULL && mpdo->ind->refused != NULL) {
-        mpdo->ind->refused(mpdo, rpdo, msg, abort, mpdo->user);
+        mpdo->ind->refused(mpdo, rpdo, msg, index, sub, abort, mpdo->user);
     }
 }
 
@@ -170,13 +171,13 @@ static void on_frame(co_pdo_t *pdo, uint16_t rpdo, uint8_t kind, const co_frame_
         sub = msg.sub;
     } else if (!co_mpdo_dispatch(pdo->od, msg.node, msg.index, msg.sub, &index, &sub)) {
         mpdo->stats.rx_not_dispatched++;
-        refuse(mpdo, rpdo, &msg, CO_ABORT_NO_OBJECT);
+        refuse(mpdo, rpdo, &msg, msg.index, msg.sub, CO_ABORT_NO_OBJECT);
         return;
     }
     abort = write_local(mpdo, index, sub, msg.data);
     if (abort != 0) {
         mpdo->stats.rx_refused++;
-        refuse(mpdo, rpdo, &msg, abort);
+        refuse(mpdo, rpdo, &msg, index, sub, abort);
         /* CiA 301 names this EMCY for DAM only; a SAM consumer chose its list */
         if (msg.dam && mpdo->ind != NULL && mpdo->ind->error != NULL) {
             mpdo->ind->error(mpdo, CO_MPDO_EMCY_DAM, rpdo, mpdo->user);
@@ -281,6 +282,35 @@ co_mpdo_status_t co_mpdo_send_sam(co_mpdo_t *mpdo, uint16_t tpdo_number, uint16_
     msg.node = own;
     msg.index = index;
     msg.sub = sub;
+    return send(mpdo, tpdo_number, &msg);
+}
+
+co_mpdo_status_t co_mpdo_send_dam_mapped(co_mpdo_t *mpdo, uint16_t tpdo_number, uint8_t node)
+{
+    co_mpdo_msg_t msg;
+    uint32_t entry = 0;
+    uint8_t bytes;
+    if (node > NODE_MAX) {
+        return refused_call(mpdo, CO_MPDO_ERR_ARGUMENT);
+    }
+    if (!is_mpdo_tpdo(mpdo, tpdo_number, CO_PDO_MAP_DAM)) {
+        return refused_call(mpdo, CO_MPDO_ERR_CHANNEL);
+    }
+    memset(&msg, 0, sizeof msg);
+    /* is_mpdo_tpdo vouched for the number, so the mapping index exists */
+    if (!co_od_get_u32(mpdo->pdo->od, (uint16_t)(CO_PDO_TPDO_MAP + tpdo_number - 1u), 1,
+                       &entry)) {
+        entry = 0;
+    }
+    bytes = (uint8_t)((entry & 0xFFu) / 8u);
+    msg.index = (uint16_t)(entry >> 16);
+    msg.sub = (uint8_t)(entry >> 8);
+    if (entry == 0 || (entry & 7u) != 0 || bytes == 0 || bytes > CO_MPDO_DATA_MAX ||
+        !read_local(mpdo, msg.index, msg.sub, &msg) || mpdo->xfer.total != bytes) {
+        return refused_call(mpdo, CO_MPDO_ERR_OBJECT);
+    }
+    msg.dam = true;
+    msg.node = node;
     return send(mpdo, tpdo_number, &msg);
 }
 

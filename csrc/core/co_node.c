@@ -399,7 +399,25 @@ static void on_mpdo_error(co_mpdo_t *mpdo, uint16_t code, uint16_t rpdo_number, 
     clear_error(node, code);
 }
 
+static void tell_mpdo(co_mpdo_t *mpdo, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
+                      uint16_t index, uint8_t sub, uint32_t abort, void *user)
+{
+    (void)mpdo;
+    co_node_t *node = user;
+    if (node->ind && node->ind->mpdo_received) {
+        node->ind->mpdo_received(node, rpdo_number, msg, index, sub, abort, node->user);
+    }
+}
+
+static void on_mpdo_received(co_mpdo_t *mpdo, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
+                             uint16_t index, uint8_t sub, void *user)
+{
+    tell_mpdo(mpdo, rpdo_number, msg, index, sub, 0, user);
+}
+
 const co_mpdo_indications_t co_node_mpdo_indications = {
+    .received = on_mpdo_received,
+    .refused = tell_mpdo,
     .error = on_mpdo_error,
 };
 

@@ -27,7 +27,7 @@
 typedef struct event_rec {
     uint16_t rpdo;
     co_mpdo_msg_t msg;
-    uint16_t index;                 /* received: the local object */
+    uint16_t index;                 /* received, refused: the local object */
     uint8_t sub;
     uint32_t abort;                 /* refused */
     uint16_t emcy;                  /* error */
@@ -65,13 +65,13 @@ static void on_received(co_mpdo_t *m, uint16_t rpdo, const co_mpdo_msg_t *msg, u
     n->received[n->nreceived++] = (event_rec_t){rpdo, *msg, index, sub, 0, 0};
 }
 
-static void on_refused(co_mpdo_t *m, uint16_t rpdo, const co_mpdo_msg_t *msg, uint32_t abort,
-                       void *user)
+static void on_refused(co_mpdo_t *m, uint16_t rpdo, const co_mpdo_msg_t *msg, uint16_t index,
+                       uint8_t sub, uint32_t abort, void *user)
 {
     node_t *n = user;
     (void)m;
     assert_true(n->nrefused < MAX_REC);
-    n->refused[n->nrefused++] = (event_rec_t){rpdo, *msg, 0, 0, abort, 0};
+    n->refused[n->nrefused++] = (event_rec_t){rpdo, *msg, index, sub, abort, 0};
 }
 
 static void on_error(co_mpdo_t *m, uint16_t code, uint16_t rpdo, void *user)
@@ -324,6 +324,38 @@ static void test_dam_fd(void **state)
 
 /* Each refused DAM: nothing written, counted, told with its abort code and
  * the EMCY 0x8230; the next good frame is applied (nothing wedges). */
+static void put_u32(node_t *n, uint16_t index, uint8_t sub, uint32_t value)
+{
+    uint8_t le[4] = {(uint8_t)value, (uint8_t)(value >> 8), (uint8_t)(value >> 16),
+                     (uint8_t)(value >> 24)};
+    assert_int_equal(co_od_put(&n->od, index, sub, le, 4), 0);
+}
+
+/* DAM the CiA 301 way: TPDO 1's mapping sub 1 names a's 0x2002 (32 bits);
+ * its value goes to the same index:sub of the node given. */
+static void test_dam_mapped(void **state)
+{
+    static const uint8_t to_b[8] = {0x86, 0x02, 0x20, 0x00, 0xD4, 0xC3, 0xB2, 0xA1};
+    fx_t *fx = pair(CO_MODE_CLASSIC);
+    (void)state;
+    assert_int_equal(co_mpdo_send_dam_mapped(&fx->a.mpdo, 1, ID_B), CO_MPDO_ERR_OBJECT);
+    put_u32(&fx->a, 0x1A00, 1, 0x20020020);
+    put_u32(&fx->a, 0x2002, 0, 0xA1B2C3D4);
+    assert_int_equal(co_mpdo_send_dam_mapped(&fx->a.mpdo, 1, ID_B), CO_MPDO_OK);
+    carry(fx);
+    assert_last(fx, DAM_ID, to_b);
+    assert_int_equal(get(&fx->b, 0x2002, 0, 4), 0xA1B2C3D4);
+    put_u32(&fx->a, 0x1A00, 1, 0x20020010);   /* 16 bits mapped: not the object's 32 */
+    assert_int_equal(co_mpdo_send_dam_mapped(&fx->a.mpdo, 1, ID_B), CO_MPDO_ERR_OBJECT);
+    put_u32(&fx->a, 0x1A00, 1, 0x20060040);   /* 64 bits: no MPDO carries them */
+    assert_int_equal(co_mpdo_send_dam_mapped(&fx->a.mpdo, 1, ID_B), CO_MPDO_ERR_OBJECT);
+    assert_int_equal(co_mpdo_send_dam_mapped(&fx->a.mpdo, 2, ID_B), CO_MPDO_ERR_CHANNEL);
+    assert_int_equal(co_mpdo_send_dam_mapped(&fx->a.mpdo, 1, 128), CO_MPDO_ERR_ARGUMENT);
+    assert_int_equal(co_mpdo_stats(&fx->a.mpdo)->tx_frames, 1);
+    assert_int_equal(co_mpdo_stats(&fx->a.mpdo)->tx_refused, 5);
+    fx_free(fx);
+}
+
 static void test_dam_refused(void **state)
 {
     static const struct {
@@ -345,6 +377,8 @@ static void test_dam_refused(void **state)
         assert_int_equal(fx->b.nrefused, (int)k + 1);
         assert_int_equal(fx->b.refused[k].abort, cases[k].abort);
         assert_int_equal(fx->b.refused[k].msg.index, cases[k].index);
+        assert_int_equal(fx->b.refused[k].index, cases[k].index);   /* DAM: local = frame's */
+        assert_int_equal(fx->b.refused[k].sub, cases[k].sub);
         assert_int_equal(fx->b.refused[k].rpdo, 1);
         assert_int_equal(fx->b.nerrors, (int)k + 1);
         assert_int_equal(fx->b.errors[k].emcy, CO_MPDO_EMCY_DAM);
@@ -450,6 +484,7 @@ static void test_sam_refused(void **state)
     inject(fx, SAM_ID, to_ro, 8);      /* a's 0x2002 -> b's read-only 0x2004 */
     assert_int_equal(fx->b.nrefused, 2);
     assert_int_equal(fx->b.refused[1].abort, CO_ABORT_READ_ONLY);
+    assert_int_equal(fx->b.refused[1].index, 0x2004);   /* the dispatched local object */
     assert_int_equal(get(&fx->b, 0x2004, 0, 1), 0x44);
     inject(fx, SAM_ID, dam, 8);        /* a DAM frame on a SAM consumer */
     assert_int_equal(co_mpdo_stats(&fx->b.mpdo)->rx_wrong_mode, 1);
@@ -596,6 +631,7 @@ int main(void)
         cmocka_unit_test(test_dam_classic),
         cmocka_unit_test(test_dam_fd),
         cmocka_unit_test(test_dam_refused),
+        cmocka_unit_test(test_dam_mapped),
         cmocka_unit_test(test_dam_bad_frames),
         cmocka_unit_test(test_sam_classic),
         cmocka_unit_test(test_sam_fd),

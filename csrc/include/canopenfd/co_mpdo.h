@@ -66,7 +66,8 @@ typedef enum co_mpdo_status {
     CO_MPDO_ERR_ARGUMENT,           /* node-id > 127, more than 4 bytes, NULL data */
     CO_MPDO_ERR_CHANNEL,            /* no active MPDO TPDO of that mode with that number */
     CO_MPDO_ERR_NOT_SCANNED,        /* SAM: the scanner list does not name the object */
-    CO_MPDO_ERR_OBJECT,             /* SAM: missing, unreadable or longer than 4 bytes */
+    CO_MPDO_ERR_OBJECT,             /* SAM, mapped DAM: missing, unreadable or longer than
+                                       4 bytes (mapped DAM: or not the mapped length) */
     CO_MPDO_ERR_NOT_SENT            /* not operational, inhibit time, or the tx queue full */
 } co_mpdo_status_t;
 
@@ -77,10 +78,11 @@ typedef struct co_mpdo_indications {
     /* A value was written into local index:sub (origin CO_ORIGIN_NETWORK). */
     void (*received)(co_mpdo_t *mpdo, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
                      uint16_t index, uint8_t sub, void *user);
-    /* A frame addressed to this node was not applied: abort = the CiA 301
+    /* A frame addressed to this node was not applied to local index:sub (a
+     * SAM frame's own index:sub when no list names it): abort = the CiA 301
      * abort code of the write (0x06020000 when a SAM frame is not listed). */
     void (*refused)(co_mpdo_t *mpdo, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
-                    uint32_t abort, void *user);
+                    uint16_t index, uint8_t sub, uint32_t abort, void *user);
     /* EMCY to report (CO_MPDO_EMCY_DAM, an event: no end is told). */
     void (*error)(co_mpdo_t *mpdo, uint16_t emcy_code, uint16_t rpdo_number, void *user);
 } co_mpdo_indications_t;
@@ -115,6 +117,10 @@ void co_mpdo_deinit(co_mpdo_t *mpdo);
  * DAM TPDO tpdo_number. */
 co_mpdo_status_t co_mpdo_send_dam(co_mpdo_t *mpdo, uint16_t tpdo_number, uint8_t node,
                                   uint16_t index, uint8_t sub, const uint8_t *data, uint8_t len);
+/* DAM, the CiA 301 way: send the local object the TPDO's mapping sub 1
+ * names (index << 16 | sub << 8 | length in bits, 8..32), read as an SDO
+ * upload would, to the same index:sub of node (0 = all). */
+co_mpdo_status_t co_mpdo_send_dam_mapped(co_mpdo_t *mpdo, uint16_t tpdo_number, uint8_t node);
 /* SAM: send the local object index:sub (listed in the scanner list, at
  * most 4 bytes, read as an SDO upload would) through SAM TPDO tpdo_number. */
 co_mpdo_status_t co_mpdo_send_sam(co_mpdo_t *mpdo, uint16_t tpdo_number, uint16_t index,

@@ -31,6 +31,10 @@ typedef struct co_node_indications {
     void (*pdo_received)(co_node_t *node, uint16_t rpdo_number, void *user);
     /* TPDO n is about to be sampled: refresh its values now (may be NULL). */
     void (*pdo_before_send)(co_node_t *node, uint16_t tpdo_number, void *user);
+    /* An MPDO addressed to this node on RPDO n was applied to local
+     * index:sub (abort 0) or refused with abort (may be NULL). */
+    void (*mpdo_received)(co_node_t *node, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
+                          uint16_t index, uint8_t sub, uint32_t abort, void *user);
 } co_node_indications_t;
 
 /* The services a node runs besides NMT and heartbeat, each set up by the

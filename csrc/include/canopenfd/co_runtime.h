@@ -151,9 +151,14 @@ typedef enum co_rt_event_kind {
     CO_EV_SRDO = 28,           /* an SRDO of the local node entered the safe state
                                   (co_rt_srdo_start): node = SRDO number,
                                   a = co_srdo_violation_t */
-    CO_EV_REDUNDANCY = 29      /* bus redundancy (co_rt_redundancy_start): a =
+    CO_EV_REDUNDANCY = 29,     /* bus redundancy (co_rt_redundancy_start): a =
                                   co_rdn_event_t, node = the bus now active (0 A, 1 B),
                                   b = Ctoggle */
+    CO_EV_MPDO = 30            /* an MPDO addressed to the local node (only after
+                                  co_rt_mpdo_listen): a = its address byte << 24 |
+                                  index << 8 | sub, b = 0 applied / the abort code;
+                                  frame.data = the 8 MPDO bytes, the RPDO number (2
+                                  bytes LE), the local index (2 bytes LE) and sub */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -163,8 +168,9 @@ typedef struct co_rt_event {
     uint32_t a;
     uint32_t b;
     uint64_t time_us;          /* CLOCK_MONOTONIC */
-    /* CO_EV_PDO, CO_EV_PDO_FRAME: newer events of the same source (the same
-     * RPDO, the same watched CAN-ID) replaced this many queued ones, because
+    /* CO_EV_PDO, CO_EV_PDO_FRAME, CO_EV_MPDO: newer events of the same source
+     * (the same RPDO, watched CAN-ID, MPDO address byte + index:sub)
+     * replaced this many queued ones, because
      * the queue was filling up: values the application never saw. */
     uint32_t coalesced;
     co_frame_t frame;
@@ -477,6 +483,11 @@ int co_rt_pdo_watch(co_rt_t *rt, int line, uint32_t can_id, int watch);
 int co_rt_mpdo_send_dam(co_rt_t *rt, int line, int tpdo_number, int node, int index, int sub,
                         const uint8_t *data, int len);
 int co_rt_mpdo_send_sam(co_rt_t *rt, int line, int tpdo_number, int index, int sub);
+/* DAM the CiA 301 way: the object DAM TPDO n maps (sub 1) to the same
+ * index:sub of node (0 = all). */
+int co_rt_mpdo_send_dam_mapped(co_rt_t *rt, int line, int tpdo_number, int node);
+/* Post CO_EV_MPDO for each MPDO addressed to the local node (listen = 0 stops). */
+int co_rt_mpdo_listen(co_rt_t *rt, int line, int listen);
 /* The local node's MPDO counters (received, refused, sent). */
 int co_rt_mpdo_stats(co_rt_t *rt, int line, co_mpdo_stats_t *out);
 /* RPDOs of other nodes produced by this line (a master driving a device's

@@ -4,7 +4,7 @@
  * room again.
  *
  * Coalescing: a slow consumer must not lose PDOs at random. Every queued PDO
- * event (CO_EV_PDO, CO_EV_PDO_FRAME) is remembered in a small hash table of
+ * event (CO_EV_PDO, CO_EV_PDO_FRAME, CO_EV_MPDO) is remembered in a small hash table of
  * its source (line, kind, a) -> sequence number. From the high-water mark on
  * (3/4 of the ring), a new event of a source that still has one queued
  * replaces that one in place (latest value, its `coalesced` count grows)
@@ -65,7 +65,7 @@ static void push_lost_marker(rt_events_t *q)
 
 static bool coalescable(const co_rt_event_t *ev)
 {
-    return (ev->kind == CO_EV_PDO || ev->kind == CO_EV_PDO_FRAME) &&
+    return (ev->kind == CO_EV_PDO || ev->kind == CO_EV_PDO_FRAME || ev->kind == CO_EV_MPDO) &&
            ev->line >= 0 && ev->line < RT_MAX_LINES;
 }
 

@@ -173,6 +173,7 @@ typedef struct rt_pdo {
     uint8_t watch_count;
     uint8_t watch_of[CO_LINE_ID_MAP_SIZE];
     bool listen[CO_PDO_MAX_NUMBER];          /* by RPDO number - 1 */
+    bool mpdo_events;                        /* CO_EV_MPDO wanted (co_rt_mpdo_listen) */
 } rt_pdo_t;
 
 /* One RPDO of another node that this line produces (co_rt_rpdo_out.c): the
@@ -626,6 +627,9 @@ void rt_guard_on_event(co_stack_t *stack, uint8_t node_id, co_guard_event_t even
 bool rt_pdo_line_init(rt_line_t *l);
 /* RPDO n was applied: posted to Python when it listens to it. */
 void rt_pdo_received(rt_line_t *l, uint16_t number);
+/* An MPDO addressed to the local node was applied (abort 0) or refused. */
+void rt_mpdo_received(rt_line_t *l, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
+                      uint16_t index, uint8_t sub, uint32_t abort);
 /* A node that could not be created: forget what Python listened to. */
 void rt_pdo_node_detach(rt_line_t *l);
 /* Frames seen on the watched CAN-IDs (service stats). */

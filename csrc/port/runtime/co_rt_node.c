@@ -48,11 +48,19 @@ static void on_pdo_received(co_node_t *node, uint16_t rpdo_number, void *user)
     rt_pdo_received(user, rpdo_number);
 }
 
+static void on_mpdo_received(co_node_t *node, uint16_t rpdo_number, const co_mpdo_msg_t *msg,
+                             uint16_t index, uint8_t sub, uint32_t abort, void *user)
+{
+    (void)node;
+    rt_mpdo_received(user, rpdo_number, msg, index, sub, abort);
+}
+
 static const co_node_indications_t node_indications = {
     .state_changed = on_node_state,
     .allow_operational = on_allow_operational,
     .reset = on_node_reset,
     .pdo_received = on_pdo_received,
+    .mpdo_received = on_mpdo_received,
 };
 
 /* Entries changed by the network or a PDO are told to Python (object
