@@ -248,3 +248,28 @@ def test_dam_sends_the_mapped_object(pair):
     wait_value(pair.nodes[B], DATA, 6, 0x01020304)
     with pytest.raises(ConfigurationError, match="give index, sub and data"):
         node.tpdo[1].send_dam(B, DATA)
+
+
+def test_one_sam_producer_per_device(net, bus_name, mode):
+    """CiA 301: a device has at most one SAM producer. Making a second TPDO
+    SAM (save() over SDO/USDO) is refused with abort 0x06040043 and leaves
+    its mapping as it was; the application's own OD writes are not checked,
+    but such a TPDO does not run."""
+    device = net.open_line(bus_name, mode=mode).create_local_node(B, od=mpdo_od(mode, A))
+    make_mpdo(device, "tpdo", 2, 0xFE, 0x280 + B)
+    line = net.open_line(bus_name, mode=mode)
+    line.create_local_node(A, od=mpdo_od(mode, B))
+    tpdo = line.add_node(B, od=mpdo_od(mode, A)).tpdo[1]
+    tpdo.read()
+    tpdo.mpdo = "SAM"
+    tpdo.trans_type = 254
+    with pytest.raises(CanopenFDError, match=r"SAM MPDO \(0x1A00:00 = 0xFE\).*(0x06040043|"
+                       "general parameter incompatibility)"):
+        tpdo.save()
+    assert device[0x1A00][0].raw != 0xFE
+    make_mpdo(device, "tpdo", 1, 0xFE, 0x180 + B)
+    device.nmt.state = "OPERATIONAL"
+    device.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+    with pytest.raises(CanopenFDError, match="no valid SAM MPDO"):
+        device.tpdo[1].send_sam(DATA, 1)
+    device.tpdo[2].send_sam(DATA, 1)

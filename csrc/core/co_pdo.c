@@ -367,6 +367,21 @@ static uint8_t mapping_count(const co_pdo_t *pdo, const co_pdo_channel_t *ch)
 }
 
 /* Read the channel's parameters from the OD and (de)activate it. */
+/* CiA 301 allows one SAM producer per device: whether a TPDO other than ch
+ * is one (in_od: its mapping sub 0 says 0xFE; else: it runs as one). */
+static bool other_sam_tpdo(co_pdo_t *pdo, const co_pdo_channel_t *ch, bool in_od)
+{
+    uint16_t i;
+    for (i = pdo->rpdo_count; i < pdo->channel_count; i++) {
+        const co_pdo_channel_t *other = &pdo->channels[i];
+        if (other != ch && (in_od ? mapping_count(pdo, other) == CO_PDO_MAP_SAM
+                                  : other->mpdo == CO_PDO_MAP_SAM)) {
+            return true;
+        }
+    }
+    return false;
+}
+
 static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
 {
     uint16_t comm = comm_index(ch);
@@ -400,8 +415,9 @@ static void configure(co_pdo_t *pdo, co_pdo_channel_t *ch)
     }
     if (is_mpdo_count(count)) {
         /* our choice: MPDOs are event-driven only (see protocol-notes "MPDO") */
-        if (!is_event_type(type) || check_cob_id_value(cob) != 0) {
-            pdo->stats.config_invalid++;
+        if (!is_event_type(type) || check_cob_id_value(cob) != 0 ||
+            (!ch->is_rpdo && count == CO_PDO_MAP_SAM && other_sam_tpdo(pdo, ch, false))) {
+            pdo->stats.config_invalid++;   /* the application wrote it (no check runs) */
             return;
         }
         ch->mpdo = count;
@@ -529,6 +545,9 @@ static uint32_t check_map(co_pdo_t *pdo, co_pdo_channel_t *ch, const co_od_entry
         }
         if (od_valid(pdo, ch)) {
             return CO_ABORT_INVALID_VALUE;
+        }
+        if (!ch->is_rpdo && value[0] == CO_PDO_MAP_SAM && other_sam_tpdo(pdo, ch, true)) {
+            return CO_ABORT_PARAM_INCOMPATIBLE;
         }
         if (value[0] == 0 || is_mpdo_count(value[0])) {
             return 0;   /* an MPDO's entries are not used */

@@ -356,6 +356,39 @@ static void test_dam_mapped(void **state)
     fx_free(fx);
 }
 
+/* One SAM producer per device (CiA 301): a second TPDO is refused 0xFE. */
+static void test_one_sam_producer(void **state)
+{
+    fx_t *fx = pair(CO_MODE_CLASSIC);
+    co_od_t *od = &fx->a.od;
+    (void)state;
+    assert_int_equal(tu_od_net_write(od, 0x1800, 1, INVALID | DAM_ID, 4), 0);
+    assert_int_equal(tu_od_net_write(od, 0x1A00, 0, 0, 1), 0);
+    assert_int_equal(tu_od_net_write(od, 0x1A00, 0, CO_PDO_MAP_SAM, 1),
+                     CO_ABORT_PARAM_INCOMPATIBLE);     /* TPDO 2 is the SAM producer */
+    assert_int_equal(get(&fx->a, 0x1A00, 0, 1), 0);
+    assert_int_equal(tu_od_net_write(od, 0x1A00, 0, CO_PDO_MAP_DAM, 1), 0);
+    /* the application's own writes are not checked: the PDO stays inactive */
+    assert_int_equal(tu_od_net_write(od, 0x1A00, 0, 0, 1), 0);
+    {
+        static const uint8_t sam = CO_PDO_MAP_SAM;
+        uint32_t before = co_pdo_stats(&fx->a.pdo)->config_invalid;
+        assert_int_equal(co_od_put(od, 0x1A00, 0, &sam, 1), 0);
+        put_u32(&fx->a, 0x1800, 1, DAM_ID);
+        assert_false(co_pdo_is_active(&fx->a.pdo, false, 1));
+        assert_int_equal(co_pdo_stats(&fx->a.pdo)->config_invalid, before + 1);
+        assert_true(co_pdo_is_active(&fx->a.pdo, false, 2));
+        put_u32(&fx->a, 0x1800, 1, INVALID | DAM_ID);
+    }
+    assert_int_equal(tu_od_net_write(od, 0x1801, 1, INVALID | SAM_ID, 4), 0);
+    assert_int_equal(tu_od_net_write(od, 0x1A01, 0, 0, 1), 0);   /* TPDO 2 stops */
+    assert_int_equal(tu_od_net_write(od, 0x1A00, 0, 0, 1), 0);
+    assert_int_equal(tu_od_net_write(od, 0x1A00, 0, CO_PDO_MAP_SAM, 1), 0);
+    assert_int_equal(tu_od_net_write(od, 0x1800, 1, DAM_ID, 4), 0);
+    assert_true(co_pdo_is_active(&fx->a.pdo, false, 1));   /* now the only SAM producer */
+    fx_free(fx);
+}
+
 static void test_dam_refused(void **state)
 {
     static const struct {
@@ -632,6 +665,7 @@ int main(void)
         cmocka_unit_test(test_dam_fd),
         cmocka_unit_test(test_dam_refused),
         cmocka_unit_test(test_dam_mapped),
+        cmocka_unit_test(test_one_sam_producer),
         cmocka_unit_test(test_dam_bad_frames),
         cmocka_unit_test(test_sam_classic),
         cmocka_unit_test(test_sam_fd),
