@@ -14,8 +14,9 @@ from .emcy import EMCY_BASE, emcy_text
 from .flyma import FLYMA_IDS, flyma_text
 from .heartbeat import ERROR_CONTROL_BASE, GuardingTracker, guarding_request_text, heartbeat_text
 from .lss import LSS_MASTER_ID, LSS_SLAVE_ID, lss_text
+from .mpdo import mpdo_text
 from .nmt import NMT_ID, nmt_text
-from .pdo import PdoMap, default_pdo, default_pdo_text, pdo_text
+from .pdo import PdoMap, default_pdo, default_pdo_text, format_pdo_value, pdo_text
 from .raw import format_flags, format_raw, frame_fields
 from .sdo import SdoBlockTracker, sdo_text
 from .service_ids import ServiceIds, service_text
@@ -67,6 +68,9 @@ def frame_meaning(frame: Any, state: Optional[DecoderState]) -> str:
         if service is not None and not rtr:
             return service_text(service[0], service[1], data, fd)
         pdo = state.pdos.lookup(can_id, extended)
+        if pdo is not None and pdo.mpdo and not rtr:
+            return mpdo_text(f"{pdo.name} node {pdo.node_id}", pdo.mpdo, data,
+                             state.pdos.variable, format_pdo_value)
         if pdo is not None:
             return pdo_text(pdo, data, fd, rtr)
     if extended:

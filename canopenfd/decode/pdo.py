@@ -43,6 +43,8 @@ def default_pdo_text(can_id: int, data: bytes, rtr: bool = False) -> str:
 # ------------------------------------------------------------------ PDO by an OD
 _RPDO_COMM, _RPDO_MAP, _TPDO_COMM, _TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
 _PDO_COUNT = 512
+#: Mapping sub 0 values that make a PDO an MPDO (CiA 301).
+_MPDO_MARKERS = {0xFF: "DAM", 0xFE: "SAM"}
 #: Dummy mapping entries: index 0x0002..0x0007, sub 0, the type's size.
 DUMMY_TYPES = {0x0002: DataType.INTEGER8, 0x0003: DataType.INTEGER16,
                0x0004: DataType.INTEGER32, 0x0005: DataType.UNSIGNED8,
@@ -72,6 +74,7 @@ class PdoDefinition:
     extended: bool
     objects: List[MappedObject] = field(default_factory=list)
     problem: str = ""               # a mapping that cannot be right (shown with each frame)
+    mpdo: str = ""                  # 'DAM' / 'SAM': mapping sub 0 = 0xFF / 0xFE
 
     @property
     def bits(self) -> int:
@@ -112,6 +115,7 @@ class PdoMap:
 
     def __init__(self) -> None:
         self._by_id: Dict[Tuple[int, bool], List[PdoDefinition]] = {}
+        self._ods: Dict[int, Any] = {}      # by node-id: names MPDOs' objects
 
     def add_od(self, od: Any, node_id: Optional[int] = None) -> List[PdoDefinition]:
         """Read the PDOs (0x1400.. RPDO, 0x1800.. TPDO communication objects and
@@ -123,6 +127,7 @@ class PdoMap:
             raise ValueError(f"a node-id 1..127 is needed for the PDOs of {od.source or 'the OD'}, "
                              f"got {node!r}")
         found: List[PdoDefinition] = []
+        self._ods[node] = od
         for kind, comm, mapping in (("TPDO", _TPDO_COMM, _TPDO_MAP),
                                     ("RPDO", _RPDO_COMM, _RPDO_MAP)):
             for n in range(_PDO_COUNT):
@@ -131,8 +136,10 @@ class PdoMap:
                     continue
                 extended = bool(cob & COB_EXT)
                 can_id = cob & (COB_29_BITS if extended else COB_11_BITS)
-                objects, problem = _mapping(od, mapping + n, node)
-                pdo = PdoDefinition(f"{kind}{n + 1}", node, can_id, extended, objects, problem)
+                mpdo = _MPDO_MARKERS.get(configured_int(od, mapping + n, 0, node) or 0, "")
+                objects, problem = _mapping(od, mapping + n, node) if not mpdo else ([], "")
+                pdo = PdoDefinition(f"{kind}{n + 1}", node, can_id, extended, objects, problem,
+                                    mpdo)
                 self._by_id.setdefault((can_id, extended), []).append(pdo)
                 found.append(pdo)
         return found
@@ -144,6 +151,11 @@ class PdoMap:
         if not pdos:
             return None
         return next((p for p in pdos if p.name.startswith("TPDO")), pdos[0])
+
+    def variable(self, node_id: int, index: int, sub: int) -> Optional[Any]:
+        """The OD variable index:sub of node node_id, when its OD was added."""
+        od = self._ods.get(node_id)
+        return od.get_variable(index, sub) if od is not None else None
 
     def __len__(self) -> int:
         return sum(len(pdos) for pdos in self._by_id.values())
