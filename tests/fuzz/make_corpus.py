@@ -229,6 +229,27 @@ def pdo_seeds():
         seeds[m + "-sync-producer"] = (head(S()).act("nmt", 0).odw(0x101900, 4)
                                        .odw(0x100600, 10000).odw(0x100500, 0x40000080)
                                        .time(100).odw(0x100700, 5000).time(100))
+        # MPDOs (co_mpdo): RPDO 1 made a DAM, then a SAM consumer by the CiA 301 procedure;
+        # frames for this node (5), all, another node, a missing object, the wrong mode,
+        # the wrong length; then TPDO 1 and 2 made SAM producers (the second refused)
+        def make_mpdo(s, marker):
+            return (s.odw(0x140001, 0x80000205).odw(0x160000, 0).odw(0x160000, marker)
+                    .odw(0x140002, 254).odw(0x140001, 0x205))
+        dam = [0x85, 0x02, 0x20, 0x00, 0x44, 0x33, 0x22, 0x11]
+        sam = [0x07, 0x02, 0x20, 0x00, 0x78, 0x56, 0x34, 0x12]
+        seeds[m + "-mpdo-dam"] = (make_mpdo(head(S()).act("nmt", 0).time(1), 0xFF)
+                                  .frame(0x205, dam).frame(0x205, [0x80] + dam[1:])
+                                  .frame(0x205, [0x87] + dam[1:]).time(1)
+                                  .frame(0x205, [0x85, 0xFF, 0x2F, 0x00, 1, 0, 0, 0])
+                                  .frame(0x205, [0x85, 0x06, 0x20, 0x00, 1, 2, 3, 4])
+                                  .frame(0x205, sam).frame(0x205, dam[:4])
+                                  .frame(0x205, dam + dam).time(5))
+        seeds[m + "-mpdo-sam"] = (make_mpdo(head(S()).act("nmt", 0).time(1), 0xFE)
+                                  .frame(0x205, sam).frame(0x205, dam).frame(0x205, sam[:7])
+                                  .time(1).odw(0x180001, 0x80000185).odw(0x1A0000, 0)
+                                  .odw(0x1A0000, 0xFE).odw(0x180001, 0x80000285, pdo=1)
+                                  .odw(0x1A0000, 0, pdo=1).odw(0x1A0000, 0xFE, pdo=1)
+                                  .act("trigger", 0).act("trigger", 0x81).time(5))
         seeds[m + "-states"] = (head(S()).act("nmt", 0).frame(0x205, [3, 4]).act("nmt", 1)
                                 .frame(0x205, [5, 6]).time(1).act("nmt_master", 0x80).time(1)
                                 .act("store", 0x07).act("nmt", 3).time(5))
