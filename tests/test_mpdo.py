@@ -7,9 +7,13 @@ line going on. python-canopen has no MPDO service: no interop test."""
 
 from __future__ import annotations
 
+import threading
+import time
+
 import pytest
 from helpers import Recorder, scaled
 
+import canopenfd
 from canopenfd import CanopenFDError, ConfigurationError
 from canopenfd.od import DataType, demo_od
 from canopenfd.od.model import ODArray, ODVariable
@@ -98,7 +102,6 @@ def pair(net, bus_name, mode):
 
 
 def wait_value(node, index, sub, value):
-    import time
     deadline = time.monotonic() + scaled(2)
     while node[index][sub].raw != value:
         assert time.monotonic() < deadline, f"{index:04X}:{sub:02X} never became {value:#x}"
@@ -273,3 +276,48 @@ def test_one_sam_producer_per_device(net, bus_name, mode):
     with pytest.raises(CanopenFDError, match="no valid SAM MPDO"):
         device.tpdo[1].send_sam(DATA, 1)
     device.tpdo[2].send_sam(DATA, 1)
+
+
+def test_a_flood_of_mpdos_is_coalesced_per_multiplexer(bus_name):
+    """A slow on_mpdo callback under a flood of DAMs to one object: from 3/4
+    of the event queue on, notices of the same multiplexer merge (the newest
+    kept, `coalesced` counting the older ones), so none is lost and the
+    counters still see every frame; the entry's OD-changed events merge
+    the same way instead of filling the queue."""
+    frames = 1500
+    net = canopenfd.Network(event_capacity=256, stall_report_s=3600)
+    try:
+        line = net.open_line(bus_name, mode="classic")
+        node = line.create_local_node(B, od=mpdo_od("classic", A))
+        make_mpdo(node, "rpdo", 1, 0xFF, 0x180 + A)
+        node.nmt.state = "OPERATIONAL"
+        node.nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
+        gate = threading.Event()
+        got = Recorder()
+
+        def slow(notice):
+            gate.wait(scaled(30))          # the first call holds the dispatcher
+            got((int.from_bytes(notice.data, "little"), notice.coalesced))
+        node.on_mpdo(slow)
+        tool = net.open_line(bus_name, mode="classic")
+        dam_to_b = bytes([0x80 | B, 0x00, 0x23, 0x03])       # to 0x2300:03 of node B
+        for i in range(frames):
+            tool.send_frame(0x180 + A, dam_to_b + i.to_bytes(4, "little"))
+            if i % 100 == 99:
+                time.sleep(0.002)           # let the runtime thread move the frames
+        deadline = time.monotonic() + scaled(20)
+        while node.mpdo_stats()["rx_applied"] < frames and time.monotonic() < deadline:
+            time.sleep(0.01)
+        gate.set()
+        calls = got.wait_for(lambda c: c if c and c[-1][0] == frames - 1 else None,
+                             scaled(20), f"the last value {frames - 1}")
+        values = [value for value, _ in calls]
+        assert values == sorted(set(values))                        # in order, none twice
+        assert sum(1 + coalesced for _, coalesced in calls) == frames   # every one counted
+        assert len(calls) < frames / 2                              # it did fall behind
+        assert node.mpdo_stats()["rx_applied"] == frames
+        assert (line.stats["events_lost"], net.events_lost) == (0, 0)
+        # the MPDO notices merged, and the OD-changed events of 0x2300:03 (one a frame)
+        assert line.stats["events_coalesced"] > frames - len(calls)
+    finally:
+        net.close()

@@ -168,22 +168,23 @@ typedef struct co_rt_event {
     uint32_t a;
     uint32_t b;
     uint64_t time_us;          /* CLOCK_MONOTONIC */
-    /* CO_EV_PDO, CO_EV_PDO_FRAME, CO_EV_MPDO: newer events of the same source
-     * (the same RPDO, watched CAN-ID, MPDO address byte + index:sub)
-     * replaced this many queued ones, because
+    /* CO_EV_PDO, CO_EV_PDO_FRAME, CO_EV_MPDO, CO_EV_OD_CHANGED: newer events
+     * of the same source (the same RPDO, watched CAN-ID, MPDO address byte +
+     * index:sub, OD entry) replaced this many queued ones, because
      * the queue was filling up: values the application never saw. */
     uint32_t coalesced;
     co_frame_t frame;
 } co_rt_event_t;
 
 /* What the event queue did with one line's events. Coalescing: from 3/4 of
- * the queue on, a PDO event replaces the queued one of its source (latest
+ * the queue on, a PDO, MPDO or OD-changed event replaces the queued one of
+ * its source (latest
  * value kept, the count of replaced ones carried in `coalesced`) instead of
  * taking a slot, so the last quarter stays free for events that cannot be
  * merged (EMCY, heartbeat, transfers). */
 typedef struct co_rt_event_stats {
     uint32_t events_posted;      /* events queued for the application */
-    uint32_t events_coalesced;   /* PDO events merged into a queued one of their source */
+    uint32_t events_coalesced;   /* events merged into a queued one of their source */
     uint32_t events_lost;        /* events dropped: the queue was full */
 } co_rt_event_stats_t;
 

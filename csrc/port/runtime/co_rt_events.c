@@ -3,9 +3,11 @@
  * queue drops and counts; CO_EV_EVENTS_LOST says so as soon as there is
  * room again.
  *
- * Coalescing: a slow consumer must not lose PDOs at random. Every queued PDO
- * event (CO_EV_PDO, CO_EV_PDO_FRAME, CO_EV_MPDO) is remembered in a small hash table of
- * its source (line, kind, a) -> sequence number. From the high-water mark on
+ * Coalescing: a slow consumer must not lose PDOs at random. Every queued
+ * per-frame event (CO_EV_PDO, CO_EV_PDO_FRAME, CO_EV_MPDO, and
+ * CO_EV_OD_CHANGED: an MPDO flood writes one entry per frame, and Python
+ * reads the entry's value live) is remembered in a small hash table of its
+ * source (line, kind, a) -> sequence number. From the high-water mark on
  * (3/4 of the ring), a new event of a source that still has one queued
  * replaces that one in place (latest value, its `coalesced` count grows)
  * instead of taking a slot; the last quarter stays for events that cannot be
@@ -65,7 +67,8 @@ static void push_lost_marker(rt_events_t *q)
 
 static bool coalescable(const co_rt_event_t *ev)
 {
-    return (ev->kind == CO_EV_PDO || ev->kind == CO_EV_PDO_FRAME || ev->kind == CO_EV_MPDO) &&
+    return (ev->kind == CO_EV_PDO || ev->kind == CO_EV_PDO_FRAME || ev->kind == CO_EV_MPDO ||
+            ev->kind == CO_EV_OD_CHANGED) &&
            ev->line >= 0 && ev->line < RT_MAX_LINES;
 }
 
