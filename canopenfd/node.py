@@ -381,8 +381,9 @@ class LocalNode:
 
     def on_mpdo(self, callback: MpdoCallback, loop: LoopArg = None) -> MpdoCallback:
         """callback(notice) for each MPDO addressed to this node, applied or
-        refused: an MpdoNotice (mode, node, index, sub, local_index,
-        local_sub, data, abort, rpdo, coalesced; see canopenfd.services.mpdo)."""
+        refused: an MpdoNotice (mode, node, frame_index, frame_sub,
+        local_index, local_sub, data, abort, rpdo, coalesced; see
+        canopenfd.services.mpdo)."""
         return self._mpdo.add_callback(callback, loop=loop)
 
     def remove_mpdo_callback(self, callback: MpdoCallback) -> None:

@@ -25,7 +25,7 @@ def _value_text(variable: Optional[Any], value: bytes,
                 format_value: Callable[[Any, Any], str]) -> str:
     dtype = variable.data_type if variable is not None else None
     size = dtype.size if dtype is not None else None
-    if size is None or not 1 <= size <= len(value):
+    if dtype is None or size is None or not 1 <= size <= len(value):
         return hex_bytes(value)
     try:
         return format_value(dtype, decode_value(dtype, value[:size]))

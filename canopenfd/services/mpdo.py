@@ -30,8 +30,8 @@ _DAM_BIT = 0x80
 class MpdoNotice(NamedTuple):
     """One MPDO addressed to the local node. mode 'DAM' (node = the
     destination in the frame: ours or 0 = all) or 'SAM' (node = the
-    producer); index:sub as the frame names them, local_index:local_sub the
-    object written here (a SAM's from the dispatcher list; the frame's when
+    producer); frame_index:frame_sub as the frame names them,
+    local_index:local_sub the object written here (a SAM's from the dispatcher list; the frame's when
     no list entry names it); data the frame's 4 value bytes; abort 0 when
     applied, else the CiA 301 abort code of the refused write (0x06020000:
     no such object, or a SAM no dispatcher entry names); rpdo the RPDO that
@@ -40,8 +40,8 @@ class MpdoNotice(NamedTuple):
 
     mode: str
     node: int
-    index: int
-    sub: int
+    frame_index: int
+    frame_sub: int
     local_index: int
     local_sub: int
     data: bytes
