@@ -67,6 +67,26 @@ class Recorder:
         return self.wait_for(found, timeout, f"{value!r}") - 1
 
 
+def wait_flood_drained(got: Recorder, gate: Any, drained: Callable[[], bool],
+                       total: int) -> list:
+    """A slow callback held by `gate` while `total` values (0..total - 1)
+    flooded in: once `drained()` (or after scaled(20) s), let it go and wait
+    for the last value. The calls, (value, merged), are checked: in order,
+    none twice, every value counted once (itself or merged into a later
+    one), and fewer than half delivered (it did fall behind)."""
+    deadline = time.monotonic() + scaled(20)
+    while not drained() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    gate.set()
+    calls = got.wait_for(lambda c: c if c and c[-1][0] == total - 1 else None,
+                         scaled(20), f"the last value {total - 1}")
+    values = [value for value, _ in calls]
+    assert values == sorted(set(values))                       # in order, none twice
+    assert sum(1 + merged for _, merged in calls) == total     # every value counted
+    assert len(calls) < total / 2                              # it did fall behind
+    return calls
+
+
 def frames_of(recorder: Recorder, can_id: int) -> list:
     return [f for f in recorder.snapshot() if f.id == can_id]
 
