@@ -8,6 +8,7 @@ from __future__ import annotations
 from test_decode_services import _record, _var, fd
 
 from canopenfd import Frame
+from canopenfd.cli import main
 from canopenfd.decode import Decoder, PdoMap, decode
 from canopenfd.od import import_od
 
@@ -87,3 +88,23 @@ def test_without_the_od_an_mpdo_stays_a_pdo(tmp_path):
     assert Decoder().decode(frame) == "TPDO1 node 5 86 02 20 00 FE FF 00 00"
     # node 6's OD alone knows its own TPDOs, not node 5's
     assert decoder(tmp_path, nodes=(6,)).decode(frame) == "TPDO1 node 5 86 02 20 00 FE FF 00 00"
+
+
+def test_the_monitor_shows_mpdos(tmp_path, capsys):
+    """`canopenfd monitor --replay LOG --od EDS@5 --od EDS@6`: the same texts."""
+    eds = tmp_path / "mpdo_test.eds"
+    eds.write_text(EDS)
+    log = tmp_path / "mpdo.log"
+    log.write_text("(1.000000) can0 185#86022000FEFF0000\n"
+                   "(1.001000) can0 285#050220002C010000\n")
+    capsys.readouterr()
+    status = main(["monitor", "--replay", str(log), "--classic", "--od", f"{eds}@5",
+                   "--od", f"{eds}@6"])
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    shown = [line[10:] for line in out.splitlines() if line[10:12] in ("RX", "TX")]
+    assert [line.split(None, 1)[1] for line in shown] == [
+        "0x185 [8] 86 02 20 00 FE FF 00 00".ljust(30) + " TPDO1 node 5 DAM to node 6 "
+        "0x2002:00 = -2",
+        "0x285 [8] 05 02 20 00 2C 01 00 00".ljust(30) + " TPDO2 node 5 SAM from node 5 "
+        "0x2002:00 = 300"]
