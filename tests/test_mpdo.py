@@ -7,6 +7,7 @@ line going on. python-canopen has no MPDO service: no interop test."""
 
 from __future__ import annotations
 
+import asyncio
 import threading
 import time
 
@@ -313,3 +314,20 @@ def test_a_flood_of_mpdos_is_coalesced_per_multiplexer(bus_name):
         assert line.stats["events_coalesced"] > frames - len(calls)
     finally:
         net.close()
+
+
+def test_on_mpdo_with_a_loop_runs_on_the_loop(pair):
+    """on_mpdo(callback, loop=loop): the callback runs on that asyncio loop's thread."""
+    async def main():
+        seen = asyncio.Event()
+        threads = []
+
+        def on_notice(notice):
+            threads.append((threading.get_ident(), notice.frame_sub))
+            seen.set()                         # an asyncio.Event: only safe on the loop thread
+        pair.nodes[B].on_mpdo(on_notice, loop=asyncio.get_running_loop())
+        pair.nodes[A].tpdo[1].send_dam(B, DATA, 7, bytes([1]))
+        await asyncio.wait_for(seen.wait(), scaled(5))
+        assert threads == [(threading.get_ident(), 7)]
+        pair.nodes[B].remove_mpdo_callback(on_notice)
+    asyncio.run(main())
