@@ -89,6 +89,21 @@ def test_a_stale_answer_after_the_deadline_is_asked_again(slow_drive):
         drive.stop_cyclic()
 
 
+def test_progress_heard_after_the_deadline_counts(slow_drive):
+    """enable() over the cyclic RPDO with answers coming back 2 x timeout
+    late: the read after each command still sees the old state (the RPDO
+    waits for a SYNC), the one after that, asked past the deadline, a new
+    state: that is progress, and the walk goes on."""
+    timeout = scaled(0.2)
+    drive = slow_drive(0.0, 2 * timeout, timeout)
+    drive.cyclic("csp", period=0.05)
+    try:
+        drive.enable()
+        assert drive.state is DriveState.OPERATION_ENABLED
+    finally:
+        drive.stop_cyclic()
+
+
 def test_a_drive_that_does_not_follow_still_times_out(net, bus_name):
     """Slow reads do not hide a drive that never moves: each step has the
     timeout from its controlword on, and the walk ends with the state reached."""

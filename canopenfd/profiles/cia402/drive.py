@@ -166,14 +166,14 @@ class Drive:
     # ------------------------------------------------------------ power
     def enable(self, timeout: Optional[float] = None) -> None:
         """Walk to Operation enabled (shutdown, switch on, enable operation).
-        Each step has `timeout` s from its controlword being sent; a step
-        times out only on a statusword asked for after that (a slow read
-        started earlier may show a state the drive has already left).
+        Each state on the way has `timeout` s from its controlword being
+        sent; it times out only on a statusword asked for after that (a slow
+        read started earlier may show a state the drive has already left).
         A drive in Fault raises DriveFaultError: call fault_reset() first."""
         limit = self.timeout if timeout is None else timeout
-        deadline = time.monotonic() + limit
+        deadline = 0.0
         sent_at = 0.0
-        reached: Set[DriveState] = set()
+        seen: Set[DriveState] = set()
         while True:
             asked, sw = self._sample()
             state = decode_state(sw)
@@ -181,24 +181,27 @@ class Drive:
                 return
             if state in (DriveState.FAULT, DriveState.FAULT_REACTION_ACTIVE):
                 raise self._fault(state, "enable()")
-            step = _TOWARDS_ENABLED.get(state)
-            if asked >= deadline:
+            # a state not seen before in this walk is progress, however late
+            # it is heard: it gets a whole budget (at most one per state, so
+            # the walk ends)
+            new = state not in seen
+            if new:
+                seen.add(state)
+                deadline = time.monotonic() + limit
+            elif asked >= deadline:
                 raise DriveTimeoutError(
                     f"{self._where()}: enable(): wanted {DriveState.OPERATION_ENABLED}, "
                     f"state reached {state} {limit:g} s after controlword "
                     f"0x{self.controlword:04X} was sent", str(DriveState.OPERATION_ENABLED),
                     state)
+            step = _TOWARDS_ENABLED.get(state)
             # sent again when the state did not follow: another writer (an RPDO
             # still in flight with an older controlword) may have undone it
-            if step is not None and (self.controlword != step or
+            if step is not None and (new or self.controlword != step or
                                      time.monotonic() - sent_at > RESEND_S):
                 self.command(step)
                 sent_at = time.monotonic()
-                if state not in reached:
-                    # a state not seen before in this walk: its step gets the
-                    # whole budget from now (so the walk ends: at most one
-                    # budget per state on the way)
-                    reached.add(state)
+                if new:
                     deadline = sent_at + limit
             time.sleep(self.poll_s)
 
