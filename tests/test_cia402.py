@@ -99,13 +99,15 @@ def test_enable_sequence_bytes_classic(net, bus_name):
     rig = Rig(net, bus_name, "classic")
     start = len(rig.frames)
     rig.drive.enable()
+    enabled = bytes([0x4B, 0x41, 0x60, 0, 0x37, 0x02, 0, 0])   # 0x6041 upload: 0x0237
+    # the monitor hears the last upload after enable() returned: wait for it
+    rig.frames.wait_for(lambda _calls: any(bytes(f.data) == enabled for f in
+                                           rig.frames_on(0x580 + NODE, start)),
+                        2.0, "the upload of 0x6041 = 0x0237")
     requests = [bytes(f.data) for f in rig.frames_on(0x600 + NODE, start)
                 if bytes(f.data)[:4] == bytes([0x2B, 0x40, 0x60, 0x00])]
     # expedited 2-byte downloads to 0x6040: shutdown, switch on, enable operation
     assert requests == [bytes([0x2B, 0x40, 0x60, 0, cw, 0, 0, 0]) for cw in (6, 7, 0x0F)]
-    uploads = [bytes(f.data) for f in rig.frames_on(0x580 + NODE, start)
-               if bytes(f.data)[:4] == bytes([0x4B, 0x41, 0x60, 0x00])]
-    assert bytes([0x4B, 0x41, 0x60, 0, 0x37, 0x02, 0, 0]) in uploads   # 0x0237: enabled
 
 
 def test_profile_position(rig):

@@ -90,18 +90,7 @@ static void fail(const char *what)
 
 static void add(co_od_t *od, uint16_t index, uint8_t type, uint8_t access, uint32_t value)
 {
-    co_od_def_t d;
-    uint8_t v[4] = {(uint8_t)value, (uint8_t)(value >> 8), (uint8_t)(value >> 16),
-                    (uint8_t)(value >> 24)};
-    memset(&d, 0, sizeof d);
-    d.index = index;
-    d.object_code = CO_OBJECT_VAR;
-    d.type = type;
-    d.access = access;
-    d.size = co_od_type_size(type);
-    d.default_value = v;
-    d.default_length = d.size;
-    CHECK(co_od_add(od, &d) == CO_OD_ADDED, "OD refuses an entry");
+    CHECK(fz_od_add(od, index, 0, CO_OBJECT_VAR, type, access, value), "OD refuses an entry");
 }
 
 static void line_init(line_storage_t *ls, co_membus_t *bus)

@@ -121,3 +121,21 @@ bool fz_next(fz_reader_t *r, fz_record_t *rec, const uint32_t *ids, uint8_t id_c
     }
     return true;
 }
+
+bool fz_od_add(co_od_t *od, uint16_t index, uint8_t sub, uint8_t object_code, uint8_t type,
+               uint8_t access, uint32_t value)
+{
+    co_od_def_t d;
+    uint8_t v[4] = {(uint8_t)value, (uint8_t)(value >> 8), (uint8_t)(value >> 16),
+                    (uint8_t)(value >> 24)};
+    memset(&d, 0, sizeof d);
+    d.index = index;
+    d.sub = sub;
+    d.object_code = object_code;
+    d.type = type;
+    d.access = access;
+    d.size = co_od_type_size(type);
+    d.default_value = v;
+    d.default_length = d.size;
+    return co_od_add(od, &d) == CO_OD_ADDED;
+}

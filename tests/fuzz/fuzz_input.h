@@ -41,6 +41,7 @@
 
 #include "canopenfd/co_frame.h"
 #include "canopenfd/co_line.h"
+#include "canopenfd/co_od.h"
 
 enum {
     FZ_MAX_RECORDS = 4096,
@@ -79,6 +80,11 @@ void fz_bytes(fz_reader_t *r, uint8_t *out, size_t n);
  * mode: the target line's mode (a FRAME in the line's own format). */
 bool fz_next(fz_reader_t *r, fz_record_t *rec, const uint32_t *ids, uint8_t id_count,
              co_mode_t mode);
+
+/* Adds one fixed-size entry of a harness's own OD with its default value
+ * (up to 4 bytes, little-endian); false when the OD refuses it. */
+bool fz_od_add(co_od_t *od, uint16_t index, uint8_t sub, uint8_t object_code, uint8_t type,
+               uint8_t access, uint32_t value);
 
 /* Milliseconds a TIME record with parameter p advances. */
 uint32_t fz_time_ms(uint8_t p);

@@ -439,6 +439,63 @@ def srdo_seeds():
     }
 
 
+def cia402_sim_seeds():
+    """fuzz_cia402_sim.c: byte 0 = the drive's 0x6502 (0: no object); actions by
+    number (p % 8): 0 controlword over SDO, 1 controlword by RPDO, 2 an object
+    over SDO, 3 an object by RPDO (index into writable[], then 4 value bytes),
+    4 SYNC, 5 fault (2 code bytes), 6 one model step (2 bytes of us), 7 the
+    mode over SDO. A controlword argument below 200 picks a common one:
+    0x00, 0x02, 0x06, 0x07, 0x0F, 0x1F, 0x3F, 0x5F, 0x80, 0x10F, 0x0B, 0x86."""
+    cw = {0x00: 0, 0x02: 1, 0x06: 2, 0x07: 3, 0x0F: 4, 0x1F: 5, 0x3F: 6, 0x5F: 7, 0x80: 8,
+          0x10F: 9}
+    obj = {0x6040: 0, 0x6060: 1, 0x607A: 2, 0x60FF: 3, 0x6071: 4, 0x6081: 5, 0x6083: 6,
+           0x6084: 7, 0x6098: 8}
+
+    def act(p, *args):
+        return bytes([p << 3 | 3]) + bytes(args)
+
+    def time(ms):
+        return bytes([ms << 3 | 2])
+
+    def sdo_cw(word):
+        return act(0, cw[word])
+
+    def pdo_cw(word):
+        return act(1, cw[word])
+
+    def sdo(index, value):
+        return act(2, obj[index]) + struct.pack("<i", value)
+
+    def pdo(index, value):
+        return act(3, obj[index]) + struct.pack("<i", value)
+
+    def mode(m):
+        return act(7, m & 0xFF)
+
+    enable = sdo_cw(0x06) + sdo_cw(0x07) + sdo_cw(0x0F)
+    sync = act(4, 0)
+    return {
+        # every transition over SDO: enable, disable operation, quick stop, disable voltage
+        "power": b"\x00" + enable + sdo_cw(0x07) + sdo_cw(0x0F) + sdo_cw(0x02) + time(2)
+        + sdo_cw(0x0F) + sdo_cw(0x06) + sdo_cw(0x00) + time(1),
+        # the cyclic RPDO path: commands by RPDO, taken at the next tick or SYNC
+        "rpdo-enable": b"\x00" + mode(8) + pdo_cw(0x06) + sync + pdo_cw(0x07) + time(1)
+        + pdo_cw(0x0F) + sync + pdo(0x607A, 500) + sync + pdo(0x607A, -500) + sync,
+        # profile position: set-points with and without bit 5, relative, halt
+        "pp-moves": b"\xA5" + mode(1) + enable + sdo(0x607A, 2000) + sdo_cw(0x1F) + time(5)
+        + sdo_cw(0x0F) + sdo(0x607A, 100) + sdo_cw(0x1F) + sdo_cw(0x0F) + sdo_cw(0x5F)
+        + time(26) + sdo_cw(0x10F) + time(20),
+        # profile velocity, homing, CSV/CST at SYNCs
+        "pv-homing-csv": b"\xA5" + mode(3) + enable + sdo(0x60FF, -3000) + time(18) + mode(6)
+        + sdo_cw(0x1F) + time(1) + mode(9) + pdo(0x60FF, 12345) + sync + sync + mode(10)
+        + pdo(0x6071, -77) + sync,
+        # a fault mid-move, a reset by RPDO and by SDO, an unsupported mode refused
+        "fault": b"\x25" + mode(1) + enable + sdo(0x607A, 900000) + sdo_cw(0x1F) + time(3)
+        + act(5, 0x21, 0x71) + time(1) + pdo_cw(0x80) + time(1) + sdo_cw(0x00) + sdo_cw(0x80)
+        + mode(10) + enable + act(6, 0xE8, 0x03),
+    }
+
+
 def main():
     for h in ("usdo_server", "sdo_server"):
         write(h, {k: v.b for k, v in server_seeds(h, h.startswith("sdo")).items()})
@@ -451,6 +508,7 @@ def main():
     write("concise_dcf", concise_dcf_seeds())
     write("gateway", {k: v.b for k, v in gateway_seeds().items()})
     write("srdo", srdo_seeds())
+    write("cia402_sim", cia402_sim_seeds())
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import struct
 import time
-from typing import Any, Callable, Dict, Optional
+from typing import Any, Callable, Dict, Optional, Set, Tuple
 
 from ...errors import CanopenFDError
 from .pdo_setup import Cyclic, setup_pdos
@@ -131,19 +131,27 @@ class Drive:
         return DriveFaultError(f"{self._where()}: {state} during {doing}: error code "
                                f"0x{code:04X} (0x603F)", code, state)
 
+    def _sample(self) -> Tuple[float, int]:
+        """(when the read was asked, statusword). The value is the drive's at
+        about the asking moment: on a loaded host the answer can come back
+        seconds later, so deadlines compare with the asking time."""
+        asked = time.monotonic()
+        return asked, self.statusword
+
     def _wait(self, wanted: str, done: Callable[[int], bool], timeout: Optional[float],
               doing: str, faults: bool = True) -> int:
-        """Poll the statusword until done(statusword); a fault raises at once."""
+        """Poll the statusword until done(statusword); a fault raises at once.
+        Times out only on a statusword asked for after the deadline."""
         limit = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + limit
         while True:
-            sw = self.statusword
+            asked, sw = self._sample()
             if done(sw):
                 return sw
             state = decode_state(sw)
             if faults and state in (DriveState.FAULT, DriveState.FAULT_REACTION_ACTIVE):
                 raise self._fault(state, doing)
-            if time.monotonic() >= deadline:
+            if asked >= deadline:
                 raise DriveTimeoutError(
                     f"{self._where()}: {doing}: wanted {wanted}, state reached {state} "
                     f"(statusword 0x{sw:04X}) after {limit:g} s", wanted, state)
@@ -158,28 +166,43 @@ class Drive:
     # ------------------------------------------------------------ power
     def enable(self, timeout: Optional[float] = None) -> None:
         """Walk to Operation enabled (shutdown, switch on, enable operation).
+        Each state on the way has `timeout` s from its controlword being
+        sent; it times out only on a statusword asked for after that (a slow
+        read started earlier may show a state the drive has already left).
         A drive in Fault raises DriveFaultError: call fault_reset() first."""
         limit = self.timeout if timeout is None else timeout
-        deadline = time.monotonic() + limit
+        deadline = 0.0
         sent_at = 0.0
+        seen: Set[DriveState] = set()
         while True:
-            state = self.state
+            asked, sw = self._sample()
+            state = decode_state(sw)
             if state is DriveState.OPERATION_ENABLED:
                 return
             if state in (DriveState.FAULT, DriveState.FAULT_REACTION_ACTIVE):
                 raise self._fault(state, "enable()")
+            # a state not seen before in this walk is progress, however late
+            # it is heard: it gets a whole budget (at most one per state, so
+            # the walk ends)
+            new = state not in seen
+            if new:
+                seen.add(state)
+                deadline = time.monotonic() + limit
+            elif asked >= deadline:
+                raise DriveTimeoutError(
+                    f"{self._where()}: enable(): wanted {DriveState.OPERATION_ENABLED}, "
+                    f"state reached {state} {limit:g} s after controlword "
+                    f"0x{self.controlword:04X} was sent", str(DriveState.OPERATION_ENABLED),
+                    state)
             step = _TOWARDS_ENABLED.get(state)
             # sent again when the state did not follow: another writer (an RPDO
             # still in flight with an older controlword) may have undone it
-            if step is not None and (self.controlword != step or
+            if step is not None and (new or self.controlword != step or
                                      time.monotonic() - sent_at > RESEND_S):
                 self.command(step)
                 sent_at = time.monotonic()
-            if time.monotonic() >= deadline:
-                raise DriveTimeoutError(
-                    f"{self._where()}: enable(): wanted {DriveState.OPERATION_ENABLED}, "
-                    f"state reached {state} after {limit:g} s (last controlword "
-                    f"0x{self.controlword:04X})", str(DriveState.OPERATION_ENABLED), state)
+                if new:
+                    deadline = sent_at + limit
             time.sleep(self.poll_s)
 
     def _power(self, command: Command, wanted: DriveState, timeout: Optional[float],
