@@ -11,7 +11,8 @@
  * The service only decides; the driver owns the two interfaces and is told
  * which one to use through the select callback. Heartbeat supervision of
  * the master stays with the heartbeat consumer: the caller forwards its
- * STARTED and LOST events of the master (co_rdn_master_heard / _lost). */
+ * STARTED and LOST events of the master (co_rdn_master_heard / _lost);
+ * co_stack_redundancy_init does that, and serves the object from the OD. */
 #ifndef CO_REDUNDANCY_H
 #define CO_REDUNDANCY_H
 
