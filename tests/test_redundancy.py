@@ -255,3 +255,20 @@ def test_master_without_switch_on_failure_stays(net, buses):
         master.simulate_comm_event(99)
     with pytest.raises(ConfigurationError, match="index must be a manufacturer index"):
         redundancy_record(index=0x1000)
+
+
+def test_record_over_usdo_on_an_fd_line(net, bus_name):
+    a, b = bus_name + "-fd", bus_name + "-fdB"
+    od = demo_od("fd")
+    od.add_object(redundancy_record(index=0x2F00, default="B", ttoggle=0, ntoggle=2))
+    line = net.open_line(a, mode="fd")
+    line.create_local_node(2, od=od)
+    line.redundancy.start(b, "slave", master=1, period=0.1, index=0x2F00)
+    assert line.redundancy.active_bus == "B"                  # the record's Bdefault
+    tool = net.open_line(b, mode="fd")
+    assert tool.usdo.upload(2, 0x2F00, 1) == b"\x01"
+    with pytest.raises(AbortError) as refused:
+        tool.usdo.download(2, 0x2F00, 3, b"\x00")
+    assert refused.value.code == 0x06090032
+    tool.usdo.download(2, 0x2F00, 3, b"\x05")
+    assert line.redundancy.object == {"Bdefault": 1, "Ttoggle": 0, "Ntoggle": 5, "Ctoggle": 0}
