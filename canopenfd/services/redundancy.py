@@ -114,7 +114,7 @@ class BusRedundancy:
         node whose OD has no redundancy record at `index`; when it has one
         they come from there and giving them is an error. A master with
         switch_on_failure moves to the other bus when the line reports
-        bus-off or interface down. Start after create_local_node."""
+        bus-off or interface down."""
         where = self._where(f"start({redundant!r}, {role!r})")
         if role not in _ROLES:
             raise ConfigurationError(f"{where}: role must be 'master' or 'slave', got {role!r}")

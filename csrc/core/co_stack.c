@@ -870,6 +870,8 @@ static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t
         co_stack_part_t part = s->failed;
         node_undo(s);
         s->failed = part;
+    } else {
+        co_stack_rdn_node_added(s);   /* redundancy started before the node */
     }
     return status;
 }

@@ -15,16 +15,18 @@ static co_od_entry_t *record_entry(co_stack_t *s, uint8_t sub)
 /* The OD shows what the service holds: the service changes Ctoggle and
  * Bdefault itself, and a refused value must not stay visible. Written in
  * place, so no after-write handler runs. */
+static void show_sub(co_stack_t *s, uint8_t sub)
+{
+    co_od_entry_t *e = s->rdn_od ? record_entry(s, sub) : NULL;
+    if (e) {
+        *co_od_value(s->rdn_od, e) = co_rdn_read(&s->rdn, sub);
+    }
+}
+
 static void show_in_od(co_stack_t *s)
 {
-    if (!s->has_rdn || !s->rdn_od) {
-        return;
-    }
-    for (uint8_t sub = CO_RDN_SUB_BDEFAULT; sub <= CO_RDN_SUB_CTOGGLE; sub++) {
-        co_od_entry_t *e = record_entry(s, sub);
-        if (e) {
-            *co_od_value(s->rdn_od, e) = co_rdn_read(&s->rdn, sub);
-        }
+    for (uint8_t sub = CO_RDN_SUB_BDEFAULT; s->has_rdn && sub <= CO_RDN_SUB_CTOGGLE; sub++) {
+        show_sub(s, sub);
     }
 }
 
@@ -34,6 +36,7 @@ static void on_select(co_rdn_t *rdn, uint8_t bus, void *user)
     s->rdn_selecting = true;
     s->rdn_select(rdn, bus, s->rdn_user);
     s->rdn_selecting = false;
+    show_in_od(s);   /* a start (boot, reset) zeroes Ctoggle before it selects */
 }
 
 static void on_event(co_rdn_t *rdn, co_rdn_event_t event, uint8_t bus, void *user)
@@ -94,7 +97,8 @@ static uint32_t record_check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_
 }
 
 /* Any write that got through (network, application, reload at a reset):
- * the service takes it, or the OD shows the service's value again. */
+ * the service takes it, or the OD shows the service's value again. Only
+ * this sub: a reload tells each changed entry after loading them all. */
 static void record_after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin,
                                void *user)
 {
@@ -105,7 +109,7 @@ static void record_after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin
     if (sub != CO_RDN_SUB_CTOGGLE) {
         (void)co_rdn_write(&s->rdn, sub, value);
     }
-    show_in_od(s);
+    show_sub(s, sub);
 }
 
 static const co_od_handler_t record_handler = {
@@ -148,6 +152,21 @@ static void take_from_od(const co_od_t *od, uint16_t index, co_rdn_config_t *c)
     (void)co_od_get_u8(od, index, CO_RDN_SUB_NTOGGLE, &c->ntoggle);
 }
 
+/* Serve the record of the node's OD at the service's index, when it has a
+ * valid one (false: nothing served). */
+static bool bind_record(co_stack_t *s, co_od_t *od)
+{
+    uint8_t bad_sub;
+    if (!od || !co_od_has_index(od, s->rdn_index) ||
+        co_stack_redundancy_check_od(od, s->rdn_index, &bad_sub) != CO_RDN_OK ||
+        !co_od_subscribe(od, s->rdn_index, CO_RDN_SUB_BDEFAULT, s->rdn_index,
+                         CO_RDN_SUB_CTOGGLE, &record_handler, s)) {
+        return false;
+    }
+    s->rdn_od = od;
+    return true;
+}
+
 /* ---------------------------------------------------------------- set-up */
 
 static co_stack_status_t refuse(co_stack_t *s, co_stack_status_t status)
@@ -186,15 +205,14 @@ co_stack_status_t co_stack_redundancy_init(co_stack_t *stack,
         co_hb_consumer_watch(&s->hb_consumer, c.master_id, c.master_period_ms) != CO_HB_CONFIG_OK) {
         return refuse(s, CO_STACK_ERR_TAKEN);
     }
-    if (served && !co_od_subscribe(od, index, CO_RDN_SUB_BDEFAULT, index, CO_RDN_SUB_CTOGGLE,
-                                   &record_handler, s)) {
+    s->rdn_index = index;
+    s->rdn_od = NULL;
+    if (served && !bind_record(s, od)) {
         if (c.role == CO_RDN_SLAVE) {
             co_hb_consumer_unwatch(&s->hb_consumer, c.master_id);
         }
         return refuse(s, CO_STACK_ERR_TAKEN);
     }
-    s->rdn_od = served ? od : NULL;
-    s->rdn_index = index;
     s->rdn_switch_on_failure = config->switch_on_failure;
     s->rdn_select = config->select;
     s->rdn_event = config->on_event;
@@ -246,6 +264,22 @@ void co_stack_rdn_comm(co_stack_t *s, co_comm_event_t event)
         return;
     }
     (void)co_rdn_master_select(&s->rdn, other_bus(co_rdn_active_bus(&s->rdn)));
+}
+
+void co_stack_rdn_node_added(co_stack_t *s)
+{
+    if (!s->has_rdn) {
+        return;
+    }
+    co_node_attach_redundancy(&s->node, &s->rdn);
+    if (bind_record(s, s->od)) {
+        for (uint8_t sub = CO_RDN_SUB_BDEFAULT; sub <= CO_RDN_SUB_NTOGGLE; sub++) {
+            uint8_t value = 0;
+            (void)co_od_get_u8(s->od, s->rdn_index, sub, &value);
+            (void)co_rdn_write(&s->rdn, sub, value);   /* one refused keeps the running value */
+        }
+        show_in_od(s);
+    }
 }
 
 void co_stack_rdn_node_gone(co_stack_t *s)

@@ -279,6 +279,7 @@ static void test_slave_switch_shown_in_record(void **state)
     assert_true(co_line_send(&r->tool[1].line, 0x000, (const uint8_t[]){0x82, SLAVE}, 2));
     run_until(r, r->bus[1].now / TU_MS + 5);
     assert_int_equal(r->slave.bus, CO_RDN_BUS_B);
+    assert_int_equal(tu_od_value(&r->dev.od, RECORD, CO_RDN_SUB_CTOGGLE, 1), 0);
     sdo_read_u8(r, CO_RDN_BUS_B, CO_RDN_SUB_CTOGGLE, 0);
     rig_free(r);
 }
@@ -340,6 +341,46 @@ static void test_master_without_switch_on_failure_stays(void **state)
     rig_free(r);
 }
 
+/* Redundancy started on a line whose node comes later: the node's record
+ * is served and its values taken from then on, and its resets start the
+ * service over; the node going leaves it running on its values. */
+static void test_node_set_up_after_the_service(void **state)
+{
+    (void)state;
+    rig_t *r = rig_new(CO_RDN_BUS_A, 2);
+    co_stack_node_deinit(&r->slave.stack);
+    co_stack_redundancy_config_t c = rdn_config(&r->slave, CO_RDN_SLAVE);
+    c.rdn.ttoggle = 0;
+    assert_int_equal(co_stack_redundancy_init(&r->slave.stack, &c), CO_STACK_OK);
+    co_rdn_t *rdn = co_stack_redundancy(&r->slave.stack);
+    assert_int_equal(co_rdn_read(rdn, CO_RDN_SUB_TTOGGLE), 0);
+    co_stack_node_config_t nc = {.node_id = SLAVE, .heartbeat_ms = PERIOD_MS, .od = &r->dev.od};
+    assert_int_equal(co_stack_node_init(&r->slave.stack, &nc), CO_STACK_OK);
+    assert_int_equal(co_rdn_read(rdn, CO_RDN_SUB_TTOGGLE), 3);
+    assert_int_equal(co_rdn_read(rdn, CO_RDN_SUB_NTOGGLE), 2);
+    assert_int_equal(co_stack_boot(&r->slave.stack), CO_STACK_OK);
+    run_until(r, 10);
+    sdo_write_u8(r, CO_RDN_BUS_A, CO_RDN_SUB_BDEFAULT, 2, CO_ABORT_VALUE_HIGH);
+    sdo_write_u8(r, CO_RDN_BUS_A, CO_RDN_SUB_NTOGGLE, 1, 0);
+    run_until(r, 310);   /* no master: B at 300, and Ntoggle 1 gives up there */
+    assert_int_equal(r->slave.bus, CO_RDN_BUS_B);
+    assert_int_equal(r->slave.no_master, 1);
+    sdo_read_u8(r, CO_RDN_BUS_B, CO_RDN_SUB_BDEFAULT, 1);
+    /* a reset node reloads the record's defaults: back to A */
+    co_line_set_time(&r->tool[1].line, r->bus[1].now);
+    assert_true(co_line_send(&r->tool[1].line, 0x000, (const uint8_t[]){0x81, SLAVE}, 2));
+    run_until(r, r->bus[1].now / TU_MS + 5);
+    assert_int_equal(r->slave.bus, CO_RDN_BUS_A);
+    assert_int_equal(co_rdn_read(rdn, CO_RDN_SUB_NTOGGLE), 2);
+    assert_int_equal(tu_od_value(&r->dev.od, RECORD, CO_RDN_SUB_CTOGGLE, 1), 0);
+    assert_int_equal(tu_od_value(&r->dev.od, RECORD, CO_RDN_SUB_BDEFAULT, 1), 0);
+    co_stack_node_deinit(&r->slave.stack);
+    assert_non_null(co_stack_redundancy(&r->slave.stack));
+    run_until(r, r->bus[0].now / TU_MS + 300);   /* still counting: B again */
+    assert_int_equal(r->slave.bus, CO_RDN_BUS_B);
+    rig_free(r);
+}
+
 /* Wrong use is refused and leaves nothing behind. */
 static void test_refusals(void **state)
 {
@@ -383,6 +424,7 @@ int main(void)
         cmocka_unit_test(test_slave_switch_shown_in_record),
         cmocka_unit_test(test_master_leaves_bus_off_and_slave_follows),
         cmocka_unit_test(test_master_without_switch_on_failure_stays),
+        cmocka_unit_test(test_node_set_up_after_the_service),
         cmocka_unit_test(test_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

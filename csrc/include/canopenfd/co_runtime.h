@@ -575,7 +575,7 @@ typedef struct co_rt_redundancy_config {
 /* A line runs on one of two buses: its own (A) and config's redundant one
  * (B); it starts on Bdefault at once (once per line; CO_EV_REDUNDANCY tells
  * every switch). The local node's OD, when it has the record at index,
- * serves it (co_stack_redundancy_init): start after create_local_node. */
+ * serves it (co_stack_redundancy_init; a node created later: its valid record). */
 int co_rt_redundancy_start(co_rt_t *rt, int line, const co_rt_redundancy_config_t *config);
 /* Master: use bus 0 (A) or 1 (B) from now on. */
 int co_rt_redundancy_select(co_rt_t *rt, int line, uint8_t bus);
