@@ -272,3 +272,20 @@ def test_record_over_usdo_on_an_fd_line(net, bus_name):
     assert refused.value.code == 0x06090032
     tool.usdo.download(2, 0x2F00, 3, b"\x05")
     assert line.redundancy.object == {"Bdefault": 1, "Ttoggle": 0, "Ntoggle": 5, "Ctoggle": 0}
+
+
+def test_node_created_after_start_serves_its_record(net, buses):
+    a, b, _, on_b = buses
+    line = net.open_line(a, mode="classic")
+    line.redundancy.start(b, "slave", master=1, period=0.05)    # no node yet: never switches
+    assert line.redundancy.object["Ttoggle"] == 0
+    od = demo_od("classic")
+    od.add_object(redundancy_record(default="B", ttoggle=0, ntoggle=7))
+    line.create_local_node(2, od=od)
+    assert line.redundancy.object == {"Bdefault": 1, "Ttoggle": 0, "Ntoggle": 7, "Ctoggle": 0}
+    # its boot started it over on the record's Bdefault: B
+    assert line.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+    on_b.wait_for(lambda c: [f for f in c if f.id == 0x702 and f.data[0] == 0], scaled(3),
+                  "boot-up of node 2 on B")
+    tool = net.open_line(b, mode="classic")
+    assert tool.sdo.upload(2, RECORD_INDEX, 3) == b"\x07"

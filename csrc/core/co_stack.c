@@ -941,6 +941,8 @@ co_stack_status_t co_stack_boot(co_stack_t *stack)
     if (stack->has_flyma) {
         co_flyma_boot(&stack->flyma);
     }
+    /* After the parameters loaded (a stored Bdefault counts); the boot-up
+     * is still queued, so it goes out on that bus. */
     co_stack_rdn_boot(stack);
     return CO_STACK_OK;
 }
