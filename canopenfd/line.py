@@ -384,6 +384,17 @@ class Line:
         with self._context.cond:
             return list(self._comm_events)
 
+    def simulate_comm_event(self, event: Union[CommEvent, int]) -> None:
+        """In-process ('mem:') lines only: act as if the CAN controller had
+        reported `event` (bus-off, interface down, ...), for tests of what
+        the stack does then; it is heard like a real one (comm_events)."""
+        where = f"simulate_comm_event({event!r}) on {self._where}"
+        try:
+            code = int(CommEvent(event))
+        except ValueError:
+            raise ConfigurationError(f"{where}: not a CommEvent") from None
+        self._context.runtime.membus_comm_event(self.index, code, where)
+
     # ---------------------------------------------------------------- callbacks
     def on_comm_event(self, callback: Callable[[CommEvent], None],
                       loop: LoopArg = None) -> Callable[[CommEvent], None]:

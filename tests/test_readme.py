@@ -28,7 +28,7 @@ _BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 #: empty directory, "repo": on their own in the source tree, for its sample files).
 WORLDS = {1: "none", 2: "fd", 3: "repo", 4: "fd", 5: "fd", 6: "fd", 7: "fd", 8: "fd",
           9: "classic", 10: "fd", 11: "fd", 12: "classic", 13: "fd", 14: "none",
-          15: "none", 16: "none"}
+          15: "none", 16: "none", 17: "none"}
 
 
 def readme_blocks() -> List[Tuple[int, int, str]]:

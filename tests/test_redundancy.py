@@ -10,9 +10,10 @@ import time
 
 import pytest
 
-from canopenfd import (CanopenFDError, CommEvent, ConfigurationError, RedundancyEvent,
+from canopenfd import (AbortError, CanopenFDError, CommEvent, ConfigurationError, RedundancyEvent,
                        RedundancyNotice)
 from canopenfd.od import demo_od
+from canopenfd.services.redundancy import RECORD_INDEX, redundancy_record
 from helpers import Recorder, scaled
 
 HB_MS = 50            # heartbeat of every local node here
@@ -155,3 +156,136 @@ def test_switch_to_a_full_bus_reports_interface_down(net, buses):
                         "interface down")
     assert got == [CommEvent.IFACE_DOWN]
     assert slave.redundancy.active_bus == "B"
+
+
+# ------------------------------------------------ the record in the local OD
+
+def _sdo_frames(frames, start=0):
+    """(id, data) of the SDO requests to node 2 and its answers."""
+    return [(f.id, bytes(f.data)) for f in frames.snapshot()[start:] if f.id in (0x602, 0x582)]
+
+
+def test_record_in_the_od_is_served_on_the_bus_in_use(net, buses):
+    a, b, on_a, on_b = buses
+    od = demo_od("classic")
+    od.add_object(redundancy_record(ttoggle=0, ntoggle=1))
+    line = net.open_line(a, mode="classic")
+    line.create_local_node(2, od=od)[0x1017].raw = HB_MS
+    with pytest.raises(ConfigurationError, match="has the redundancy record 0x2000.*not from start"):
+        line.redundancy.start(b, "slave", master=1, period=0.05, ttoggle=3)
+    line.redundancy.start(b, "slave", master=1, period=0.05)
+    assert line.redundancy.object == {"Bdefault": 0, "Ttoggle": 0, "Ntoggle": 1, "Ctoggle": 0}
+    tool_a, tool_b = net.open_line(a, mode="classic"), net.open_line(b, mode="classic")
+
+    # on A: reads, refused writes with their abort codes, accepted writes
+    assert tool_a.sdo.upload(2, RECORD_INDEX, 3) == b"\x01"
+    for sub, value, code in ((1, 2, 0x06090031), (3, 0, 0x06090032), (4, 1, 0x06010002)):
+        with pytest.raises(AbortError) as refused:
+            tool_a.sdo.download(2, RECORD_INDEX, sub, bytes([value]))
+        assert refused.value.code == code
+    assert line.redundancy.object == {"Bdefault": 0, "Ttoggle": 0, "Ntoggle": 1, "Ctoggle": 0}
+    tool_a.sdo.download(2, RECORD_INDEX, 2, b"\x02")      # Ttoggle 2: from the next start
+    assert line.redundancy.object["Ttoggle"] == 2
+    on_a.wait_for(lambda c: len(_sdo_frames(on_a)) >= 10, scaled(3), "SDO on A")
+    assert _sdo_frames(on_a)[:4] == [
+        (0x602, bytes([0x40, 0x00, 0x20, 0x03, 0, 0, 0, 0])),
+        (0x582, bytes([0x4F, 0x00, 0x20, 0x03, 0x01, 0, 0, 0])),
+        (0x602, bytes([0x2F, 0x00, 0x20, 0x01, 0x02, 0, 0, 0])),
+        (0x582, bytes([0x80, 0x00, 0x20, 0x01, 0x31, 0x00, 0x09, 0x06]))]
+    assert _sdo_frames(on_a)[-1] == (0x582, bytes([0x60, 0x00, 0x20, 0x02, 0, 0, 0, 0]))
+    assert _sdo_frames(on_b) == []
+
+    # a reset communication starts the countdown: no master, so after 2
+    # periods the node moves to B, gives up there (Ntoggle 1) and B becomes
+    # its default; the tool on B reads that, nothing of it reaches A
+    notices = Recorder()
+    line.redundancy.add_callback(notices)
+    tool_a.nmt.reset_communication(2)
+    notices.wait_for(lambda c: [n for n in c if n.event == RedundancyEvent.NO_MASTER],
+                     scaled(3), "no master")
+    mark_a = len(on_a)
+    assert tool_b.sdo.upload(2, RECORD_INDEX, 4) == b"\x01"      # Ctoggle
+    assert tool_b.sdo.upload(2, RECORD_INDEX, 1) == b"\x01"      # Bdefault: B
+    on_b.wait_for(lambda c: len(_sdo_frames(on_b)) >= 4, scaled(3), "SDO on B")
+    assert _sdo_frames(on_b) == [
+        (0x602, bytes([0x40, 0x00, 0x20, 0x04, 0, 0, 0, 0])),
+        (0x582, bytes([0x4F, 0x00, 0x20, 0x04, 0x01, 0, 0, 0])),
+        (0x602, bytes([0x40, 0x00, 0x20, 0x01, 0, 0, 0, 0])),
+        (0x582, bytes([0x4F, 0x00, 0x20, 0x01, 0x01, 0, 0, 0]))]
+    assert _sdo_frames(on_a, mark_a) == []
+    assert line.local_node[(RECORD_INDEX, 1)].raw == 1          # the local OD says so too
+
+
+def test_master_leaves_a_bus_that_goes_bus_off(net, buses):
+    a, b, on_a, on_b = buses
+    master = _node(net, a, 1)
+    master.redundancy.start(b, "master", switch_on_failure=True)
+    slave = _node(net, a, 2)
+    slave.redundancy.start(b, "slave", master=1, period=PERIOD_S, ttoggle=3, ntoggle=4)
+    notices = Recorder()
+    master.redundancy.add_callback(notices)
+    on_a.wait_for(lambda c: len([f for f in c if f.id == 0x701]) >= 3, scaled(3), "0x701 on A")
+    assert _heartbeats(on_b, 1) == []
+
+    comm = Recorder()
+    master.on_comm_event(comm)
+    master.simulate_comm_event(CommEvent.BUS_OFF)
+    assert notices.wait_count(1, scaled(3)) == [
+        RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 0)]
+    assert comm.wait_count(1, scaled(3)) == [CommEvent.BUS_OFF]
+    mark_a = len(on_a)
+    on_b.wait_for(lambda c: len([f for f in c if f.id == 0x701]) >= 3, scaled(3), "0x701 on B")
+    assert set(_heartbeats(on_b, 1)) == {b"\x7f"}
+    assert _heartbeats(on_a, 1, mark_a) == []
+    assert slave.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+
+
+def test_master_without_switch_on_failure_stays(net, buses):
+    a, b, _, _ = buses
+    master = _node(net, a, 1)
+    with pytest.raises(ConfigurationError, match="switch_on_failure is for the master"):
+        master.redundancy.start(b, "slave", master=3, period=0.1, switch_on_failure=True)
+    master.redundancy.start(b, "master")
+    comm = Recorder()
+    master.on_comm_event(comm)
+    master.simulate_comm_event(CommEvent.BUS_OFF)
+    assert comm.wait_count(1, scaled(3)) == [CommEvent.BUS_OFF]
+    assert master.redundancy.active_bus == "A"
+    with pytest.raises(ConfigurationError, match="not a CommEvent"):
+        master.simulate_comm_event(99)
+    with pytest.raises(ConfigurationError, match="index must be a manufacturer index"):
+        redundancy_record(index=0x1000)
+
+
+def test_record_over_usdo_on_an_fd_line(net, bus_name):
+    a, b = bus_name + "-fd", bus_name + "-fdB"
+    od = demo_od("fd")
+    od.add_object(redundancy_record(index=0x2F00, default="B", ttoggle=0, ntoggle=2))
+    line = net.open_line(a, mode="fd")
+    line.create_local_node(2, od=od)
+    line.redundancy.start(b, "slave", master=1, period=0.1, index=0x2F00)
+    assert line.redundancy.active_bus == "B"                  # the record's Bdefault
+    tool = net.open_line(b, mode="fd")
+    assert tool.usdo.upload(2, 0x2F00, 1) == b"\x01"
+    with pytest.raises(AbortError) as refused:
+        tool.usdo.download(2, 0x2F00, 3, b"\x00")
+    assert refused.value.code == 0x06090032
+    tool.usdo.download(2, 0x2F00, 3, b"\x05")
+    assert line.redundancy.object == {"Bdefault": 1, "Ttoggle": 0, "Ntoggle": 5, "Ctoggle": 0}
+
+
+def test_node_created_after_start_serves_its_record(net, buses):
+    a, b, _, on_b = buses
+    line = net.open_line(a, mode="classic")
+    line.redundancy.start(b, "slave", master=1, period=0.05)    # no node yet: never switches
+    assert line.redundancy.object["Ttoggle"] == 0
+    od = demo_od("classic")
+    od.add_object(redundancy_record(default="B", ttoggle=0, ntoggle=7))
+    line.create_local_node(2, od=od)
+    assert line.redundancy.object == {"Bdefault": 1, "Ttoggle": 0, "Ntoggle": 7, "Ctoggle": 0}
+    # its boot started it over on the record's Bdefault: B
+    assert line.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+    on_b.wait_for(lambda c: [f for f in c if f.id == 0x702 and f.data[0] == 0], scaled(3),
+                  "boot-up of node 2 on B")
+    tool = net.open_line(b, mode="classic")
+    assert tool.sdo.upload(2, RECORD_INDEX, 3) == b"\x07"

@@ -484,6 +484,9 @@ class Runtime:
     def line_stats(self, line: int, what: str) -> Dict[str, int]:
         return self._counters(lib.co_rt_line_stats, "co_line_stats_t", line, what)
 
+    def membus_comm_event(self, line: int, event: int, what: str) -> None:
+        self._call(what, lib.co_rt_membus_comm_event, line, event)
+
     def event_stats(self, line: int, what: str) -> Dict[str, int]:
         return self._counters(lib.co_rt_event_stats, "co_rt_event_stats_t", line, what)
 

@@ -9,10 +9,10 @@ what services see of their node (Protocols).
 
 from .guard import GuardEvent
 from .manager import ManagerEvent, NetworkManager, NetworkStartError
-from .redundancy import BusRedundancy, RedundancyNotice
+from .redundancy import BusRedundancy, RedundancyNotice, redundancy_record
 from .sleep import SleepNotice, SleepService
 from .sync import SyncService
 from .time import TIME_EPOCH, TimeService
 
-__all__ = ["BusRedundancy", "RedundancyNotice", "SleepNotice", "SleepService", "SyncService", "TimeService", "GuardEvent",
+__all__ = ["BusRedundancy", "RedundancyNotice", "redundancy_record", "SleepNotice", "SleepService", "SyncService", "TimeService", "GuardEvent",
            "TIME_EPOCH", "ManagerEvent", "NetworkManager", "NetworkStartError"]

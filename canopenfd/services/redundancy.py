@@ -12,7 +12,13 @@ A slave starts on its default bus and follows the redundancy master's
 heartbeat: after `ttoggle` heartbeat periods without it, it moves to the
 other bus, again every `ttoggle` periods, and after `ntoggle` moves it stays
 (that bus becomes its default) and reports NO_MASTER. The master chooses the
-bus itself (`select`). The C core decides; see docs/protocol-notes.md.
+bus itself (`select`), or, with switch_on_failure, moves on bus-off or
+interface down. The C core decides; see docs/protocol-notes.md.
+
+When the local node's OD has the redundancy record (`redundancy_record()`,
+at 0x2000 unless `index` says otherwise), its Bdefault / Ttoggle / Ntoggle
+are the ones used and a tool reads and writes them by SDO (or USDO); the
+core keeps Ctoggle and Bdefault there up to date.
 """
 
 from __future__ import annotations
@@ -24,8 +30,12 @@ from .._binding.context import Deferred, LineContext
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
+from ..od import DataType, ODRecord, ODVariable
 
-__all__ = ["BusRedundancy", "RedundancyEvent", "RedundancyNotice"]
+__all__ = ["BusRedundancy", "RedundancyEvent", "RedundancyNotice", "redundancy_record",
+           "RECORD_INDEX"]
+
+RECORD_INDEX = 0x2000   # a manufacturer index: the standard's is not public (CO_RDN_OBJECT_DEFAULT)
 
 _BUSES = ("A", "B")
 _ROLES = ("master", "slave")
@@ -54,6 +64,26 @@ def _count(value: int, name: str, low: int, where: str) -> int:
     return value
 
 
+def redundancy_record(index: int = RECORD_INDEX, default: str = "A", ttoggle: int = 0,
+                      ntoggle: int = 1) -> ODRecord:
+    """The redundancy record to add to a local node's OD (od.add_object):
+    sub 1 Bdefault (0 A, 1 B), 2 Ttoggle, 3 Ntoggle (rw), 4 Ctoggle (ro),
+    every one UNSIGNED8."""
+    where = f"redundancy_record(0x{index:04X})" if isinstance(index, int) else \
+        "redundancy_record"
+    if isinstance(index, bool) or not isinstance(index, int) or not 0x2000 <= index <= 0x5FFF:
+        raise ConfigurationError(f"{where}: index must be a manufacturer index "
+                                 f"0x2000..0x5FFF, got {index!r}")
+    values = (_bus(default, where), _count(ttoggle, "ttoggle", 0, where),
+              _count(ntoggle, "ntoggle", 1, where), 0)
+    u8 = DataType.UNSIGNED8
+    record = ODRecord("Bus redundancy", index)
+    record.add_member(ODVariable("Highest sub-index supported", index, 0, u8, "ro", 4))
+    for sub, (name, value) in enumerate(zip(_OBJECT_SUBS, values), start=1):
+        record.add_member(ODVariable(name, index, sub, u8, "ro" if sub == 4 else "rw", value))
+    return record
+
+
 class BusRedundancy:
     """Bus redundancy of one in-process line, as redundancy master or slave."""
 
@@ -71,28 +101,34 @@ class BusRedundancy:
         return f"redundancy {call} on {self._context.where}"
 
     def start(self, redundant: str, role: str = "slave", *, master: int = 0,
-              period: float = 0.0, default: str = "A", ttoggle: int = 0,
-              ntoggle: int = 1) -> None:
+              period: float = 0.0, default: Optional[str] = None,
+              ttoggle: Optional[int] = None, ntoggle: Optional[int] = None,
+              index: int = RECORD_INDEX, switch_on_failure: bool = False) -> None:
         """Run on the line's own bus (A) and `redundant` (B: 'mem:NAME' for an
         in-process line, an interface name for a SocketCAN line), starting on
-        `default`. A slave follows node `master`'s heartbeat
+        the default bus. A slave follows node `master`'s heartbeat
         (its period in s); ttoggle: periods without it before a switch
-        (0: never switch); ntoggle: switches before it stays (1..255)."""
+        (0: never switch); ntoggle: switches before it stays (1..255).
+
+        default / ttoggle / ntoggle (A, 0 and 1 when not given) are for a
+        node whose OD has no redundancy record at `index`; when it has one
+        they come from there and giving them is an error. A master with
+        switch_on_failure moves to the other bus when the line reports
+        bus-off or interface down."""
         where = self._where(f"start({redundant!r}, {role!r})")
         if role not in _ROLES:
             raise ConfigurationError(f"{where}: role must be 'master' or 'slave', got {role!r}")
-        in_process = self._context.channel.startswith("mem:")
-        if in_process and (not isinstance(redundant, str) or not redundant.startswith("mem:")
-                           or len(redundant) == 4):
-            raise ConfigurationError(f"{where}: the redundant bus of an in-process line must "
-                                     f"be 'mem:NAME', got {redundant!r}")
-        if not in_process and (not isinstance(redundant, str) or not redundant.strip()
-                               or redundant.startswith("mem:")):
-            raise ConfigurationError(f"{where}: the redundant bus of a SocketCAN line must be "
-                                     f"an interface name, got {redundant!r}")
-        values = {"bdefault": _bus(default, where),
-                  "ttoggle": _count(ttoggle, "ttoggle", 0, where),
-                  "ntoggle": _count(ntoggle, "ntoggle", 1, where)}
+        self._check_redundant(redundant, where)
+        if not isinstance(switch_on_failure, bool) or (switch_on_failure and role != "master"):
+            raise ConfigurationError(f"{where}: switch_on_failure is for the master (a bool), "
+                                     f"got {switch_on_failure!r} for a {role}")
+        if isinstance(index, bool) or not isinstance(index, int) or not 0x1000 <= index <= 0xFFFF:
+            raise ConfigurationError(f"{where}: index must be 0x1000..0xFFFF, got {index!r}")
+        values = {"bdefault": _bus("A" if default is None else default, where),
+                  "ttoggle": _count(0 if ttoggle is None else ttoggle, "ttoggle", 0, where),
+                  "ntoggle": _count(1 if ntoggle is None else ntoggle, "ntoggle", 1, where),
+                  "values_given": int(any(v is not None for v in (default, ttoggle, ntoggle))),
+                  "index": index, "switch_on_failure": int(switch_on_failure)}
         if role == "slave":
             if isinstance(master, bool) or not isinstance(master, int) or \
                     not 1 <= master <= 127:
@@ -103,11 +139,23 @@ class BusRedundancy:
                 raise ConfigurationError(f"{where}: period must be the master's heartbeat "
                                          f"period in s, 0.001..65.535, got {period!r}")
             values.update(master_id=master, master_period_ms=max(1, round(period * 1000)))
+        in_process = self._context.channel.startswith("mem:")
         self._context.runtime.redundancy_start(self._context.index,
                                                redundant[4:] if in_process else redundant,
                                                role == "master", values, where)
         self._role = role
-        self._bus = default
+        self._bus = self.active_bus   # the OD's Bdefault when it has the record
+
+    def _check_redundant(self, redundant: str, where: str) -> None:
+        in_process = self._context.channel.startswith("mem:")
+        if in_process and (not isinstance(redundant, str) or not redundant.startswith("mem:")
+                           or len(redundant) == 4):
+            raise ConfigurationError(f"{where}: the redundant bus of an in-process line must "
+                                     f"be 'mem:NAME', got {redundant!r}")
+        if not in_process and (not isinstance(redundant, str) or not redundant.strip()
+                               or redundant.startswith("mem:")):
+            raise ConfigurationError(f"{where}: the redundant bus of a SocketCAN line must be "
+                                     f"an interface name, got {redundant!r}")
 
     @property
     def role(self) -> Optional[str]:

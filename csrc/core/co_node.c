@@ -430,9 +430,13 @@ static void on_comm_bit(co_errors_t *errors, void *user)
 void co_node_attach_services(co_node_t *node, const co_node_services_t *services)
 {
     co_flyma_t *flyma = node->services.flyma;   /* attached on its own */
+    co_rdn_t *rdn = node->services.rdn;         /* so is this */
     node->services = *services;
     if (!services->flyma) {
         node->services.flyma = flyma;
+    }
+    if (!services->rdn) {
+        node->services.rdn = rdn;
     }
     if (services->errors) {
         co_errors_set_comm_indication(services->errors, on_comm_bit, node);
@@ -454,6 +458,11 @@ void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma)
     node->services.flyma = flyma;
 }
 
+void co_node_attach_redundancy(co_node_t *node, co_rdn_t *rdn)
+{
+    node->services.rdn = rdn;
+}
+
 void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count)
 {
     node->services.srdo = srdo;
@@ -471,6 +480,9 @@ static void services_reset(co_node_t *node)
     const co_node_services_t *s = &node->services;
     if (s->flyma) {
         co_flyma_boot(s->flyma);
+    }
+    if (s->rdn) {
+        co_rdn_start(s->rdn);   /* after the reload: the OD's Bdefault */
     }
     if (s->pdo) {
         co_pdo_reload(s->pdo);

@@ -94,6 +94,8 @@ const char *co_rdn_result_text(co_rdn_result_t result)
     case CO_RDN_BAD_PERIOD:
         return "a slave that may switch (Ttoggle > 0) needs the master's heartbeat period > 0 ms";
     case CO_RDN_NOT_MASTER: return "only the redundancy master selects the bus";
+    case CO_RDN_MISSING_SUB:
+        return "the redundancy record needs sub-indices 1..4 (Bdefault, Ttoggle, Ntoggle, Ctoggle)";
     }
     return "unknown redundancy result";
 }

@@ -1,6 +1,7 @@
 /* co_stack: sizing, set-up and wiring of a line's services and its local
  * node over caller memory (see co_stack.h). */
 #include "canopenfd/co_stack.h"
+#include "co_stack_rdn.h"
 
 #include "canopenfd/co_assert.h"
 
@@ -279,6 +280,7 @@ static void on_heartbeat(co_hb_consumer_t *c, uint8_t node_id, co_hb_event_t eve
     if (s->has_flyma && event == CO_HB_LOST) {
         co_flyma_node_lost(&s->flyma, node_id);
     }
+    co_stack_rdn_heartbeat(s, node_id, event);
 }
 
 static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
@@ -291,6 +293,7 @@ static void on_comm(co_line_t *line, co_comm_event_t event, void *user)
     if (s->has_node) {
         co_node_comm_event(&s->node, event);   /* EMCY, error behaviour */
     }
+    co_stack_rdn_comm(s, event);
 }
 
 static void on_emcy(co_emcy_consumer_t *c, uint8_t node_id, const co_emcy_msg_t *msg,
@@ -423,6 +426,7 @@ static void node_undo(co_stack_t *s)
     co_stack_manager_deinit(s);   /* it runs over the node */
     co_stack_srdo_deinit(s);   /* they run for the node */
     co_stack_flyma_deinit(s);   /* it runs for the node */
+    co_stack_rdn_node_gone(s);   /* it runs for the line, served by the node's OD */
     if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
         co_stack_client_deinit(s);   /* bound to the node's OD */
     }
@@ -866,6 +870,8 @@ static co_stack_status_t node_create(co_stack_t *s, const co_stack_node_config_t
         co_stack_part_t part = s->failed;
         node_undo(s);
         s->failed = part;
+    } else {
+        co_stack_rdn_node_added(s);   /* redundancy started before the node */
     }
     return status;
 }
@@ -935,6 +941,9 @@ co_stack_status_t co_stack_boot(co_stack_t *stack)
     if (stack->has_flyma) {
         co_flyma_boot(&stack->flyma);
     }
+    /* After the parameters loaded (a stored Bdefault counts); the boot-up
+     * is still queued, so it goes out on that bus. */
+    co_stack_rdn_boot(stack);
     return CO_STACK_OK;
 }
 
@@ -1329,6 +1338,7 @@ void co_stack_deinit(co_stack_t *stack)
     if (!stack || !stack->line) {
         return;
     }
+    co_stack_redundancy_deinit(stack);
     co_stack_sleep_deinit(stack);
     co_stack_client_deinit(stack);
     co_stack_node_deinit(stack);
@@ -1363,6 +1373,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_FLYMA: return "flying master";
     case CO_STACK_PART_LED: return "LED indicators";
     case CO_STACK_PART_SRDO: return "SRDO and GFC";
+    case CO_STACK_PART_REDUNDANCY: return "bus redundancy";
     }
     return "unknown part";
 }

@@ -15,6 +15,7 @@
 #include "canopenfd/co_mpdo.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
+#include "canopenfd/co_redundancy.h"
 #include "canopenfd/co_srdo.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
@@ -69,6 +70,9 @@ typedef struct co_node_services {
     /* SRDOs (CiA 304): run only in operational (co_node_attach_srdo). */
     co_srdo_t *srdo;
     uint8_t srdo_count;
+    /* Bus redundancy: Bdefault selected again at every reset, after the
+     * reload (co_node_attach_redundancy). */
+    co_rdn_t *rdn;
 } co_node_services_t;
 
 enum {
@@ -140,6 +144,8 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
 void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma);
 /* The node's SRDOs (count of them, NULL/0: none), told the NMT state now and
  * at every change. */
+/* The bus redundancy the node runs (NULL: none); every reset starts it over. */
+void co_node_attach_redundancy(co_node_t *node, co_rdn_t *rdn);
 void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count);
 /* Errors the stack detects outside the node's services, told by the
  * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and

@@ -11,7 +11,8 @@
  * The service only decides; the driver owns the two interfaces and is told
  * which one to use through the select callback. Heartbeat supervision of
  * the master stays with the heartbeat consumer: the caller forwards its
- * STARTED and LOST events of the master (co_rdn_master_heard / _lost). */
+ * STARTED and LOST events of the master (co_rdn_master_heard / _lost);
+ * co_stack_redundancy_init does that, and serves the object from the OD. */
 #ifndef CO_REDUNDANCY_H
 #define CO_REDUNDANCY_H
 
@@ -50,7 +51,8 @@ typedef enum co_rdn_result {
     CO_RDN_NO_SUB = 5,                /* a sub-index above 4 */
     CO_RDN_BAD_MASTER = 6,            /* slave: master node-id outside 1..127 */
     CO_RDN_BAD_PERIOD = 7,            /* slave that may switch: master heartbeat period 0 */
-    CO_RDN_NOT_MASTER = 8             /* co_rdn_master_select on a slave */
+    CO_RDN_NOT_MASTER = 8,            /* co_rdn_master_select on a slave */
+    CO_RDN_MISSING_SUB = 9            /* an OD record without one of sub-indices 1..4 */
 } co_rdn_result_t;
 
 typedef struct co_rdn_config {

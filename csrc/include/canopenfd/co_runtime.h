@@ -576,13 +576,18 @@ typedef struct co_rt_redundancy_config {
     int master;                /* 1: the redundancy master, 0: a slave */
     uint8_t master_id;         /* slave: the master's node-id, watched by the heartbeat consumer */
     uint16_t master_period_ms; /* slave: its heartbeat consumer time */
-    uint8_t bdefault;          /* the redundancy object's subs (co_redundancy.h) */
-    uint8_t ttoggle;
+    uint8_t bdefault;          /* the redundancy object's subs (co_redundancy.h), */
+    uint8_t ttoggle;           /* used when the local node's OD has no record at index */
     uint8_t ntoggle;
+    int values_given;          /* 1: the caller set the three above (refused when the OD
+                                  has the record: its values are the ones used) */
+    uint16_t index;            /* the record's index in the node's OD, 0 = 0x2000 */
+    int switch_on_failure;     /* master: the other bus on bus-off / interface down */
 } co_rt_redundancy_config_t;
-/* An in-process line runs on one of two buses: its own (A) and config's
- * redundant one (B); it starts on Bdefault at once (once per line;
- * CO_EV_REDUNDANCY tells every switch). */
+/* A line runs on one of two buses: its own (A) and config's redundant one
+ * (B); it starts on Bdefault at once (once per line; CO_EV_REDUNDANCY tells
+ * every switch). The local node's OD, when it has the record at index,
+ * serves it (co_stack_redundancy_init; a node created later: its valid record). */
 int co_rt_redundancy_start(co_rt_t *rt, int line, const co_rt_redundancy_config_t *config);
 /* Master: use bus 0 (A) or 1 (B) from now on. */
 int co_rt_redundancy_select(co_rt_t *rt, int line, uint8_t bus);
@@ -726,6 +731,9 @@ int co_rt_transfer_release(co_rt_t *rt, int line, int handle);
 
 /* Snapshots (thread-safe). */
 int co_rt_line_stats(co_rt_t *rt, int line, co_line_stats_t *out);
+/* In-process lines only: the line gets comm event `event` (co_comm_event_t)
+ * as if its controller had reported it (tests of bus-off, interface down). */
+int co_rt_membus_comm_event(co_rt_t *rt, int line, int event);
 int co_rt_driver_stats(co_rt_t *rt, int line, co_rt_driver_stats_t *out);
 int co_rt_event_stats(co_rt_t *rt, int line, co_rt_event_stats_t *out);
 /* Local node state (co_nmt_state_t) or CO_RT_ERR_STATE when the line has none. */

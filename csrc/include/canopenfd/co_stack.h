@@ -37,6 +37,7 @@
 #include "canopenfd/co_node.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
+#include "canopenfd/co_redundancy.h"
 #include "canopenfd/co_sdo_client.h"
 #include "canopenfd/co_sdo_server.h"
 #include "canopenfd/co_sleep.h"
@@ -92,7 +93,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_MANAGER = 16,  /* CiA 302-2 network manager (co_manager) */
     CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
     CO_STACK_PART_FLYMA = 18,    /* flying master (CiA 302-2) */
-    CO_STACK_PART_SRDO = 19      /* SRDOs and GFC (CiA 304) */
+    CO_STACK_PART_SRDO = 19,     /* SRDOs and GFC (CiA 304) */
+    CO_STACK_PART_REDUNDANCY = 20   /* bus redundancy (co_redundancy) */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -317,6 +319,16 @@ struct co_stack {
     co_gfc_t gfc;
     co_srdo_fn srdo_ind;             /* the application's safe-state indication */
     void *srdo_user;
+    /* bus redundancy (co_stack_redundancy.c) */
+    bool has_rdn;
+    co_rdn_t rdn;
+    co_od_t *rdn_od;                 /* the node's OD serving the record, or NULL */
+    uint16_t rdn_index;
+    bool rdn_switch_on_failure;
+    bool rdn_selecting;              /* inside a select: its own comm events are no failure */
+    co_rdn_select_fn rdn_select;     /* the driver's, behind the stack's own */
+    co_rdn_event_fn rdn_event;       /* the application's, behind the stack's own */
+    void *rdn_user;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -386,6 +398,32 @@ void co_stack_flyma_deinit(co_stack_t *stack);
 co_stack_status_t co_stack_srdo_init(co_stack_t *stack, uint8_t count, co_srdo_fn on_safe,
                                      void *user);
 void co_stack_srdo_deinit(co_stack_t *stack);
+/* Bus redundancy of the line (no memory taken): the heartbeat consumer
+ * watches a slave's master and tells the service its STARTED / LOST; a
+ * node's reset starts it over (Bdefault). When the local node's OD has the
+ * redundancy record at `index` (subs 1..4, UNSIGNED8, valid values), its
+ * Bdefault / Ttoggle / Ntoggle are used instead of config's, writes to it
+ * (SDO, USDO, the application) are checked and applied, and its Ctoggle and
+ * Bdefault follow the service; a bad record is CO_STACK_ERR_OD
+ * (co_stack_redundancy_check_od says which sub and why). A master with
+ * switch_on_failure moves to the other bus when the line reports bus-off or
+ * interface down (our choice: docs/protocol-notes.md). */
+typedef struct co_stack_redundancy_config {
+    co_rdn_config_t rdn;             /* role, master, its period, and the object's
+                                        values when the OD has no record */
+    uint16_t index;                  /* the record's index, 0 = CO_RDN_OBJECT_DEFAULT */
+    bool switch_on_failure;          /* master only */
+    co_rdn_select_fn select;         /* the driver: use this bus (not NULL) */
+    co_rdn_event_fn on_event;        /* may be NULL */
+    void *user;                      /* for select and on_event */
+} co_stack_redundancy_config_t;
+co_stack_status_t co_stack_redundancy_init(co_stack_t *stack,
+                                           const co_stack_redundancy_config_t *config);
+void co_stack_redundancy_deinit(co_stack_t *stack);
+/* The record at index in od: CO_RDN_OK (also when od has no such object:
+ * then *bad_sub = 0) or the first problem, *bad_sub = its sub-index. */
+co_rdn_result_t co_stack_redundancy_check_od(const co_od_t *od, uint16_t index,
+                                             uint8_t *bad_sub);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -457,6 +495,7 @@ static inline co_srdo_t *co_stack_srdo(co_stack_t *s, uint8_t number)
 {
     return s->has_srdo && number >= 1 && number <= s->srdo_count ? &s->srdo[number - 1] : NULL;
 }
+static inline co_rdn_t *co_stack_redundancy(co_stack_t *s) { return s->has_rdn ? &s->rdn : NULL; }
 static inline co_gfc_t *co_stack_gfc(co_stack_t *s) { return s->has_srdo ? &s->gfc : NULL; }
 
 /* ---- compile-time bounds, for static builds: a line's memory from its

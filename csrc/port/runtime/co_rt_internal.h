@@ -214,8 +214,6 @@ typedef struct rt_lss {
 /* Bus redundancy glue (co_rt_redundancy.c): the two buses, in-process
  * buses or SocketCAN interfaces. */
 typedef struct rt_redundancy {
-    bool on;
-    co_rdn_t rdn;
     struct rt_bus *bus[2];                   /* mem: lines */
     char iface[2][RT_CHANNEL_SIZE];          /* SocketCAN lines */
 } rt_redundancy_t;
@@ -472,10 +470,6 @@ int rt_gateway_rebuild(co_rt_t *rt);
 int rt_membus_join(co_rt_t *rt, rt_line_t *l);
 /* co_rt_membus.c: under rt->lock, the bus named name (created when new). */
 int rt_membus_bus(co_rt_t *rt, const char *name, co_mode_t mode, rt_bus_t **out);
-/* co_rt_redundancy.c: the heartbeat consumer's events of the redundancy master. */
-void rt_redundancy_on_heartbeat(rt_line_t *l, uint8_t node_id, co_hb_event_t event);
-/* co_rt_redundancy.c: the local node reset (node or communication): back to Bdefault. */
-void rt_redundancy_on_reset(rt_line_t *l);
 /* Move the frames of every bus; returns how many moved. */
 uint32_t rt_membus_transfer(co_rt_t *rt);
 void rt_membus_free_all(co_rt_t *rt);

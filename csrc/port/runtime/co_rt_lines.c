@@ -15,7 +15,6 @@ static void on_heartbeat(co_stack_t *stack, uint8_t node_id, co_hb_event_t event
                          co_nmt_state_t state, void *user)
 {
     (void)stack;
-    rt_redundancy_on_heartbeat(user, node_id, event);
     rt_post(user, CO_EV_HEARTBEAT, node_id, (uint32_t)event, (uint32_t)state, NULL);
 }
 

@@ -95,3 +95,32 @@ void rt_membus_free_all(co_rt_t *rt)
         free(rt->buses[i]);
     }
 }
+
+/* A simulated bus has no controller to fail: a test says what a real one
+ * would (bus-off, interface down, ...), and the line reacts as it would to
+ * its driver's report. */
+int co_rt_membus_comm_event(co_rt_t *rt, int line, int event)
+{
+    rt_mutex_lock(&rt->lock);
+    rt_line_t *l = rt_checked_line(rt, line, false);
+    if (!l) {
+        rt_mutex_unlock(&rt->lock);
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (l->driver != CO_DRIVER_MEMBUS) {
+        rt_set_error(rt, "line %d (%s): comm events are simulated on in-process lines only",
+                     line, l->channel);
+        rt_mutex_unlock(&rt->lock);
+        return CO_RT_ERR_STATE;
+    }
+    if (event < CO_COMM_BUS_OFF || event > CO_COMM_BUS_OFF_RECOVERED) {
+        int status = rt_argument_error(rt, "line %d (%s): comm event must be %d..%d, got %d",
+                                       line, l->channel, CO_COMM_BUS_OFF,
+                                       CO_COMM_BUS_OFF_RECOVERED, event);
+        rt_mutex_unlock(&rt->lock);
+        return status;
+    }
+    co_line_set_time(&l->line, co_rt_now_us());
+    co_line_comm_event(&l->line, (co_comm_event_t)event);
+    return rt_kick_unlock(rt, CO_RT_OK);
+}

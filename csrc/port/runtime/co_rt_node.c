@@ -39,7 +39,6 @@ static void on_node_reset(co_node_t *node, co_nmt_command_t kind, void *user)
 {
     rt_post(user, CO_EV_NMT_RESET, node->nmt.node_id, (uint32_t)kind, 0, NULL);
     post_store_status(user);
-    rt_redundancy_on_reset(user);
 }
 
 static void on_pdo_received(co_node_t *node, uint16_t rpdo_number, void *user)

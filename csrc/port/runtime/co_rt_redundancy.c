@@ -2,9 +2,9 @@
  * (the redundant one), using the active one only, so only that bus carries
  * what it sends and gives it what it receives: an in-process line is
  * attached to that bus alone, a SocketCAN line has a socket on that
- * interface alone. The core's co_rdn decides; the stack's heartbeat
- * indication tells it about the redundancy master; every switch is posted
- * to the application. */
+ * interface alone. The stack's redundancy part decides (the master's
+ * heartbeat, resets, the record in the node's OD, the master's switch on
+ * failure); every switch is posted to the application. */
 #include "co_rt_internal.h"
 
 #include <stdio.h>
@@ -35,24 +35,26 @@ static void on_event(co_rdn_t *rdn, co_rdn_event_t event, uint8_t bus, void *use
             co_rdn_read(rdn, CO_RDN_SUB_CTOGGLE), NULL);
 }
 
-void rt_redundancy_on_heartbeat(rt_line_t *l, uint8_t node_id, co_hb_event_t event)
+/* The record in the local node's OD, when there is one, holds Bdefault,
+ * Ttoggle and Ntoggle: values given to start as well would be ambiguous. */
+static int check_record(co_rt_t *rt, int line, rt_line_t *l, const co_rt_redundancy_config_t *c,
+                        uint16_t index)
 {
-    co_rdn_t *rdn = &l->redundancy.rdn;
-    if (!l->redundancy.on || rdn->config.role != CO_RDN_SLAVE || node_id != rdn->config.master_id) {
-        return;
+    co_od_t *od = co_stack_od(&l->stack);
+    uint8_t bad_sub = 0;
+    co_rdn_result_t result = co_stack_redundancy_check_od(od, index, &bad_sub);
+    if (result != CO_RDN_OK) {
+        return rt_argument_error(rt, "line %d (%s): the redundancy record 0x%04X:%02X of the "
+                                 "local node's OD: %s", line, l->channel, (unsigned)index,
+                                 (unsigned)bad_sub, co_rdn_result_text(result));
     }
-    if (event == CO_HB_STARTED) {
-        co_rdn_master_heard(rdn);
-    } else if (event == CO_HB_LOST) {
-        co_rdn_master_lost(rdn);
+    if (c->values_given && od && co_od_has_index(od, index)) {
+        return rt_argument_error(rt, "line %d (%s): the local node's OD has the redundancy "
+                                 "record 0x%04X: Bdefault, Ttoggle and Ntoggle come from it "
+                                 "(write them there), not from start", line, l->channel,
+                                 (unsigned)index);
     }
-}
-
-void rt_redundancy_on_reset(rt_line_t *l)
-{
-    if (l->redundancy.on) {
-        co_rdn_start(&l->redundancy.rdn);
-    }
+    return CO_RT_OK;
 }
 
 static int check_start(co_rt_t *rt, int line, rt_line_t *l, const co_rt_redundancy_config_t *c,
@@ -78,12 +80,16 @@ static int check_start(co_rt_t *rt, int line, rt_line_t *l, const co_rt_redundan
         return rt_argument_error(rt, "line %d (%s): redundancy: %s", line, l->channel,
                                  co_rdn_result_text(result));
     }
-    if (l->redundancy.on) {
+    if (co_stack_redundancy(&l->stack)) {
         rt_set_error(rt, "line %d (%s): bus redundancy runs on this line already", line,
                      l->channel);
         return CO_RT_ERR_STATE;
     }
-    return CO_RT_OK;
+    if (c->switch_on_failure && !c->master) {
+        return rt_argument_error(rt, "line %d (%s): only the redundancy master switches on "
+                                 "a bus failure", line, l->channel);
+    }
+    return check_record(rt, line, l, c, c->index ? c->index : (uint16_t)CO_RDN_OBJECT_DEFAULT);
 }
 
 /* Under rt->lock: both buses found or made, the line placed on B once to
@@ -108,47 +114,59 @@ static int join_buses(co_rt_t *rt, rt_line_t *l, const char *redundant)
     return status;
 }
 
+/* Undo join_buses' placing of an in-process line on B. */
+static void leave_redundant_bus(rt_line_t *l)
+{
+    if (l->driver == CO_DRIVER_MEMBUS) {
+        co_membus_detach(&l->redundancy.bus[CO_RDN_BUS_B]->bus, &l->line);
+    }
+}
+
 int co_rt_redundancy_start(co_rt_t *rt, int line, const co_rt_redundancy_config_t *config)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
     if (!l || !config) {
         return CO_RT_ERR_ARGUMENT;
     }
-    co_rdn_config_t rc = {.role = config->master ? CO_RDN_MASTER : CO_RDN_SLAVE,
-                          .master_id = config->master_id,
-                          .master_period_ms = config->master_period_ms,
-                          .bdefault = config->bdefault,
-                          .ttoggle = config->ttoggle,
-                          .ntoggle = config->ntoggle};
+    co_stack_redundancy_config_t sc = {
+        .rdn = {.role = config->master ? CO_RDN_MASTER : CO_RDN_SLAVE,
+                .master_id = config->master_id,
+                .master_period_ms = config->master_period_ms,
+                .bdefault = config->bdefault,
+                .ttoggle = config->ttoggle,
+                .ntoggle = config->ntoggle},
+        .index = config->index,
+        .switch_on_failure = config->switch_on_failure != 0,
+        .select = on_select,
+        .on_event = on_event,
+        .user = l};
     rt_mutex_lock(&rt->lock);
-    co_hb_consumer_t *consumer = co_stack_hb_consumer(&l->stack);
-    int status = check_start(rt, line, l, config, &rc);
-    if (status == CO_RT_OK && rc.role == CO_RDN_SLAVE &&
-        co_hb_consumer_watch(consumer, rc.master_id, rc.master_period_ms) != CO_HB_CONFIG_OK) {
-        rt_set_error(rt, "line %d: the heartbeat consumer cannot watch master %u", line,
-                     (unsigned)rc.master_id);
-        status = CO_RT_ERR_STATE;
-    } else if (status == CO_RT_OK) {
+    int status = check_start(rt, line, l, config, &sc.rdn);
+    if (status == CO_RT_OK) {
         status = join_buses(rt, l, config->redundant);
-        if (status != CO_RT_OK && rc.role == CO_RDN_SLAVE) {
-            co_hb_consumer_unwatch(consumer, rc.master_id);
+    }
+    if (status == CO_RT_OK) {
+        co_line_set_time(&l->line, co_rt_now_us());
+        if (co_stack_redundancy_init(&l->stack, &sc) != CO_STACK_OK) {
+            /* the checks passed: a table of the line or its OD is full */
+            rt_set_error(rt, "line %d (%s): redundancy: the heartbeat consumer cannot watch "
+                         "master %u, or the OD cannot take another handler", line, l->channel,
+                         (unsigned)config->master_id);
+            leave_redundant_bus(l);
+            status = CO_RT_ERR_STATE;
         }
     }
     if (status != CO_RT_OK) {
         rt_mutex_unlock(&rt->lock);
         return status;
     }
-    co_line_set_time(&l->line, co_rt_now_us());
-    co_rdn_init(&l->redundancy.rdn, &l->line, &rc, on_select, on_event, l);
-    l->redundancy.on = true;
-    co_rdn_start(&l->redundancy.rdn);
     return rt_kick_unlock(rt, CO_RT_OK);
 }
 
 static rt_line_t *redundant_line(co_rt_t *rt, int line)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
-    if (l && !l->redundancy.on) {
+    if (l && !co_stack_redundancy(&l->stack)) {
         rt_set_error(rt, "line %d (%s): bus redundancy is not started on this line", line,
                      l->channel);
         return NULL;
@@ -164,7 +182,7 @@ int co_rt_redundancy_select(co_rt_t *rt, int line, uint8_t bus)
         rt_mutex_unlock(&rt->lock);
         return CO_RT_ERR_STATE;
     }
-    co_rdn_result_t result = co_rdn_master_select(&l->redundancy.rdn, bus);
+    co_rdn_result_t result = co_rdn_master_select(co_stack_redundancy(&l->stack), bus);
     if (result != CO_RDN_OK) {
         rt_set_error(rt, "line %d (%s): select bus %u: %s", line, l->channel, (unsigned)bus,
                      co_rdn_result_text(result));
@@ -180,9 +198,9 @@ int co_rt_redundancy_state(co_rt_t *rt, int line, uint8_t *object)
     int active = CO_RT_ERR_STATE;
     if (l) {
         for (uint8_t sub = CO_RDN_SUB_COUNT; object && sub <= CO_RDN_SUB_CTOGGLE; sub++) {
-            object[sub] = co_rdn_read(&l->redundancy.rdn, sub);
+            object[sub] = co_rdn_read(co_stack_redundancy(&l->stack), sub);
         }
-        active = co_rdn_active_bus(&l->redundancy.rdn);
+        active = co_rdn_active_bus(co_stack_redundancy(&l->stack));
     }
     rt_mutex_unlock(&rt->lock);
     return active;
