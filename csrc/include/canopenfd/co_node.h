@@ -16,6 +16,7 @@
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_srdo.h"
+#include "canopenfd/co_srdo_od.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -62,9 +63,12 @@ typedef struct co_node_services {
      * tracks (bus-off, warning, heartbeat/guarding lost, SYNC and RPDO
      * deadline errors); may be NULL. */
     co_led_t *led;
-    /* SRDOs (CiA 304): run only in operational (co_node_attach_srdo). */
+    /* SRDOs (CiA 304): run only in operational (co_node_attach_srdo);
+     * srdo_od (may be NULL) guards their OD objects and reloads them on
+     * entering operational, before they start. */
     co_srdo_t *srdo;
     uint8_t srdo_count;
+    co_srdo_od_t *srdo_od;
 } co_node_services_t;
 
 enum {
@@ -136,7 +140,8 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
 void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma);
 /* The node's SRDOs (count of them, NULL/0: none), told the NMT state now and
  * at every change. */
-void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count);
+void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count,
+                         co_srdo_od_t *srdo_od);
 /* Errors the stack detects outside the node's services, told by the
  * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and
  * 0x1029:01), and the line's communication events (bus-off 0x8140 with

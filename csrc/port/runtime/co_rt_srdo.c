@@ -93,7 +93,23 @@ int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_co
         return status;
     }
     bool done = co_srdo_configure(srdo, config, valid, signature);
+    co_srdo_od_t *objects = &rt_checked_line(rt, line, false)->stack.srdo_od;
+    /* with the objects in the OD, they are the configuration the next
+     * start reloads: they get the same values (and the mapped variables) */
+    bool in_od = done && objects->od != NULL &&
+                 co_od_has_index(objects->od, (uint16_t)(CO_SRDO_OD_COMMUNICATION + number));
+    uint32_t abort = in_od ? co_srdo_od_store(objects, number, config, valid, signature) : 0;
+    if (in_od && abort == 0) {
+        abort = co_srdo_bind_od(srdo, objects->od);
+    }
     rt_mutex_unlock(&rt->lock);
+    if (abort != 0) {
+        rt_set_error(rt, "line %d: SRDO %u: the OD refused it (SDO abort 0x%08X): %s", line,
+                     number, (unsigned)abort,
+                     abort == CO_ABORT_NO_MAP ? "a mapped object is missing or not mappable"
+                                              : "it lacks a sub-entry of 0x1300+n, 0x1380+n or 0x13FF");
+        return CO_RT_ERR_ARGUMENT;
+    }
     if (!done) {
         rt_set_error(rt, "line %d: SRDO %u not configured: %s", line, number,
                      srdo->operational ? "the node is operational"
