@@ -86,12 +86,26 @@ static uint32_t check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t
     return 0;
 }
 
+static void load_all(co_srdo_od_t *g)
+{
+    for (uint8_t n = 1; n <= g->count; n++) {
+        (void)co_srdo_od_load(g, n);
+    }
+}
+
+/* Outside operational the SRDOs follow their objects at once (so a
+ * producer takes set_data before the start); a change also clears 0x13FE,
+ * whose own after-write then reloads them. */
 static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t origin, void *user)
 {
-    (void)user;
+    co_srdo_od_t *g = user;
     uint8_t number;
     object_kind_t kind = kind_of(co_od_entry_index(e), &number);
-    if (origin == CO_ORIGIN_RESTORE || kind == OTHER || kind == VALID) {
+    if (kind == OTHER || g->operational) {
+        return;
+    }
+    if (kind == VALID || origin == CO_ORIGIN_RESTORE) {
+        load_all(g);   /* loading defaults or stored values is no change */
         return;
     }
     /* a changed configuration runs only once a tool has validated it again */
@@ -114,6 +128,9 @@ bool co_srdo_od_attach(co_srdo_od_t *g, co_od_t *od, co_srdo_t *srdo, uint8_t co
     g->srdo = srdo;
     g->count = count;
     g->operational = state == CO_NMT_OPERATIONAL;
+    if (!g->operational) {
+        load_all(g);
+    }
     return true;
 }
 
@@ -132,9 +149,7 @@ void co_srdo_od_set_nmt_state(co_srdo_od_t *g, co_nmt_state_t state)
     }
     bool operational = state == CO_NMT_OPERATIONAL;
     if (operational && !g->operational) {
-        for (uint8_t n = 1; n <= g->count; n++) {
-            (void)co_srdo_od_load(g, n);
-        }
+        load_all(g);
     }
     g->operational = operational;
 }

@@ -475,20 +475,27 @@ static void nmt(fx_t *fx, uint8_t command, uint8_t node, uint64_t at)
     inject(fx, 0x000, data, 2, at);
 }
 
+/* A stack on line c (the fixture's consumer and GFC there are gone), no node yet. */
+static stack_fx_t *stack_on_line_c(fx_t *fx)
+{
+    stack_fx_t *sf = calloc(1, sizeof *sf);
+    assert_non_null(sf);
+    co_srdo_deinit(&fx->sc);
+    co_gfc_deinit(&fx->gc);
+    co_stack_arena_init(&sf->arena, sf->memory, sizeof sf->memory);
+    co_stack_line_config_t lc = {0};
+    assert_int_equal(co_stack_init(&sf->stack, fx->c, &lc, co_stack_arena_allocator(&sf->arena)),
+                     CO_STACK_OK);
+    return sf;
+}
+
 /* co_stack runs the SRDOs with the node's NMT state and hands a GFC to every
  * one of them; the memory goes back with the node. */
 static void test_stack_wires_nmt_and_gfc(void **state)
 {
     fx_t *fx = *state;
-    stack_fx_t *sf = calloc(1, sizeof *sf);
-    assert_non_null(sf);
-    co_srdo_deinit(&fx->sc);                   /* line c now belongs to the stack */
-    co_gfc_deinit(&fx->gc);
-    co_stack_arena_init(&sf->arena, sf->memory, sizeof sf->memory);
-    co_stack_line_config_t lc = {0};
+    stack_fx_t *sf = stack_on_line_c(fx);
     co_stack_node_config_t nc = {.node_id = 7};
-    assert_int_equal(co_stack_init(&sf->stack, fx->c, &lc, co_stack_arena_allocator(&sf->arena)),
-                     CO_STACK_OK);
     assert_int_equal(co_stack_srdo_init(&sf->stack, 2, on_stack_safe, sf), CO_STACK_ERR_STATE);
     assert_int_equal(co_stack_failed_part(&sf->stack), CO_STACK_PART_SRDO);
     assert_int_equal(co_stack_node_init(&sf->stack, &nc), CO_STACK_OK);
@@ -536,15 +543,8 @@ static void test_stack_wires_nmt_and_gfc(void **state)
 static void test_stack_sends_emcy_per_safe_entry(void **state)
 {
     fx_t *fx = *state;
-    stack_fx_t *sf = calloc(1, sizeof *sf);
-    assert_non_null(sf);
-    co_srdo_deinit(&fx->sc);                   /* line c now belongs to the stack */
-    co_gfc_deinit(&fx->gc);
-    co_stack_arena_init(&sf->arena, sf->memory, sizeof sf->memory);
-    co_stack_line_config_t lc = {0};
+    stack_fx_t *sf = stack_on_line_c(fx);
     co_stack_node_config_t nc = {.node_id = 7};
-    assert_int_equal(co_stack_init(&sf->stack, fx->c, &lc, co_stack_arena_allocator(&sf->arena)),
-                     CO_STACK_OK);
     assert_int_equal(co_stack_node_init(&sf->stack, &nc), CO_STACK_OK);
     assert_int_equal(co_stack_boot(&sf->stack), CO_STACK_OK);
     assert_int_equal(co_stack_srdo_init(&sf->stack, 2, on_stack_safe, sf), CO_STACK_OK);

@@ -235,7 +235,8 @@ static void test_start_runs_what_the_od_holds(void **state)
     fx_t *fx = *state;
     dev_t *c = &fx->c;
     configure_valid(c, CO_SRDO_CONSUME);
-    assert_int_equal(co_srdo_state(&c->srdo), CO_SRDO_STOPPED);   /* never configured by API */
+    assert_int_equal(c->srdo.config.direction, CO_SRDO_CONSUME);   /* follows the OD at once */
+    assert_int_equal(co_srdo_state(&c->srdo), CO_SRDO_STOPPED);
     set_state(fx, c, CO_NMT_OPERATIONAL);
     assert_int_equal(co_srdo_state(&c->srdo), CO_SRDO_WAITING);
     assert_int_equal(c->srdo.config.cob_id_normal, NORMAL);

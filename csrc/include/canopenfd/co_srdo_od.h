@@ -13,9 +13,10 @@
  *   sets 0x13FE to 0 (not valid): a changed configuration never runs
  *   before a tool has validated it again (0xA5). Loading defaults or
  *   stored values at a reset is no change.
- * - On the transition to operational every SRDO is configured from these
- *   objects and its mapping bound to the OD's variables (co_srdo_bind_od),
- *   then started: a configuration that is not valid, whose signature is not
+ * - Outside operational every SRDO follows these objects: configured from
+ *   them and its mapping bound to the OD's variables (co_srdo_bind_od) at
+ *   the attach, after every accepted write and after a reset loads them;
+ *   on the transition to operational once more, then started: a configuration that is not valid, whose signature is not
  *   its CRC, or whose values or mapping do not hold enters the safe state
  *   saying so (co_srdo.h).
  * An SRDO whose communication object 0x1301+n the OD lacks keeps the
@@ -40,7 +41,8 @@ typedef struct co_srdo_od {
     bool operational;
 } co_srdo_od_t;
 
-/* Guard and run `count` SRDOs from od (sealed). False when the OD has no
+/* Guard and run `count` SRDOs from od (sealed), configuring them from it
+ * now unless state is operational. False when the OD has no
  * 0x13FE (nothing to guard: g stays detached) or no room for the
  * subscription. */
 bool co_srdo_od_attach(co_srdo_od_t *g, co_od_t *od, co_srdo_t *srdo, uint8_t count,
