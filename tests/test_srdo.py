@@ -210,6 +210,7 @@ def srdo_od():
         mapping.add_member(ODVariable(f"Mapped object {sub}", 0x1381, sub, U32, "rw", 0))
     od.add_object(mapping)
     od.add_object(ODVariable("Configuration valid", 0x13FE, 0, U8, "rw", 0))
+    od.add_object(ODVariable("GFC parameter", 0x1300, 0, U8, "rw", 0))
     signature = ODArray("Safety configuration signature", 0x13FF)
     signature.add_member(ODVariable("Highest sub-index supported", 0x13FF, 0, U8, "ro", 1))
     signature.add_member(ODVariable("Signature of SRDO 1", 0x13FF, 1, U16, "rw", 0))
@@ -295,6 +296,23 @@ def test_the_producer_sends_its_variables_into_the_consumer_s(net, bus_name):
     while device[(0x6200, 1)].raw != struct.unpack("<I", DATA)[0]:
         assert time.monotonic() < deadline, "the consumer's 0x6200:01 kept its old value"
         time.sleep(0.005)
+
+
+def test_0x1300_switches_the_gfc_and_gfc_writes_it(net, bus_name):
+    device, tool, remote, frames = device_and_tool(net, bus_name)
+    with pytest.raises(ConfigurationError, match="GFC is off"):
+        device.srdo.send_gfc()
+    remote.write((0x1300, 0), b"\x01")             # a tool switches it on
+    mark = len(frames)
+    device.srdo.send_gfc()
+    got = frames.wait_for(lambda calls: [f for f in calls[mark:] if f.id == GFC_COB_ID],
+                          3.0, "the GFC")
+    assert bytes(got[0].data) == b""
+    with pytest.raises(AbortError) as refused:
+        remote.write((0x1300, 0), b"\x02")
+    assert refused.value.code == 0x06090030
+    device.srdo.gfc(False)                         # the application's switch is 0x1300 too
+    assert device[(0x1300, 0)].raw == 0
 
 
 def test_the_objects_are_refused_while_operational(net, bus_name):

@@ -5,12 +5,15 @@
 
 enum { LAST_SRDO = 64, VALID_SUB = 0 };
 
-typedef enum object_kind { OTHER, COMMUNICATION, MAPPING, VALID, SIGNATURE } object_kind_t;
+typedef enum object_kind { OTHER, GFC, COMMUNICATION, MAPPING, VALID, SIGNATURE } object_kind_t;
 
 /* Which SRDO object index is, and for 0x1301.. / 0x1381.. its SRDO number. */
 static object_kind_t kind_of(uint16_t index, uint8_t *number)
 {
     *number = 0;
+    if (index == CO_SRDO_OD_GFC) {
+        return GFC;
+    }
     if (index > CO_SRDO_OD_COMMUNICATION && index <= CO_SRDO_OD_COMMUNICATION + LAST_SRDO) {
         *number = (uint8_t)(index - CO_SRDO_OD_COMMUNICATION);
         return COMMUNICATION;
@@ -73,10 +76,13 @@ static uint32_t check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t
     if (kind == OTHER) {
         return 0;
     }
+    uint32_t v = le_value(value, length);
+    if (kind == GFC) {
+        return v <= 1u ? 0 : CO_ABORT_INVALID_VALUE;   /* switched in any state */
+    }
     if (g->operational) {
         return CO_ABORT_DATA_STATE;
     }
-    uint32_t v = le_value(value, length);
     if (kind == COMMUNICATION) {
         return check_communication(co_od_entry_sub(e), v);
     }
@@ -93,6 +99,16 @@ static void load_all(co_srdo_od_t *g)
     }
 }
 
+/* 0x1300 = 1: the GFC is sent and heard (a CAN-ID 0x001 another service
+ * holds leaves it off; co_gfc counts nothing then). */
+static void follow_gfc(co_srdo_od_t *g)
+{
+    uint8_t on = 0;
+    if (g->gfc && co_od_get_u8(g->od, CO_SRDO_OD_GFC, 0, &on)) {
+        (void)co_gfc_set_enabled(g->gfc, on == 1u);
+    }
+}
+
 /* Outside operational the SRDOs follow their objects at once (so a
  * producer takes set_data before the start); a change also clears 0x13FE,
  * whose own after-write then reloads them. */
@@ -101,6 +117,10 @@ static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t orig
     co_srdo_od_t *g = user;
     uint8_t number;
     object_kind_t kind = kind_of(co_od_entry_index(e), &number);
+    if (kind == GFC) {
+        follow_gfc(g);
+        return;
+    }
     if (kind == OTHER || g->operational) {
         return;
     }
@@ -116,17 +136,18 @@ static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t orig
 static const co_od_handler_t handler = {NULL, check_write, after_write, NULL, NULL, NULL, NULL};
 
 bool co_srdo_od_attach(co_srdo_od_t *g, co_od_t *od, co_srdo_t *srdo, uint8_t count,
-                       co_nmt_state_t state)
+                       co_gfc_t *gfc, co_nmt_state_t state)
 {
     memset(g, 0, sizeof *g);
     if (!co_od_find(od, CO_SRDO_OD_VALID, VALID_SUB) ||
-        !co_od_subscribe(od, CO_SRDO_OD_COMMUNICATION + 1, 0, CO_SRDO_OD_SIGNATURE, 0xFF,
-                         &handler, g)) {
+        !co_od_subscribe(od, CO_SRDO_OD_GFC, 0, CO_SRDO_OD_SIGNATURE, 0xFF, &handler, g)) {
         return false;
     }
     g->od = od;
     g->srdo = srdo;
     g->count = count;
+    g->gfc = gfc;
+    follow_gfc(g);
     g->operational = state == CO_NMT_OPERATIONAL;
     if (!g->operational) {
         load_all(g);

@@ -1332,7 +1332,7 @@ co_stack_status_t co_stack_srdo_init(co_stack_t *stack, uint8_t count, co_srdo_f
     co_gfc_init(&stack->gfc, stack->line, on_gfc, stack);
     bool guarded = false;
     if (stack->od && co_od_find(stack->od, CO_SRDO_OD_VALID, 0)) {
-        guarded = co_srdo_od_attach(&stack->srdo_od, stack->od, srdo, count,
+        guarded = co_srdo_od_attach(&stack->srdo_od, stack->od, srdo, count, &stack->gfc,
                                     stack->node.nmt.state);
         if (!guarded) {
             stack->srdo = NULL;

@@ -5,6 +5,7 @@
  * go through OD transfers as an SDO server makes them. */
 #include "test_od_util.h"
 
+#include "canopenfd/co_gfc.h"
 #include "canopenfd/co_srdo.h"
 #include "canopenfd/co_srdo_od.h"
 
@@ -28,6 +29,7 @@ typedef struct dev {
     uint8_t pool[POOL];
     co_od_subscription_t subs[SUBS];
     co_srdo_t srdo;
+    co_gfc_t gfc;
     co_srdo_od_t guard;
     co_srdo_violation_t why[4];
     int events;
@@ -51,6 +53,7 @@ static void on_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
 static void dev_init(dev_t *d, co_line_t *line)
 {
     co_od_init(&d->od, CO_MODE_CLASSIC, d->entries, ENTRIES, d->pool, POOL, d->subs, SUBS);
+    tu_od_add_value(&d->od, CO_SRDO_OD_GFC, 0, VAR, U8, RW, 0, 0);
     tu_od_add_value(&d->od, COMM, 0, REC, U8, RO, 0, 6);
     tu_od_add_value(&d->od, COMM, 1, REC, U8, RW, 0, 0);
     tu_od_add_value(&d->od, COMM, 2, REC, CO_TYPE_UNSIGNED16, RW, 0, 0);
@@ -72,7 +75,9 @@ static void dev_init(dev_t *d, co_line_t *line)
     tu_od_add_value(&d->od, B_INV, 0, VAR, U8, RW, both, 0xFF);
     assert_true(co_od_seal(&d->od, 5));
     co_srdo_init(&d->srdo, line, on_safe, d);
-    assert_true(co_srdo_od_attach(&d->guard, &d->od, &d->srdo, 1, CO_NMT_PRE_OPERATIONAL));
+    co_gfc_init(&d->gfc, line, NULL, NULL);
+    assert_true(co_srdo_od_attach(&d->guard, &d->od, &d->srdo, 1, &d->gfc,
+                                  CO_NMT_PRE_OPERATIONAL));
 }
 
 static int setup(void **state)
@@ -95,6 +100,8 @@ static int teardown(void **state)
     co_srdo_od_detach(&fx->c.guard);
     co_srdo_deinit(&fx->p.srdo);
     co_srdo_deinit(&fx->c.srdo);
+    co_gfc_deinit(&fx->p.gfc);
+    co_gfc_deinit(&fx->c.gfc);
     free(fx);
     return 0;
 }
@@ -228,6 +235,26 @@ static void test_out_of_range_and_out_of_order_refused(void **state)
     assert_int_equal(tu_od_value(&c->od, MAP, 0, 1), 2);
 }
 
+/* 0x1300 switches the GFC in any NMT state; 0 and 1 only. */
+static void test_gfc_parameter_switches_the_gfc(void **state)
+{
+    fx_t *fx = *state;
+    dev_t *c = &fx->c;
+    assert_false(c->gfc.enabled);
+    assert_false(co_gfc_send(&c->gfc));
+    assert_int_equal(tu_od_net_write(&c->od, CO_SRDO_OD_GFC, 0, 2, 1), CO_ABORT_INVALID_VALUE);
+    assert_int_equal(tu_od_net_write(&c->od, CO_SRDO_OD_GFC, 0, 1, 1), 0);
+    assert_true(c->gfc.enabled);
+    assert_true(co_gfc_send(&c->gfc));
+    tu_step(&fx->tb, 1 * TU_MS);
+    const uint8_t none[1] = {0};
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x001, 0), 0x001, none, 0);
+    set_state(fx, c, CO_NMT_OPERATIONAL);
+    assert_int_equal(tu_od_net_write(&c->od, CO_SRDO_OD_GFC, 0, 0, 1), 0);
+    assert_false(c->gfc.enabled);
+    assert_int_equal(tu_od_value(&c->od, CO_SRDO_OD_VALID, 0, 1), 0);   /* untouched */
+}
+
 /* ------------------------------------------------------ start from the OD */
 
 static void test_start_runs_what_the_od_holds(void **state)
@@ -341,6 +368,7 @@ int main(void)
         T(test_writes_refused_while_operational),
         T(test_accepted_write_clears_valid),
         T(test_out_of_range_and_out_of_order_refused),
+        T(test_gfc_parameter_switches_the_gfc),
         T(test_start_runs_what_the_od_holds),
         T(test_start_checks_valid_flag_crc_and_mapping),
         T(test_producer_sends_the_mapped_variables),

@@ -1,6 +1,7 @@
 /* The SRDO objects of a node's object dictionary (CiA 304): 0x1301+n
  * (communication), 0x1381+n (mapping), 0x13FE (configuration valid) and
- * 0x13FF sub n (signature) guarded by OD handlers and run by the SRDOs.
+ * 0x13FF sub n (signature) guarded by OD handlers and run by the SRDOs;
+ * 0x1300 (GFC parameter, 0 or 1, any NMT state) switches the GFC.
  *
  * - Writes to them are refused with 0x08000022 (data cannot be stored in
  *   the present device state) while the node is operational: CiA 304
@@ -24,10 +25,12 @@
 #ifndef CO_SRDO_OD_H
 #define CO_SRDO_OD_H
 
+#include "canopenfd/co_gfc.h"
 #include "canopenfd/co_od.h"
 #include "canopenfd/co_srdo.h"
 
 enum {
+    CO_SRDO_OD_GFC = 0x1300,             /* sub 0: 1 = GFC on */
     CO_SRDO_OD_COMMUNICATION = 0x1300,   /* + n, n = 1..64 */
     CO_SRDO_OD_MAPPING = 0x1380,         /* + n */
     CO_SRDO_OD_VALID = 0x13FE,
@@ -38,15 +41,17 @@ typedef struct co_srdo_od {
     co_od_t *od;
     co_srdo_t *srdo;
     uint8_t count;
+    co_gfc_t *gfc;                       /* follows 0x1300, when the OD has it */
     bool operational;
 } co_srdo_od_t;
 
 /* Guard and run `count` SRDOs from od (sealed), configuring them from it
- * now unless state is operational. False when the OD has no
+ * now unless state is operational; gfc (may be NULL) follows 0x1300 from
+ * now on. False when the OD has no
  * 0x13FE (nothing to guard: g stays detached) or no room for the
  * subscription. */
 bool co_srdo_od_attach(co_srdo_od_t *g, co_od_t *od, co_srdo_t *srdo, uint8_t count,
-                       co_nmt_state_t state);
+                       co_gfc_t *gfc, co_nmt_state_t state);
 void co_srdo_od_detach(co_srdo_od_t *g);
 /* The node's NMT state, before the SRDOs hear it: entering operational
  * configures every SRDO from the OD (co_srdo_od_load). */

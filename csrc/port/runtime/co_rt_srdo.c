@@ -200,7 +200,15 @@ int co_rt_gfc_enable(co_rt_t *rt, int line, bool on)
     if (!gfc) {
         return status;
     }
-    bool done = co_gfc_set_enabled(gfc, on);
+    co_srdo_od_t *objects = &rt_checked_line(rt, line, false)->stack.srdo_od;
+    bool done;
+    if (objects->od && co_od_find(objects->od, CO_SRDO_OD_GFC, 0)) {
+        /* 0x1300 is the switch: the GFC follows it (co_srdo_od) */
+        const uint8_t value = on ? 1u : 0u;
+        done = co_od_put(objects->od, CO_SRDO_OD_GFC, 0, &value, 1) == 0 && gfc->enabled == on;
+    } else {
+        done = co_gfc_set_enabled(gfc, on);
+    }
     rt_mutex_unlock(&rt->lock);
     if (!done) {
         rt_set_error(rt, "line %d: CAN-ID 0x001 (GFC) is taken by another service", line);
