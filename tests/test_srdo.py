@@ -315,6 +315,21 @@ def test_0x1300_switches_the_gfc_and_gfc_writes_it(net, bus_name):
     assert device[(0x1300, 0)].raw == 0
 
 
+def test_configure_on_a_node_with_the_objects_writes_them(net, bus_name):
+    device, tool, remote, _ = device_and_tool(net, bus_name)
+    signature = device.srdo.configure(1, CONSUME)
+    assert device[(0x1301, 5)].raw == NORMAL and device[(0x1381, 2)].raw == MAPPING[1]
+    assert (device[(0x13FF, 1)].raw, device[(0x13FE, 0)].raw) == (signature, CONFIG_VALID)
+    with pytest.raises(ConfigurationError,
+                       match=r"SRDO 1: mapping 0x1381 does not resolve .*abort 0x06040041"):
+        device.srdo.configure(1, CONSUME._replace(mapping=(0x62020120, 0x62030120)))
+    notices = Recorder()
+    device.srdo.add_callback(notices)
+    device.apply("start")
+    notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.BAD_PARAMETER) in calls, 3.0,
+                     "bad parameter")
+
+
 def test_the_objects_are_refused_while_operational(net, bus_name):
     device, tool, remote, _ = device_and_tool(net, bus_name)
     write_srdo_config(remote, 1, CONSUME)

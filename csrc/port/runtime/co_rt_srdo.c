@@ -98,16 +98,20 @@ int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_co
      * start reloads: they get the same values (and the mapped variables) */
     bool in_od = done && objects->od != NULL &&
                  co_od_has_index(objects->od, (uint16_t)(CO_SRDO_OD_COMMUNICATION + number));
-    uint32_t abort = in_od ? co_srdo_od_store(objects, number, config, valid, signature) : 0;
-    if (in_od && abort == 0) {
-        abort = co_srdo_bind_od(srdo, objects->od);
-    }
+    uint32_t stored = in_od ? co_srdo_od_store(objects, number, config, valid, signature) : 0;
+    uint32_t bound = in_od && stored == 0 ? co_srdo_bind_od(srdo, objects->od) : 0;
     rt_mutex_unlock(&rt->lock);
-    if (abort != 0) {
-        rt_set_error(rt, "line %d: SRDO %u: the OD refused it (SDO abort 0x%08X): %s", line,
-                     number, (unsigned)abort,
-                     abort == CO_ABORT_NO_MAP ? "a mapped object is missing or not mappable"
-                                              : "it lacks a sub-entry of 0x1300+n, 0x1380+n or 0x13FF");
+    if (stored != 0) {
+        rt_set_error(rt, "line %d: SRDO %u: the node's OD lacks a sub-entry of 0x%04X, 0x%04X "
+                     "or 0x13FF sub %u (abort 0x%08X)", line, number, 0x1300u + number,
+                     0x1380u + number, number, (unsigned)stored);
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (bound != 0) {
+        rt_set_error(rt, "line %d: SRDO %u: mapping 0x%04X does not resolve in the node's OD "
+                     "(abort 0x%08X: an object missing, not mappable this way or shorter "
+                     "than mapped); it enters the safe state (bad parameter) when started",
+                     line, number, 0x1380u + number, (unsigned)bound);
         return CO_RT_ERR_ARGUMENT;
     }
     if (!done) {
