@@ -121,14 +121,17 @@ static void after_write(co_od_t *od, const co_od_entry_t *e, co_od_origin_t orig
         follow_gfc(g);
         return;
     }
-    if (kind == OTHER || g->operational) {
+    if (kind == OTHER) {
         return;
     }
     if (kind == VALID || origin == CO_ORIGIN_RESTORE) {
-        load_all(g);   /* loading defaults or stored values is no change */
+        if (!g->operational) {
+            load_all(g);   /* loading defaults or stored values is no change */
+        }
         return;
     }
-    /* a changed configuration runs only once a tool has validated it again */
+    /* a changed configuration runs only once a tool has validated it again
+     * (the application's own writes pass the guard, even in operational) */
     const uint8_t invalid = 0;
     (void)co_od_put(od, CO_SRDO_OD_VALID, VALID_SUB, &invalid, 1);
 }

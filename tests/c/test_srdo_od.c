@@ -162,11 +162,17 @@ static void inject(fx_t *fx, uint32_t id, const uint8_t *data, uint8_t len, uint
     tu_step(&fx->tb, at);
 }
 
-static void put(dev_t *d, uint16_t index, uint64_t value, uint32_t size)
+/* The application's own write (co_od_put: no write checks). */
+static void put_sub(dev_t *d, uint16_t index, uint8_t sub, uint64_t value, uint32_t size)
 {
     uint8_t b[8];
     tu_le_put(b, value, size);
-    assert_int_equal(co_od_put(&d->od, index, 0, b, size), 0);
+    assert_int_equal(co_od_put(&d->od, index, sub, b, size), 0);
+}
+
+static void put(dev_t *d, uint16_t index, uint64_t value, uint32_t size)
+{
+    put_sub(d, index, 0, value, size);
 }
 
 /* ------------------------------------------------------------- the guard */
@@ -188,6 +194,9 @@ static void test_writes_refused_while_operational(void **state)
     assert_int_equal(tu_od_value(&c->od, COMM, 2, 2), 25);
     assert_int_equal(tu_od_value(&c->od, CO_SRDO_OD_VALID, 0, 1), CO_SRDO_CONFIG_VALID);
     assert_int_equal(tu_od_net_write(&c->od, A, 0, 7, 2), 0);
+    /* the application's own write is not refused, but still invalidates */
+    put_sub(c, COMM, 3, 7, 1);
+    assert_int_equal(tu_od_value(&c->od, CO_SRDO_OD_VALID, 0, 1), 0);
     set_state(fx, c, CO_NMT_PRE_OPERATIONAL);
     assert_int_equal(tu_od_net_write(&c->od, COMM, 2, 50, 2), 0);
 }

@@ -12,8 +12,10 @@
  *   while the count is 0 (0x06010000), the order CiA 301 sets for PDOs.
  * - Any accepted write to a communication or mapping entry or to 0x13FF
  *   sets 0x13FE to 0 (not valid): a changed configuration never runs
- *   before a tool has validated it again (0xA5). Loading defaults or
- *   stored values at a reset is no change.
+ *   before a tool has validated it again (0xA5). The application's own
+ *   writes (co_od_put) pass the checks above, even in operational, but
+ *   count as a change too. Loading defaults or stored values at a reset is
+ *   no change.
  * - Outside operational every SRDO follows these objects: configured from
  *   them and its mapping bound to the OD's variables (co_srdo_bind_od) at
  *   the attach, after every accepted write and after a reset loads them;
