@@ -13,6 +13,7 @@ import time
 import pytest
 
 from canopenfd import ConfigurationError
+from canopenfd.errors import AbortError
 from canopenfd.services.srdo import (CONFIG_VALID, GFC_COB_ID, SrdoConfig, SrdoNotice,
                                      SrdoState, SrdoViolation, srdo_config_writes,
                                      srdo_signature, write_srdo_config)
@@ -209,10 +210,16 @@ def srdo_od():
         mapping.add_member(ODVariable(f"Mapped object {sub}", 0x1381, sub, U32, "rw", 0))
     od.add_object(mapping)
     od.add_object(ODVariable("Configuration valid", 0x13FE, 0, U8, "rw", 0))
+    od.add_object(ODVariable("GFC parameter", 0x1300, 0, U8, "rw", 0))
     signature = ODArray("Safety configuration signature", 0x13FF)
     signature.add_member(ODVariable("Highest sub-index supported", 0x13FF, 0, U8, "ro", 1))
     signature.add_member(ODVariable("Signature of SRDO 1", 0x13FF, 1, U16, "rw", 0))
     od.add_object(signature)
+    for index, name in ((0x6200, "Safe input"), (0x6201, "Safe input, inverted")):
+        data = ODArray(name, index)      # the variables MAPPING maps (sub 1, 32 bits)
+        data.add_member(ODVariable("Highest sub-index supported", index, 0, U8, "ro", 1))
+        data.add_member(ODVariable(f"{name} 1", index, 1, U32, "rw", 0, pdo_mapping=True))
+        od.add_object(data)
     return od
 
 
@@ -229,30 +236,138 @@ def test_config_writes_are_in_order_with_signature_and_valid_flag_last():
         srdo_config_writes(65, CONSUME)
 
 
-def test_a_tool_writes_the_configuration_and_the_device_runs_it(net, bus_name):
+def device_and_tool(net, bus_name):
+    """A consumer device with the SRDO objects, a tool line with its remote
+    node and a monitor of every frame."""
     device = net.open_line(bus_name, mode="classic").create_local_node(CONSUMER, od=srdo_od())
     tool = net.open_line(bus_name, mode="classic")
-    remote = tool.add_node(CONSUMER)
+    frames = Recorder()
+    net.open_line(bus_name, mode="classic", monitor=True).on_frame(frames)
+    device.srdo.start(1)
+    return device, tool, tool.add_node(CONSUMER), frames
+
+
+def test_a_tool_writes_the_configuration_and_the_device_runs_it(net, bus_name):
+    device, tool, remote, _ = device_and_tool(net, bus_name)
     signature = write_srdo_config(remote, 1, CONSUME)
     assert device[(0x13FF, 1)].raw == signature == srdo_signature(CONSUME)
     assert device[(0x13FE, 0)].raw == CONFIG_VALID
-    device.srdo.start(1)
-    assert device.srdo.configure_from_od(1) == CONSUME._replace(mapping=MAPPING)
-    device.apply("start")
+    # configure_from_od reads what the start will run, and leaves it valid
+    assert device.srdo.configure_from_od(1) == CONSUME
+    assert device[(0x13FE, 0)].raw == CONFIG_VALID
+    device.apply("start")                 # the start configures the SRDO from the OD
     device.wait_for_state("OPERATIONAL")
     tool.send_frame(NORMAL, DATA)
     tool.send_frame(NORMAL + 1, inverted(DATA))
     wait_srdo(device, lambda status: status.data == DATA, "the tool's pair")
-    # a signature that no longer matches keeps the SRDO from running
-    device.apply("pre-operational")
-    device.wait_for_state("PRE-OPERATIONAL")
-    device[(0x1301, 3)].raw = 99
-    device.srdo.configure_from_od(1)
+    # the valid pair is in the mapped variables: normal half, inverted half
+    assert device[(0x6200, 1)].raw == struct.unpack("<I", DATA)[0]
+    assert device[(0x6201, 1)].raw == struct.unpack("<I", inverted(DATA))[0]
+
+
+def test_the_producer_sends_its_variables_into_the_consumer_s(net, bus_name):
+    device, tool, remote, frames = device_and_tool(net, bus_name)       # the consumer
+    sensor = net.open_line(bus_name, mode="classic").create_local_node(PRODUCER, od=srdo_od())
+    sensor.srdo.start(1)
+    sensor_remote = tool.add_node(PRODUCER)
+    write_srdo_config(remote, 1, CONSUME)
+    write_srdo_config(sensor_remote, 1, PRODUCE)
+    value = 0x0BADCAFE
+    sensor_remote.write((0x6200, 1), struct.pack("<I", value))
+    sensor_remote.write((0x6201, 1), struct.pack("<I", value ^ 0xFFFFFFFF))
+    device.apply("start")
+    device.wait_for_state("OPERATIONAL")
+    mark = len(frames)
+    sensor.apply("start")
+    pair = frames.wait_for(
+        lambda calls: [f for f in calls[mark:] if f.id in (NORMAL, NORMAL + 1)][:2]
+        if len([f for f in calls[mark:] if f.id in (NORMAL, NORMAL + 1)]) >= 2 else None,
+        3.0, "the first pair")
+    assert [(f.id, bytes(f.data)) for f in pair] == [
+        (NORMAL, struct.pack("<I", value)), (NORMAL + 1, struct.pack("<I", value ^ 0xFFFFFFFF))]
+    wait_srdo(device, lambda status: status.data == struct.pack("<I", value), "the pair")
+    assert device[(0x6200, 1)].raw == value
+    assert device[(0x6201, 1)].raw == value ^ 0xFFFFFFFF
+    # set_data writes both of the producer's variables at once
+    sensor.srdo.set_data(1, DATA)
+    assert sensor[(0x6201, 1)].raw == struct.unpack("<I", inverted(DATA))[0]
+    wait_srdo(device, lambda status: status.data == DATA, "the new data")
+    deadline = time.monotonic() + scaled(3.0)
+    while device[(0x6200, 1)].raw != struct.unpack("<I", DATA)[0]:
+        assert time.monotonic() < deadline, "the consumer's 0x6200:01 kept its old value"
+        time.sleep(0.005)
+
+
+def test_0x1300_switches_the_gfc_and_gfc_writes_it(net, bus_name):
+    device, tool, remote, frames = device_and_tool(net, bus_name)
+    with pytest.raises(ConfigurationError, match="GFC is off"):
+        device.srdo.send_gfc()
+    remote.write((0x1300, 0), b"\x01")             # a tool switches it on
+    mark = len(frames)
+    device.srdo.send_gfc()
+    got = frames.wait_for(lambda calls: [f for f in calls[mark:] if f.id == GFC_COB_ID],
+                          3.0, "the GFC")
+    assert bytes(got[0].data) == b""
+    with pytest.raises(AbortError) as refused:
+        remote.write((0x1300, 0), b"\x02")
+    assert refused.value.code == 0x06090030
+    device.srdo.gfc(False)                         # the application's switch is 0x1300 too
+    assert device[(0x1300, 0)].raw == 0
+
+
+def test_configure_on_a_node_with_the_objects_writes_them(net, bus_name):
+    device, tool, remote, _ = device_and_tool(net, bus_name)
+    signature = device.srdo.configure(1, CONSUME)
+    assert device[(0x1301, 5)].raw == NORMAL and device[(0x1381, 2)].raw == MAPPING[1]
+    assert (device[(0x13FF, 1)].raw, device[(0x13FE, 0)].raw) == (signature, CONFIG_VALID)
+    with pytest.raises(ConfigurationError,
+                       match=r"SRDO 1: mapping 0x1381 does not resolve .*abort 0x06040041"):
+        device.srdo.configure(1, CONSUME._replace(mapping=(0x62020120, 0x62030120)))
     notices = Recorder()
     device.srdo.add_callback(notices)
     device.apply("start")
+    notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.BAD_PARAMETER) in calls, 3.0,
+                     "bad parameter")
+
+
+def test_the_objects_are_refused_while_operational(net, bus_name):
+    device, tool, remote, _ = device_and_tool(net, bus_name)
+    write_srdo_config(remote, 1, CONSUME)
+    device.apply("start")
+    device.wait_for_state("OPERATIONAL")
+    for key, value in (((0x1301, 2), struct.pack("<H", 300)), ((0x13FE, 0), b"\x00"),
+                       ((0x13FF, 1), b"\x01\x00"), ((0x1381, 0), b"\x00")):
+        with pytest.raises(AbortError) as refused:
+            remote.write(key, value)
+        assert refused.value.code == 0x08000022, key
+    assert device[(0x1301, 2)].raw == 200 and device[(0x13FE, 0)].raw == CONFIG_VALID
+
+
+def test_a_changed_configuration_needs_validating_again(net, bus_name):
+    device, tool, remote, frames = device_and_tool(net, bus_name)
+    write_srdo_config(remote, 1, CONSUME)
+    remote.write((0x1301, 3), b"\x63")              # SRVT 99 ms: 0x13FE drops to 0
+    assert device[(0x13FE, 0)].raw == 0
+    notices = Recorder()
+    device.srdo.add_callback(notices)
+    device.apply("start")
+    notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.CONFIG_INVALID) in calls, 3.0,
+                     "configuration not valid")
+    # validated again with a signature that is not the CRC: CRC mismatch, and
+    # its EMCY on the bus (0x6300, SRDO 1, violation CRC_MISMATCH)
+    device.apply("pre-operational")
+    device.wait_for_state("PRE-OPERATIONAL")
+    remote.write((0x13FF, 1), struct.pack("<H", srdo_signature(CONSUME)))
+    remote.write((0x13FE, 0), bytes([CONFIG_VALID]))
+    assert device[(0x13FE, 0)].raw == CONFIG_VALID
+    mark = len(frames)
+    device.apply("start")
     notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.CRC_MISMATCH) in calls, 3.0,
                      "CRC mismatch")
+    emcy = frames.wait_for(lambda calls: [f for f in calls[mark:] if f.id == 0x80 + CONSUMER],
+                           3.0, "the EMCY of the CRC mismatch")
+    assert bytes(emcy[0].data) == bytes([0x00, 0x63, 0x00, 1, SrdoViolation.CRC_MISMATCH,
+                                         0, 0, 0])
 
 
 def test_configure_from_od_without_the_objects_is_refused(pair):

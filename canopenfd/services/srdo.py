@@ -10,7 +10,10 @@
 
 The C core runs the pairs and their timing; Python configures, feeds and
 reads. configure() computes the configuration's signature (0x13FF) and
-declares it valid (0x13FE = 0xA5) unless told otherwise. This is not a
+declares it valid (0x13FE = 0xA5) unless told otherwise. A node whose OD has
+the SRDO objects (0x1301+n, 0x1381+n, 0x13FE, 0x13FF) runs what they hold by
+itself: the C core refuses writes to them while OPERATIONAL (0x08000022),
+clears 0x13FE on any change, and the data are the mapped variables. This is not a
 certified safety stack: see the README's SRDO section.
 """
 
@@ -48,7 +51,8 @@ class SrdoConfig(NamedTuple):
     """0x1301+n and 0x1381+n of one SRDO. cob_id: the normal frame's (odd,
     0x101..0x17F); the inverted one is cob_id + 1. mapping: the 0x1381+n
     entries (index << 16 | sub << 8 | bits), normal and inverted alternating;
-    they size the data (this stack sends the application's bytes)."""
+    they size the data, and on a node whose OD has the SRDO objects they name
+    the variables sent (odd entries) and their complements (even entries)."""
 
     direction: str                 # 'produce', 'consume' or 'off'
     sct_ms: int = 0                # SCT: producer cycle / consumer's limit between normals
@@ -195,7 +199,9 @@ class SrdoService:
         0x13FE = valid and 0x13FF = signature (default: the configuration's
         own CRC). Returns the signature used. A configuration whose valid
         flag or signature does not hold is taken, and the SRDO enters the
-        safe state naming it once the node is OPERATIONAL."""
+        safe state naming it once the node is OPERATIONAL. On a node whose OD
+        has the SRDO objects they are written too (the next start runs them)
+        and the mapped variables must exist and be mappable."""
         where = self._call_where(f"configure({number!r})")
         self._number(number, where)
         fields = _fields(config, where)
@@ -212,7 +218,9 @@ class SrdoService:
         """Give SRDO `number` the configuration its objects in the node's own
         OD hold (0x1300 + n, 0x1380 + n, 0x13FE, 0x13FF sub n: written by a
         configuration tool, see write_srdo_config), as configure() takes it;
-        returns that configuration. The OD must have these objects."""
+        returns that configuration. The OD must have these objects. Not
+        needed any more: such a node follows its objects by itself (kept for
+        reading them back as an SrdoConfig)."""
         where = self._call_where(f"configure_from_od({number!r})")
         self._number(number, where)
         comm, mapping = COMMUNICATION_BASE + number, MAPPING_BASE + number
@@ -238,7 +246,9 @@ class SrdoService:
 
     # ------------------------------------------------------------ data
     def set_data(self, number: int, data: bytes) -> None:
-        """A producer's data for the next pairs (exactly the mapped length)."""
+        """A producer's data for the next pairs (exactly the mapped length);
+        with the SRDO objects in the OD, written into the mapped variables
+        (normal bytes and their complement) at once."""
         where = self._call_where(f"set_data({number!r})")
         self._number(number, where)
         self._context.runtime.srdo_set_data(self._context.index, number, bytes(data), where)

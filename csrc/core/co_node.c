@@ -28,6 +28,9 @@ static void services_set_state(co_node_t *node, co_nmt_state_t state)
     if (s->led) {
         co_led_set_nmt_state(s->led, state);
     }
+    if (s->srdo_od) {
+        co_srdo_od_set_nmt_state(s->srdo_od, state);   /* reconfigures before they start */
+    }
     for (uint8_t i = 0; i < s->srdo_count; i++) {
         co_srdo_set_nmt_state(&s->srdo[i], state);
     }
@@ -463,9 +466,11 @@ void co_node_attach_redundancy(co_node_t *node, co_rdn_t *rdn)
     node->services.rdn = rdn;
 }
 
-void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count)
+void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count,
+                         co_srdo_od_t *srdo_od)
 {
     node->services.srdo = srdo;
+    node->services.srdo_od = srdo ? srdo_od : NULL;
     node->services.srdo_count = srdo ? count : 0;
     for (uint8_t i = 0; i < node->services.srdo_count; i++) {
         co_srdo_set_nmt_state(&srdo[i], node->nmt.state);

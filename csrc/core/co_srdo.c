@@ -138,11 +138,39 @@ void co_srdo_fail(co_srdo_t *srdo, co_srdo_violation_t why)
     }
 }
 
+/* The mapped variables' bytes: the normal frame's into s->data, the
+ * inverted frame's into inverted. */
+static void pack_od(co_srdo_t *s, uint8_t *inverted)
+{
+    uint16_t bits = (uint16_t)(s->length * 8u);
+    co_pdo_map_pack(s->od, s->items, s->normal_items, bits, s->data);
+    co_pdo_map_pack(s->od, s->items + s->normal_items, s->inverted_items, bits, inverted);
+}
+
+static bool complements(const uint8_t *normal, const uint8_t *inverted, uint8_t length)
+{
+    for (uint8_t i = 0; i < length; i++) {
+        if ((normal[i] ^ inverted[i]) != 0xFFu) {
+            return false;
+        }
+    }
+    return true;
+}
+
 static void send_pair(co_srdo_t *s)
 {
     uint8_t inverted[CO_SRDO_MAX_DATA];
-    for (uint8_t i = 0; i < s->length; i++) {
-        inverted[i] = (uint8_t)(~s->data[i]);
+    if (s->od) {
+        pack_od(s, inverted);
+        /* two variables that disagree never reach the bus as a pair */
+        if (!complements(s->data, inverted, s->length)) {
+            co_srdo_fail(s, CO_SRDO_INVERTED_MISMATCH);
+            return;
+        }
+    } else {
+        for (uint8_t i = 0; i < s->length; i++) {
+            inverted[i] = (uint8_t)(~s->data[i]);
+        }
     }
     /* Both frames queued together: the inverted one follows at once, well
      * within any SRVT, and the line keeps their order. */
@@ -154,6 +182,13 @@ static void send_pair(co_srdo_t *s)
     }
     s->stats.pairs_sent++;
     s->state = CO_SRDO_RUNNING;
+}
+
+/* Normal bytes into the odd sub-indices' variables, inverted into the even. */
+static void unpack_od(co_srdo_t *s, const uint8_t *normal, const uint8_t *inverted)
+{
+    co_pdo_map_unpack(s->od, s->items, s->normal_items, normal);
+    co_pdo_map_unpack(s->od, s->items + s->normal_items, s->inverted_items, inverted);
 }
 
 static void on_cycle(co_timer_t *timer, uint64_t now_us, void *user)
@@ -218,15 +253,16 @@ static void on_inverted(co_srdo_t *s, const co_frame_t *frame, uint64_t now)
         co_srdo_fail(s, CO_SRDO_WRONG_LENGTH);
         return;
     }
-    for (uint8_t i = 0; i < s->length; i++) {
-        if ((s->normal[i] ^ frame->data[i]) != 0xFFu) {
-            co_srdo_fail(s, CO_SRDO_INVERTED_MISMATCH);
-            return;
-        }
+    if (!complements(s->normal, frame->data, s->length)) {
+        co_srdo_fail(s, CO_SRDO_INVERTED_MISMATCH);
+        return;
     }
     co_timer_cancel(co_line_timers(s->line), &s->srvt_timer);
     s->inverted_due = false;
     memcpy(s->data, s->normal, s->length);
+    if (s->od) {
+        unpack_od(s, s->normal, frame->data);
+    }
     s->state = CO_SRDO_RUNNING;
     s->stats.pairs_valid++;
 }
@@ -307,6 +343,7 @@ bool co_srdo_configure(co_srdo_t *srdo, const co_srdo_config_t *config, uint8_t 
                          : co_srdo_crc(config) != signature         ? CO_SRDO_CRC_MISMATCH
                                                                     : CO_SRDO_NONE;
     memset(srdo->data, 0, sizeof srdo->data);
+    srdo->od = NULL;   /* a new mapping is bound again (co_srdo_bind_od) */
     srdo->state = CO_SRDO_STOPPED;
     srdo->violation = CO_SRDO_NONE;
     if (config->direction == CO_SRDO_CONSUME && srdo->param_error == CO_SRDO_PARAM_OK) {
@@ -336,7 +373,65 @@ bool co_srdo_set_data(co_srdo_t *srdo, const uint8_t *data, size_t length)
         return false;
     }
     memcpy(srdo->data, data, length);
+    if (srdo->od) {
+        uint8_t inverted[CO_SRDO_MAX_DATA];
+        for (size_t i = 0; i < length; i++) {
+            inverted[i] = (uint8_t)(~data[i]);
+        }
+        unpack_od(srdo, data, inverted);
+    }
     return true;
+}
+
+/* Items of one half (odd or even sub-indices), placed one after another. */
+static uint32_t bind_half(co_srdo_t *s, co_od_t *od, uint8_t first, co_pdo_map_item_t *items,
+                          uint8_t *count)
+{
+    bool consumer = s->config.direction == CO_SRDO_CONSUME;
+    uint16_t bit = 0;
+    *count = 0;
+    for (uint8_t i = first; i < s->config.map_count; i = (uint8_t)(i + 2u)) {
+        co_pdo_map_item_t it;
+        uint32_t abort = co_pdo_map_check_entry(od, consumer, s->config.map[i], &it);
+        if (abort != 0) {
+            return abort;
+        }
+        if (it.flags & CO_PDO_ITEM_DUMMY) {
+            return CO_ABORT_NO_MAP;   /* a safety datum is never skipped */
+        }
+        it.bit = bit;
+        it.flags |= CO_PDO_ITEM_BYTES;   /* check_mapping allows whole bytes only */
+        bit = (uint16_t)(bit + it.bits);
+        items[(*count)++] = it;
+    }
+    return 0;
+}
+
+uint32_t co_srdo_bind_od(co_srdo_t *srdo, co_od_t *od)
+{
+    srdo->od = NULL;
+    if (od == NULL || srdo->config.direction == CO_SRDO_OFF) {
+        return 0;
+    }
+    if (srdo->operational) {
+        return CO_ABORT_DATA_STATE;
+    }
+    if (srdo->param_error != CO_SRDO_PARAM_OK) {
+        return CO_ABORT_PARAM_INCOMPATIBLE;   /* already latched as BAD_PARAMETER */
+    }
+    uint32_t abort = bind_half(srdo, od, 0, srdo->items, &srdo->normal_items);
+    if (abort == 0) {
+        abort = bind_half(srdo, od, 1, srdo->items + srdo->normal_items,
+                          &srdo->inverted_items);
+    }
+    if (abort != 0) {
+        if (srdo->config_fault == CO_SRDO_NONE) {
+            srdo->config_fault = CO_SRDO_BAD_PARAMETER;
+        }
+        return abort;
+    }
+    srdo->od = od;
+    return 0;
 }
 
 size_t co_srdo_data(const co_srdo_t *srdo, uint8_t *out)

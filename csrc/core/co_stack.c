@@ -1271,9 +1271,38 @@ void co_stack_manager_deinit(co_stack_t *stack)
 
 /* ---------------------------------------------------------------- SRDO and GFC */
 
+/* The EMCY error code of a safe-state entry; 0: none (a GFC or the
+ * application's own reason are commands, not errors). See
+ * docs/protocol-notes.md, "SRDO and GFC", for the sources and the choice. */
+static uint16_t srdo_emcy_code(co_srdo_violation_t why)
+{
+    switch (why) {
+    case CO_SRDO_CONFIG_INVALID:
+    case CO_SRDO_CRC_MISMATCH:
+    case CO_SRDO_BAD_PARAMETER: return CO_SRDO_EMCY_CONFIG;
+    case CO_SRDO_WRONG_LENGTH: return CO_SRDO_EMCY_LENGTH;
+    case CO_SRDO_GFC:
+    case CO_SRDO_APPLICATION:
+    case CO_SRDO_NONE: return 0;
+    default: return CO_SRDO_EMCY_PROTOCOL;
+    }
+}
+
 static void on_srdo_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
 {
     co_stack_t *s = user;
+    uint16_t code = srdo_emcy_code(why);
+    if (code != 0 && s->has_emcy) {
+        /* once per safe-state entry: signalled, not kept in the active table
+         * (a repeated raise of an active error would send nothing) */
+        co_emcy_error_t err;
+        memset(&err, 0, sizeof err);
+        err.code = code;
+        err.msef[0] = (uint8_t)(srdo - s->srdo + 1);   /* the SRDO number */
+        err.msef[1] = (uint8_t)why;
+        err.spec_number = 304;
+        (void)co_emcy_signal(&s->emcy, &err, true);
+    }
     if (s->srdo_ind) {
         s->srdo_ind(srdo, why, s->srdo_user);
     }
@@ -1310,7 +1339,18 @@ co_stack_status_t co_stack_srdo_init(co_stack_t *stack, uint8_t count, co_srdo_f
         co_srdo_init(&srdo[i], stack->line, on_srdo_safe, stack);
     }
     co_gfc_init(&stack->gfc, stack->line, on_gfc, stack);
-    co_node_attach_srdo(&stack->node, srdo, count);
+    bool guarded = false;
+    if (stack->od && co_od_find(stack->od, CO_SRDO_OD_VALID, 0)) {
+        guarded = co_srdo_od_attach(&stack->srdo_od, stack->od, srdo, count, &stack->gfc,
+                                    stack->node.nmt.state);
+        if (!guarded) {
+            stack->srdo = NULL;
+            stack->srdo_count = 0;
+            give_back(stack, OWNER_SRDO);
+            return fail(stack, CO_STACK_PART_SRDO, CO_STACK_ERR_NO_MEMORY);
+        }
+    }
+    co_node_attach_srdo(&stack->node, srdo, count, guarded ? &stack->srdo_od : NULL);
     stack->has_srdo = true;
     return CO_STACK_OK;
 }
@@ -1320,7 +1360,8 @@ void co_stack_srdo_deinit(co_stack_t *stack)
     if (!stack || !stack->has_srdo) {
         return;
     }
-    co_node_attach_srdo(&stack->node, NULL, 0);
+    co_node_attach_srdo(&stack->node, NULL, 0, NULL);
+    co_srdo_od_detach(&stack->srdo_od);
     co_gfc_deinit(&stack->gfc);
     for (uint8_t i = 0; i < stack->srdo_count; i++) {
         co_srdo_deinit(&stack->srdo[i]);

@@ -475,20 +475,27 @@ static void nmt(fx_t *fx, uint8_t command, uint8_t node, uint64_t at)
     inject(fx, 0x000, data, 2, at);
 }
 
+/* A stack on line c (the fixture's consumer and GFC there are gone), no node yet. */
+static stack_fx_t *stack_on_line_c(fx_t *fx)
+{
+    stack_fx_t *sf = calloc(1, sizeof *sf);
+    assert_non_null(sf);
+    co_srdo_deinit(&fx->sc);
+    co_gfc_deinit(&fx->gc);
+    co_stack_arena_init(&sf->arena, sf->memory, sizeof sf->memory);
+    co_stack_line_config_t lc = {0};
+    assert_int_equal(co_stack_init(&sf->stack, fx->c, &lc, co_stack_arena_allocator(&sf->arena)),
+                     CO_STACK_OK);
+    return sf;
+}
+
 /* co_stack runs the SRDOs with the node's NMT state and hands a GFC to every
  * one of them; the memory goes back with the node. */
 static void test_stack_wires_nmt_and_gfc(void **state)
 {
     fx_t *fx = *state;
-    stack_fx_t *sf = calloc(1, sizeof *sf);
-    assert_non_null(sf);
-    co_srdo_deinit(&fx->sc);                   /* line c now belongs to the stack */
-    co_gfc_deinit(&fx->gc);
-    co_stack_arena_init(&sf->arena, sf->memory, sizeof sf->memory);
-    co_stack_line_config_t lc = {0};
+    stack_fx_t *sf = stack_on_line_c(fx);
     co_stack_node_config_t nc = {.node_id = 7};
-    assert_int_equal(co_stack_init(&sf->stack, fx->c, &lc, co_stack_arena_allocator(&sf->arena)),
-                     CO_STACK_OK);
     assert_int_equal(co_stack_srdo_init(&sf->stack, 2, on_stack_safe, sf), CO_STACK_ERR_STATE);
     assert_int_equal(co_stack_failed_part(&sf->stack), CO_STACK_PART_SRDO);
     assert_int_equal(co_stack_node_init(&sf->stack, &nc), CO_STACK_OK);
@@ -529,6 +536,49 @@ static void test_stack_wires_nmt_and_gfc(void **state)
     free(sf);
 }
 
+/* Every safe-state entry of a stack's SRDO sends one EMCY: the code of
+ * the violation, SRDO number and violation in the manufacturer bytes; a GFC
+ * is a command and sends none. The error is signalled, not kept active:
+ * the error register (byte 2) stays 0. */
+static void test_stack_sends_emcy_per_safe_entry(void **state)
+{
+    fx_t *fx = *state;
+    stack_fx_t *sf = stack_on_line_c(fx);
+    co_stack_node_config_t nc = {.node_id = 7};
+    assert_int_equal(co_stack_node_init(&sf->stack, &nc), CO_STACK_OK);
+    assert_int_equal(co_stack_boot(&sf->stack), CO_STACK_OK);
+    assert_int_equal(co_stack_srdo_init(&sf->stack, 2, on_stack_safe, sf), CO_STACK_OK);
+    co_srdo_t *one = co_stack_srdo(&sf->stack, 1), *two = co_stack_srdo(&sf->stack, 2);
+    co_srdo_config_t c1 = config(CO_SRDO_CONSUME), c2 = config(CO_SRDO_CONSUME);
+    c2.cob_id_normal = 0x105;
+    c2.cob_id_inverted = 0x106;
+    assert_true(co_srdo_configure(one, &c1, CO_SRDO_CONFIG_VALID, co_srdo_crc(&c1)));
+    assert_true(co_srdo_configure(two, &c2, CO_SRDO_CONFIG_VALID, (uint16_t)~co_srdo_crc(&c2)));
+    assert_true(co_gfc_set_enabled(co_stack_gfc(&sf->stack), true));
+    assert_true(co_gfc_set_enabled(&fx->gm, true));
+    tu_run_until(&fx->tb, 1 * TU_MS);
+    tu_log_clear(&fx->tb);
+    nmt(fx, 0x01, 7, 2 * TU_MS);               /* SRDO 2: its signature is wrong */
+    tu_run_until(&fx->tb, 3 * TU_MS);
+    const uint8_t crc[8] = {0x00, 0x63, 0x00, 2, CO_SRDO_CRC_MISMATCH, 0, 0, 0};
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 1);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x87, 0), 0x87, crc, 8);
+    inject_pair(fx, 4 * TU_MS);                 /* SRDO 1 runs, then its pairs stop */
+    tu_run_until(&fx->tb, 40 * TU_MS);
+    const uint8_t sct[8] = {0x00, 0x82, 0x00, 1, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 2);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x87, 1), 0x87, sct, 8);
+    co_srdo_restart(one);
+    assert_true(co_gfc_send(&fx->gm));
+    tu_run_until(&fx->tb, 45 * TU_MS);
+    assert_int_equal(sf->events, 3);
+    assert_int_equal(sf->why[2], CO_SRDO_GFC);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 2);    /* the GFC sent none */
+    co_stack_node_deinit(&sf->stack);
+    co_stack_deinit(&sf->stack);
+    free(sf);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -555,6 +605,7 @@ int main(void)
         T(test_restart_after_safe_state),
         T(test_producer_tx_full),
         T(test_stack_wires_nmt_and_gfc),
+        T(test_stack_sends_emcy_per_safe_entry),
 #undef T
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -17,6 +17,7 @@
 #include "canopenfd/co_pdo.h"
 #include "canopenfd/co_redundancy.h"
 #include "canopenfd/co_srdo.h"
+#include "canopenfd/co_srdo_od.h"
 #include "canopenfd/co_store.h"
 #include "canopenfd/co_sync.h"
 #include "canopenfd/co_time.h"
@@ -67,12 +68,15 @@ typedef struct co_node_services {
      * tracks (bus-off, warning, heartbeat/guarding lost, SYNC and RPDO
      * deadline errors); may be NULL. */
     co_led_t *led;
-    /* SRDOs (CiA 304): run only in operational (co_node_attach_srdo). */
+    /* SRDOs (CiA 304): run only in operational (co_node_attach_srdo);
+     * srdo_od (may be NULL) guards their OD objects and reloads them on
+     * entering operational, before they start. */
     co_srdo_t *srdo;
     uint8_t srdo_count;
     /* Bus redundancy: Bdefault selected again at every reset, after the
      * reload (co_node_attach_redundancy). */
     co_rdn_t *rdn;
+    co_srdo_od_t *srdo_od;
 } co_node_services_t;
 
 enum {
@@ -146,7 +150,8 @@ void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma);
  * at every change. */
 /* The bus redundancy the node runs (NULL: none); every reset starts it over. */
 void co_node_attach_redundancy(co_node_t *node, co_rdn_t *rdn);
-void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count);
+void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count,
+                         co_srdo_od_t *srdo_od);
 /* Errors the stack detects outside the node's services, told by the
  * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and
  * 0x1029:01), and the line's communication events (bus-off 0x8140 with

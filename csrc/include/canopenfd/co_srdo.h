@@ -14,14 +14,17 @@
  * the configuration is valid (0xA5) and the configuration's CRC equals its
  * 0x13FF signature.
  *
- * The data are the application's bytes (the mapping entries of 0x1381+n
- * size them and enter the CRC; this service does not copy OD variables).
+ * The data are the application's bytes (co_srdo_set_data / co_srdo_data)
+ * or, once co_srdo_bind_od has resolved the mapping in an OD, the mapped
+ * variables: odd mapping sub-indices feed the normal frame, even ones the
+ * inverted frame (those variables hold the complement).
  * This is no certified safety stack: see the README's SRDO section. */
 #ifndef CO_SRDO_H
 #define CO_SRDO_H
 
 #include "canopenfd/co_line.h"
 #include "canopenfd/co_nmt.h"
+#include "canopenfd/co_pdo_map.h"
 #include "canopenfd/co_timer.h"
 
 /* cffi:begin */
@@ -85,6 +88,15 @@ typedef struct co_srdo_config {
 /* cffi:end */
 
 
+/* EMCY error codes of a safe-state entry (the stack sends one per entry,
+ * manufacturer bytes: SRDO number, co_srdo_violation_t). No EMCY for a GFC
+ * or the application's reason: those are commands, not errors. */
+enum {
+    CO_SRDO_EMCY_CONFIG = 0x6300,    /* data set: 0x13FE, 0x13FF or a parameter */
+    CO_SRDO_EMCY_LENGTH = 0x8210,    /* a frame of another length than mapped */
+    CO_SRDO_EMCY_PROTOCOL = 0x8200   /* any other violation of the pair or its timing */
+};
+
 /* Which parameter a configuration check refused (CO_SRDO_PARAM_OK: none). */
 typedef enum co_srdo_param {
     CO_SRDO_PARAM_OK = 0,
@@ -124,6 +136,10 @@ struct co_srdo {
     co_srdo_fn on_safe;
     void *user;
     co_srdo_stats_t stats;
+    co_od_t *od;                     /* mapped variables' OD (co_srdo_bind_od) or NULL */
+    co_pdo_map_item_t items[CO_SRDO_MAX_MAPPED];   /* normal half first, then inverted */
+    uint8_t normal_items;            /* items[0..normal_items) feed the normal frame */
+    uint8_t inverted_items;          /* the next ones the inverted frame */
 };
 
 /* CRC-16 of a configuration, as 0x13FF sub n holds it: CRC-16-CCITT
@@ -149,7 +165,20 @@ void co_srdo_deinit(co_srdo_t *srdo);
 bool co_srdo_configure(co_srdo_t *srdo, const co_srdo_config_t *config, uint8_t valid,
                        uint16_t signature);
 void co_srdo_set_nmt_state(co_srdo_t *srdo, co_nmt_state_t state);
-/* Producer: the data of the next pairs (exactly the mapped length). */
+/* Take the data from and give them to the mapped variables of `od` (after
+ * co_srdo_configure, not while operational): a producer packs the odd
+ * sub-indices' variables into the normal frame and the even ones' into the
+ * inverted frame; a consumer writes a valid pair's normal bytes into the
+ * odd ones and its inverted bytes into the even ones, never the bytes of a
+ * pair that failed. Returns 0, or the abort of the first entry that cannot
+ * be mapped (0x06040041: missing, not mappable in this direction as a PDO
+ * would, or longer than its variable); the SRDO then keeps no OD and
+ * enters the safe state with CO_SRDO_BAD_PARAMETER when it starts. od NULL
+ * unbinds (the application's bytes again). */
+uint32_t co_srdo_bind_od(co_srdo_t *srdo, co_od_t *od);
+/* Producer: the data of the next pairs (exactly the mapped length); with
+ * an OD bound they are written into the mapped variables (normal bytes and
+ * their complement) at once, so no pair mixes old and new halves. */
 bool co_srdo_set_data(co_srdo_t *srdo, const uint8_t *data, size_t length);
 /* Consumer: copies the last valid pair's data into out (CO_SRDO_MAX_DATA
  * bytes room) and returns their length while RUNNING; 0 when the data are

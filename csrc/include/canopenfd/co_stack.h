@@ -122,10 +122,10 @@ enum {
     CO_STACK_MAX_BLOCKS = 24,    /* blocks a stack holds at once */
     /* OD handler subscriptions the node's parts take at most (node, store,
      * SDO/USDO server and client, EMCY, SYNC, TIME, EMCY consumer, PDO,
-     * guarding slave, autonomous saves, error-status bits): an OD served by a
-     * stack needs at least this many subscription slots besides the
-     * application's own. */
-    CO_STACK_OD_SUBSCRIPTIONS = 18,
+     * guarding slave, autonomous saves, error-status bits, SRDO objects): an
+     * OD served by a stack needs at least this many subscription slots
+     * besides the application's own. */
+    CO_STACK_OD_SUBSCRIPTIONS = 19,
     CO_STACK_DEFAULT_HB_ENTRIES = 127,
     CO_STACK_DEFAULT_SERVER_SESSIONS = 8,    /* fd lines: USDO server sessions */
     CO_STACK_DEFAULT_EMCY_QUEUE = 16,
@@ -317,6 +317,7 @@ struct co_stack {
     co_srdo_t *srdo;
     uint8_t srdo_count;
     co_gfc_t gfc;
+    co_srdo_od_t srdo_od;            /* their OD objects, when the OD has 0x13FE */
     co_srdo_fn srdo_ind;             /* the application's safe-state indication */
     void *srdo_user;
     /* bus redundancy (co_stack_redundancy.c) */

@@ -93,7 +93,27 @@ int co_rt_srdo_configure(co_rt_t *rt, int line, uint8_t number, const co_srdo_co
         return status;
     }
     bool done = co_srdo_configure(srdo, config, valid, signature);
+    co_srdo_od_t *objects = &rt_checked_line(rt, line, false)->stack.srdo_od;
+    /* with the objects in the OD, they are the configuration the next
+     * start reloads: they get the same values (and the mapped variables) */
+    bool in_od = done && objects->od != NULL &&
+                 co_od_has_index(objects->od, (uint16_t)(CO_SRDO_OD_COMMUNICATION + number));
+    uint32_t stored = in_od ? co_srdo_od_store(objects, number, config, valid, signature) : 0;
+    uint32_t bound = in_od && stored == 0 ? co_srdo_bind_od(srdo, objects->od) : 0;
     rt_mutex_unlock(&rt->lock);
+    if (stored != 0) {
+        rt_set_error(rt, "line %d: SRDO %u: the node's OD lacks a sub-entry of 0x%04X, 0x%04X "
+                     "or 0x13FF sub %u (abort 0x%08X)", line, number, 0x1300u + number,
+                     0x1380u + number, number, (unsigned)stored);
+        return CO_RT_ERR_ARGUMENT;
+    }
+    if (bound != 0) {
+        rt_set_error(rt, "line %d: SRDO %u: mapping 0x%04X does not resolve in the node's OD "
+                     "(abort 0x%08X: an object missing, not mappable this way or shorter "
+                     "than mapped); it enters the safe state (bad parameter) when started",
+                     line, number, 0x1380u + number, (unsigned)bound);
+        return CO_RT_ERR_ARGUMENT;
+    }
     if (!done) {
         rt_set_error(rt, "line %d: SRDO %u not configured: %s", line, number,
                      srdo->operational ? "the node is operational"
@@ -184,7 +204,15 @@ int co_rt_gfc_enable(co_rt_t *rt, int line, bool on)
     if (!gfc) {
         return status;
     }
-    bool done = co_gfc_set_enabled(gfc, on);
+    co_srdo_od_t *objects = &rt_checked_line(rt, line, false)->stack.srdo_od;
+    bool done;
+    if (objects->od && co_od_find(objects->od, CO_SRDO_OD_GFC, 0)) {
+        /* 0x1300 is the switch: the GFC follows it (co_srdo_od) */
+        const uint8_t value = on ? 1u : 0u;
+        done = co_od_put(objects->od, CO_SRDO_OD_GFC, 0, &value, 1) == 0 && gfc->enabled == on;
+    } else {
+        done = co_gfc_set_enabled(gfc, on);
+    }
     rt_mutex_unlock(&rt->lock);
     if (!done) {
         rt_set_error(rt, "line %d: CAN-ID 0x001 (GFC) is taken by another service", line);
