@@ -759,6 +759,9 @@ def test_hosts_reading_one_classic_node_take_turns(net: canopenfd.Network, bus_n
         assert errors == []
         vendor = w.dev[0x1018][1].data
         assert answers.snapshot() == [vendor] * 60
+        # the recorder hears the frames after the stacks acted: wait for all 60
+        w.bus.wait_for(lambda c: len([f for f in c if f.id == 0x600 + DEV]) >= 60, 5,
+                       "the 60 SDO requests")
         requests = [bytes(f.data) for f in w.bus.snapshot() if f.id == 0x600 + DEV]
         assert requests == [bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])] * 60
     finally:
