@@ -698,12 +698,7 @@ class Runtime:
 
     def srdo_configure(self, line: int, number: int, fields: Mapping[str, int],
                        mapping: Sequence[int], valid: int, signature: int, what: str) -> None:
-        config = ffi.new("co_srdo_config_t *")
-        for name, value in fields.items():
-            setattr(config, name, value)
-        config.map_count = len(mapping)
-        for i, entry in enumerate(mapping):
-            config.map[i] = entry
+        config = _srdo_config(fields, mapping)
         self._call(what, lib.co_rt_srdo_configure, line, number, config, valid, signature)
 
     def srdo_set_data(self, line: int, number: int, data: bytes, what: str) -> None:
@@ -1007,6 +1002,23 @@ def decode_emcy(data: bytes, fd: bool) -> Optional[EmcyFields]:
     return EmcyFields(int(out.code), int(out.error_register), bytes(ffi.buffer(out.msef, 5)),
                       int(out.logical_device), int(out.spec_number), int(out.status),
                       int(out.time_stamp))
+
+
+def _srdo_config(fields: Mapping[str, int], mapping: Sequence[int]) -> CData:
+    """A co_srdo_config_t of checked fields (see services/srdo.py) and mapping."""
+    config = ffi.new("co_srdo_config_t *")
+    for name, value in fields.items():
+        setattr(config, name, value)
+    config.map_count = len(mapping)
+    for i, entry in enumerate(mapping):
+        config.map[i] = entry
+    return config
+
+
+def srdo_crc(fields: Mapping[str, int], mapping: Sequence[int]) -> int:
+    """The core's 0x13FF CRC of a configuration (co_srdo_crc): one byte
+    layout for the device and for a tool computing it."""
+    return int(lib.co_srdo_crc(_srdo_config(fields, mapping)))
 
 
 def now_us() -> int:

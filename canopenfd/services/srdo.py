@@ -19,13 +19,12 @@ certified safety stack: see the README's SRDO section.
 
 from __future__ import annotations
 
-import binascii
 import struct
 from typing import Callable, Dict, List, NamedTuple, Optional, Protocol, Sequence, Tuple
 
 from .._binding.constants import EventKind, SrdoState, SrdoViolation
 from .._binding.context import Deferred, LineContext
-from .._binding.runtime import Event
+from .._binding.runtime import Event, srdo_crc
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
 
@@ -107,12 +106,7 @@ def srdo_signature(config: SrdoConfig) -> int:
     0x1021, initial 0) over direction, SCT, SRVT, both COB-IDs, the mapping
     count and each mapping entry behind its sub-index, little-endian (see
     docs/protocol-notes.md, SRDO, for what is and is not confirmed)."""
-    fields = _fields(config, f"srdo_signature({config!r})")
-    data = struct.pack("<BHBIIB", fields["direction"], config.sct_ms, config.srvt_ms,
-                       config.cob_id, config.cob_id + 1, len(config.mapping))
-    for sub, entry in enumerate(config.mapping, start=1):
-        data += struct.pack("<BI", sub, entry)
-    return binascii.crc_hqx(data, 0)
+    return srdo_crc(_fields(config, f"srdo_signature({config!r})"), config.mapping)
 
 
 def srdo_config_writes(number: int, config: SrdoConfig, *, valid: int = CONFIG_VALID

@@ -148,7 +148,9 @@ struct co_srdo {
  * count (1), then for every mapping entry its sub-index (1) and value (4),
  * multi-byte values little-endian; the transmission type is not included
  * (see docs/protocol-notes.md, SRDO). */
+/* cffi:begin */
 uint16_t co_srdo_crc(const co_srdo_config_t *config);
+/* cffi:end */
 /* The configuration's range check; *length (may be NULL) gets the data
  * length of a good mapping. Direction 0 passes whatever the rest says. */
 co_srdo_param_t co_srdo_check(const co_srdo_config_t *config, uint8_t *length);
