@@ -207,18 +207,74 @@ def test_stored_objects_added_live_are_saved_and_loaded(bus_name, tmp_path):
 
 
 
+def upload_by_hand(line, frames, mode, index, size, meanwhile):
+    """Upload index:00 one request at a time from a raw client (node 0x22), calling
+    meanwhile() once half of it has been served: the server is then certainly in the
+    middle of the transfer, whatever the machine's load."""
+    heard = [0]
+
+    def ask(data):
+        line.send_frame(0x600 + (0x22 if mode == "fd" else NODE), bytes(data))
+        got = frames.wait_for(lambda calls: [bytes(f.data) for f in calls
+                                             if f.id == 0x580 + NODE][heard[0]:] or None,
+                              5, f"answer {heard[0] + 1}")[0]
+        heard[0] += 1
+        return got
+
+    received = bytearray()
+    if mode == "fd":                                   # USDO 0x11, then 0x13 per segment
+        sid = 7
+        first = ask([NODE, 0x11, sid, 0, index & 0xFF, index >> 8])
+        assert first[:8] == bytes([0x22, 0x32, sid, 0, index & 0xFF, index >> 8, 0x0F, 0])
+        assert int.from_bytes(first[8:12], "little") == size
+        counter = 0
+        while True:
+            if len(received) >= size // 2 and meanwhile:
+                meanwhile()
+                meanwhile = None
+            segment = ask([NODE, 0x13, sid, counter & 0xFF])
+            assert segment[:3] == bytes([0x22, 0x33, sid]) and segment[3] == counter & 0xFF \
+                or segment[:3] == bytes([0x22, 0x34, sid]), segment[:4].hex()
+            if segment[1] == 0x34:
+                received += segment[4:4 + segment[3]]
+                return bytes(received)
+            received += segment[4:64]
+            counter += 1
+    first = ask([0x40, index & 0xFF, index >> 8, 0, 0, 0, 0, 0])   # SDO, 0x60|t per segment
+    assert first == bytes([0x41, index & 0xFF, index >> 8, 0]) + size.to_bytes(4, "little")
+    toggle = 0
+    while True:
+        if len(received) >= size // 2 and meanwhile:
+            meanwhile()
+            meanwhile = None
+        segment = ask([0x60 | toggle << 4, 0, 0, 0, 0, 0, 0, 0])
+        assert segment[0] & 0xE0 == 0 and (segment[0] >> 4) & 1 == toggle, segment.hex()
+        received += segment[1:8 - ((segment[0] >> 1) & 7)]
+        if segment[0] & 1:
+            return bytes(received)
+        toggle ^= 1
+
+
 @MODES
 def test_a_transfer_in_progress_survives_objects_added_meanwhile(net, bus_name, mode):
-    node, od, client, _ = rig(net, bus_name, mode, boot=False)
-    node.serve_domain(0x2100, 4 << 20)
+    """Objects added in the middle of an upload, before its object (the C dictionary's
+    entries behind them move) and after it: the upload goes on with the same object."""
+    node, od, _, frames = rig(net, bus_name, mode, boot=False)
+    node.serve_domain(0x2100, 4096)
     node.boot()
-    data = bytes(range(256)) * (8192 if mode == "fd" else 1024)   # 2 MiB / 256 KiB
+    data = bytes((i * 7 + 3) & 0xFF for i in range(1000))
     node[0x2100].data = data
-    transfer = client.start_upload(NODE, 0x2100, 0, max_size=len(data))
-    od.add_object(ODVariable("Meanwhile", 0x2F30, 0, DataType.UNSIGNED8, "rw", 0))
-    running = not transfer.done()                      # the add came while it ran
-    for i in range(1, 8):
-        od.add_object(ODVariable(f"Meanwhile {i}", 0x2F30 + i, 0, DataType.UNSIGNED8, "rw", i))
-    assert bytes(transfer.result(timeout=60)) == data
-    assert running, "the upload ended before the first add: make it longer"
-    assert client.upload(NODE, 0x2F37, 0) == b"\x07"
+    raw = net.open_line(bus_name, mode=mode)
+
+    def add_objects():
+        for i in range(4):
+            od.add_object(ODVariable(f"Before {i}", 0x2020 + i, 0, DataType.UNSIGNED8, "rw", i))
+            od.add_object(ODVariable(f"After {i}", 0x2F30 + i, 0, DataType.UNSIGNED8, "rw",
+                                     0x10 + i))
+
+    assert upload_by_hand(raw, frames, mode, 0x2100, len(data), add_objects) == data
+    assert node[0x2023].raw == 3 and node[0x2F33].raw == 0x13
+    client = raw.usdo if mode == "fd" else raw.sdo
+    assert client.upload(NODE, 0x2023, 0) == b"\x03"
+    assert client.upload(NODE, 0x2F31, 0) == b"\x11"
+    assert client.upload(NODE, 0x2100, 0) == data
