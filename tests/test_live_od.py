@@ -257,8 +257,9 @@ def upload_by_hand(line, frames, mode, index, size, meanwhile):
 
 @MODES
 def test_a_transfer_in_progress_survives_objects_added_meanwhile(net, bus_name, mode):
-    """Objects added in the middle of an upload, before its object (the C dictionary's
-    entries behind them move) and after it: the upload goes on with the same object."""
+    """Objects added in the middle of an upload, at indices below and above its
+    object's (live entries are appended behind the sorted table: nothing the
+    transfer holds may move): the upload goes on with the same object."""
     node, od, _, frames = rig(net, bus_name, mode, boot=False)
     node.serve_domain(0x2100, 4096)
     node.boot()

@@ -12,7 +12,7 @@ import pytest
 
 from canopenfd import (AbortError, CanopenFDError, CommEvent, ConfigurationError, RedundancyEvent,
                        RedundancyNotice)
-from canopenfd.od import demo_od
+from canopenfd.od import OdStateError, demo_od
 from canopenfd.services.redundancy import RECORD_INDEX, redundancy_record
 from helpers import Recorder, scaled
 
@@ -289,3 +289,25 @@ def test_node_created_after_start_serves_its_record(net, buses):
                   "boot-up of node 2 on B")
     tool = net.open_line(b, mode="classic")
     assert tool.sdo.upload(2, RECORD_INDEX, 3) == b"\x07"
+
+
+def test_record_added_to_a_running_node_after_start_is_refused(net, buses):
+    """The record is read when the service starts: one added to the running node
+    later would look configured while the service ignores it, so the node refuses
+    it (and keeps serving everything else added)."""
+    a, b, _, _ = buses
+    line = net.open_line(a, mode="classic")
+    od = demo_od("classic")
+    line.create_local_node(2, od=od)
+    line.redundancy.start(b, "slave", master=1, period=0.05)
+    with pytest.raises(OdStateError) as refused:
+        od.add_object(redundancy_record(ttoggle=0, ntoggle=7))
+    text = str(refused.value)
+    assert f"0x{RECORD_INDEX:04X}:00" in text and "redundancy record" in text
+    assert "before starting" in text and RECORD_INDEX not in od
+    tool = net.open_line(a, mode="classic")
+    with pytest.raises(AbortError) as missing:                 # nothing half-added
+        tool.sdo.upload(2, RECORD_INDEX, 0)
+    assert missing.value.code == 0x06020000
+    od.add_object(redundancy_record(index=0x2F00, ttoggle=0, ntoggle=7))   # another index
+    assert tool.sdo.upload(2, 0x2F00, 3) == b"\x07"

@@ -240,6 +240,11 @@ void co_stack_redundancy_deinit(co_stack_t *stack)
     stack->has_rdn = false;
 }
 
+uint16_t co_stack_redundancy_record_index(const co_stack_t *stack)
+{
+    return stack && stack->has_rdn ? stack->rdn_index : 0;
+}
+
 /* ---------------------------------------------------------------- what co_stack.c tells */
 
 void co_stack_rdn_heartbeat(co_stack_t *s, uint8_t node_id, co_hb_event_t event)

@@ -403,13 +403,17 @@ static void test_refusals(void **state)
     assert_int_equal(co_stack_failed_part(&r->slave.stack), CO_STACK_PART_REDUNDANCY);
     assert_string_equal(co_stack_part_name(CO_STACK_PART_REDUNDANCY), "bus redundancy");
     assert_null(co_stack_redundancy(&r->slave.stack));
-    /* an index the OD does not have: the config's values, nothing served */
+    assert_int_equal(co_stack_redundancy_record_index(&r->slave.stack), 0);
+    /* an index the OD does not have: the config's values, nothing served; the
+     * index is named so a later add of that record can be refused */
     c.index = 0x2200;
     assert_int_equal(co_stack_redundancy_init(&r->slave.stack, &c), CO_STACK_OK);
+    assert_int_equal(co_stack_redundancy_record_index(&r->slave.stack), 0x2200);
     assert_int_equal(co_rdn_read(co_stack_redundancy(&r->slave.stack), CO_RDN_SUB_TTOGGLE), 2);
     assert_int_equal(co_stack_redundancy_init(&r->slave.stack, &c), CO_STACK_ERR_STATE);
     co_stack_redundancy_deinit(&r->slave.stack);
     assert_null(co_stack_redundancy(&r->slave.stack));
+    assert_int_equal(co_stack_redundancy_record_index(&r->slave.stack), 0);
     /* a record of another type (0x1018:01 is UNSIGNED32) */
     assert_int_equal(co_stack_redundancy_check_od(&r->dev.od, 0x1018, &bad_sub),
                      CO_RDN_BAD_TYPE);

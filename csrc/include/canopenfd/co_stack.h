@@ -421,6 +421,11 @@ typedef struct co_stack_redundancy_config {
 co_stack_status_t co_stack_redundancy_init(co_stack_t *stack,
                                            const co_stack_redundancy_config_t *config);
 void co_stack_redundancy_deinit(co_stack_t *stack);
+/* The record's index while the service runs (0: it does not). The record is
+ * read and bound at init only: whoever adds OD entries to a running node
+ * refuses that index (co_rt_od_add does), so a record added later cannot
+ * look configured while the service ignores it. */
+uint16_t co_stack_redundancy_record_index(const co_stack_t *stack);
 /* The record at index in od: CO_RDN_OK (also when od has no such object:
  * then *bad_sub = 0) or the first problem, *bad_sub = its sub-index. */
 co_rdn_result_t co_stack_redundancy_check_od(const co_od_t *od, uint16_t index,

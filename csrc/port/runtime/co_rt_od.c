@@ -120,6 +120,22 @@ int co_rt_od_reserve(co_rt_t *rt, int line, uint32_t spare_entries, uint32_t spa
     return status;
 }
 
+/* The first of defs at the running redundancy service's record index when the
+ * OD does not hold that record yet (count: none). */
+static uint32_t redundancy_record_in(rt_line_t *l, const co_od_def_t *defs, uint32_t count)
+{
+    uint16_t index = co_stack_redundancy_record_index(&l->stack);
+    if (index == 0 || co_od_has_index(&l->od, index)) {
+        return count;   /* not running, or bound (a second add is a duplicate) */
+    }
+    for (uint32_t i = 0; i < count; i++) {
+        if (defs[i].index == index) {
+            return i;
+        }
+    }
+    return count;
+}
+
 int co_rt_od_add(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count)
 {
     rt_line_t *l = rt_checked_line(rt, line, false);
@@ -137,6 +153,11 @@ int co_rt_od_add(co_rt_t *rt, int line, const co_od_def_t *defs, uint32_t count)
         rt_set_error(rt, "line %d: entries are added at run time to a local node's object "
                   "dictionary once the node exists", line);
         status = CO_RT_ERR_STATE;
+    } else if ((refused = redundancy_record_in(l, defs, count)) < count) {
+        status = rt_argument_error(rt, "line %d: OD entry 0x%04X:%02X: the redundancy record, "
+                                   "read when the redundancy service started; add it before "
+                                   "starting the service", line, defs[refused].index,
+                                   defs[refused].sub);
     } else if ((r = co_od_add_live_all(&l->od, defs, count, &refused)) != CO_OD_ADDED) {
         status = rt_argument_error(rt, "line %d: OD entry 0x%04X:%02X: %s", line,
                                    defs[refused].index, defs[refused].sub, od_add_problem(r));
