@@ -226,6 +226,47 @@ static void add(uint16_t index, uint8_t sub, uint8_t type, uint16_t flags, uint3
     add_row(&r);
 }
 
+/* MPDO (co_mpdo): the object scanner list names what a SAM TPDO of this node
+ * sends, the object dispatcher list where SAMs of other nodes go, so the SAM
+ * producer and consumer paths run past their list look-ups. */
+#define SCAN(i, s) ((1u << 24) | ((uint32_t)(i) << 8) | (s))
+static void add_dispatch(uint8_t sub, uint16_t local, uint16_t remote, uint8_t remote_sub,
+                         uint8_t node)
+{
+    uint64_t entry = (uint64_t)1 << 56 | (uint64_t)local << 40 | (uint64_t)remote << 16 |
+                     (uint64_t)remote_sub << 8 | node;   /* block 1, local sub 0 */
+    uint8_t value[8];
+    for (uint32_t i = 0; i < 8; i++) {
+        value[i] = (uint8_t)(entry >> (8 * i));
+    }
+    co_od_def_t d;
+    memset(&d, 0, sizeof d);
+    d.index = 0x1FD0;
+    d.sub = sub;
+    d.object_code = ARR;
+    d.type = CO_TYPE_UNSIGNED64;
+    d.access = RW;
+    d.size = 8;
+    d.default_value = value;
+    d.default_length = 8;
+    CHECK(co_od_add(&W.od, &d) == CO_OD_ADDED, "device OD refuses a dispatcher entry");
+}
+
+static void add_mpdo_lists(void)
+{
+    static const row_t lists[] = {
+        {0x1FA0, 0, ARR, U8, RO, 0, 1, 2},
+        {0x1FA0, 1, ARR, U32, RW, 0, 4, SCAN(0x2002, 0)},
+        {0x1FA0, 2, ARR, U32, RW, 0, 4, SCAN(0x2001, 0)},
+        {0x1FD0, 0, ARR, U8, RO, 0, 1, 2},
+    };
+    for (size_t i = 0; i < sizeof lists / sizeof lists[0]; i++) {
+        add_row(&lists[i]);
+    }
+    add_dispatch(1, 0x2100, 0x2002, 0, 7);   /* node 7's 0x2002:00 -> our 0x2100:00 */
+    add_dispatch(2, 0x2001, 0x2001, 0, 7);   /* 16 bits: a 4-byte SAM is too long */
+}
+
 static void build_od(co_mode_t mode)
 {
     co_od_init(&W.od, mode, W.entries, OD_ENTRIES, W.pool, OD_POOL, W.subs, OD_SUBS);
@@ -261,6 +302,7 @@ static void build_od(co_mode_t mode)
             add((uint16_t)(0x1A00 + k), s, U32, ST, s == 1 ? tmap[k] : 0);
         }
     }
+    add_mpdo_lists();
     CHECK(co_od_seal(&W.od, FW_NODE), "device OD does not seal");
 }
 
@@ -573,6 +615,7 @@ static const uint32_t config_keys[] = {
     0x101601, 0x101602, 0x101700, 0x101900, 0x102801, 0x102901, 0x140001, 0x140002,
     0x140003, 0x140005, 0x160000, 0x160001, 0x160002, 0x180001, 0x180002, 0x180003,
     0x180005, 0x180006, 0x1A0000, 0x1A0001, 0x1A0002, 0x120101, 0x128001, 0x100300,
+    0x1FA001,
 };
 
 static void od_write(fz_reader_t *r, bool put)
@@ -759,6 +802,36 @@ static void led_input(fz_reader_t *r)
     }
 }
 
+/* The application sends an MPDO through TPDO 1..4, whatever that TPDO is:
+ * a SAM of a listed or unlisted object, a DAM of its mapped object, or a
+ * DAM with its own value (1..4 bytes) to index:sub of a node. */
+static void mpdo_send(fz_reader_t *r)
+{
+    static const uint16_t sam_objects[4] = {0x2002, 0x2001, 0x2100, 0x2103};
+    uint8_t b = fz_u8(r);
+    uint8_t c = fz_u8(r);
+    uint32_t value = fz_u32(r);
+    co_mpdo_t *mpdo = co_stack_mpdo(&W.dev);
+    uint16_t tpdo = (uint16_t)((b & 3u) + 1u);
+    uint8_t node = (uint8_t)(c & 0x7Fu);
+    co_line_set_time(&W.dev_line.line, W.now);
+    if (mpdo == NULL) {
+        return;
+    }
+    if (b & 0x80u) {
+        (void)co_mpdo_send_sam(mpdo, tpdo, sam_objects[(b >> 2) & 3u], 0);
+    } else if (b & 0x40u) {
+        (void)co_mpdo_send_dam_mapped(mpdo, tpdo, node);
+    } else {
+        uint8_t data[4];
+        for (uint32_t i = 0; i < 4; i++) {
+            data[i] = (uint8_t)(value >> (8 * i));
+        }
+        (void)co_mpdo_send_dam(mpdo, tpdo, node, (uint16_t)(0x2000u + ((b >> 2) & 7u)),
+                               (uint8_t)(c >> 7), data, (uint8_t)(((b >> 5) & 1u) * 3u + 1u));
+    }
+}
+
 static void action(uint8_t p, fz_reader_t *r)
 {
     if (W.cfg->action_count == 0) {
@@ -779,6 +852,7 @@ static void action(uint8_t p, fz_reader_t *r)
     case FW_WATCH: watch(r); break;
     case FW_STORE: store(r); break;
     case FW_LED: led_input(r); break;
+    case FW_MPDO_SEND: mpdo_send(r); break;
     default: break;
     }
 }

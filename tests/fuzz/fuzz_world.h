@@ -48,6 +48,7 @@ typedef enum fw_action {
     FW_WATCH,             /* tool: heartbeat / EMCY consumer watch, guarding */
     FW_STORE,             /* device: save / restore defaults */
     FW_LED,               /* device: LED inputs an LSS slave or the application gives */
+    FW_MPDO_SEND,         /* device: send a DAM or SAM MPDO through a TPDO */
     FW_ACTION_COUNT
 } fw_action_t;
 

@@ -16,7 +16,8 @@ ACTIONS = {
     "usdo_client": ["start", "start", "cancel", "split", "resume", "nmt"],
     "sdo_server": ["start", "cancel", "split", "resume", "nmt", "odw", "store", "start"],
     "sdo_client": ["start", "start", "cancel", "split", "resume", "nmt", "odw"],
-    "pdo": ["odw", "odw", "odput", "trigger", "nmt", "nmt_master", "emcy", "store", "start"],
+    "pdo": ["odw", "odw", "odput", "trigger", "nmt", "nmt_master", "emcy", "store", "start",
+            "mpdo"],
     "services": ["nmt", "nmt_master", "emcy", "time", "watch", "watch", "odw", "odput", "store"],
     "stack": ["start", "cancel", "split", "resume", "nmt", "nmt_master", "odw", "odput",
               "trigger", "emcy", "time", "watch", "store", "led"],
@@ -45,7 +46,7 @@ K = {0x100500: 0, 0x100600: 1, 0x100700: 2, 0x100C00: 3, 0x100D00: 4, 0x101200: 
      0x102801: 12, 0x102901: 13, 0x140001: 14, 0x140002: 15, 0x140003: 16, 0x140005: 17,
      0x160000: 18, 0x160001: 19, 0x160002: 20, 0x180001: 21, 0x180002: 22, 0x180003: 23,
      0x180005: 24, 0x180006: 25, 0x1A0000: 26, 0x1A0001: 27, 0x1A0002: 28, 0x120101: 29,
-     0x128001: 30, 0x100300: 31}
+     0x128001: 30, 0x100300: 31, 0x1FA001: 32}
 
 
 class Seq:
@@ -244,12 +245,28 @@ def pdo_seeds():
                                   .frame(0x205, [0x85, 0x06, 0x20, 0x00, 1, 2, 3, 4])
                                   .frame(0x205, sam).frame(0x205, dam[:4])
                                   .frame(0x205, dam + dam).time(5))
+        # (the device's dispatcher list takes node 7's 0x2002:00 and 0x2001:00; its
+        # scanner list names 0x2002:00 and 0x2001:00, then 0x2100:00)
         seeds[m + "-mpdo-sam"] = (make_mpdo(head(S()).act("nmt", 0).time(1), 0xFE)
                                   .frame(0x205, sam).frame(0x205, dam).frame(0x205, sam[:7])
+                                  .frame(0x205, [0x07, 0x01, 0x20, 0x00, 0x34, 0x12, 0, 0])
+                                  .frame(0x205, [0x09] + sam[1:])
                                   .time(1).odw(0x180001, 0x80000185).odw(0x1A0000, 0)
                                   .odw(0x1A0000, 0xFE).odw(0x180001, 0x80000285, pdo=1)
                                   .odw(0x1A0000, 0, pdo=1).odw(0x1A0000, 0xFE, pdo=1)
-                                  .act("trigger", 0).act("trigger", 0x81).time(5))
+                                  .act("trigger", 0).act("trigger", 0x81)
+                                  .odw(0x180001, 0x185).time(2)           # TPDO 1 on again
+                                  .act("mpdo", 0x80, 0, 0, 0, 0, 0).time(2)   # SAM 0x2002:00
+                                  .act("mpdo", 0x8C, 0, 0, 0, 0, 0).time(2)   # 0x2103: unlisted
+                                  .odw(0x1FA001, 0x01210000)
+                                  .act("mpdo", 0x88, 0, 0, 0, 0, 0).time(5))   # now listed
+        # DAM producer: TPDO 1 made a DAM, its mapped object and a value of our own
+        seeds[m + "-mpdo-dam-send"] = (head(S()).act("nmt", 0).time(1)
+                                       .odw(0x180001, 0x80000185).odw(0x1A0000, 0)
+                                       .odw(0x1A0000, 0xFF).odw(0x180001, 0x185)
+                                       .act("mpdo", 0x40, 9, 0, 0, 0, 0).time(2)
+                                       .act("mpdo", 0x24, 0, 0x78, 0x56, 0x34, 0x12).time(2)
+                                       .act("mpdo", 0x01, 9, 1, 0, 0, 0).time(5))
         seeds[m + "-states"] = (head(S()).act("nmt", 0).frame(0x205, [3, 4]).act("nmt", 1)
                                 .frame(0x205, [5, 6]).time(1).act("nmt_master", 0x80).time(1)
                                 .act("store", 0x07).act("nmt", 3).time(5))
