@@ -75,27 +75,28 @@ class LocalNode:
         #: load()/save() (see canopenfd.services.store), or None.
         self.store = store
         self._context = context
-        where = self._where
-        self._slave = NmtSlave(context, node_id, heartbeat_ms, where)
+        # The services name the node in messages through context.node_where, which
+        # follows the node-id when LSS or a reset renumbers the node.
+        self._slave = NmtSlave(context, node_id, heartbeat_ms)
         self.nmt = LocalNmt(self._slave)
-        self._served = ServedDictionary(context, self, where)
-        self._store = ParameterStore(context, self, store, where, store_groups)
-        self._indications = Indications(context, self, self._served, where,
+        self._served = ServedDictionary(context, self)
+        self._store = ParameterStore(context, self, store, store_groups)
+        self._indications = Indications(context, self, self._served,
                                         self._store.persist_request)
-        self._errors = ErrorBits(context, self, where)
-        self._emcy = EmcyProducer(context, self, self._served, where, self._errors)
+        self._errors = ErrorBits(context, self)
+        self._emcy = EmcyProducer(context, self, self._served, self._errors)
         #: Flying master (CiA 302-2): start() once the node booted.
-        self.flying_master = FlyingMaster(context, where)
-        self._leds = LocalLeds(context, self, where)
-        self._mpdo = LocalMpdo(context, where)
+        self.flying_master = FlyingMaster(context)
+        self._leds = LocalLeds(context, self)
+        self._mpdo = LocalMpdo(context)
         #: SRDOs and GFC (CiA 304): start(count) first.
-        self.srdo = SrdoService(context, where, self._entry_value)
+        self.srdo = SrdoService(context, self._entry_value)
         #: The LSS slave (CiA 305): runs when the OD has the serial number 0x1018:04.
-        self.lss = LssSlave(context, node_id, where)
+        self.lss = LssSlave(context, node_id)
         self.lss.add_configured_hook(self._renumbered)
         self._slave.add_renumber_hook(self._renumbered)
         #: A simulated CiA 402 drive over this node's OD (canopenfd.profiles.cia402).
-        self.drive_simulation = DriveSimulation(context, where)
+        self.drive_simulation = DriveSimulation(context)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         self._frozen_as: Optional[str] = None   # how self.od names us while we serve it

@@ -210,13 +210,17 @@ def test_setup_pdos_bytes_classic(net, bus_name):
     rig = Rig(net, bus_name, "classic")
     start = len(rig.frames)
     rig.drive.setup_pdos("pp")
-    sent = [bytes(f.data) for f in rig.frames_on(0x600 + NODE, start)]
-    # RPDO2 mapping: controlword (16 bits), target position (32 bits), count 2
-    assert bytes([0x23, 0x01, 0x16, 1, 0x10, 0, 0x40, 0x60]) in sent
-    assert bytes([0x23, 0x01, 0x16, 2, 0x20, 0, 0x7A, 0x60]) in sent
-    assert bytes([0x2F, 0x01, 0x16, 0, 2, 0, 0, 0]) in sent
-    # TPDO2: statusword, position actual
-    assert bytes([0x23, 0x01, 0x1A, 2, 0x20, 0, 0x64, 0x60]) in sent
+    expected = [
+        # RPDO2 mapping: controlword (16 bits), target position (32 bits), count 2
+        bytes([0x23, 0x01, 0x16, 1, 0x10, 0, 0x40, 0x60]),
+        bytes([0x23, 0x01, 0x16, 2, 0x20, 0, 0x7A, 0x60]),
+        bytes([0x2F, 0x01, 0x16, 0, 2, 0, 0, 0]),
+        # TPDO2: statusword, position actual
+        bytes([0x23, 0x01, 0x1A, 2, 0x20, 0, 0x64, 0x60])]
+    # the monitor may hear the last requests after setup_pdos returned: wait for them
+    rig.frames.wait_for(lambda _calls: all(
+        request in [bytes(f.data) for f in rig.frames_on(0x600 + NODE, start)]
+        for request in expected), 2.0, "the mapping requests")
     assert rig.node.read((0x1A01, 1)) == 0x60410010
 
 
@@ -233,17 +237,19 @@ def test_cyclic_synchronous_position(rig):
     finally:
         d.stop_cyclic()
     rpdo_id, tpdo_id = (0x305, 0x285) if rig.mode == "classic" else (0x205, 0x185)
-    rpdos = [bytes(f.data) for f in rig.frames_on(rpdo_id)]
-    tpdos = [bytes(f.data) for f in rig.frames_on(tpdo_id)]
     if rig.mode == "classic":
         # controlword 0x000F, target position 500 / statusword 0x1237, position 500
-        assert bytes([0x0F, 0, 0xF4, 0x01, 0, 0]) in rpdos
-        assert bytes([0x37, 0x12, 0xF4, 0x01, 0, 0]) in tpdos
+        rpdo, tpdo = bytes([0x0F, 0, 0xF4, 0x01, 0, 0]), bytes([0x37, 0x12, 0xF4, 0x01, 0, 0])
     else:
-        # controlword, mode 8, target position, target velocity, target torque
-        assert any(r[:7] == bytes([0x0F, 0, 8, 0xF4, 0x01, 0, 0]) for r in rpdos)
-        # statusword, mode display 8, position 500, velocity, torque, error code
-        assert any(t[:7] == bytes([0x37, 0x12, 8, 0xF4, 0x01, 0, 0]) for t in tpdos)
+        # controlword, mode 8, target position (then target velocity and torque) /
+        # statusword, mode display 8, position 500 (then velocity, torque, error code)
+        rpdo = bytes([0x0F, 0, 8, 0xF4, 0x01, 0, 0])
+        tpdo = bytes([0x37, 0x12, 8, 0xF4, 0x01, 0, 0])
+    # the monitor may hear them after the master's line did: wait for both
+    rig.frames.wait_for(lambda _calls: any(bytes(f.data).startswith(rpdo)
+                                           for f in rig.frames_on(rpdo_id)) and
+                        any(bytes(f.data).startswith(tpdo) for f in rig.frames_on(tpdo_id)),
+                        2.0, "the RPDO with target 500 and the TPDO with position 500")
     assert d.state is DriveState.OPERATION_ENABLED
 
 

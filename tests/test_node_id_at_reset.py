@@ -59,3 +59,25 @@ def test_wrong_use_is_refused(net, bus_name):
         device.set_node_id_at_reset(128)
     device.apply("RESET_NODE")
     assert device.node_id == 5                        # nothing was set
+
+
+def test_messages_name_the_node_by_its_new_node_id(net, bus_name):
+    """After the reset every service of the node names it by the id it runs
+    with (the messages were built from the id at creation before)."""
+    device = net.open_line(bus_name, mode="classic").create_local_node(5, od=demo_od("classic"))
+    resets = Recorder()
+    device.on_reset(resets)
+    device.set_node_id_at_reset(9)
+    device.apply("RESET_NODE")
+    resets.wait_for(lambda c: len(c) == 1, 2, "the reset")
+    assert device.node_id == 9
+    wrong_uses = [lambda: device.emcy.raise_error(0x10000),           # EMCY producer
+                  lambda: device.errors.report(999),                  # error-report bits
+                  lambda: device.srdo.set_data(1, b"\x01"),           # SRDO (not started)
+                  lambda: device.lss.accept_bit_timings([99]),        # LSS slave
+                  lambda: device.drive_simulation.start(tick_ms=0)]   # CiA 402 simulation
+    for call in wrong_uses:
+        with pytest.raises(ConfigurationError) as refused:
+            call()
+        assert "local node 9 on line" in str(refused.value), str(refused.value)
+        assert "node 5" not in str(refused.value)

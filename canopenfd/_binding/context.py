@@ -118,6 +118,12 @@ class LineContext(Protocol):
         """The id of the line's local node, None while it has none."""
         ...
 
+    @property
+    def node_where(self) -> str:
+        """"local node 5 on line 'vcan0'": how messages name the line's local
+        node, with its node-id as it is now (LSS and a reset change it)."""
+        ...
+
     def on_dispatcher(self) -> bool:
         """True on the thread that runs event handlers and callbacks."""
         ...
@@ -208,6 +214,13 @@ class RuntimeLineContext:
     @local_node_id.setter
     def local_node_id(self, node_id: Optional[int]) -> None:
         self._line.local_node_id = node_id
+
+    @property
+    def node_where(self) -> str:
+        node_id = self._line.local_node_id
+        if node_id is None:
+            return f"the local node on {self.where}"
+        return f"local node {node_id} on {self.where}"
 
     def on_dispatcher(self) -> bool:
         return self._on_dispatcher()

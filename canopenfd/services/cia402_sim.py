@@ -17,10 +17,14 @@ __all__ = ["DriveSimulation"]
 class DriveSimulation:
     """Start (once) and fault the simulated drive of a local node."""
 
-    def __init__(self, context: LineContext, where: str) -> None:
+    def __init__(self, context: LineContext) -> None:
         self._context = context
-        self._where = where
         self.running = False
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def start(self, tick_ms: float = 1.0) -> None:
         """Run the drive: its profile modes step every `tick_ms`; its cyclic

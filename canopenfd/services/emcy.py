@@ -172,12 +172,16 @@ class EmcyProducer:
     0x8120, RPDO length 0x8210/0x8220, ...)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView, served: ServedDictionary,
-                 where: str, errors: ErrorBits) -> None:
+                 errors: ErrorBits) -> None:
         self._context = context
         self.node = node
         self._served = served
-        self._where = where
         self._errors = errors
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<EmcyProducer of {self.node!r}>"

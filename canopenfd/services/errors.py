@@ -47,10 +47,14 @@ _RESERVED_REGISTER_BIT = 6
 class ErrorBits:
     """The local node's error-status bits (`local_node.errors`)."""
 
-    def __init__(self, context: LineContext, node: LocalNodeView, where: str) -> None:
+    def __init__(self, context: LineContext, node: LocalNodeView) -> None:
         self._context = context
         self.node = node
-        self._where = where
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<ErrorBits of {self.node!r}>"

@@ -49,10 +49,9 @@ class FlymaNotice(NamedTuple):
 class FlyingMaster:
     """The flying-master negotiation of one local node."""
 
-    def __init__(self, context: LineContext, where: str) -> None:
+    def __init__(self, context: LineContext) -> None:
         self._context = context
-        self._where_node = where
-        self._callbacks = CallbackList(f"{where} flying master")
+        self._callbacks = CallbackList(f"{context.where} flying master")
         self._state = FlymaState.IDLE
         self._master = 0
         self._capable: Optional[int] = None
@@ -61,10 +60,10 @@ class FlyingMaster:
         context.subscribe(EventKind.FLYMA, self._event)
 
     def __repr__(self) -> str:
-        return f"<FlyingMaster of {self._where_node}: {self._state.name.lower()}>"
+        return f"<FlyingMaster of {self._context.node_where}: {self._state.name.lower()}>"
 
     def _where(self, call: str) -> str:
-        return f"flying master {call} of {self._where_node}"
+        return f"flying master {call} of {self._context.node_where}"
 
     def start(self, priority: int = 1, *, master_heartbeat: float = 0.0,
               **timing: float) -> None:

@@ -166,11 +166,10 @@ class Indications:
     """The before-read / check-write callbacks of one local node."""
 
     def __init__(self, context: LineContext, node: LocalNodeView, served: ServedDictionary,
-                 where: str, persist: Callable[[int], Callable[[], None]]) -> None:
+                 persist: Callable[[int], Callable[[], None]]) -> None:
         self._context = context
         self._node = node
         self._served = served
-        self._where = where
         # the answer to a network save / restore into an application store
         self._persist = persist
         self._lock = threading.Lock()
@@ -179,6 +178,11 @@ class Indications:
         # (index, sub or None for the whole object, kind) -> callbacks
         self._callbacks: Dict[Tuple[int, Optional[int], int], List[Callback]] = {}
         context.subscribe(EventKind.OD_REQUEST, self._event)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def add(self, key: Key, kind: int, callback: Optional[Callback]
             ) -> Union[Callback, Callable[[Callback], Callback]]:

@@ -64,13 +64,17 @@ _DARK = LedStates(LedIndicator("off", False), LedIndicator("off", False), frozen
 class LocalLeds:
     """The LEDs of our local node (events CO_EV_LED while a callback exists)."""
 
-    def __init__(self, context: LineContext, node: LocalNodeView, where: str) -> None:
+    def __init__(self, context: LineContext, node: LocalNodeView) -> None:
         self._context = context
         self.node = node
-        self._where = where
-        self._callbacks = CallbackList(f"{where} LED callbacks")
+        self._callbacks = CallbackList(f"{context.where} LED callbacks")
         self._listening = False
         context.subscribe(EventKind.LED, self._event)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<LocalLeds of {self.node!r}>"

@@ -506,16 +506,20 @@ class LssSlave:
     the application decides: store (`on_store`) and which bit timings it
     accepts (`accept_bit_timings`); without them both are "not supported"."""
 
-    def __init__(self, context: LineContext, node_id: int, where: str) -> None:
+    def __init__(self, context: LineContext, node_id: int) -> None:
         self._context = context
-        self._where = where
         self._store: Optional[Callable[[int], None]] = None
         self._bit_timings = 0
-        self._state_callbacks = CallbackList(f"LSS state of {where}")
-        self._configured_callbacks = CallbackList(f"LSS node-id of {where}")
+        self._state_callbacks = CallbackList(f"LSS state on {context.where}")
+        self._configured_callbacks = CallbackList(f"LSS node-id on {context.where}")
         self._configured_hooks: List[Callable[[int], None]] = []
-        self._activate_callbacks = CallbackList(f"LSS activate bit timing of {where}")
+        self._activate_callbacks = CallbackList(f"LSS activate bit timing on {context.where}")
         context.subscribe(EventKind.LSS, self._event, node=SLAVE_EVENTS)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def on_store(self, callback: Optional[Callable[[int], None]]) -> None:
         """callback(node_id) persists the node-id a master stores (the node

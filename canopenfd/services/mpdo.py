@@ -73,12 +73,16 @@ def notice_from_event(event: Event) -> Optional[MpdoNotice]:
 class LocalMpdo:
     """The local node's received MPDOs (events CO_EV_MPDO while a callback exists)."""
 
-    def __init__(self, context: LineContext, where: str) -> None:
+    def __init__(self, context: LineContext) -> None:
         self._context = context
-        self._where = where
-        self._callbacks = CallbackList(f"{where} MPDO callbacks")
+        self._callbacks = CallbackList(f"{context.where} MPDO callbacks")
         self._listening = False
         context.subscribe(EventKind.MPDO, self._event)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def add_callback(self, callback: MpdoCallback, loop: LoopArg = None) -> MpdoCallback:
         context = self._context

@@ -158,11 +158,9 @@ class NmtSlave:
     transitions (events NMT_STATE, NMT_VETOED, NMT_RESET), the veto of "to
     operational" and the heartbeat producer time when no OD holds it."""
 
-    def __init__(self, context: LineContext, node_id: int, heartbeat_ms: int,
-                 where: str) -> None:
+    def __init__(self, context: LineContext, node_id: int, heartbeat_ms: int) -> None:
         self._context = context
         self.node_id = node_id
-        self._where = where
         #: Set once the runtime created the node (boot()).
         self.booted = False
         #: The 0x1017 value resets restore (given at creation, or set before boot).
@@ -178,6 +176,11 @@ class NmtSlave:
         context.subscribe(EventKind.NMT_STATE, self._event_state)
         context.subscribe(EventKind.NMT_VETOED, self._event_vetoed)
         context.subscribe(EventKind.NMT_RESET, self._event_reset)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def create(self) -> None:
         """Create the node in the runtime and boot it (boot-up, PRE-OPERATIONAL)."""

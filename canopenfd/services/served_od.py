@@ -49,17 +49,20 @@ class ServedDictionary:
     """A local node's served OD: typed values, memory domains and change
     callbacks (events OD_CHANGED)."""
 
-    def __init__(self, context: LineContext, node: LocalNodeView, where: str) -> None:
+    def __init__(self, context: LineContext, node: LocalNodeView) -> None:
         self._context = context
         #: The node serving it (`node.od` is the dictionary).
         self.node = node
-        #: "local node 1 on line 'vcan0'", for messages.
-        self.where = where
         self._domains: Dict[Tuple[int, int], int] = {}
-        self._changed = CallbackList(f"node {node.node_id} object changed")
+        self._changed = CallbackList(f"{context.where} object changed")
         context.subscribe(EventKind.OD_CHANGED, self._event_changed)
 
     # ------------------------------------------------------------ entries and values
+    @property
+    def where(self) -> str:
+        """"local node 1 on line 'vcan0'" as the node is numbered now, for messages."""
+        return self._context.node_where
+
     def entry(self, key: Key) -> ODEntry:
         """The OD entry of a key; ConfigurationError without an OD, KeyError when absent."""
         od = self.node.od

@@ -153,15 +153,18 @@ def write_srdo_config(node: EntryWriter, number: int, config: SrdoConfig, *,
 class SrdoService:
     """The SRDOs and the GFC of our local node (`node.srdo`)."""
 
-    def __init__(self, context: LineContext, where: str,
-                 read_entry: Callable[[int, int], int]) -> None:
+    def __init__(self, context: LineContext, read_entry: Callable[[int, int], int]) -> None:
         self._context = context
-        self._where = where
         self._read_entry = read_entry      # the local node's OD value at (index, sub)
         self._count = 0
         self._configs: Dict[int, SrdoConfig] = {}
-        self._callbacks = CallbackList(f"{where} SRDO")
+        self._callbacks = CallbackList(f"{context.where} SRDO")
         context.subscribe(EventKind.SRDO, self._event)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<SrdoService of {self._where} ({self._count} SRDOs)>"

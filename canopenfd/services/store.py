@@ -108,7 +108,7 @@ class ParameterStore:
     STORE tell what a load found)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView,
-                 store: Union[None, str, StoreMedium], where: str,
+                 store: Union[None, str, StoreMedium],
                  groups: Optional[GroupTable] = None) -> None:
         self._context = context
         self._groups = groups
@@ -117,7 +117,6 @@ class ParameterStore:
         self._node = node
         #: A file path, a StoreMedium, or None.
         self.store = store
-        self._where = where
         self._problems = CallbackList(f"node {node.node_id} store problem")
         # One image goes to the medium at a time: the application's save, a
         # network save and the stack's autonomous one each stage, persist and
@@ -125,6 +124,11 @@ class ParameterStore:
         self._medium_lock = threading.RLock()
         context.subscribe(EventKind.STORE, self._event)
         context.subscribe(EventKind.STORE_PERSIST, self._autonomous_save)
+
+    @property
+    def _where(self) -> str:
+        """How messages name the node now (LSS or a reset may renumber it)."""
+        return self._context.node_where
 
     @property
     def path(self) -> Optional[str]:
