@@ -62,8 +62,15 @@ class IoDevice:
                 f"{layout.analog_outputs} AO>")
 
     def start(self) -> None:
-        """Run the core's device over the booted node (create_io_device does it)."""
+        """Run the core's device over the booted node (create_io_device does
+        it): from then on it hears SDO/USDO writes and every RPDO mapping the
+        outputs, and the inputs can be set."""
         self.node.generic_io.start()
+
+    def bind_rpdos(self) -> None:
+        """The name start() had when only RPDO1/RPDO2 needed binding; kept
+        for callers that build an IoDevice themselves."""
+        self.start()
 
     # ------------------------------------------------------------ inputs
     def set_inputs(self, levels: int) -> None:
