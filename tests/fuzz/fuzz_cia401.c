@@ -246,7 +246,6 @@ static void act(fz_reader_t *r, uint8_t p)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    co_line_config_t lc;
     fz_reader_t r;
     fz_record_t rec;
     co_frame_t drop;
@@ -254,13 +253,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     memset(&W, 0, sizeof W);
-    memset(&lc, 0, sizeof lc);
-    lc.mode = CO_MODE_CLASSIC;
-    lc.rx_slots = W.rx;
-    lc.rx_capacity = SLOTS;
-    lc.tx_slots = W.tx;
-    lc.tx_capacity = SLOTS;
-    CHECK(co_line_init(&W.line, &lc), "line init");
+    CHECK(fz_line_init(&W.line, CO_MODE_CLASSIC, W.rx, W.tx, SLOTS), "line init");
     od_build();
     co_stack_arena_init(&W.arena, W.memory, sizeof W.memory);
     co_stack_line_config_t slc = {.heartbeat_entries = 1};
