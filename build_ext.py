@@ -53,6 +53,7 @@ CDEF_HEADERS = [
     "csrc/include/canopenfd/co_gfc.h",
     "csrc/include/canopenfd/co_gateway.h",
     "csrc/include/canopenfd/co_cia401.h",
+    "csrc/include/canopenfd/co_cia401_od.h",
     "csrc/include/canopenfd/co_redundancy.h",
     "csrc/include/canopenfd/co_runtime.h",
 ]

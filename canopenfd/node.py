@@ -16,6 +16,7 @@ from .errors import ConfigurationError
 from .od import ODVariable, ObjectDictionary
 from .od.datatypes import Value
 from .services.cia402_sim import DriveSimulation
+from .services.generic_io import GenericIo
 from .services.emcy import EmcyConsumer, EmcyProducer, LineEmcy
 from .services.errors import ErrorBits
 from .services.flyma import FlyingMaster
@@ -97,6 +98,8 @@ class LocalNode:
         self._slave.add_renumber_hook(self._renumbered)
         #: A simulated CiA 402 drive over this node's OD (canopenfd.profiles.cia402).
         self.drive_simulation = DriveSimulation(context)
+        #: CiA 401 generic I/O device run by the C core (profiles.cia401 uses it).
+        self.generic_io = GenericIo(context)
         self._tpdo: Optional[PdoMaps] = None
         self._rpdo: Optional[PdoMaps] = None
         self._frozen_as: Optional[str] = None   # how self.od names us while we serve it

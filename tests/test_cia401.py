@@ -268,3 +268,27 @@ def test_reset_node_keeps_the_inputs_and_outputs_follow_the_defaults(rig):
     assert rig.master.read((0x6000, 1)) == b"\x01"
     assert rig.master.read((0x6000, 2)) == b"\x03"
     assert rig.master.read((0x6401, 2)) == (-42).to_bytes(2, "little", signed=True)
+
+
+def test_set_inputs_is_one_runtime_call_and_reads_no_od_entry(rig, monkeypatch):
+    """The channel logic and the parameters live in the core: Python makes one
+    runtime call per set_inputs / set_analog_input, whatever the group count
+    (every public Runtime method is counted on the calling thread; the
+    dispatcher's own calls run on its thread)."""
+    import threading
+    from canopenfd._binding.runtime import Runtime
+    rig.start()
+    me, calls = threading.get_ident(), []
+    for name, method in list(vars(Runtime).items()):
+        if callable(method) and not name.startswith("_"):
+            def counted(*args, _name=name, _method=method, **kwargs):
+                if threading.get_ident() == me:
+                    calls.append(_name)
+                return _method(*args, **kwargs)
+            monkeypatch.setattr(Runtime, name, counted)
+    start = rig.mark()
+    rig.dev.set_inputs(0x8001)             # two groups
+    rig.dev.set_analog_input(1, 2000)
+    assert calls == ["cia401_set_inputs", "cia401_set_analog_input"]
+    monkeypatch.undo()
+    assert rig.wait_frame(TPDO1, start).data[:2] == b"\x01\x80"

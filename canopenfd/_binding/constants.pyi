@@ -192,6 +192,7 @@ class EventKind(enum.IntEnum):
     SRDO = 28
     REDUNDANCY = 29
     MPDO = 30
+    CIA401 = 31
 
 
 class FrameFlag(enum.IntEnum):

@@ -725,6 +725,27 @@ class Runtime:
         self._call(what, lib.co_rt_gfc_stats, line, out)
         return {name: getattr(out, name) for name, _ in ffi.typeof("co_gfc_stats_t").fields}
 
+    # ---------------------------------------------------------------- CiA 401 I/O device
+    def cia401_start(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia401_start, line)
+
+    def cia401_set_inputs(self, line: int, first: int, raw: bytes, what: str) -> None:
+        self._call(what, lib.co_rt_cia401_set_inputs, line, first, raw, len(raw))
+
+    def cia401_set_analog_input(self, line: int, channel: int, value: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia401_set_analog_input, line, channel, value)
+
+    def cia401_fault(self, line: int, what: str) -> None:
+        self._call(what, lib.co_rt_cia401_fault, line)
+
+    def cia401_outputs(self, line: int, groups: int, channels: int, what: str
+                       ) -> Tuple[bytes, Tuple[int, ...]]:
+        """The physical outputs: one byte per digital group, the analogue values."""
+        digital = ffi.new("uint8_t[]", max(groups, 1))
+        analog = ffi.new("int32_t[]", max(channels, 1))
+        self._call(what, lib.co_rt_cia401_outputs, line, digital, groups, analog, channels)
+        return bytes(digital[0:groups]), tuple(int(v) for v in analog[0:channels])
+
     # ---------------------------------------------------------------- CiA 402 simulated drive
     def cia402_sim_start(self, line: int, tick_us: int, what: str) -> None:
         self._call(what, lib.co_rt_cia402_sim_start, line, tick_us)
@@ -952,7 +973,7 @@ class Runtime:
 _EV_FRAME = int(EventKind.FRAME)
 _EV_PDO_FRAME = int(EventKind.PDO_FRAME)
 _EV_WITH_DATA = (int(EventKind.EMCY), int(EventKind.PDO), int(EventKind.MANAGER),
-                 int(EventKind.MPDO))
+                 int(EventKind.MPDO), int(EventKind.CIA401))
 
 
 def _event(ev: CData) -> Event:
@@ -966,7 +987,7 @@ def _event(ev: CData) -> Event:
         frame = frame_from_c(ev.frame, timestamp=ev.time_us / 1e6)
     elif kind in _EV_WITH_DATA:
         # the encoded EMCY / the RPDO's mapped values / a boot report's details /
-        # an MPDO and where it went (no CAN frame flags)
+        # an MPDO and where it went / a CiA 401 device's outputs (no CAN frame flags)
         data = bytes(ffi.buffer(ev.frame.data, min(ev.frame.len, 64)))
     return Event(kind, ev.line, ev.node, ev.a, ev.b, ev.time_us, frame, data, ev.coalesced)
 

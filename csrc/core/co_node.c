@@ -42,6 +42,9 @@ static void on_state_changed(co_nmt_t *nmt, co_nmt_state_t old_state,
     (void)nmt;
     co_node_t *node = user;
     services_set_state(node, new_state);
+    if (node->part_ind && node->part_ind->state_changed) {
+        node->part_ind->state_changed(node, old_state, new_state, node->part_user);
+    }
     if (node->ind && node->ind->state_changed) {
         node->ind->state_changed(node, old_state, new_state, node->user);
     }
@@ -372,6 +375,9 @@ static void on_pdo_received(co_pdo_t *pdo, uint16_t number, void *user)
 {
     (void)pdo;
     co_node_t *node = user;
+    if (node->part_ind && node->part_ind->pdo_received) {
+        node->part_ind->pdo_received(node, number, node->part_user);
+    }
     if (node->ind && node->ind->pdo_received) {
         node->ind->pdo_received(node, number, node->user);
     }
@@ -454,6 +460,13 @@ void co_node_attach_services(co_node_t *node, const co_node_services_t *services
         }
     }
     services_set_state(node, node->nmt.state);
+}
+
+void co_node_set_part_indications(co_node_t *node, const co_node_indications_t *ind,
+                                  void *user)
+{
+    node->part_ind = ind;
+    node->part_user = ind ? user : NULL;
 }
 
 void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma)
@@ -544,6 +557,9 @@ static void on_reset(co_nmt_t *nmt, co_nmt_command_t kind, void *user)
      * heartbeat one period later. */
     load_parameters(node, kind != CO_NMT_CMD_RESET_COMMUNICATION);
     services_reset(node);
+    if (node->part_ind && node->part_ind->reset) {
+        node->part_ind->reset(node, kind, node->part_user);
+    }
     if (node->ind && node->ind->reset) {
         node->ind->reset(node, kind, node->user);
     }
@@ -626,6 +642,8 @@ bool co_node_init(co_node_t *node, co_line_t *line, uint8_t node_id,
     node->line = line;
     node->ind = ind;
     node->user = user;
+    node->part_ind = NULL;
+    node->part_user = NULL;
     node->heartbeat_default_ms = heartbeat_ms;
     node->od = NULL;
     node->store = NULL;

@@ -1049,15 +1049,13 @@ bool co_pdo_trigger(co_pdo_t *pdo, uint16_t tpdo_number)
     return true;
 }
 
-uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
+uint32_t co_pdo_trigger_mapped(co_pdo_t *pdo, co_pdo_pick_fn pick, void *user)
 {
-    const co_od_entry_t *e = co_od_find(pdo->od, index, sub);
-    uint32_t entry, triggered = 0;
+    uint32_t triggered = 0;
     uint16_t i;
-    if (e == NULL || !pdo->operational) {
+    if (pick == NULL || !pdo->operational) {
         return 0;
     }
-    entry = (uint32_t)(e - pdo->od->entries);
     for (i = 0; i < pdo->channel_count; i++) {
         co_pdo_channel_t *ch = &pdo->channels[i];
         uint8_t k;
@@ -1066,14 +1064,37 @@ uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
             continue;
         }
         for (k = 0; k < ch->map_count; k++) {
-            if (ch->map[k].entry == entry && !(ch->map[k].flags & CO_PDO_ITEM_DUMMY)) {
+            if (!(ch->map[k].flags & CO_PDO_ITEM_DUMMY) &&
+                pick(&pdo->od->entries[ch->map[k].entry], user)) {
                 co_pdo_trigger(pdo, ch->number);
                 triggered++;
-                break;
+                break;   /* once per TPDO, however many of its entries changed */
             }
         }
     }
     return triggered;
+}
+
+static bool is_entry(const co_od_entry_t *e, void *user)
+{
+    return e == user;
+}
+
+uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub)
+{
+    const co_od_entry_t *e = co_od_find(pdo->od, index, sub);
+    return e == NULL ? 0 : co_pdo_trigger_mapped(pdo, is_entry, (void *)(uintptr_t)e);
+}
+
+void co_pdo_each_mapped(const co_pdo_t *pdo, bool is_rpdo, uint16_t number,
+                        co_pdo_pick_fn fn, void *user)
+{
+    const co_pdo_channel_t *ch = co_pdo_channel(pdo, is_rpdo, number);
+    for (uint8_t k = 0; ch != NULL && k < ch->map_count; k++) {
+        if (!(ch->map[k].flags & CO_PDO_ITEM_DUMMY)) {
+            (void)fn(&pdo->od->entries[ch->map[k].entry], user);
+        }
+    }
 }
 
 bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number)

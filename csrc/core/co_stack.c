@@ -1,6 +1,7 @@
 /* co_stack: sizing, set-up and wiring of a line's services and its local
  * node over caller memory (see co_stack.h). */
 #include "canopenfd/co_stack.h"
+#include "co_stack_blocks.h"
 #include "co_stack_rdn.h"
 
 #include "canopenfd/co_assert.h"
@@ -93,6 +94,21 @@ static co_stack_status_t fail(co_stack_t *s, co_stack_part_t part, co_stack_stat
 {
     s->failed = part;
     return status;
+}
+
+void *co_stack_take(co_stack_t *s, uint8_t owner, size_t size)
+{
+    return take(s, owner, size);
+}
+
+void co_stack_give_back(co_stack_t *s, uint8_t owner)
+{
+    give_back(s, owner);
+}
+
+co_stack_status_t co_stack_fail(co_stack_t *s, co_stack_part_t part, co_stack_status_t status)
+{
+    return fail(s, part, status);
 }
 
 /* ---------------------------------------------------------------- sizing */
@@ -425,6 +441,7 @@ static void node_undo(co_stack_t *s)
 {
     co_stack_manager_deinit(s);   /* it runs over the node */
     co_stack_srdo_deinit(s);   /* they run for the node */
+    co_stack_cia401_deinit(s);   /* it runs over the node's OD */
     co_stack_flyma_deinit(s);   /* it runs for the node */
     co_stack_rdn_node_gone(s);   /* it runs for the line, served by the node's OD */
     if (CO_CONFIG_CLASSIC && s->has_sdo_client && s->sdo_client.od) {
@@ -1415,6 +1432,7 @@ const char *co_stack_part_name(co_stack_part_t part)
     case CO_STACK_PART_LED: return "LED indicators";
     case CO_STACK_PART_SRDO: return "SRDO and GFC";
     case CO_STACK_PART_REDUNDANCY: return "bus redundancy";
+    case CO_STACK_PART_CIA401: return "CiA 401 I/O device";
     }
     return "unknown part";
 }

@@ -242,7 +242,6 @@ static void act(fz_reader_t *r, uint8_t p)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    co_line_config_t lc;
     co_emcy_config_t ec;
     fz_reader_t r;
     fz_record_t rec;
@@ -252,13 +251,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     memset(&W, 0, sizeof W);
     W.supported = data[0];
-    memset(&lc, 0, sizeof lc);
-    lc.mode = CO_MODE_CLASSIC;
-    lc.rx_slots = W.rx;
-    lc.rx_capacity = SLOTS;
-    lc.tx_slots = W.tx;
-    lc.tx_capacity = SLOTS;
-    CHECK(co_line_init(&W.line, &lc), "line init");
+    CHECK(fz_line_init(&W.line, CO_MODE_CLASSIC, W.rx, W.tx, SLOTS), "line init");
     od_build();
     memset(&ec, 0, sizeof ec);
     ec.queue = W.emcy_queue;

@@ -139,3 +139,16 @@ bool fz_od_add(co_od_t *od, uint16_t index, uint8_t sub, uint8_t object_code, ui
     d.default_length = d.size;
     return co_od_add(od, &d) == CO_OD_ADDED;
 }
+
+bool fz_line_init(co_line_t *line, co_mode_t mode, co_frame_t *rx, co_frame_t *tx,
+                  uint16_t slots)
+{
+    co_line_config_t lc;
+    memset(&lc, 0, sizeof lc);
+    lc.mode = mode;
+    lc.rx_slots = rx;
+    lc.rx_capacity = slots;
+    lc.tx_slots = tx;
+    lc.tx_capacity = slots;
+    return co_line_init(line, &lc);
+}

@@ -86,6 +86,11 @@ bool fz_next(fz_reader_t *r, fz_record_t *rec, const uint32_t *ids, uint8_t id_c
 bool fz_od_add(co_od_t *od, uint16_t index, uint8_t sub, uint8_t object_code, uint8_t type,
                uint8_t access, uint32_t value);
 
+/* A harness's own line of `mode` over rx/tx arrays of `slots` frames each;
+ * false when co_line_init refuses it. */
+bool fz_line_init(co_line_t *line, co_mode_t mode, co_frame_t *rx, co_frame_t *tx,
+                  uint16_t slots);
+
 /* Milliseconds a TIME record with parameter p advances. */
 uint32_t fz_time_ms(uint8_t p);
 

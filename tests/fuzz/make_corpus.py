@@ -513,6 +513,47 @@ def cia402_sim_seeds():
     }
 
 
+def cia401_seeds():
+    """fuzz_cia401.c: byte 0 unused; frames by table index (0 NMT, 1 SYNC, 2 RPDO1,
+    3 RPDO2, 4 SDO request); actions by number (p % 5): 0 set_inputs (first, count,
+    3 raw bytes), 1 set_analog_input (channel, 2 value bytes), 2 fault, 3 an SDO
+    download, 4 the application's write (both: objects[] pick, then 4 value bytes;
+    pick bits 5..7 choose the sub)."""
+    obj = {0x6000: 0, 0x6002: 1, 0x6005: 3, 0x6006: 4, 0x6200: 7, 0x6202: 8, 0x6206: 9,
+           0x6207: 10, 0x6208: 11, 0x6411: 13, 0x6421: 14, 0x6423: 15, 0x6426: 18,
+           0x6443: 21, 0x6444: 22}
+
+    def frame(p, data):
+        return bytes([p << 3, 0, len(data)]) + bytes(data)
+
+    def act(p, *args):
+        return bytes([p << 3 | 3]) + bytes(args)
+
+    def sdo(index, value, sub_bits=0):
+        return act(3, obj[index] | sub_bits << 5) + struct.pack("<i", value)
+
+    def put(index, value, sub_bits=0):
+        return act(4, obj[index] | sub_bits << 5) + struct.pack("<i", value)
+
+    start, stop, reset = frame(0, [1, 5]), frame(0, [2, 5]), frame(0, [0x81, 5])
+    return {
+        # inputs in pre-operational and operational, a polarity, the global enable
+        "inputs": b"\x00" + act(0, 1, 2, 1, 0x80, 0) + start + act(0, 1, 2, 3, 0x80, 0)
+        + sdo(0x6002, 0x0F) + act(0, 2, 1, 0x55, 0, 0) + sdo(0x6005, 0) + act(0, 1, 2, 0, 0, 0)
+        + act(0, 3, 1, 1, 0, 0) + bytes([2 << 3 | 2]),
+        # analogue inputs: delta and limits
+        "analog": b"\x00" + start + sdo(0x6423, 1) + sdo(0x6426, 100) + act(1, 1, 50, 0)
+        + act(1, 1, 0x88, 0xFF) + sdo(0x6421, 0x1F) + act(1, 1, 0xE8, 0x03) + act(1, 2, 0, 0),
+        # outputs by SDO, RPDO1, RPDO2 and the application
+        "outputs": b"\x00" + start + sdo(0x6202, 1) + sdo(0x6200, 0x0F) + sdo(0x6208, 0xF0)
+        + frame(2, [0x33]) + frame(3, [0xD4, 0xFE, 0x34, 0x12]) + put(0x6411, 7, 1),
+        # error values on NMT stop and on a fault, then a reset node
+        "fault": b"\x00" + start + sdo(0x6206, 0x0F) + sdo(0x6207, 5) + sdo(0x6443, 0, 1)
+        + sdo(0x6444, 100000) + sdo(0x6200, 0xF2) + sdo(0x6411, 100) + stop + act(2)
+        + act(0, 1, 2, 1, 3, 0) + reset + bytes([5 << 3 | 2]) + act(2),
+    }
+
+
 def main():
     for h in ("usdo_server", "sdo_server"):
         write(h, {k: v.b for k, v in server_seeds(h, h.startswith("sdo")).items()})
@@ -526,6 +567,7 @@ def main():
     write("gateway", {k: v.b for k, v in gateway_seeds().items()})
     write("srdo", srdo_seeds())
     write("cia402_sim", cia402_sim_seeds())
+    write("cia401", cia401_seeds())
 
 
 if __name__ == "__main__":

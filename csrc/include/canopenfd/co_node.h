@@ -101,6 +101,10 @@ struct co_node {
     uint16_t heartbeat_default_ms;   /* 0x1017 value restored by a reset (no OD) */
     const co_node_indications_t *ind;
     void *user;
+    /* A part of the node assembly hearing the same indications, first
+     * (co_node_set_part_indications), or NULL. */
+    const co_node_indications_t *part_ind;
+    void *part_user;
     co_od_t *od;                     /* sealed OD, or NULL */
     co_store_t *store;               /* saved parameters, or NULL */
     co_hb_consumer_t *consumer;      /* configured from 0x1016, or NULL */
@@ -152,6 +156,12 @@ void co_node_attach_flyma(co_node_t *node, co_flyma_t *flyma);
 void co_node_attach_redundancy(co_node_t *node, co_rdn_t *rdn);
 void co_node_attach_srdo(co_node_t *node, co_srdo_t *srdo, uint8_t count,
                          co_srdo_od_t *srdo_od);
+/* A part the node assembly runs over the node (co_stack's CiA 401 device)
+ * hears its state changes, applied RPDOs and resets (after the reload)
+ * before the application does; one slot, ind NULL clears it. Only those
+ * three indications are used. */
+void co_node_set_part_indications(co_node_t *node, const co_node_indications_t *ind,
+                                  void *user);
 /* Errors the stack detects outside the node's services, told by the
  * driver side: a consumed node's heartbeat lost / back (EMCY 0x8130 and
  * 0x1029:01), and the line's communication events (bus-off 0x8140 with

@@ -238,6 +238,16 @@ bool co_pdo_trigger(co_pdo_t *pdo, uint16_t tpdo_number);
 /* The mapped object index:sub changed: triggers every active TPDO of type
  * 0, 254 or 255 that maps it. Returns how many were triggered. */
 uint32_t co_pdo_trigger_object(co_pdo_t *pdo, uint16_t index, uint8_t sub);
+/* Chooses OD entries (co_pdo_trigger_mapped, co_pdo_each_mapped). */
+typedef bool (*co_pdo_pick_fn)(const co_od_entry_t *e, void *user);
+/* Several mapped objects changed at once: triggers every active TPDO of
+ * type 0, 254 or 255 that maps at least one entry pick() chooses, once
+ * each. Returns how many were triggered (0 when not operational). */
+uint32_t co_pdo_trigger_mapped(co_pdo_t *pdo, co_pdo_pick_fn pick, void *user);
+/* fn(entry) for every object PDO `number` maps (dummies left out; its
+ * return value is not used); nothing when the PDO does not exist. */
+void co_pdo_each_mapped(const co_pdo_t *pdo, bool is_rpdo, uint16_t number,
+                        co_pdo_pick_fn fn, void *user);
 /* Active = configured and usable (independent of the NMT state). */
 bool co_pdo_is_active(const co_pdo_t *pdo, bool is_rpdo, uint16_t number);
 /* The mapped values of a PDO as the OD holds them now, laid out as its

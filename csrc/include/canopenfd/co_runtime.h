@@ -154,11 +154,17 @@ typedef enum co_rt_event_kind {
     CO_EV_REDUNDANCY = 29,     /* bus redundancy (co_rt_redundancy_start): a =
                                   co_rdn_event_t, node = the bus now active (0 A, 1 B),
                                   b = Ctoggle */
-    CO_EV_MPDO = 30            /* an MPDO addressed to the local node (only after
+    CO_EV_MPDO = 30,           /* an MPDO addressed to the local node (only after
                                   co_rt_mpdo_listen): a = its address byte << 24 |
                                   index << 8 | sub, b = 0 applied / the abort code;
                                   frame.data = the 8 MPDO bytes, the RPDO number (2
                                   bytes LE), the local index (2 bytes LE) and sub */
+    CO_EV_CIA401 = 31          /* the CiA 401 device's physical outputs changed
+                                  (co_rt_cia401_start): node = the kind this event
+                                  carries (CO_CIA401_OUT_DIGITAL: frame.data = one byte
+                                  per output group; _ANALOG: INTEGER16 LE per channel),
+                                  a = every kind the write changed (the analogue
+                                  event follows the digital one), b = channels */
 } co_rt_event_kind_t;
 
 typedef struct co_rt_event {
@@ -544,6 +550,22 @@ int co_rt_time_send(co_rt_t *rt, int line, uint64_t unix_us);
 int co_rt_cia402_sim_start(co_rt_t *rt, int line, uint32_t tick_us);
 /* Inject a device fault: 0x603F = code, EMCY, Fault reaction active, Fault. */
 int co_rt_cia402_sim_fault(co_rt_t *rt, int line, uint16_t code);
+
+/* ---- the local node as a CiA 401 generic I/O device (co_rt_cia401.c) */
+/* Run it over the node's OD (co_stack_cia401_init: its channels and
+ * parameters are the OD's profile objects; a bad one is named in the
+ * error); CO_EV_CIA401 tells every change of the physical outputs. */
+int co_rt_cia401_start(co_rt_t *rt, int line);
+/* Raw levels of input groups first..first+count-1 (1-based): 0x6000 and
+ * the TPDOs (co_cia401_od_set_inputs). */
+int co_rt_cia401_set_inputs(co_rt_t *rt, int line, uint8_t first, const uint8_t *raw,
+                            uint8_t count);
+int co_rt_cia401_set_analog_input(co_rt_t *rt, int line, uint8_t channel, int16_t value);
+/* A device fault: the error modes and values apply. */
+int co_rt_cia401_fault(co_rt_t *rt, int line);
+/* The physical outputs now: `groups` digital groups, `channels` analogue. */
+int co_rt_cia401_outputs(co_rt_t *rt, int line, uint8_t *digital, uint8_t groups,
+                         int32_t *analog, uint8_t channels);
 
 /* ---- sleep and wake-up (CiA 320; co_rt_sleep.c) */
 typedef struct co_rt_sleep_config {

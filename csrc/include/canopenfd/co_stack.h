@@ -26,6 +26,7 @@
 #ifndef CO_STACK_H
 #define CO_STACK_H
 
+#include "canopenfd/co_cia401_od.h"
 #include "canopenfd/co_emcy.h"
 #include "canopenfd/co_flyma.h"
 #include "canopenfd/co_guard.h"
@@ -94,7 +95,8 @@ typedef enum co_stack_part {
     CO_STACK_PART_SLEEP = 17,    /* sleep and wake-up (CiA 320), master or device */
     CO_STACK_PART_FLYMA = 18,    /* flying master (CiA 302-2) */
     CO_STACK_PART_SRDO = 19,     /* SRDOs and GFC (CiA 304) */
-    CO_STACK_PART_REDUNDANCY = 20   /* bus redundancy (co_redundancy) */
+    CO_STACK_PART_REDUNDANCY = 20,  /* bus redundancy (co_redundancy) */
+    CO_STACK_PART_CIA401 = 21       /* CiA 401 generic I/O over the OD (co_cia401_od) */
 } co_stack_part_t;
 
 typedef struct co_stack co_stack_t;
@@ -122,10 +124,11 @@ enum {
     CO_STACK_MAX_BLOCKS = 24,    /* blocks a stack holds at once */
     /* OD handler subscriptions the node's parts take at most (node, store,
      * SDO/USDO server and client, EMCY, SYNC, TIME, EMCY consumer, PDO,
-     * guarding slave, autonomous saves, error-status bits, SRDO objects): an
+     * guarding slave, autonomous saves, error-status bits, SRDO objects,
+     * CiA 401 objects): an
      * OD served by a stack needs at least this many subscription slots
      * besides the application's own. */
-    CO_STACK_OD_SUBSCRIPTIONS = 19,
+    CO_STACK_OD_SUBSCRIPTIONS = 20,
     CO_STACK_DEFAULT_HB_ENTRIES = 127,
     CO_STACK_DEFAULT_SERVER_SESSIONS = 8,    /* fd lines: USDO server sessions */
     CO_STACK_DEFAULT_EMCY_QUEUE = 16,
@@ -330,6 +333,9 @@ struct co_stack {
     co_rdn_select_fn rdn_select;     /* the driver's, behind the stack's own */
     co_rdn_event_fn rdn_event;       /* the application's, behind the stack's own */
     void *rdn_user;
+    /* CiA 401 generic I/O of the node (co_stack_cia401.c) */
+    bool has_cia401;
+    co_cia401_od_t cia401;
 };
 
 /* ---- sizing (bytes the allocator is asked for, alignment included) */
@@ -430,6 +436,19 @@ uint16_t co_stack_redundancy_record_index(const co_stack_t *stack);
  * then *bad_sub = 0) or the first problem, *bad_sub = its sub-index. */
 co_rdn_result_t co_stack_redundancy_check_od(const co_od_t *od, uint16_t index,
                                              uint8_t *bad_sub);
+/* The local node as a CiA 401 generic I/O device (co_cia401_od.h): its
+ * channels and parameters are what the node's OD holds; it hears the
+ * node's RPDOs, NMT states (STOPPED is a fault) and resets, and triggers
+ * the node's TPDOs; on_outputs (may be NULL) is told every change of the
+ * physical outputs. It goes when the node goes. CO_STACK_ERR_STATE without
+ * a node or when it runs already, CO_STACK_ERR_OD when the OD has no valid
+ * channel objects (co_cia401_od_scan says which entry), CO_STACK_ERR_TAKEN
+ * when the OD has no subscription slot left. co_stack_cia401_need: the
+ * bytes it takes (0 when the OD holds no valid channels). */
+size_t co_stack_cia401_need(co_stack_t *stack);
+co_stack_status_t co_stack_cia401_init(co_stack_t *stack, co_cia401_outputs_fn on_outputs,
+                                       void *user);
+void co_stack_cia401_deinit(co_stack_t *stack);
 /* Everything, memory given back. */
 void co_stack_deinit(co_stack_t *stack);
 co_stack_part_t co_stack_failed_part(const co_stack_t *stack);
@@ -503,6 +522,10 @@ static inline co_srdo_t *co_stack_srdo(co_stack_t *s, uint8_t number)
 }
 static inline co_rdn_t *co_stack_redundancy(co_stack_t *s) { return s->has_rdn ? &s->rdn : NULL; }
 static inline co_gfc_t *co_stack_gfc(co_stack_t *s) { return s->has_srdo ? &s->gfc : NULL; }
+static inline co_cia401_od_t *co_stack_cia401(co_stack_t *s)
+{
+    return s->has_cia401 ? &s->cia401 : NULL;
+}
 
 /* ---- compile-time bounds, for static builds: a line's memory from its
  * configuration (guarded_nodes counts on classic lines only), */
