@@ -249,6 +249,7 @@ def test_upload_streams_progress_callbacks_from_the_runtime(server, cli, tmp_pat
     monkeypatch.setattr(cli_transfer, "ProgressBar", Spy)
     server[DOMAIN].data = os.urandom(MiB)
     assert cli("upload", "5", "0x2100", str(tmp_path / "copy.bin"), "--progress")[0] == 0
+    seen.wait_count(1)      # progress calls run on the dispatcher thread
     counts = seen.snapshot()
     assert counts and counts == sorted(counts) and counts[-1] <= MiB
     assert (tmp_path / "copy.bin").read_bytes() == server[DOMAIN].data

@@ -87,13 +87,16 @@ def test_three_instances_agree_then_survive_the_master(candidates):
     assert nodes[1].flying_master.is_master
     # on the wire: the detection requests (no data), the power-on network
     # reset, a negotiation request and node 11's announcement [priority, id]
-    assert b"" in sniffer.of(0x73)
-    assert bytes([0x82, 0x00]) in sniffer.of(0x000)
-    assert sniffer.of(0x72) and set(sniffer.of(0x72)) == {b""}
-    assert sniffer.of(0x71)[0] == bytes([0x00, 11])
-    told = notices[0].snapshot()
+    # (the sniffer and the notice callbacks hear them after the stacks acted: wait)
+    sniffer.wait(0x73, lambda frames: b"" in frames, "a detection request")
+    sniffer.wait(0x000, lambda frames: bytes([0x82, 0x00]) in frames, "the network reset")
+    assert set(sniffer.wait(0x72, bool, "a negotiation request")) == {b""}
+    assert sniffer.wait(0x71, bool, "node 11's announcement")[0] == bytes([0x00, 11])
+    slave = FlymaNotice(FlymaEvent.STATE, FlymaState.SLAVE, 11, 0)
+    told = notices[0].wait_for(lambda calls: calls and calls[-1] == slave and list(calls),
+                               5, "node 10's notice that it is a slave of 11")
     assert any(n.event == FlymaEvent.RESET_ALL for n in told)
-    assert told[-1] == FlymaNotice(FlymaEvent.STATE, FlymaState.SLAVE, 11, 0)
+    assert told[-1] == slave
 
     mark = len(sniffer.of(0x000))
     networks[1].close()                       # the active master dies
@@ -106,12 +109,18 @@ def test_three_instances_agree_then_survive_the_master(candidates):
     assert nodes[2].flying_master.stats["rx_bad_length"] == 0
 
 
+def assert_capable_frames(sniffer: Sniffer) -> None:
+    """One detection request, two answers (the sniffer may hear the answers
+    after the detecting node counted them: wait for both)."""
+    assert sniffer.wait(0x75, bool, "the detection request") == [b""]
+    assert sniffer.wait(0x74, lambda frames: len(frames) >= 2, "two answers") == [b"", b""]
+
+
 def test_detect_capable_counts_the_others(candidates):
     _, nodes, _, sniffer = candidates
     nodes[1].flying_master.wait_for("master", timeout=scaled(5))
     assert nodes[0].flying_master.detect_capable(timeout=scaled(2)) == 2
-    assert sniffer.of(0x75) == [b""]
-    assert sniffer.of(0x74) == [b"", b""]
+    assert_capable_frames(sniffer)
 
 
 def test_detect_capable_and_wait_for_awaited(candidates):
@@ -122,8 +131,7 @@ def test_detect_capable_and_wait_for_awaited(candidates):
         assert master == nodes[1].node_id
         return await nodes[0].flying_master.adetect_capable(timeout=scaled(2))
     assert asyncio.run(main()) == 2
-    assert sniffer.of(0x75) == [b""]
-    assert sniffer.of(0x74) == [b"", b""]
+    assert_capable_frames(sniffer)
 
 
 def test_wrong_use_names_the_problem(net, bus_name):

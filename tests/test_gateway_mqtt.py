@@ -136,6 +136,9 @@ def test_commands_are_answered_and_sent_on_the_bus(broker: Broker) -> None:
             reply = sub.wait(f"{BASE}/1/5/reply")[-1].json
             assert reply == {"id": 7, "ok": True,
                              "value": bench.device["0x1018:1"].data.hex()}
+            # the monitor may hear the request after the reply went out: wait for it
+            bench.frames.wait_for(lambda fs: [f for f in fs if f.id == 0x605],
+                                  what="the SDO upload request")
             requests = [bytes(f.data) for f in bench.frames.snapshot() if f.id == 0x605]
             assert requests[-1] == bytes([0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0])
 

@@ -45,6 +45,14 @@ def lss_frames(frames, can_id):
     return [bytes(f.data) for f in frames.snapshot() if f.id == can_id]
 
 
+def wait_lss_frames(frames, can_id, *wanted):
+    """The frames of can_id once every one of `wanted` is among them (the
+    monitor hears them after the master and the slave acted on them)."""
+    return frames.wait_for(lambda _calls: all(w in lss_frames(frames, can_id) for w in wanted)
+                           and lss_frames(frames, can_id), 2,
+                           f"frames 0x{can_id:X} {[w.hex() for w in wanted]}")
+
+
 def test_select_inquire_configure(rig):
     line, frames = rig
     lss = line.lss
@@ -53,7 +61,8 @@ def test_select_inquire_configure(rig):
         lss_frames(frames, 0x7E5)) >= 4 else None, 2, "selective frames")
     assert sent[0] == bytes([0x40, 0xA2, 0x01, 0, 0, 0, 0, 0])
     assert sent[3] == bytes([0x43, 0x01, 0, 0, 0x80, 0, 0, 0])
-    assert bytes([0x44, 0, 0, 0, 0, 0, 0, 0]) in lss_frames(frames, 0x7E4)
+    answer = bytes([0x44, 0, 0, 0, 0, 0, 0, 0])        # the slave's, after the master's 4
+    assert answer in wait_lss_frames(frames, 0x7E4, answer)
     assert lss.inquire("node_id") == 5
     assert lss.inquire("serial") == 0x80000001
     assert asyncio.run(lss.ainquire("product_code")) == IDENTITY[1]
@@ -366,8 +375,11 @@ def test_every_request_awaited(net, bus_name):
         assert time.monotonic() - started < scaled(5) / 2
     asyncio.run(asyncio.wait_for(main(), scaled(20)))
     assert stored.snapshot() == [12]
-    sent = lss_frames(frames, 0x7E5)
-    assert bytes([0x11, 12, 0, 0, 0, 0, 0, 0]) in sent                 # configure node-id 12
-    assert bytes([0x13, 0, 3, 0, 0, 0, 0, 0]) in sent                  # bit timing table 0 idx 3
-    assert bytes([0x17, 0, 0, 0, 0, 0, 0, 0]) in sent                  # store
-    assert bytes([0x17, 0, 0, 0, 0, 0, 0, 0]) in lss_frames(frames, 0x7E4)   # store confirmed
+    configure, bit_timing, store = (bytes([0x11, 12, 0, 0, 0, 0, 0, 0]),
+                                    bytes([0x13, 0, 3, 0, 0, 0, 0, 0]),
+                                    bytes([0x17, 0, 0, 0, 0, 0, 0, 0]))
+    sent = wait_lss_frames(frames, 0x7E5, configure, bit_timing, store)
+    assert configure in sent                                           # configure node-id 12
+    assert bit_timing in sent                                          # bit timing table 0 idx 3
+    assert store in sent                                               # store
+    assert store in wait_lss_frames(frames, 0x7E4, store)              # store confirmed

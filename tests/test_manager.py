@@ -190,6 +190,8 @@ def test_hooks_answered_from_callbacks_and_awaited(net, bus_name):
         await asyncio.wait_for(rig.manager.started(), scaled(5))
 
     asyncio.run(run())
+    # answer() records after its continue_operational(): the start may end first
+    answered.wait_count(2)
     assert answered.snapshot() == ["update-config", "ready-operational"]
     asyncio.run(rig.manager.await_started(timeout=0))     # started already: at once
     rig.slaves[2].nmt.wait_for_state("OPERATIONAL", timeout=scaled(2))
@@ -305,6 +307,10 @@ def test_python_canopen_slave_kept_alive(net):
             (0x1000, 0, 0x00020191, True), (0x1018, 1, 0x0000ABCD, True),
             (0x1018, 4, 0x5005, True)]
         assert theirs.nmt.state == "OPERATIONAL"
+        # the monitor hears the last read and answer after the start ended: wait
+        frames.wait_for(lambda calls: sum(1 for f in calls if f.id == 0x605) >= 3 and
+                        sum(1 for f in calls if f.id == 0x585) >= 3, 5,
+                        "the three reads and their answers")
         assert not [f for f in frames.snapshot() if f.id == 0]     # no NMT at all
         reads = [bytes(f.data) for f in frames.snapshot() if f.id == 0x605]
         assert reads == [bytes([0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
@@ -353,7 +359,8 @@ def test_start_up_writes_the_configurations_it_was_given(net, bus_name, mode):
     assert rig.slaves[2][0x1017].raw == 300 and rig.slaves[3][0x1017].raw == 400
     for node in (2, 3):
         assert (rig.slaves[node][0x1020][1].raw, rig.slaves[node][0x1020][2].raw) == stamp
-    assert "update-config" in [e.kind for e in rig.events.snapshot()]
+    rig.events.wait_for(lambda calls: "update-config" in [e.kind for e in calls], 5,
+                        "the update-config event (its callback may run after the start)")
 
 
 def test_a_refused_configuration_ends_the_boot_with_j(net, bus_name, mode):
@@ -531,14 +538,21 @@ def test_configuration_request_object(net, bus_name, mode):
     assert done[0].node_id == 2 and done[0].error == ""
     assert rig.slaves[2][0x1017].raw == 250
     assert (rig.slaves[2][0x1020][1].raw, rig.slaves[2][0x1020][2].raw) == (DATE, TIME)
+    # the monitor may hear the download after the manager reported it: wait
     if mode == "classic":
+        download = bytes([0x2B, 0x17, 0x10, 0x00, 0xFA, 0x00, 0, 0])
+        rig.frames.wait_for(lambda calls: any(f.id == 0x602 and bytes(f.data) == download
+                                              for f in calls), 5, "the 0x1017 download")
         requests = [bytes(f.data) for f in rig.frames.snapshot() if f.id == 0x602]
-        assert bytes([0x2B, 0x17, 0x10, 0x00, 0xFA, 0x00, 0, 0]) in requests
+        assert download in requests
     else:
         # USDO expedited download from client node 1 (CAN-ID 0x601) to node 2:
         # 0 dest, 1 cs 0x01, 2 session, 3 sub, 4-5 index, 6 type, 7 N, 8.. data
-        usdo = [bytes(f.data) for f in rig.frames.snapshot() if f.id == 0x601 and
-                bytes(f.data)[:2] == b"\x02\x01" and bytes(f.data)[3:6] == b"\x00\x17\x10"]
+        def usdo_downloads(calls):
+            return [bytes(f.data) for f in calls if f.id == 0x601 and
+                    bytes(f.data)[:2] == b"\x02\x01" and bytes(f.data)[3:6] == b"\x00\x17\x10"]
+        rig.frames.wait_for(usdo_downloads, 5, "the USDO download of 0x1017")
+        usdo = usdo_downloads(rig.frames.snapshot())
         assert [(d[7], d[8:10]) for d in usdo] == [(2, b"\xfa\x00")]
 
 

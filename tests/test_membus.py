@@ -211,6 +211,9 @@ def test_reset_gives_new_bootup_and_restores_default_heartbeat(net, bus_name, re
     assert resets.wait_count(1) == [kind]
     device.wait_for_state(NmtState.PRE_OPERATIONAL, timeout=wait(T))
     assert device.heartbeat_ms == 40
+    # the state callbacks run on the dispatcher thread, maybe after the wait above
+    reset_seen = changes.wait_value((NmtState.OPERATIONAL, NmtState.INITIALISING))
+    changes.wait_value((NmtState.INITIALISING, NmtState.PRE_OPERATIONAL), start=reset_seen)
     assert (NmtState.OPERATIONAL, NmtState.INITIALISING) in changes.snapshot()
     assert changes.snapshot()[-1] == (NmtState.INITIALISING, NmtState.PRE_OPERATIONAL)
     # The default period is back: several heartbeats within half a second.
@@ -280,6 +283,8 @@ def test_heartbeat_lost_and_started(net, bus_name):
     started.wait_count(1)
     assert remote.heartbeat_alive is True
     assert remote.nmt.wait_for_heartbeat(timeout=wait(T)) == NmtState.PRE_OPERATIONAL
+    # the heartbeat callback runs on the dispatcher thread, maybe after that wait
+    beats.wait_value(NmtState.PRE_OPERATIONAL)
     assert NmtState.PRE_OPERATIONAL in beats.snapshot()
 
     stopped_at = time.monotonic()
@@ -606,6 +611,8 @@ def test_monitor_sees_exact_bytes(net, bus_name, mode, brs):
     device.wait_for_state(NmtState.OPERATIONAL, timeout=wait(T))
     frames.wait_for(lambda fs: any(f.id == 0x705 and f.data == b"\x05" for f in fs),
                     what="an OPERATIONAL heartbeat")
+    # the NMT command is the master's frame, not the device's: wait for it too
+    frames.wait_for(lambda fs: frames_of_list(fs, 0x000), what="the NMT start")
 
     fd = mode == "fd"
     boot = frames_of(frames, 0x705)[0]

@@ -368,6 +368,11 @@ def test_sub_entries_the_node_lacks_are_none_and_not_written(net, bus_name):
     time.sleep(scaled(0.05))
     assert [(f.data[2], f.data[3]) for f in downloads[3:]] == [(0x18, 1), (0x18, 2), (0x18, 3),
                                                                (0x18, 5)]
+    # the server's last answer may reach the monitor after the save returned: wait
+    # for every request to have its answer
+    frames.wait_for(lambda calls: len([f for f in calls if f.id == 0x600 + SERVER]) ==
+                    len([f for f in calls if f.id == 0x580 + SERVER]), 5,
+                    "an answer to every request")
     assert len([f for f in frames.snapshot() if f.id == 0x600 + SERVER]) == \
         len([f for f in frames.snapshot() if f.id == 0x580 + SERVER])
     assert node[0x1800][5].raw == 7

@@ -56,6 +56,8 @@ def test_slave_follows_the_master_to_bus_b(net, buses):
 
     # both on A: the slave's heartbeat (pre-operational, 0x7F) only there
     on_a.wait_for(lambda c: len([f for f in c if f.id == 0x702]) >= 3, scaled(3), "0x702 on A")
+    # the master's heartbeats are another sender's: wait for them too
+    on_a.wait_for(lambda c: [f for f in c if f.id == 0x701], scaled(3), "0x701 on A")
     assert _heartbeats(on_a, 2)[-1] == b"\x7f"
     assert _heartbeats(on_a, 1)[-1] == b"\x7f"
     time.sleep(scaled(0.9))            # longer than Ttoggle periods: the master was heard
@@ -69,9 +71,12 @@ def test_slave_follows_the_master_to_bus_b(net, buses):
     assert slave.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
     waited = time.monotonic() - moved
     assert waited >= 3 * PERIOD_S * 0.9, f"switched after {waited:.3f} s"
+    # the notice runs on the dispatcher thread, maybe after wait_for_bus returned
+    notices.wait_count(1, scaled(3))
     assert notices.snapshot()[0] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1)
     mark_a = len(on_a)
     on_b.wait_for(lambda c: len([f for f in c if f.id == 0x702]) >= 3, scaled(3), "0x702 on B")
+    on_b.wait_for(lambda c: [f for f in c if f.id == 0x701], scaled(3), "0x701 on B")
     assert set(_heartbeats(on_b, 2)) == {b"\x7f"} and set(_heartbeats(on_b, 1)) == {b"\x7f"}
     time.sleep(scaled(0.9))            # heard on B: no further switch, counting reset
     assert len(notices) == 1
@@ -89,6 +94,7 @@ def test_slave_follows_the_master_to_bus_b(net, buses):
     on_a.wait_for(lambda c: [f for f in c[mark_a:] if f.id == 0x702 and f.data[0] == 0],
                   scaled(3), "boot-up of node 2 on A")
     assert slave.redundancy.wait_for_bus("B", timeout=scaled(3)) == "B"
+    notices.wait_count(3, scaled(3))
     assert notices.snapshot()[2] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1)
     assert b"\x00" not in _heartbeats(on_b, 2, mark_b)
 

@@ -172,6 +172,10 @@ def test_remote_read_and_write(net: canopenfd.Network, bus_name: str, mode: str)
         assert w.host.ask(b"U\x05\x18\x10\x01") == b"U\x05\x18\x10\x01\x00\x00\x78\x56\x34\x12"
         assert w.host.ask(b"S\x05\x17\x10\x00\x96\x00") == b"S\x05\x17\x10\x00\x00\x00"
         assert w.dev[0x1017].raw == 150
+        # the monitor may hear the last request after the answer came back: wait
+        request_id = 0x600 + (DEV if mode == "classic" else GW)
+        w.bus.wait_for(lambda calls: len([f for f in calls if f.id == request_id]) >= 2,
+                       what="the two requests")
         requests = [bytes(f.data) for f in w.bus.snapshot() if f.id == 0x600 + DEV]
         if mode == "classic":
             # CiA 301 expedited SDO: upload request, then a 2-byte download

@@ -46,6 +46,14 @@ def _data(frames, can_id, start=0):
     return [bytes(f.data) for f in frames.snapshot()[start:] if f.id == can_id]
 
 
+def _wait_data(frames, can_id, count, start=0):
+    """_data once `count` frames of can_id arrived: the monitor hears them
+    after the nodes acted on them (a wait on a phase is no wait for it)."""
+    frames.wait_for(lambda c: len([f for f in c[start:] if f.id == can_id]) >= count, 3,
+                    f"{count} frames on 0x{can_id:X}")
+    return _data(frames, can_id, start)
+
+
 def test_sleep_phases_awaited_together(network):
     """The master and both devices awaited asleep in one loop; the sleep
     command on the wire as with the blocking waits."""
@@ -58,7 +66,7 @@ def test_sleep_phases_awaited_together(network):
         return await asyncio.gather(master.sleep.await_for(SleepPhase.ASLEEP,
                                                             timeout=scaled(3)), *waits)
     assert asyncio.run(main()) == [SleepPhase.ASLEEP] * 3
-    assert _data(frames, 0x691) == [bytes([0x01]) + bytes(7), bytes([0x02]) + bytes(7)]
+    assert _wait_data(frames, 0x691, 2) == [bytes([0x01]) + bytes(7), bytes([0x02]) + bytes(7)]
 
     async def too_soon():
         await master.sleep.await_for("awake", timeout=0.05)
@@ -75,7 +83,10 @@ def test_check_sleep_and_wake_on_the_wire(network):
     assert master.sleep.wait_for(SleepPhase.ASLEEP, timeout=scaled(3)) == SleepPhase.ASLEEP
     assert master.sleep.phase == SleepPhase.ASLEEP
     # query, then the sleep command: 0x691, 8 bytes each
-    assert _data(frames, 0x691) == [bytes([0x01]) + bytes(7), bytes([0x02]) + bytes(7)]
+    assert _wait_data(frames, 0x691, 2) == [bytes([0x01]) + bytes(7), bytes([0x02]) + bytes(7)]
+    # the notices run on the dispatcher thread, maybe after the phase wait returned
+    notices[5].wait_for(lambda c: [n for n in c if n.event == SleepEvent.ASLEEP], 3,
+                        "node 5's ASLEEP notice")
     events = [n.event for n in notices[5].snapshot()]
     assert events == [SleepEvent.QUERY, SleepEvent.PREPARE, SleepEvent.SILENT,
                       SleepEvent.ASLEEP]
@@ -92,9 +103,10 @@ def test_check_sleep_and_wake_on_the_wire(network):
     master.sleep.wake(status=0x10, reason=0x20)
     frames.wait_for(lambda c: [f for f in c[mark:] if f.id == 0x706 and f.data[0] == 0], 3,
                     "boot-up of node 6")
-    assert _data(frames, 0x691, mark) == [bytes([0x10, 0x20]) + bytes(6)]
-    assert _data(frames, 0x690, mark) == [bytes([0x00, SleepCause.BUS]) + bytes(6)] * 2
-    assert _data(frames, 0x705, mark)[0] == b"\x00"
+    # (node 6's boot-up is no wait for the frames of the master and node 5)
+    assert _wait_data(frames, 0x691, 1, mark) == [bytes([0x10, 0x20]) + bytes(6)]
+    assert _wait_data(frames, 0x690, 2, mark) == [bytes([0x00, SleepCause.BUS]) + bytes(6)] * 2
+    assert _wait_data(frames, 0x705, 1, mark)[0] == b"\x00"
     wake = notices[5].wait_for(lambda c: [n for n in c if n.event == SleepEvent.WAKE], 3)[0]
     assert wake == SleepNotice(SleepEvent.WAKE, SleepPhase.AWAKE, SleepCause.BUS, 0)
     woke = notices["master"].wait_for(
@@ -112,7 +124,7 @@ def test_a_device_objects(network):
     notice = notices["master"].wait_for(
         lambda c: [n for n in c if n.event == SleepEvent.OBJECTION], 3)[0]
     assert notice.value == 0x42 and notice.phase == SleepPhase.AWAKE
-    assert _data(frames, 0x690) == [bytes([0x81, 0x42]) + bytes(6)]
+    assert _wait_data(frames, 0x690, 1) == [bytes([0x81, 0x42]) + bytes(6)]
     time.sleep(scaled(2 * PHASE_S))
     assert _data(frames, 0x691) == [bytes([0x01]) + bytes(7)]     # no sleep command
     assert master.sleep.phase == SleepPhase.AWAKE
@@ -123,7 +135,7 @@ def test_a_device_requests_sleep(network):
     master, devices, frames, notices = network
     devices[0][0].sleep.request()
     notices["master"].wait_for(lambda c: [n for n in c if n.event == SleepEvent.REQUEST], 3)
-    assert _data(frames, 0x692) == [bytes([0x03]) + bytes(7)]
+    assert _wait_data(frames, 0x692, 1) == [bytes([0x03]) + bytes(7)]
 
 
 def test_wrong_use_names_the_problem(net, bus_name, network):

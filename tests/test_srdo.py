@@ -360,6 +360,11 @@ def test_a_changed_configuration_needs_validating_again(net, bus_name):
     remote.write((0x13FF, 1), struct.pack("<H", srdo_signature(CONSUME)))
     remote.write((0x13FE, 0), bytes([CONFIG_VALID]))
     assert device[(0x13FE, 0)].raw == CONFIG_VALID
+    # the first start's EMCY (configuration not valid) must be in before the
+    # mark, or a late one would be taken for the CRC mismatch's
+    frames.wait_for(lambda calls: [f for f in calls if f.id == 0x80 + CONSUMER and
+                                   f.data[4] == SrdoViolation.CONFIG_INVALID],
+                    3.0, "the EMCY of the invalid configuration")
     mark = len(frames)
     device.apply("start")
     notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.CRC_MISMATCH) in calls, 3.0,

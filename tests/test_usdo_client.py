@@ -243,6 +243,7 @@ def test_file_streams_with_progress(rig, tmp_path):
     with remote.usdo.open(DOMAIN, "wb", progress=progress) as stream:
         stream.write(payload)
     assert server[DOMAIN].data == payload
+    progress.wait_count(1)          # progress calls run on the dispatcher thread
     assert progress.snapshot() and progress.snapshot()[-1] <= len(payload)
     source = tmp_path / "image.bin"
     source.write_bytes(payload[::-1])

@@ -433,6 +433,7 @@ def test_interface_down_up_storm_during_transfers(ifaces, networks):
         stop.set()
         worker.join(scaled(30))
     assert not worker.is_alive(), "a transfer never ended"
+    events.wait_value(CommEvent.IFACE_DOWN, timeout=10)     # (told on the dispatcher thread)
     assert CommEvent.IFACE_DOWN in events.snapshot()
     events.wait_value(CommEvent.IFACE_UP, timeout=scaled(10))
     assert line.driver_stats["iface_down"] >= 1

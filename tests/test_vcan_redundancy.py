@@ -54,9 +54,13 @@ def test_slave_follows_the_master_to_the_other_interface(net, vcan):
     master.redundancy.select("B")
     assert slave.redundancy.wait_for_bus("B", timeout=scaled(5)) == "B"
     assert time.monotonic() - moved >= 3 * PERIOD_S * 0.9
+    # the notice runs on the dispatcher thread, maybe after wait_for_bus returned
+    notices.wait_count(1, scaled(3))
     assert notices.snapshot()[0] == RedundancyNotice(RedundancyEvent.BUS_SWITCH, "B", 1)
     mark_a = len(on_a)
     on_b.wait_for(lambda c: len([f for f in c if f.id == 0x702]) >= 3, scaled(3), "0x702 on B")
+    # the master's heartbeats are another sender's: wait for them too
+    on_b.wait_for(lambda c: [f for f in c if f.id == 0x701], scaled(3), "0x701 on B")
     assert set(_heartbeats(on_b, 2)) == {b"\x7f"} and set(_heartbeats(on_b, 1)) == {b"\x7f"}
     time.sleep(scaled(0.9))
     assert len(notices) == 1 and slave.redundancy.object["Ctoggle"] == 0
