@@ -354,7 +354,7 @@ def test_a_changed_configuration_needs_validating_again(net, bus_name):
     notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.CONFIG_INVALID) in calls, 3.0,
                      "configuration not valid")
     # validated again with a signature that is not the CRC: CRC mismatch, and
-    # its EMCY on the bus (0x6300, SRDO 1, violation CRC_MISMATCH)
+    # its EMCY on the bus (0x6300, register: generic, SRDO 1, CRC_MISMATCH)
     device.apply("pre-operational")
     device.wait_for_state("PRE-OPERATIONAL")
     remote.write((0x13FF, 1), struct.pack("<H", srdo_signature(CONSUME)))
@@ -366,7 +366,7 @@ def test_a_changed_configuration_needs_validating_again(net, bus_name):
                      "CRC mismatch")
     emcy = frames.wait_for(lambda calls: [f for f in calls[mark:] if f.id == 0x80 + CONSUMER],
                            3.0, "the EMCY of the CRC mismatch")
-    assert bytes(emcy[0].data) == bytes([0x00, 0x63, 0x00, 1, SrdoViolation.CRC_MISMATCH,
+    assert bytes(emcy[0].data) == bytes([0x00, 0x63, 0x01, 1, SrdoViolation.CRC_MISMATCH,
                                          0, 0, 0])
 
 
