@@ -2,21 +2,17 @@
 semantics, the codes of docs/protocol-notes.md "SRDO and GFC"): its EMCY
 when it enters the safe state, 0x1001 and 0x1003 showing it while it lasts,
 the error reset (EEC 0x0000) when it leaves it. Over the in-process bus with
-a tool reading the objects by SDO, and heard by python-canopen's EMCY
-consumer on a python-can virtual bus."""
+a tool reading the objects by SDO (python-canopen hears the same EMCYs:
+tests/test_errors_interop.py)."""
 
 from __future__ import annotations
 
-import itertools
-import os
 import struct
 import time
 
-import pytest
-from helpers import Recorder, scaled, virtual_bus
+from helpers import Recorder, scaled
 from test_errors import error_od
 
-import canopenfd
 from canopenfd.services.srdo import SrdoConfig, SrdoViolation
 
 NODE = 6
@@ -26,7 +22,6 @@ CONSUME = SrdoConfig("consume", sct_ms=100, srvt_ms=50, cob_id=0x10B,
 SCT = SrdoViolation.SCT_EXCEEDED
 RAISED = bytes([0x00, 0x82, 0x11, 1, SCT, 0, 0, 0])      # 0x8200, generic + communication
 RESET = bytes([0x00, 0x00, 0x00, 1, SCT, 0, 0, 0])       # error reset, register 0
-_channels = itertools.count(1)
 
 
 def emcys(frames: Recorder, count: int, mark: int = 0):
@@ -38,6 +33,7 @@ def emcys(frames: Recorder, count: int, mark: int = 0):
 
 
 def start_consumer(device) -> None:
+    """SRDO 1 of device consumes CONSUME from a producer that never sends."""
     device.srdo.start(1)
     device.srdo.configure(1, CONSUME)
     device.apply("start")
@@ -66,30 +62,4 @@ def test_safe_state_raises_an_error_its_end_resets_it(net, bus_name):
     assert remote.read((0x1001, 0)) == b"\x00"
     time.sleep(scaled(0.2))                  # stopped: no SCT, nothing more
     assert len([f for f in frames.snapshot()[mark:] if f.id == 0x80 + NODE]) == 3
-
-
-def test_python_canopen_hears_the_raise_and_the_reset():
-    canopen = pytest.importorskip("canopen")
-    from test_errors_interop import logged   # python-canopen's EMCY log, polled
-    channel = f"srdo-emcy-{os.getpid()}-{next(_channels)}"
-    peer = canopen.Network()
-    peer.connect(interface="virtual", channel=channel)
-    try:
-        with canopenfd.Network() as net:
-            line = net.open_line(bus=virtual_bus(channel), mode="classic")
-            device = line.create_local_node(NODE, od=error_od("classic"))
-            remote = peer.add_node(NODE, canopen.ObjectDictionary())
-            start_consumer(device)
-            error = logged(remote, 1)[0]
-            assert (error.code, error.register, error.data) == (0x8200, 0x11,
-                                                                bytes([1, SCT, 0, 0, 0]))
-            assert [e.code for e in remote.emcy.active] == [0x8200]
-            assert remote.sdo.upload(0x1001, 0) == b"\x11"
-            device.apply("pre-operational")
-            reset = logged(remote, 2)[1]
-            assert (reset.code, reset.register, reset.data) == (0, 0, bytes([1, SCT, 0, 0, 0]))
-            assert remote.emcy.active == []          # python-canopen: code 0 clears
-            assert remote.sdo.upload(0x1001, 0) == b"\x00"
-    finally:
-        peer.disconnect()
 

@@ -135,8 +135,10 @@ static co_srdo_config_t config(uint8_t direction)
     return c;
 }
 
-/* A configuration tool's downloads, in write_srdo_config's order. */
-static void tool_writes(dev_t *d, const co_srdo_config_t *c, uint8_t valid, uint16_t signature)
+/* A configuration tool's downloads, in write_srdo_config's order (the
+ * COB-IDs left out unless cob_ids: the device's defaults then stay). */
+static void tool_writes_cob_ids(dev_t *d, const co_srdo_config_t *c, uint8_t valid,
+                                uint16_t signature, bool cob_ids)
 {
     assert_int_equal(tu_od_net_write(&d->od, COMM, 1, 0, 1), 0);
     assert_int_equal(tu_od_net_write(&d->od, MAP, 0, 0, 1), 0);
@@ -147,11 +149,18 @@ static void tool_writes(dev_t *d, const co_srdo_config_t *c, uint8_t valid, uint
     assert_int_equal(tu_od_net_write(&d->od, COMM, 2, c->sct_ms, 2), 0);
     assert_int_equal(tu_od_net_write(&d->od, COMM, 3, c->srvt_ms, 1), 0);
     assert_int_equal(tu_od_net_write(&d->od, COMM, 4, c->transmission_type, 1), 0);
-    assert_int_equal(tu_od_net_write(&d->od, COMM, 5, c->cob_id_normal, 4), 0);
-    assert_int_equal(tu_od_net_write(&d->od, COMM, 6, c->cob_id_inverted, 4), 0);
+    if (cob_ids) {
+        assert_int_equal(tu_od_net_write(&d->od, COMM, 5, c->cob_id_normal, 4), 0);
+        assert_int_equal(tu_od_net_write(&d->od, COMM, 6, c->cob_id_inverted, 4), 0);
+    }
     assert_int_equal(tu_od_net_write(&d->od, COMM, 1, c->direction, 1), 0);
     assert_int_equal(tu_od_net_write(&d->od, CO_SRDO_OD_SIGNATURE, 1, signature, 2), 0);
     assert_int_equal(tu_od_net_write(&d->od, CO_SRDO_OD_VALID, 0, valid, 1), 0);
+}
+
+static void tool_writes(dev_t *d, const co_srdo_config_t *c, uint8_t valid, uint16_t signature)
+{
+    tool_writes_cob_ids(d, c, valid, signature, true);
 }
 
 static void configure_valid(dev_t *d, uint8_t direction)
@@ -179,6 +188,18 @@ static void put_sub(dev_t *d, uint16_t index, uint8_t sub, uint64_t value, uint3
 static void put(dev_t *d, uint16_t index, uint64_t value, uint32_t size)
 {
     put_sub(d, index, 0, value, size);
+}
+
+/* The producer's variables a and b with their complements, then operational
+ * (the first pair goes out at once). */
+static void produce_from(fx_t *fx, dev_t *p, uint16_t a, uint8_t b)
+{
+    put(p, A, a, 2);
+    put(p, A_INV, (uint16_t)~a, 2);
+    put(p, B, b, 1);
+    put(p, B_INV, (uint8_t)~b, 1);
+    set_state(fx, p, CO_NMT_OPERATIONAL);
+    tu_step(&fx->tb, 0);
 }
 
 /* ------------------------------------------------------------- the guard */
@@ -333,12 +354,7 @@ static void test_producer_sends_the_mapped_variables(void **state)
     fx_t *fx = *state;
     dev_t *p = &fx->p;
     configure_valid(p, CO_SRDO_PRODUCE);
-    put(p, A, 0xBEEF, 2);
-    put(p, A_INV, 0x4110, 2);
-    put(p, B, 0x01, 1);
-    put(p, B_INV, 0xFE, 1);
-    set_state(fx, p, CO_NMT_OPERATIONAL);
-    tu_step(&fx->tb, 0);
+    produce_from(fx, p, 0xBEEF, 0x01);
     const uint8_t normal[3] = {0xEF, 0xBE, 0x01}, inverted[3] = {0x10, 0x41, 0xFE};
     tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, NORMAL, 0), NORMAL, normal, 3);
     tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, INVERTED, 0), INVERTED, inverted, 3);
@@ -387,22 +403,8 @@ static void test_default_cob_ids_follow_the_node_id(void **state)
     co_srdo_config_t c = config(CO_SRDO_PRODUCE);
     c.cob_id_normal = 0x109;
     c.cob_id_inverted = 0x10A;
-    assert_int_equal(tu_od_net_write(&p->od, COMM, 2, c.sct_ms, 2), 0);
-    assert_int_equal(tu_od_net_write(&p->od, COMM, 3, c.srvt_ms, 1), 0);
-    assert_int_equal(tu_od_net_write(&p->od, COMM, 4, c.transmission_type, 1), 0);
-    for (uint8_t s = 1; s <= c.map_count; s++) {
-        assert_int_equal(tu_od_net_write(&p->od, MAP, s, c.map[s - 1], 4), 0);
-    }
-    assert_int_equal(tu_od_net_write(&p->od, MAP, 0, c.map_count, 1), 0);
-    assert_int_equal(tu_od_net_write(&p->od, COMM, 1, CO_SRDO_PRODUCE, 1), 0);
-    assert_int_equal(tu_od_net_write(&p->od, CO_SRDO_OD_SIGNATURE, 1, co_srdo_crc(&c), 2), 0);
-    assert_int_equal(tu_od_net_write(&p->od, CO_SRDO_OD_VALID, 0, CO_SRDO_CONFIG_VALID, 1), 0);
-    put(p, A, 0x0102, 2);
-    put(p, A_INV, 0xFEFD, 2);
-    put(p, B, 0x03, 1);
-    put(p, B_INV, 0xFC, 1);
-    set_state(fx, p, CO_NMT_OPERATIONAL);
-    tu_step(&fx->tb, 0);
+    tool_writes_cob_ids(p, &c, CO_SRDO_CONFIG_VALID, co_srdo_crc(&c), false);
+    produce_from(fx, p, 0x0102, 0x03);
     assert_int_equal(co_srdo_state(&p->srdo), CO_SRDO_RUNNING);
     const uint8_t normal[3] = {0x02, 0x01, 0x03}, inverted[3] = {0xFD, 0xFE, 0xFC};
     tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x109, 0), 0x109, normal, 3);
