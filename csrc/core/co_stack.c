@@ -1324,7 +1324,8 @@ static void on_srdo_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
     }
 }
 
-/* The SRDO left the safe state: its error is over (error reset EMCY). */
+/* The SRDO left the safe state (or is gone): its error is over (error
+ * reset EMCY). */
 static void on_srdo_leave(co_srdo_t *srdo, co_srdo_violation_t had, void *user)
 {
     co_stack_t *s = user;
@@ -1396,7 +1397,9 @@ void co_stack_srdo_deinit(co_stack_t *stack)
     co_srdo_od_detach(&stack->srdo_od);
     co_gfc_deinit(&stack->gfc);
     for (uint8_t i = 0; i < stack->srdo_count; i++) {
-        co_srdo_deinit(&stack->srdo[i]);
+        co_srdo_t *srdo = &stack->srdo[i];
+        on_srdo_leave(srdo, co_srdo_violation(srdo), stack);   /* no owner left for it */
+        co_srdo_deinit(srdo);
     }
     stack->has_srdo = false;
     stack->srdo = NULL;

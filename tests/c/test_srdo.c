@@ -627,7 +627,8 @@ static void test_stack_safe_state_is_an_active_emcy_error(void **state)
 
 /* Two SRDOs failing with the same code are two errors: two EMCYs, and each
  * has its own reset; a reset communication ends both (the SRDOs stop with
- * the node leaving operational; their resets go out in pre-operational). */
+ * the node leaving operational; their resets go out in pre-operational), so
+ * does taking the SRDOs away. */
 static void test_stack_same_code_two_srdos_and_reset_communication(void **state)
 {
     fx_t *fx = *state;
@@ -653,6 +654,16 @@ static void test_stack_same_code_two_srdos_and_reset_communication(void **state)
     assert_true(boot_up >= 0 && boot_up < tu_log_find_id(&fx->tb, 0x87, 2));
     assert_int_equal(co_emcy_error_register(emcy), 0x00);
     assert_int_equal(co_srdo_state(co_stack_srdo(&sf->stack, 1)), CO_SRDO_STOPPED);
+    /* SRDOs taken away while safe: nothing is left to end their errors */
+    nmt(fx, 0x01, 7, 46 * TU_MS);
+    tu_run_until(&fx->tb, 80 * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 6);
+    assert_int_equal(co_emcy_active_count(emcy), 2);
+    co_stack_srdo_deinit(&sf->stack);
+    tu_run_until(&fx->tb, 81 * TU_MS);
+    assert_int_equal(co_emcy_active_count(emcy), 0);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 8);
+    assert_emcy(fx, 7, reset2);
     stack_done(sf);
 }
 
