@@ -1,7 +1,8 @@
 """Error-report bits as a classic peer sees them: python-canopen (PyPI
 `canopen`, an independent implementation) consumes our node's EMCYs with its
 EMCY consumer and reads 0x1001, 0x1003 and the bit array 0x2100 with its SDO
-client, over python-can's virtual bus; its raw subscription checks the bytes."""
+client, over python-can's virtual bus; its raw subscription checks the bytes.
+An SRDO's safe state is heard the same way: raised, then reset."""
 
 from __future__ import annotations
 
@@ -96,3 +97,19 @@ def test_python_canopen_sees_error_bits_emcy_register_history(rig):
     assert remote.sdo.upload(0x1001, 0) == b"\x00"
     assert remote.sdo.upload(0x2100, 0) == bytes(16)
     assert len(frames.data) == 2
+
+
+def test_python_canopen_hears_an_srdo_safe_state_raised_and_reset(rig):
+    from test_srdo_emcy import SCT, start_consumer
+    peer, me = rig
+    remote = peer.add_node(NODE, canopen.ObjectDictionary())
+    start_consumer(me)                                   # its SCT runs out: safe state
+    error = logged(remote, 1)[0]
+    assert (error.code, error.register, error.data) == (0x8200, 0x11, bytes([1, SCT, 0, 0, 0]))
+    assert [e.code for e in remote.emcy.active] == [0x8200]
+    assert remote.sdo.upload(0x1001, 0) == b"\x11"
+    me.apply("pre-operational")                          # leaving OPERATIONAL ends it
+    reset = logged(remote, 2)[1]
+    assert (reset.code, reset.register, reset.data) == (0, 0, bytes([1, SCT, 0, 0, 0]))
+    assert remote.emcy.active == []                      # python-canopen: code 0 clears
+    assert remote.sdo.upload(0x1001, 0) == b"\x00"

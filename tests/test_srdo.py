@@ -192,8 +192,9 @@ def test_wrong_use_is_refused_with_a_clear_error(pair):
     assert CONFIG_VALID == 0xA5
 
 
-def srdo_od():
-    """A safety device's SRDO objects (SRDO 1, 0x13FE, 0x13FF) on the demo OD."""
+def srdo_od(cob_default: int = 0):
+    """A safety device's SRDO objects (SRDO 1, 0x13FE, 0x13FF) on the demo OD;
+    cob_default: the defaults of 0x1301 sub 5 / 6 (it and it + 1; 0: both 0)."""
     from canopenfd.od import DataType, ODArray, ODRecord, ODVariable, demo_od
     U8, U16, U32 = DataType.UNSIGNED8, DataType.UNSIGNED16, DataType.UNSIGNED32
     od = demo_od("classic")
@@ -202,7 +203,8 @@ def srdo_od():
     for sub, name, dtype in ((1, "Direction", U8), (2, "SCT", U16), (3, "SRVT", U8),
                              (4, "Transmission type", U8), (5, "COB-ID 1", U32),
                              (6, "COB-ID 2", U32)):
-        comm.add_member(ODVariable(name, 0x1301, sub, dtype, "rw", 0))
+        default = cob_default + sub - 5 if sub >= 5 and cob_default else 0
+        comm.add_member(ODVariable(name, 0x1301, sub, dtype, "rw", default))
     od.add_object(comm)
     mapping = ODArray("SRDO 1 mapping parameter", 0x1381)
     mapping.add_member(ODVariable("Number of mapped objects", 0x1381, 0, U8, "rw", 0))
@@ -354,7 +356,7 @@ def test_a_changed_configuration_needs_validating_again(net, bus_name):
     notices.wait_for(lambda calls: SrdoNotice(1, SrdoViolation.CONFIG_INVALID) in calls, 3.0,
                      "configuration not valid")
     # validated again with a signature that is not the CRC: CRC mismatch, and
-    # its EMCY on the bus (0x6300, SRDO 1, violation CRC_MISMATCH)
+    # its EMCY on the bus (0x6300, register: generic, SRDO 1, CRC_MISMATCH)
     device.apply("pre-operational")
     device.wait_for_state("PRE-OPERATIONAL")
     remote.write((0x13FF, 1), struct.pack("<H", srdo_signature(CONSUME)))
@@ -371,7 +373,7 @@ def test_a_changed_configuration_needs_validating_again(net, bus_name):
                      "CRC mismatch")
     emcy = frames.wait_for(lambda calls: [f for f in calls[mark:] if f.id == 0x80 + CONSUMER],
                            3.0, "the EMCY of the CRC mismatch")
-    assert bytes(emcy[0].data) == bytes([0x00, 0x63, 0x00, 1, SrdoViolation.CRC_MISMATCH,
+    assert bytes(emcy[0].data) == bytes([0x00, 0x63, 0x01, 1, SrdoViolation.CRC_MISMATCH,
                                          0, 0, 0])
 
 

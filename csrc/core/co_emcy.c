@@ -194,10 +194,12 @@ static void update_register(co_emcy_t *e)
     e->error_register = reg;
 }
 
-static co_emcy_active_t *find_active(const co_emcy_t *e, uint16_t code, uint8_t logical_device)
+static co_emcy_active_t *find_active(const co_emcy_t *e, uint16_t code, uint8_t logical_device,
+                                     uint16_t source)
 {
     for (uint16_t i = 0; i < e->active_count; i++) {
-        if (e->active[i].msg.code == code && e->active[i].msg.logical_device == logical_device) {
+        if (e->active[i].msg.code == code && e->active[i].msg.logical_device == logical_device &&
+            e->active[i].source == source) {
             return &e->active[i];
         }
     }
@@ -251,6 +253,7 @@ static void fill_active(const co_emcy_t *e, co_emcy_active_t *a, const co_emcy_e
     memcpy(a->msg.msef, err->msef, CO_EMCY_MSEF_LEN);
     a->register_bits = (uint8_t)((co_emcy_code_register_bits(err->code) | err->register_bits) &
                                  ~0x40u);   /* bit 6 is reserved */
+    a->source = err->source;
     if (is_fd(e)) {
         a->msg.logical_device = err->logical_device;
         a->msg.spec_number = err->spec_number;
@@ -268,7 +271,7 @@ co_emcy_result_t co_emcy_raise(co_emcy_t *e, const co_emcy_error_t *err)
     }
     bool fd = is_fd(e);
     uint8_t logical_device = fd ? err->logical_device : 0;
-    co_emcy_active_t *a = find_active(e, err->code, logical_device);
+    co_emcy_active_t *a = find_active(e, err->code, logical_device, err->source);
     co_emcy_result_t result = CO_EMCY_OK;
     if (a != NULL) {
         e->stats.repeated++;
@@ -315,7 +318,8 @@ co_emcy_result_t co_emcy_clear(co_emcy_t *e, const co_emcy_error_t *err)
     if (e == NULL || err == NULL || err->code == 0 || err->time_stamp > CO_EMCY_TIME_MAX) {
         return CO_EMCY_BAD_ARGUMENT;
     }
-    co_emcy_active_t *a = find_active(e, err->code, is_fd(e) ? err->logical_device : 0);
+    co_emcy_active_t *a = find_active(e, err->code, is_fd(e) ? err->logical_device : 0,
+                                      err->source);
     if (a == NULL) {
         return CO_EMCY_NOT_ACTIVE;
     }
@@ -384,7 +388,7 @@ co_emcy_result_t co_emcy_signal(co_emcy_t *e, const co_emcy_error_t *err, bool o
 
 bool co_emcy_is_active(const co_emcy_t *e, uint16_t code, uint8_t logical_device)
 {
-    return find_active(e, code, is_fd(e) ? logical_device : 0) != NULL;
+    return find_active(e, code, is_fd(e) ? logical_device : 0, 0) != NULL;
 }
 
 bool co_emcy_take_overflow(co_emcy_t *e)

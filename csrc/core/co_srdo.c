@@ -282,8 +282,16 @@ static void on_frame(co_line_t *line, const co_frame_t *frame, void *user)
     }
 }
 
+/* The state leaves SAFE (it was SAFE with `had` as its violation). */
+static void left_safe(co_srdo_t *s, co_srdo_violation_t had)
+{
+    if (s->on_leave) {
+        s->on_leave(s, had, s->user);
+    }
+}
+
 /* Entry into operational, or a restart. */
-static void start(co_srdo_t *s)
+static void start_from(co_srdo_t *s)
 {
     stop_timers(s);
     s->violation = CO_SRDO_NONE;
@@ -301,6 +309,17 @@ static void start(co_srdo_t *s)
         co_timer_start(co_line_timers(s->line), &s->cycle_timer, now);
     } else {
         arm_sct(s, now);
+    }
+}
+
+static void start(co_srdo_t *s)
+{
+    bool was_safe = s->state == CO_SRDO_SAFE;
+    co_srdo_violation_t had = s->violation;
+    start_from(s);
+    /* a configuration fault fails again at once: still safe, nothing left */
+    if (was_safe && s->state != CO_SRDO_SAFE) {
+        left_safe(s, had);
     }
 }
 
@@ -344,8 +363,13 @@ bool co_srdo_configure(co_srdo_t *srdo, const co_srdo_config_t *config, uint8_t 
                                                                     : CO_SRDO_NONE;
     memset(srdo->data, 0, sizeof srdo->data);
     srdo->od = NULL;   /* a new mapping is bound again (co_srdo_bind_od) */
+    co_srdo_violation_t had = srdo->violation;
+    bool was_safe = srdo->state == CO_SRDO_SAFE;
     srdo->state = CO_SRDO_STOPPED;
     srdo->violation = CO_SRDO_NONE;
+    if (was_safe) {
+        left_safe(srdo, had);   /* a GFC heard outside operational */
+    }
     if (config->direction == CO_SRDO_CONSUME && srdo->param_error == CO_SRDO_PARAM_OK) {
         if (!co_line_subscribe(srdo->line, config->cob_id_normal, config->cob_id_inverted,
                                on_frame, srdo)) {
@@ -446,4 +470,9 @@ size_t co_srdo_data(const co_srdo_t *srdo, uint8_t *out)
 void co_srdo_restart(co_srdo_t *srdo)
 {
     start(srdo);
+}
+
+void co_srdo_set_leave_fn(co_srdo_t *srdo, co_srdo_fn on_leave)
+{
+    srdo->on_leave = on_leave;
 }

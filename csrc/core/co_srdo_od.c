@@ -92,8 +92,41 @@ static uint32_t check_write(co_od_t *od, co_od_xfer_t *xfer, const co_od_entry_t
     return 0;
 }
 
+/* SRDO 1's default COB-IDs: when 0x1301 sub 5 / 6 hold exactly the base
+ * values 0x0FF / 0x100 (the OD's defaults, or loaded at a reset), they are
+ * resolved in place to base + 2 x node-id, as a $NODEID default is at
+ * loading: reads and the CRC see the CAN-IDs used, and a reset with another
+ * node-id resolves them again. Written in place: a resolution is no change
+ * (0x13FE stays). Node-ids above 64 leave them unresolved, out of range.
+ * True when it resolved them. */
+static bool resolve_default_cob_ids(co_od_t *od)
+{
+    const uint16_t comm = CO_SRDO_OD_COMMUNICATION + 1;
+    const co_od_entry_t *normal = co_od_find(od, comm, 5);
+    const co_od_entry_t *inverted = co_od_find(od, comm, 6);
+    uint32_t n = 0, i = 0;
+    uint8_t node_id = co_od_node_id(od);
+    if (!normal || !inverted || normal->size != 4 || inverted->size != 4 ||
+        !co_od_get_u32(od, comm, 5, &n) || !co_od_get_u32(od, comm, 6, &i) ||
+        n != CO_SRDO_OD_DEFAULT_COB_ID || i != CO_SRDO_OD_DEFAULT_COB_ID + 1u ||
+        node_id < 1u || node_id > CO_SRDO_OD_DEFAULT_LAST_NODE) {
+        return false;
+    }
+    uint32_t add = 2u * node_id;
+    const co_od_entry_t *entries[2] = {normal, inverted};
+    const uint32_t values[2] = {n + add, i + add};
+    for (int k = 0; k < 2; k++) {
+        uint8_t *p = co_od_value(od, entries[k]);
+        for (uint32_t b = 0; b < 4u; b++) {
+            p[b] = (uint8_t)(values[k] >> (8u * b));
+        }
+    }
+    return true;
+}
+
 static void load_all(co_srdo_od_t *g)
 {
+    (void)resolve_default_cob_ids(g->od);
     for (uint8_t n = 1; n <= g->count; n++) {
         (void)co_srdo_od_load(g, n);
     }
@@ -174,6 +207,8 @@ void co_srdo_od_set_nmt_state(co_srdo_od_t *g, co_nmt_state_t state)
     bool operational = state == CO_NMT_OPERATIONAL;
     if (operational && !g->operational) {
         load_all(g);
+    } else if (!operational && resolve_default_cob_ids(g->od)) {
+        load_all(g);   /* a reset's reload that changed no value, with a new node-id */
     }
     g->operational = operational;
 }

@@ -1305,23 +1305,54 @@ static uint16_t srdo_emcy_code(co_srdo_violation_t why)
     }
 }
 
+/* SRDO n's safe-state error: its own active error (source key per SRDO,
+ * so two SRDOs with the same code stay two errors); byte 3 the SRDO
+ * number, byte 4 the violation. */
+static co_emcy_error_t srdo_error(const co_stack_t *s, const co_srdo_t *srdo,
+                                  co_srdo_violation_t why)
+{
+    uint8_t number = (uint8_t)(srdo - s->srdo + 1);
+    co_emcy_error_t err;
+    memset(&err, 0, sizeof err);
+    err.code = srdo_emcy_code(why);
+    err.msef[0] = number;
+    err.msef[1] = (uint8_t)why;
+    err.spec_number = 304;
+    err.source = (uint16_t)(CO_EMCY_SOURCE_SRDO + number);
+    return err;
+}
+
+static uint64_t srdo_bit(const co_stack_t *s, const co_srdo_t *srdo)
+{
+    return (uint64_t)1u << (srdo - s->srdo);
+}
+
 static void on_srdo_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
 {
     co_stack_t *s = user;
-    uint16_t code = srdo_emcy_code(why);
-    if (code != 0 && s->has_emcy) {
-        /* once per safe-state entry: signalled, not kept in the active table
-         * (a repeated raise of an active error would send nothing) */
-        co_emcy_error_t err;
-        memset(&err, 0, sizeof err);
-        err.code = code;
-        err.msef[0] = (uint8_t)(srdo - s->srdo + 1);   /* the SRDO number */
-        err.msef[1] = (uint8_t)why;
-        err.spec_number = 304;
-        (void)co_emcy_signal(&s->emcy, &err, true);
+    co_emcy_error_t err = srdo_error(s, srdo, why);
+    /* raised once: a start that fails again at once keeps the error active */
+    if (err.code != 0 && s->has_emcy && (s->srdo_errors & srdo_bit(s, srdo)) == 0 &&
+        co_emcy_raise(&s->emcy, &err) == CO_EMCY_OK) {
+        s->srdo_errors |= srdo_bit(s, srdo);
     }
     if (s->srdo_ind) {
         s->srdo_ind(srdo, why, s->srdo_user);
+    }
+}
+
+/* The SRDO left the safe state (or is gone): its error is over (error
+ * reset EMCY). */
+static void on_srdo_leave(co_srdo_t *srdo, co_srdo_violation_t had, void *user)
+{
+    co_stack_t *s = user;
+    if ((s->srdo_errors & srdo_bit(s, srdo)) == 0) {
+        return;
+    }
+    s->srdo_errors &= ~srdo_bit(s, srdo);
+    co_emcy_error_t err = srdo_error(s, srdo, had);
+    if (s->has_emcy) {
+        (void)co_emcy_clear(&s->emcy, &err);   /* not active: the application cleared it */
     }
 }
 
@@ -1352,8 +1383,10 @@ co_stack_status_t co_stack_srdo_init(co_stack_t *stack, uint8_t count, co_srdo_f
     stack->srdo_count = count;
     stack->srdo_ind = on_safe;
     stack->srdo_user = user;
+    stack->srdo_errors = 0;
     for (uint8_t i = 0; i < count; i++) {
         co_srdo_init(&srdo[i], stack->line, on_srdo_safe, stack);
+        co_srdo_set_leave_fn(&srdo[i], on_srdo_leave);
     }
     co_gfc_init(&stack->gfc, stack->line, on_gfc, stack);
     bool guarded = false;
@@ -1381,7 +1414,9 @@ void co_stack_srdo_deinit(co_stack_t *stack)
     co_srdo_od_detach(&stack->srdo_od);
     co_gfc_deinit(&stack->gfc);
     for (uint8_t i = 0; i < stack->srdo_count; i++) {
-        co_srdo_deinit(&stack->srdo[i]);
+        co_srdo_t *srdo = &stack->srdo[i];
+        on_srdo_leave(srdo, co_srdo_violation(srdo), stack);   /* no owner left for it */
+        co_srdo_deinit(srdo);
     }
     stack->has_srdo = false;
     stack->srdo = NULL;

@@ -2,11 +2,13 @@
  * from controlword writes, the statusword of each state, each mode's motion
  * model on a fake clock (profile position with its set-point handshake,
  * profile velocity, homing, CSP/CSV/CST on SYNC), the injected fault (0x603F,
- * EMCY bytes, Fault reaction active → Fault, fault reset) and refused input. */
+ * EMCY bytes, Fault reaction active → Fault, fault reset), refused input,
+ * and on the membus: the statusword's event-driven TPDO on every change. */
 #include "test_od_util.h"
 
 #include "canopenfd/co_cia402_sim.h"
 #include "canopenfd/co_emcy.h"
+#include "canopenfd/co_pdo.h"
 
 #define I8 CO_TYPE_INTEGER8
 #define I16 CO_TYPE_INTEGER16
@@ -31,8 +33,8 @@ typedef struct fixture {
 static const tu_od_row_t drive_rows[] = {
     {0x1001, 0, VAR, U8, RO, 0, 1, 0, NULL, 0, 0},
     {0x603F, 0, VAR, U16, RO, 0, 2, 0, NULL, 0, 0},
-    {0x6040, 0, VAR, U16, RW, 0, 2, 0, NULL, 0, 0},
-    {0x6041, 0, VAR, U16, RO, 0, 2, 0, NULL, 0, 0},
+    {0x6040, 0, VAR, U16, RW, CO_OD_MAP_RPDO, 2, 0, NULL, 0, 0},
+    {0x6041, 0, VAR, U16, RO, CO_OD_MAP_TPDO, 2, 0, NULL, 0, 0},
     {0x6060, 0, VAR, I8, RW, 0, 1, 0, NULL, 0, 0},
     {0x6061, 0, VAR, I8, RO, 0, 1, 0, NULL, 0, 0},
     {0x6064, 0, VAR, I32, RO, 0, 4, 0, NULL, 0, 0},
@@ -52,7 +54,8 @@ static const tu_od_row_t drive_rows[] = {
     {0x6502, 0, VAR, U32, RO, 0, 4, 0x1A5, NULL, 0, 0},
 };
 
-static void od_build(fixture_t *f, bool complete)
+/* The drive's objects, not sealed yet (complete: with 0x606C). */
+static void od_add_drive(fixture_t *f, bool complete)
 {
     size_t i;
     co_od_init(&f->od, CO_MODE_CLASSIC, f->entries, SLOTS, f->pool, POOL, f->subs, 8);
@@ -62,6 +65,11 @@ static void od_build(fixture_t *f, bool complete)
         }
         tu_od_add_rows(&f->od, &drive_rows[i], 1);
     }
+}
+
+static void od_build(fixture_t *f, bool complete)
+{
+    od_add_drive(f, complete);
     assert_true(co_od_seal(&f->od, 5));
 }
 
@@ -433,6 +441,130 @@ static void test_pdo_writes_taken_at_tick_and_sync(void **state)
     assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_OPERATION_ENABLED);
 }
 
+/* ------------------------------------------------- statusword TPDO, membus */
+
+#define TPDO_ID 0x185u
+#define RPDO_ID 0x205u
+
+/* The drive (node 5) on a membus line, its PDOs: RPDO 1 = the controlword
+ * (0x205, type 255), TPDO 1 = the statusword (0x185, event-driven type
+ * `type`); tool is the line that sends the RPDO, the bus sniffer logs all. */
+typedef struct bus_drive {
+    tu_bus_t tb;
+    tu_line_t tool;
+    fixture_t f;
+    co_pdo_channel_t channels[2];
+    co_pdo_map_item_t items[2];
+    co_pdo_t pdo;
+} bus_drive_t;
+
+static bus_drive_t *bus_drive_new(uint8_t type)
+{
+    bus_drive_t *b = test_calloc(1, sizeof *b);
+    fixture_t *f = &b->f;
+    uint32_t channels = 0, items = 0;
+    co_pdo_config_t pc;
+    tu_bus_init(&b->tb, CO_MODE_CLASSIC, false);
+    (void)tu_bus_add_line(&b->tb, &b->tool);
+    (void)tu_bus_add_line(&b->tb, &f->tl);
+    od_add_drive(f, true);
+    tu_od_add_value(&f->od, 0x1400, 0, REC, U8, RO, 0, 2);
+    tu_od_add_value(&f->od, 0x1400, 1, REC, U32, RW, 0, RPDO_ID);
+    tu_od_add_value(&f->od, 0x1400, 2, REC, U8, RW, 0, 255);
+    tu_od_add_value(&f->od, 0x1600, 0, REC, U8, RW, 0, 1);
+    tu_od_add_value(&f->od, 0x1600, 1, REC, U32, RW, 0, 0x60400010u);
+    tu_od_add_value(&f->od, 0x1800, 0, REC, U8, RO, 0, 5);
+    tu_od_add_value(&f->od, 0x1800, 1, REC, U32, RW, 0, TPDO_ID);
+    tu_od_add_value(&f->od, 0x1800, 2, REC, U8, RW, 0, type);
+    tu_od_add_value(&f->od, 0x1800, 3, REC, U16, RW, 0, 0);   /* no inhibit time */
+    tu_od_add_value(&f->od, 0x1800, 5, REC, U16, RW, 0, 0);   /* no event timer */
+    tu_od_add_value(&f->od, 0x1A00, 0, REC, U8, RW, 0, 1);
+    tu_od_add_value(&f->od, 0x1A00, 1, REC, U32, RW, 0, 0x60410010u);
+    assert_true(co_od_seal(&f->od, 5));
+    assert_true(co_pdo_need(&f->od, &channels, &items));
+    assert_int_equal(channels, 2);
+    assert_int_equal(items, 2);
+    memset(&pc, 0, sizeof pc);
+    pc.channels = b->channels;
+    pc.channel_count = 2;
+    pc.items = b->items;
+    pc.item_count = 2;
+    assert_true(co_pdo_init(&b->pdo, &f->tl.line, &f->od, &pc));
+    assert_true(co_pdo_is_active(&b->pdo, false, 1));
+    co_emcy_config_t ec = {.queue = f->emcy_queue, .queue_capacity = 4,
+                           .active = f->emcy_active, .active_capacity = 4};
+    assert_true(co_emcy_init(&f->emcy, &f->tl.line, 5, &ec));
+    assert_true(co_cia402_sim_init(&f->sim, &f->tl.line, &f->od, NULL, &f->emcy, TICK_US));
+    co_cia402_sim_set_pdo(&f->sim, &b->pdo);
+    co_pdo_set_operational(&b->pdo, true);
+    tu_step(&b->tb, 0);
+    tu_log_clear(&b->tb);
+    return b;
+}
+
+static void bus_drive_free(bus_drive_t *b)
+{
+    co_cia402_sim_deinit(&b->f.sim);
+    co_emcy_deinit(&b->f.emcy);
+    co_pdo_deinit(&b->pdo);
+    test_free(b);
+}
+
+/* ms milliseconds of the drive's ticks, the bus carrying every frame. */
+static void bus_run_ms(bus_drive_t *b, uint32_t ms)
+{
+    for (uint32_t i = 0; i < ms; i++) {
+        tu_step(&b->tb, b->tb.now + TICK_US);
+    }
+}
+
+static void send_controlword(bus_drive_t *b, uint16_t cw)
+{
+    const uint8_t data[2] = {(uint8_t)cw, (uint8_t)(cw >> 8)};
+    assert_true(co_line_send(&b->tool.line, RPDO_ID, data, 2));
+}
+
+/* The k-th TPDO on the bus carries statusword sw (little-endian, 2 bytes). */
+static void assert_tpdo(bus_drive_t *b, size_t k, uint16_t sw)
+{
+    const uint8_t data[2] = {(uint8_t)sw, (uint8_t)(sw >> 8)};
+    tu_assert_logged(&b->tb, tu_log_find_id(&b->tb, TPDO_ID, k), TPDO_ID, data, 2);
+}
+
+/* A statusword change sends the event-driven TPDO that maps it (types 254
+ * and 255), with the new statusword; a controlword that changes nothing,
+ * and the ticks in between, send none. */
+static void test_statusword_change_sends_event_tpdo(void **state)
+{
+    static const uint8_t types[] = {254, 255};
+    (void)state;
+    for (size_t t = 0; t < sizeof types; t++) {
+        bus_drive_t *b = bus_drive_new(types[t]);
+        fixture_t *f = &b->f;
+        bus_run_ms(b, 5);                            /* Switch on disabled, unchanged */
+        assert_int_equal(tu_log_count_id(&b->tb, TPDO_ID), 0);
+        send_controlword(b, 0x06);                   /* shutdown, by RPDO: at the tick */
+        bus_run_ms(b, 2);
+        assert_int_equal(co_cia402_sim_state(&f->sim), CO_CIA402_READY_TO_SWITCH_ON);
+        assert_int_equal(tu_log_count_id(&b->tb, TPDO_ID), 1);
+        assert_tpdo(b, 0, 0x0231);                   /* ready to switch on + remote */
+        send_controlword(b, 0x06);                   /* the same again: no change */
+        bus_run_ms(b, 5);
+        put(f, 0x6040, 0x06);
+        bus_run_ms(b, 5);
+        assert_int_equal(tu_log_count_id(&b->tb, TPDO_ID), 1);
+        put(f, 0x6040, 0x07);                        /* switch on, as an SDO write */
+        bus_run_ms(b, 1);
+        assert_int_equal(tu_log_count_id(&b->tb, TPDO_ID), 2);
+        assert_tpdo(b, 1, 0x0233);
+        put(f, 0x6040, 0x0F);                        /* enable operation */
+        bus_run_ms(b, 5);
+        assert_int_equal(tu_log_count_id(&b->tb, TPDO_ID), 3);
+        assert_tpdo(b, 2, 0x0237);
+        bus_drive_free(b);
+    }
+}
+
 /* ---------------------------------------------------------------- refusals */
 
 static void test_unsupported_mode_refused(void **state)
@@ -486,6 +618,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_pdo_writes_taken_at_tick_and_sync, setup, teardown),
         cmocka_unit_test_setup_teardown(test_unsupported_mode_refused, setup, teardown),
         cmocka_unit_test(test_missing_object_named),
+        cmocka_unit_test(test_statusword_change_sends_event_tpdo),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

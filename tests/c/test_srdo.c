@@ -536,13 +536,17 @@ static void test_stack_wires_nmt_and_gfc(void **state)
     free(sf);
 }
 
-/* Every safe-state entry of a stack's SRDO sends one EMCY: the code of
- * the violation, SRDO number and violation in the manufacturer bytes; a GFC
- * is a command and sends none. The error is signalled, not kept active:
- * the error register (byte 2) stays 0. */
-static void test_stack_sends_emcy_per_safe_entry(void **state)
+/* The k-th EMCY of node 7 (0x87) since the log was cleared is `data`. */
+static void assert_emcy(fx_t *fx, size_t k, const uint8_t data[8])
 {
-    fx_t *fx = *state;
+    assert_true(tu_log_count_id(&fx->tb, 0x87) > k);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x87, k), 0x87, data, 8);
+}
+
+/* A stack on line c with node 7 booted and two consumer SRDOs: SRDO 1 on
+ * 0x103/0x104, SRDO 2 on 0x105/0x106 (signed right unless told), GFC on. */
+static stack_fx_t *stack_with_two_consumers(fx_t *fx, bool two_signed)
+{
     stack_fx_t *sf = stack_on_line_c(fx);
     co_stack_node_config_t nc = {.node_id = 7};
     assert_int_equal(co_stack_node_init(&sf->stack, &nc), CO_STACK_OK);
@@ -552,31 +556,115 @@ static void test_stack_sends_emcy_per_safe_entry(void **state)
     co_srdo_config_t c1 = config(CO_SRDO_CONSUME), c2 = config(CO_SRDO_CONSUME);
     c2.cob_id_normal = 0x105;
     c2.cob_id_inverted = 0x106;
+    uint16_t crc2 = two_signed ? co_srdo_crc(&c2) : (uint16_t)~co_srdo_crc(&c2);
     assert_true(co_srdo_configure(one, &c1, CO_SRDO_CONFIG_VALID, co_srdo_crc(&c1)));
-    assert_true(co_srdo_configure(two, &c2, CO_SRDO_CONFIG_VALID, (uint16_t)~co_srdo_crc(&c2)));
+    assert_true(co_srdo_configure(two, &c2, CO_SRDO_CONFIG_VALID, crc2));
     assert_true(co_gfc_set_enabled(co_stack_gfc(&sf->stack), true));
     assert_true(co_gfc_set_enabled(&fx->gm, true));
     tu_run_until(&fx->tb, 1 * TU_MS);
     tu_log_clear(&fx->tb);
-    nmt(fx, 0x01, 7, 2 * TU_MS);               /* SRDO 2: its signature is wrong */
-    tu_run_until(&fx->tb, 3 * TU_MS);
-    const uint8_t crc[8] = {0x00, 0x63, 0x00, 2, CO_SRDO_CRC_MISMATCH, 0, 0, 0};
-    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 1);
-    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x87, 0), 0x87, crc, 8);
-    inject_pair(fx, 4 * TU_MS);                 /* SRDO 1 runs, then its pairs stop */
-    tu_run_until(&fx->tb, 40 * TU_MS);
-    const uint8_t sct[8] = {0x00, 0x82, 0x00, 1, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
-    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 2);
-    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x87, 1), 0x87, sct, 8);
-    co_srdo_restart(one);
-    assert_true(co_gfc_send(&fx->gm));
-    tu_run_until(&fx->tb, 45 * TU_MS);
-    assert_int_equal(sf->events, 3);
-    assert_int_equal(sf->why[2], CO_SRDO_GFC);
-    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 2);    /* the GFC sent none */
+    return sf;
+}
+
+static void stack_done(stack_fx_t *sf)
+{
     co_stack_node_deinit(&sf->stack);
     co_stack_deinit(&sf->stack);
     free(sf);
+}
+
+/* A stack's SRDO in the safe state is an active EMCY error (CiA 301): its
+ * EMCY once (code of the violation, SRDO number and violation in bytes 3
+ * and 4), 0x1001 and 0x1003 show it while it lasts; leaving the safe state
+ * sends the error reset (0x0000, the register left, the same bytes 3/4).
+ * A start that fails again at once sends nothing; a GFC is a command and
+ * no error. */
+static void test_stack_safe_state_is_an_active_emcy_error(void **state)
+{
+    fx_t *fx = *state;
+    stack_fx_t *sf = stack_with_two_consumers(fx, false);
+    co_emcy_t *emcy = co_stack_emcy(&sf->stack);
+    co_srdo_t *one = co_stack_srdo(&sf->stack, 1), *two = co_stack_srdo(&sf->stack, 2);
+    nmt(fx, 0x01, 7, 2 * TU_MS);               /* SRDO 2: its signature is wrong */
+    tu_run_until(&fx->tb, 3 * TU_MS);
+    const uint8_t crc[8] = {0x00, 0x63, 0x01, 2, CO_SRDO_CRC_MISMATCH, 0, 0, 0};
+    assert_emcy(fx, 0, crc);
+    assert_int_equal(co_emcy_error_register(emcy), 0x01);
+    inject_pair(fx, 4 * TU_MS);                 /* SRDO 1 runs, then its pairs stop */
+    tu_run_until(&fx->tb, 40 * TU_MS);
+    const uint8_t sct[8] = {0x00, 0x82, 0x11, 1, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    assert_emcy(fx, 1, sct);
+    assert_int_equal(co_emcy_error_register(emcy), 0x11);   /* generic + communication */
+    assert_int_equal(co_emcy_active_count(emcy), 2);
+    assert_int_equal(emcy->history_count, 2);               /* 0x1003, newest first */
+    assert_int_equal(emcy->history[0], 0x03018200u);
+    assert_int_equal(emcy->history[1], 0x08026300u);
+    co_srdo_restart(two);                       /* fails again at once: still the error */
+    assert_int_equal(co_srdo_state(two), CO_SRDO_SAFE);
+    assert_int_equal(sf->events, 3);
+    co_srdo_restart(one);                       /* SRDO 1's error is over */
+    assert_int_equal(co_srdo_state(one), CO_SRDO_WAITING);
+    tu_run_until(&fx->tb, 41 * TU_MS);
+    const uint8_t reset_one[8] = {0x00, 0x00, 0x01, 1, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 3);
+    assert_emcy(fx, 2, reset_one);
+    assert_int_equal(co_emcy_error_register(emcy), 0x01);   /* SRDO 2's is left */
+    assert_true(co_gfc_send(&fx->gm));          /* SRDO 1 safe by command: no error */
+    tu_run_until(&fx->tb, 45 * TU_MS);
+    assert_int_equal(sf->events, 4);
+    assert_int_equal(sf->why[3], CO_SRDO_GFC);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 3);
+    nmt(fx, 0x80, 7, 46 * TU_MS);               /* leaving operational ends SRDO 2's */
+    tu_run_until(&fx->tb, 47 * TU_MS);
+    const uint8_t reset_two[8] = {0x00, 0x00, 0x00, 2, CO_SRDO_CRC_MISMATCH, 0, 0, 0};
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 4);   /* none for SRDO 1's GFC */
+    assert_emcy(fx, 3, reset_two);
+    assert_int_equal(co_emcy_error_register(emcy), 0x00);
+    assert_int_equal(co_emcy_active_count(emcy), 0);
+    assert_int_equal(emcy->history_count, 2);   /* the history keeps what occurred */
+    stack_done(sf);
+}
+
+/* Two SRDOs failing with the same code are two errors: two EMCYs, and each
+ * has its own reset; a reset communication ends both (the SRDOs stop with
+ * the node leaving operational; their resets go out in pre-operational), so
+ * does taking the SRDOs away. */
+static void test_stack_same_code_two_srdos_and_reset_communication(void **state)
+{
+    fx_t *fx = *state;
+    stack_fx_t *sf = stack_with_two_consumers(fx, true);
+    co_emcy_t *emcy = co_stack_emcy(&sf->stack);
+    nmt(fx, 0x01, 7, 2 * TU_MS);
+    tu_run_until(&fx->tb, 40 * TU_MS);          /* no pairs: both exceed their SCT */
+    const uint8_t sct1[8] = {0x00, 0x82, 0x11, 1, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    const uint8_t sct2[8] = {0x00, 0x82, 0x11, 2, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 2);
+    assert_emcy(fx, 0, sct1);
+    assert_emcy(fx, 1, sct2);
+    assert_int_equal(co_emcy_active_count(emcy), 2);
+    assert_false(co_emcy_is_active(emcy, 0x8200, 0));   /* not the application's */
+    nmt(fx, 0x82, 7, 41 * TU_MS);               /* reset communication */
+    tu_run_until(&fx->tb, 45 * TU_MS);
+    const uint8_t reset1[8] = {0x00, 0x00, 0x11, 1, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    const uint8_t reset2[8] = {0x00, 0x00, 0x00, 2, CO_SRDO_SCT_EXCEEDED, 0, 0, 0};
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 4);
+    assert_emcy(fx, 2, reset1);
+    assert_emcy(fx, 3, reset2);
+    long boot_up = tu_log_find_id(&fx->tb, 0x707, 0);
+    assert_true(boot_up >= 0 && boot_up < tu_log_find_id(&fx->tb, 0x87, 2));
+    assert_int_equal(co_emcy_error_register(emcy), 0x00);
+    assert_int_equal(co_srdo_state(co_stack_srdo(&sf->stack, 1)), CO_SRDO_STOPPED);
+    /* SRDOs taken away while safe: nothing is left to end their errors */
+    nmt(fx, 0x01, 7, 46 * TU_MS);
+    tu_run_until(&fx->tb, 80 * TU_MS);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 6);
+    assert_int_equal(co_emcy_active_count(emcy), 2);
+    co_stack_srdo_deinit(&sf->stack);
+    tu_run_until(&fx->tb, 81 * TU_MS);
+    assert_int_equal(co_emcy_active_count(emcy), 0);
+    assert_int_equal(tu_log_count_id(&fx->tb, 0x87), 8);
+    assert_emcy(fx, 7, reset2);
+    stack_done(sf);
 }
 
 int main(void)
@@ -605,7 +693,8 @@ int main(void)
         T(test_restart_after_safe_state),
         T(test_producer_tx_full),
         T(test_stack_wires_nmt_and_gfc),
-        T(test_stack_sends_emcy_per_safe_entry),
+        T(test_stack_safe_state_is_an_active_emcy_error),
+        T(test_stack_same_code_two_srdos_and_reset_communication),
 #undef T
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

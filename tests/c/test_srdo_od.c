@@ -50,7 +50,8 @@ static void on_safe(co_srdo_t *srdo, co_srdo_violation_t why, void *user)
     d->why[d->events++] = why;
 }
 
-static void dev_init(dev_t *d, co_line_t *line)
+/* cob_default: the defaults of 0x1301 sub 5 / 6 (base, base + 1; 0: both 0). */
+static void dev_init_with(dev_t *d, co_line_t *line, uint32_t cob_default, uint8_t node_id)
 {
     co_od_init(&d->od, CO_MODE_CLASSIC, d->entries, ENTRIES, d->pool, POOL, d->subs, SUBS);
     tu_od_add_value(&d->od, CO_SRDO_OD_GFC, 0, VAR, U8, RW, 0, 0);
@@ -59,8 +60,8 @@ static void dev_init(dev_t *d, co_line_t *line)
     tu_od_add_value(&d->od, COMM, 2, REC, CO_TYPE_UNSIGNED16, RW, 0, 0);
     tu_od_add_value(&d->od, COMM, 3, REC, U8, RW, 0, 0);
     tu_od_add_value(&d->od, COMM, 4, REC, U8, RW, 0, 0);
-    tu_od_add_value(&d->od, COMM, 5, REC, U32, RW, 0, 0);
-    tu_od_add_value(&d->od, COMM, 6, REC, U32, RW, 0, 0);
+    tu_od_add_value(&d->od, COMM, 5, REC, U32, RW, 0, cob_default);
+    tu_od_add_value(&d->od, COMM, 6, REC, U32, RW, 0, cob_default ? cob_default + 1u : 0u);
     tu_od_add_value(&d->od, MAP, 0, ARR, U8, RW, 0, 0);
     for (uint8_t s = 1; s <= 4; s++) {
         tu_od_add_value(&d->od, MAP, s, ARR, U32, RW, 0, 0);
@@ -73,11 +74,16 @@ static void dev_init(dev_t *d, co_line_t *line)
     tu_od_add_value(&d->od, A_INV, 0, VAR, CO_TYPE_UNSIGNED16, RW, both, 0xFFFF);
     tu_od_add_value(&d->od, B, 0, VAR, U8, RW, both, 0);
     tu_od_add_value(&d->od, B_INV, 0, VAR, U8, RW, both, 0xFF);
-    assert_true(co_od_seal(&d->od, 5));
+    assert_true(co_od_seal(&d->od, node_id));
     co_srdo_init(&d->srdo, line, on_safe, d);
     co_gfc_init(&d->gfc, line, NULL, NULL);
     assert_true(co_srdo_od_attach(&d->guard, &d->od, &d->srdo, 1, &d->gfc,
                                   CO_NMT_PRE_OPERATIONAL));
+}
+
+static void dev_init(dev_t *d, co_line_t *line)
+{
+    dev_init_with(d, line, 0, 5);
 }
 
 static int setup(void **state)
@@ -129,8 +135,10 @@ static co_srdo_config_t config(uint8_t direction)
     return c;
 }
 
-/* A configuration tool's downloads, in write_srdo_config's order. */
-static void tool_writes(dev_t *d, const co_srdo_config_t *c, uint8_t valid, uint16_t signature)
+/* A configuration tool's downloads, in write_srdo_config's order (the
+ * COB-IDs left out unless cob_ids: the device's defaults then stay). */
+static void tool_writes_cob_ids(dev_t *d, const co_srdo_config_t *c, uint8_t valid,
+                                uint16_t signature, bool cob_ids)
 {
     assert_int_equal(tu_od_net_write(&d->od, COMM, 1, 0, 1), 0);
     assert_int_equal(tu_od_net_write(&d->od, MAP, 0, 0, 1), 0);
@@ -141,11 +149,18 @@ static void tool_writes(dev_t *d, const co_srdo_config_t *c, uint8_t valid, uint
     assert_int_equal(tu_od_net_write(&d->od, COMM, 2, c->sct_ms, 2), 0);
     assert_int_equal(tu_od_net_write(&d->od, COMM, 3, c->srvt_ms, 1), 0);
     assert_int_equal(tu_od_net_write(&d->od, COMM, 4, c->transmission_type, 1), 0);
-    assert_int_equal(tu_od_net_write(&d->od, COMM, 5, c->cob_id_normal, 4), 0);
-    assert_int_equal(tu_od_net_write(&d->od, COMM, 6, c->cob_id_inverted, 4), 0);
+    if (cob_ids) {
+        assert_int_equal(tu_od_net_write(&d->od, COMM, 5, c->cob_id_normal, 4), 0);
+        assert_int_equal(tu_od_net_write(&d->od, COMM, 6, c->cob_id_inverted, 4), 0);
+    }
     assert_int_equal(tu_od_net_write(&d->od, COMM, 1, c->direction, 1), 0);
     assert_int_equal(tu_od_net_write(&d->od, CO_SRDO_OD_SIGNATURE, 1, signature, 2), 0);
     assert_int_equal(tu_od_net_write(&d->od, CO_SRDO_OD_VALID, 0, valid, 1), 0);
+}
+
+static void tool_writes(dev_t *d, const co_srdo_config_t *c, uint8_t valid, uint16_t signature)
+{
+    tool_writes_cob_ids(d, c, valid, signature, true);
 }
 
 static void configure_valid(dev_t *d, uint8_t direction)
@@ -173,6 +188,18 @@ static void put_sub(dev_t *d, uint16_t index, uint8_t sub, uint64_t value, uint3
 static void put(dev_t *d, uint16_t index, uint64_t value, uint32_t size)
 {
     put_sub(d, index, 0, value, size);
+}
+
+/* The producer's variables a and b with their complements, then operational
+ * (the first pair goes out at once). */
+static void produce_from(fx_t *fx, dev_t *p, uint16_t a, uint8_t b)
+{
+    put(p, A, a, 2);
+    put(p, A_INV, (uint16_t)~a, 2);
+    put(p, B, b, 1);
+    put(p, B_INV, (uint8_t)~b, 1);
+    set_state(fx, p, CO_NMT_OPERATIONAL);
+    tu_step(&fx->tb, 0);
 }
 
 /* ------------------------------------------------------------- the guard */
@@ -327,12 +354,7 @@ static void test_producer_sends_the_mapped_variables(void **state)
     fx_t *fx = *state;
     dev_t *p = &fx->p;
     configure_valid(p, CO_SRDO_PRODUCE);
-    put(p, A, 0xBEEF, 2);
-    put(p, A_INV, 0x4110, 2);
-    put(p, B, 0x01, 1);
-    put(p, B_INV, 0xFE, 1);
-    set_state(fx, p, CO_NMT_OPERATIONAL);
-    tu_step(&fx->tb, 0);
+    produce_from(fx, p, 0xBEEF, 0x01);
     const uint8_t normal[3] = {0xEF, 0xBE, 0x01}, inverted[3] = {0x10, 0x41, 0xFE};
     tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, NORMAL, 0), NORMAL, normal, 3);
     tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, INVERTED, 0), INVERTED, inverted, 3);
@@ -350,6 +372,61 @@ static void test_producer_sends_the_mapped_variables(void **state)
     assert_int_equal(tu_log_count_id(&fx->tb, NORMAL), 2);
     assert_int_equal(p->events, 1);
     assert_int_equal(p->why[0], CO_SRDO_INVERTED_MISMATCH);
+}
+
+/* A reset communication as co_node runs it: initialising, the new node-id,
+ * the communication defaults reloaded, pre-operational. */
+static void reset_with_node_id(fx_t *fx, dev_t *d, uint8_t node_id)
+{
+    set_state(fx, d, CO_NMT_INITIALISING);
+    co_od_set_node_id(&d->od, node_id);
+    co_od_load_defaults(&d->od, CO_GROUP_COMMUNICATION);
+    set_state(fx, d, CO_NMT_PRE_OPERATIONAL);
+}
+
+/* SRDO 1's default COB-IDs (CiA 304): 0x0FF / 0x100 in the OD stand for
+ * 0x0FF + 2 x node-id / 0x100 + 2 x node-id, resolved as the OD loads (so
+ * reads, the CRC and the frames use them) and again for another node-id at
+ * a reset's reload; node-ids above 64 have none. */
+static void test_default_cob_ids_follow_the_node_id(void **state)
+{
+    fx_t *fx = *state;
+    dev_t *p = &fx->p;
+    co_line_t *line = p->srdo.line;
+    co_srdo_od_detach(&p->guard);
+    co_srdo_deinit(&p->srdo);
+    co_gfc_deinit(&p->gfc);
+    dev_init_with(p, line, 0x0FF, 5);
+    assert_int_equal(tu_od_value(&p->od, COMM, 5, 4), 0x109);   /* 0x0FF + 2 x 5 */
+    assert_int_equal(tu_od_value(&p->od, COMM, 6, 4), 0x10A);
+    /* a tool configures everything but the COB-IDs, signing the CAN-IDs used */
+    co_srdo_config_t c = config(CO_SRDO_PRODUCE);
+    c.cob_id_normal = 0x109;
+    c.cob_id_inverted = 0x10A;
+    tool_writes_cob_ids(p, &c, CO_SRDO_CONFIG_VALID, co_srdo_crc(&c), false);
+    produce_from(fx, p, 0x0102, 0x03);
+    assert_int_equal(co_srdo_state(&p->srdo), CO_SRDO_RUNNING);
+    const uint8_t normal[3] = {0x02, 0x01, 0x03}, inverted[3] = {0xFD, 0xFE, 0xFC};
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x109, 0), 0x109, normal, 3);
+    tu_assert_logged(&fx->tb, tu_log_find_id(&fx->tb, 0x10A, 0), 0x10A, inverted, 3);
+    /* a reset with node-id 6: the defaults reload and resolve to 0x10B / 0x10C */
+    reset_with_node_id(fx, p, 6);
+    assert_int_equal(tu_od_value(&p->od, COMM, 5, 4), 0x10B);
+    assert_int_equal(tu_od_value(&p->od, COMM, 6, 4), 0x10C);
+    assert_int_equal(p->srdo.config.cob_id_normal, 0x10B);
+    reset_with_node_id(fx, p, 65);              /* beyond 0x180: no default */
+    assert_int_equal(tu_od_value(&p->od, COMM, 5, 4), 0x0FF);
+    assert_int_equal(tu_od_value(&p->od, COMM, 6, 4), 0x100);
+    reset_with_node_id(fx, p, 64);              /* the last one: 0x17F / 0x180 */
+    assert_int_equal(p->srdo.config.cob_id_inverted, 0x180);
+    assert_int_equal(tu_od_value(&p->od, COMM, 5, 4), 0x17F);
+    assert_int_equal(tu_od_value(&p->od, COMM, 6, 4), 0x180);
+    /* a written CAN-ID is the tool's: kept as written */
+    assert_int_equal(tu_od_net_write(&p->od, COMM, 5, 0x111, 4), 0);
+    assert_int_equal(tu_od_net_write(&p->od, COMM, 6, 0x112, 4), 0);
+    co_srdo_od_set_nmt_state(&p->guard, CO_NMT_OPERATIONAL);
+    assert_int_equal(tu_od_value(&p->od, COMM, 5, 4), 0x111);
+    assert_int_equal(p->srdo.config.cob_id_normal, 0x111);
 }
 
 /* The producer's pairs, through both devices' OD: p's variables reach c's. */
@@ -382,6 +459,7 @@ int main(void)
         T(test_start_checks_valid_flag_crc_and_mapping),
         T(test_producer_sends_the_mapped_variables),
         T(test_variables_travel_from_producer_to_consumer),
+        T(test_default_cob_ids_follow_the_node_id),
 #undef T
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -65,12 +65,20 @@ typedef struct co_emcy_error {
     uint8_t priority;         /* 0 (highest) .. 7 */
     bool non_recoverable;     /* error class */
     uint64_t time_stamp;      /* up to CO_EMCY_TIME_MAX, 0 = not supported */
+    /* Whose error it is: 0 the application's (and the node's own); a stack
+     * service raising one error per object of its own gives each its key
+     * (an SRDO: CO_EMCY_SOURCE_SRDO + n), so equal codes stay apart. */
+    uint16_t source;
 } co_emcy_error_t;
+
+/* The source key of SRDO n's error: its 0x1301 + n - 1 communication object. */
+enum { CO_EMCY_SOURCE_SRDO = 0x1300 };
 
 /* One active error. Kept oldest first. */
 typedef struct co_emcy_active {
     co_emcy_msg_t msg;        /* the last EMCY sent for it (error_register not kept) */
     uint8_t register_bits;    /* its 0x1001 bits besides generic */
+    uint16_t source;          /* co_emcy_error_t.source: who raised it */
 } co_emcy_active_t;
 
 /* ---------------------------------------------------------------- producer */
@@ -151,12 +159,13 @@ void co_emcy_set_cob_id(co_emcy_t *e, uint32_t cob_id);
 void co_emcy_set_inhibit(co_emcy_t *e, uint16_t inhibit_100us);
 
 /* Raise an error. New: added to the active table, the register and the
- * history, its EMCY sent (or queued). Already active (same code, and on FD
- * the same logical device): classic sends nothing; FD updates the entry
+ * history, its EMCY sent (or queued). Already active (same code and source,
+ * and on FD the same logical device): classic sends nothing; FD updates the entry
  * (msef, priority, class, time) and sends it again with "occurred more than
  * once" set. */
 co_emcy_result_t co_emcy_raise(co_emcy_t *e, const co_emcy_error_t *err);
-/* Clear an active error (code, and on FD logical device, name it). Classic:
+/* Clear an active error (code and source, and on FD logical device, name
+ * it). Classic:
  * sends the "error reset" EMCY: EEC 0x0000, the error register after the
  * clear (0 once nothing is active), err->msef. FD: sends the error's own
  * EMCY with state "removed" (status bit 4 and 5 clear), err->msef and
@@ -177,6 +186,7 @@ co_emcy_result_t co_emcy_signal(co_emcy_t *e, const co_emcy_error_t *err, bool o
 
 static inline uint8_t co_emcy_error_register(const co_emcy_t *e) { return e->error_register; }
 static inline uint16_t co_emcy_active_count(const co_emcy_t *e) { return e->active_count; }
+/* Whether the application's error (source 0) with this code is active. */
 bool co_emcy_is_active(const co_emcy_t *e, uint16_t code, uint8_t logical_device);
 /* True once after EMCYs were dropped (queue full); for the integration to
  * report (e.g. as a communication event). */

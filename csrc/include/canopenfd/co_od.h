@@ -326,6 +326,8 @@ const co_od_entry_t *co_od_find(const co_od_t *od, uint16_t index, uint8_t sub);
 /* True when the index exists at all (to tell "no object" from "no sub"). */
 bool co_od_has_index(const co_od_t *od, uint16_t index);
 static inline uint8_t *co_od_value(co_od_t *od, const co_od_entry_t *e) { return od->pool + e->value; }
+/* The node-id $NODEID-relative defaults add (co_od_seal, co_od_set_node_id). */
+static inline uint8_t co_od_node_id(const co_od_t *od) { return od->node_id; }
 static inline uint32_t co_od_image_size(const co_od_t *od) { return od->image_size; }
 static inline uint8_t *co_od_image(co_od_t *od) { return od->pool; }
 /* True when the entry's value lives in the process image. */

@@ -134,6 +134,7 @@ struct co_srdo {
     co_timer_t cycle_timer;          /* producer: next pair; consumer: SCT */
     co_timer_t srvt_timer;           /* consumer: SRVT */
     co_srdo_fn on_safe;
+    co_srdo_fn on_leave;             /* left the safe state (co_srdo_set_leave_fn) */
     void *user;
     co_srdo_stats_t stats;
     co_od_t *od;                     /* mapped variables' OD (co_srdo_bind_od) or NULL */
@@ -191,6 +192,12 @@ size_t co_srdo_data(const co_srdo_t *srdo, uint8_t *out);
 void co_srdo_fail(co_srdo_t *srdo, co_srdo_violation_t why);
 /* Leave the safe state: start again as on entering operational. */
 void co_srdo_restart(co_srdo_t *srdo);
+/* Called (with co_srdo_init's user and the violation it had) when the SRDO
+ * leaves the safe state: leaving NMT operational (it stops), a restart or an
+ * entry into operational that does not fail again at once, a new
+ * configuration. A start that fails again at once is a new entry (on_safe)
+ * without a leave in between. NULL: not told. */
+void co_srdo_set_leave_fn(co_srdo_t *srdo, co_srdo_fn on_leave);
 
 static inline co_srdo_state_t co_srdo_state(const co_srdo_t *srdo) { return srdo->state; }
 static inline co_srdo_violation_t co_srdo_violation(const co_srdo_t *srdo)

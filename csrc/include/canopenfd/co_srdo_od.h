@@ -36,7 +36,11 @@ enum {
     CO_SRDO_OD_COMMUNICATION = 0x1300,   /* + n, n = 1..64 */
     CO_SRDO_OD_MAPPING = 0x1380,         /* + n */
     CO_SRDO_OD_VALID = 0x13FE,
-    CO_SRDO_OD_SIGNATURE = 0x13FF        /* sub n */
+    CO_SRDO_OD_SIGNATURE = 0x13FF,       /* sub n */
+    /* CiA 304's default COB-IDs of SRDO 1: these base values in 0x1301 sub 5
+     * and 6 stand for base + 2 x node-id (node-ids 1..64: 0x101..0x180) */
+    CO_SRDO_OD_DEFAULT_COB_ID = 0x0FF,
+    CO_SRDO_OD_DEFAULT_LAST_NODE = 64
 };
 
 typedef struct co_srdo_od {

@@ -323,6 +323,7 @@ struct co_stack {
     co_srdo_od_t srdo_od;            /* their OD objects, when the OD has 0x13FE */
     co_srdo_fn srdo_ind;             /* the application's safe-state indication */
     void *srdo_user;
+    uint64_t srdo_errors;            /* bit n-1: SRDO n's safe-state EMCY error is active */
     /* bus redundancy (co_stack_redundancy.c) */
     bool has_rdn;
     co_rdn_t rdn;
