@@ -15,8 +15,8 @@ the application path is timed. Alternating levels, so every call changes
   python   what IoDevice.set_inputs did before the core held the device,
            re-enacted through the public API: per group, read the six
            parameter entries (0x6002, 0x6003, 0x6005..0x6008) from the node's
-           OD, run the C channel logic (canopenfd._binding.cia401) and write
-           0x6000
+           OD, run the C channel logic (co_cia401_din_update on a struct of
+           its own) and write 0x6000
 
 Printed: calls/s of each and the ratio. Nothing is asserted.
 """
@@ -27,17 +27,19 @@ import argparse
 import time
 
 import canopenfd
-from canopenfd._binding.cia401 import DigitalInputGroup
+from canopenfd._binding.core import ffi, lib
 from canopenfd.profiles.cia401 import create_io_device
 
 
 def old_path(node, groups, levels: int) -> None:
     for number, group in enumerate(groups, start=1):
-        group.set(polarity=node[(0x6002, number)].raw, filter=node[(0x6003, number)].raw,
-                  interrupt_enable=bool(node[(0x6005, 0)].raw),
-                  any_change=node[(0x6006, number)].raw, rising=node[(0x6007, number)].raw,
-                  falling=node[(0x6008, number)].raw)
-        group.update((levels >> (8 * (number - 1))) & 0xFF)
+        group.polarity = node[(0x6002, number)].raw
+        group.filter = node[(0x6003, number)].raw
+        group.interrupt_enable = bool(node[(0x6005, 0)].raw)
+        group.any_change = node[(0x6006, number)].raw
+        group.rising = node[(0x6007, number)].raw
+        group.falling = node[(0x6008, number)].raw
+        lib.co_cia401_din_update(group, (levels >> (8 * (number - 1))) & 0xFF)
         node[(0x6000, number)].raw = group.value
 
 
@@ -61,7 +63,7 @@ def main() -> None:
                                   digital_inputs=args.inputs, digital_outputs=8,
                                   analog_inputs=0, analog_outputs=0)
         mask = (1 << args.inputs) - 1
-        groups = [DigitalInputGroup() for _ in range(device.layout.input_groups)]
+        groups = [ffi.new("co_cia401_din_t *") for _ in range(device.layout.input_groups)]
         core = rate(lambda levels: device.set_inputs(levels & mask), args.seconds)
         python = rate(lambda levels: old_path(device.node, groups, levels & mask), args.seconds)
     print(f"set_inputs, {args.inputs} digital inputs ({len(groups)} groups), "
