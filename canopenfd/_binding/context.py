@@ -154,6 +154,17 @@ class LineContext(Protocol):
         ...
 
 
+
+class LocalNodeService:
+    """Base of the local node's services: `_where` names the node in messages
+    by its node-id as it is now (LSS or a reset may renumber it while it runs)."""
+
+    _context: LineContext
+
+    @property
+    def _where(self) -> str:
+        return self._context.node_where
+
 class _LineShare:
     """What the contexts of one line share: the condition, the waiter, the
     event table, the PDO watches and the local node's id."""

@@ -8,23 +8,18 @@ the drive's OD and PDOs is `canopenfd.profiles.cia402.create_simulated_drive`.
 
 from __future__ import annotations
 
-from .._binding.context import LineContext
+from .._binding.context import LineContext, LocalNodeService
 from ..errors import ConfigurationError
 
 __all__ = ["DriveSimulation"]
 
 
-class DriveSimulation:
+class DriveSimulation(LocalNodeService):
     """Start (once) and fault the simulated drive of a local node."""
 
     def __init__(self, context: LineContext) -> None:
         self._context = context
         self.running = False
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def start(self, tick_ms: float = 1.0) -> None:
         """Run the drive: its profile modes step every `tick_ms`; its cyclic

@@ -27,7 +27,7 @@ import logging
 from typing import Callable, Deque, Dict, Iterable, List, Optional, Set, Tuple, Union
 
 from .._binding.constants import EmcyStatus, EventKind
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event, decode_emcy
 from .._aio import LoopArg
 from .._callbacks import CallbackList, Until, chain
@@ -161,7 +161,7 @@ class Emcy:
 FieldValue = Union[int, bool, bytes]
 
 
-class EmcyProducer:
+class EmcyProducer(LocalNodeService):
     """The EMCY producer of our local node (`local_node.emcy`).
 
     The stack keeps the active errors: the error register (0x1001) follows
@@ -177,11 +177,6 @@ class EmcyProducer:
         self.node = node
         self._served = served
         self._errors = errors
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<EmcyProducer of {self.node!r}>"

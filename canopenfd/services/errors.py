@@ -28,7 +28,7 @@ from __future__ import annotations
 from typing import Dict, Iterable, List, Tuple
 
 from .._binding.constants import ErrorBit, ErrorRegister
-from .._binding.context import LineContext
+from .._binding.context import LineContext, LocalNodeService
 from .._binding.runtime import ErrorsState
 from .._checks import check_int
 from ..errors import ConfigurationError
@@ -44,17 +44,12 @@ _BYTES = BITS // 8
 _RESERVED_REGISTER_BIT = 6
 
 
-class ErrorBits:
+class ErrorBits(LocalNodeService):
     """The local node's error-status bits (`local_node.errors`)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView) -> None:
         self._context = context
         self.node = node
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<ErrorBits of {self.node!r}>"

@@ -15,7 +15,7 @@ from __future__ import annotations
 from typing import Callable, NamedTuple, Tuple
 
 from .._binding.constants import EventKind
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
 
@@ -45,18 +45,13 @@ def _change(event: Event) -> OutputChange:
     return OutputChange("digital" if event.node == _DIGITAL else "analog", levels, last)
 
 
-class GenericIo:
+class GenericIo(LocalNodeService):
     """Start (once) the CiA 401 device of a local node and drive it."""
 
     def __init__(self, context: LineContext) -> None:
         self._context = context
         self._changes = CallbackList(f"{context.where} generic I/O outputs")
         self.running = False
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def start(self) -> None:
         """Run the device over the node's OD (booted, holding the profile

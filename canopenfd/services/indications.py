@@ -15,7 +15,7 @@ import threading
 from typing import Callable, Dict, List, Optional, Tuple, Union
 
 from .._binding.constants import AbortCode, EventKind, Indicate
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event
 from ..errors import AbortError, ConfigurationError
 from ..od import ODVariable
@@ -162,7 +162,7 @@ class ODRequest:
         context.runtime.od_answer(context.index, self._token, code, f"answer to {self!r}")
 
 
-class Indications:
+class Indications(LocalNodeService):
     """The before-read / check-write callbacks of one local node."""
 
     def __init__(self, context: LineContext, node: LocalNodeView, served: ServedDictionary,
@@ -178,11 +178,6 @@ class Indications:
         # (index, sub or None for the whole object, kind) -> callbacks
         self._callbacks: Dict[Tuple[int, Optional[int], int], List[Callback]] = {}
         context.subscribe(EventKind.OD_REQUEST, self._event)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def add(self, key: Key, kind: int, callback: Optional[Callback]
             ) -> Union[Callback, Callable[[Callback], Callback]]:

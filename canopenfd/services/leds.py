@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Callable, FrozenSet, NamedTuple
 
 from .._binding.constants import EventKind, LedCause, LedPattern, LedWhich
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event
 from .._aio import LoopArg
 from .._callbacks import CallbackList
@@ -61,7 +61,7 @@ class LedStates(NamedTuple):
 _DARK = LedStates(LedIndicator("off", False), LedIndicator("off", False), frozenset())
 
 
-class LocalLeds:
+class LocalLeds(LocalNodeService):
     """The LEDs of our local node (events CO_EV_LED while a callback exists)."""
 
     def __init__(self, context: LineContext, node: LocalNodeView) -> None:
@@ -70,11 +70,6 @@ class LocalLeds:
         self._callbacks = CallbackList(f"{context.where} LED callbacks")
         self._listening = False
         context.subscribe(EventKind.LED, self._event)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<LocalLeds of {self.node!r}>"

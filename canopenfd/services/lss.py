@@ -20,7 +20,7 @@ from typing import (Any, Callable, Dict, Generator, Generic, List, Mapping, Name
                     Optional, Sequence, Tuple, TypeVar)
 
 from .._binding.constants import EventKind, LssRequest, LssStatus
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event
 from .._aio import LoopArg
 from .._callbacks import CallbackList, Until
@@ -499,7 +499,7 @@ UNCONFIGURED = 255
 STORE_OK, STORE_MEDIA_ERROR = 0, 2
 
 
-class LssSlave:
+class LssSlave(LocalNodeService):
     """The LSS slave of a local node (`node.lss`; the C stack runs it when the
     node's OD has 0x1018:04). What it decides itself: configure node-id
     (pending until reset communication), inquire, identify, fast scan. What
@@ -515,11 +515,6 @@ class LssSlave:
         self._configured_hooks: List[Callable[[int], None]] = []
         self._activate_callbacks = CallbackList(f"LSS activate bit timing on {context.where}")
         context.subscribe(EventKind.LSS, self._event, node=SLAVE_EVENTS)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def on_store(self, callback: Optional[Callable[[int], None]]) -> None:
         """callback(node_id) persists the node-id a master stores (the node

@@ -18,7 +18,7 @@ from typing import Callable, NamedTuple, Optional
 
 from .._aio import LoopArg
 from .._binding.constants import EventKind
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event
 from .._callbacks import CallbackList
 
@@ -70,7 +70,7 @@ def notice_from_event(event: Event) -> Optional[MpdoNotice]:
                       event.b, int.from_bytes(data[8:10], "little"), event.coalesced)
 
 
-class LocalMpdo:
+class LocalMpdo(LocalNodeService):
     """The local node's received MPDOs (events CO_EV_MPDO while a callback exists)."""
 
     def __init__(self, context: LineContext) -> None:
@@ -78,11 +78,6 @@ class LocalMpdo:
         self._callbacks = CallbackList(f"{context.where} MPDO callbacks")
         self._listening = False
         context.subscribe(EventKind.MPDO, self._event)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def add_callback(self, callback: MpdoCallback, loop: LoopArg = None) -> MpdoCallback:
         context = self._context

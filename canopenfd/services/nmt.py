@@ -18,7 +18,7 @@ import collections
 from typing import Callable, Deque, List, Optional, Tuple, Union
 
 from .._binding.constants import CommandKind, EventKind, HeartbeatEvent, NmtCommand, NmtState
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event, now_us
 from .._aio import LoopArg
 from .._callbacks import CallbackList, Until, chain
@@ -153,7 +153,7 @@ class NmtMaster:
         self.send(NmtCommand.RESET_COMMUNICATION, node_id, include_self)
 
 
-class NmtSlave:
+class NmtSlave(LocalNodeService):
     """The NMT slave of the local node as the runtime runs it: its state and
     transitions (events NMT_STATE, NMT_VETOED, NMT_RESET), the veto of "to
     operational" and the heartbeat producer time when no OD holds it."""
@@ -176,11 +176,6 @@ class NmtSlave:
         context.subscribe(EventKind.NMT_STATE, self._event_state)
         context.subscribe(EventKind.NMT_VETOED, self._event_vetoed)
         context.subscribe(EventKind.NMT_RESET, self._event_reset)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def create(self) -> None:
         """Create the node in the runtime and boot it (boot-up, PRE-OPERATIONAL)."""

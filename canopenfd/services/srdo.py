@@ -23,7 +23,7 @@ import struct
 from typing import Callable, Dict, List, NamedTuple, Optional, Protocol, Sequence, Tuple
 
 from .._binding.constants import EventKind, SrdoState, SrdoViolation
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event, srdo_crc
 from .._callbacks import CallbackList
 from ..errors import ConfigurationError
@@ -150,7 +150,7 @@ def write_srdo_config(node: EntryWriter, number: int, config: SrdoConfig, *,
     return srdo_signature(config)
 
 
-class SrdoService:
+class SrdoService(LocalNodeService):
     """The SRDOs and the GFC of our local node (`node.srdo`)."""
 
     def __init__(self, context: LineContext, read_entry: Callable[[int, int], int]) -> None:
@@ -160,11 +160,6 @@ class SrdoService:
         self._configs: Dict[int, SrdoConfig] = {}
         self._callbacks = CallbackList(f"{context.where} SRDO")
         context.subscribe(EventKind.SRDO, self._event)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     def __repr__(self) -> str:
         return f"<SrdoService of {self._where} ({self._count} SRDOs)>"

@@ -22,7 +22,7 @@ import threading
 from typing import Callable, Optional, Protocol, Union
 
 from .._binding.constants import AbortCode, EventKind, StoreStatus
-from .._binding.context import Deferred, LineContext
+from .._binding.context import Deferred, LineContext, LocalNodeService
 from .._binding.runtime import Event
 from .._aio import LoopArg
 from .._callbacks import CallbackList
@@ -101,7 +101,7 @@ def check_store(store: Optional[StoreLike], where: str) -> Union[None, str, Stor
     return store
 
 
-class ParameterStore:
+class ParameterStore(LocalNodeService):
     """Where a local node keeps its saved parameters (0x1010 / 0x1011): a file
     the C stack writes itself, or a StoreMedium of the application, which
     Python feeds: its image at boot, each staged image after a save (events
@@ -124,11 +124,6 @@ class ParameterStore:
         self._medium_lock = threading.RLock()
         context.subscribe(EventKind.STORE, self._event)
         context.subscribe(EventKind.STORE_PERSIST, self._autonomous_save)
-
-    @property
-    def _where(self) -> str:
-        """How messages name the node now (LSS or a reset may renumber it)."""
-        return self._context.node_where
 
     @property
     def path(self) -> Optional[str]:
