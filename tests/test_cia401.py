@@ -201,6 +201,33 @@ def test_wrong_arguments_are_refused_with_the_reason(net, bus_name):
     assert dev.outputs == Outputs(0, (0, 0))
 
 
+
+def test_more_outputs_than_one_event_carries_are_refused_at_start(net, bus_name):
+    """The core reports each output change in one event (a byte per digital
+    group, an INTEGER16 per analogue channel): an OD with more is refused by
+    name, and a fitting one still starts afterwards."""
+    from canopenfd.od import DataType, ODArray, ODVariable, demo_od
+
+    def od_with(groups):
+        od = demo_od("classic")
+        outputs = ODArray("Write output 8-bit", 0x6200)
+        outputs.add_member(ODVariable("Highest sub-index supported", 0x6200, 0,
+                                      DataType.UNSIGNED8, "ro", groups))
+        for sub in range(1, groups + 1):
+            outputs.add_member(ODVariable(f"Output group {sub}", 0x6200, sub,
+                                          DataType.UNSIGNED8, "rw", 0))
+        od.add_object(outputs)
+        return od
+
+    node = net.open_line(bus_name, mode="classic").create_local_node(NODE, od=od_with(65))
+    with pytest.raises(ConfigurationError,
+                       match=r"65 digital output groups \(0x6200\).*at most 64"):
+        node.generic_io.start()
+    assert not node.generic_io.running
+    other = net.open_line(bus_name + "-b", mode="classic").create_local_node(NODE, od=od_with(64))
+    other.generic_io.start()
+    assert other.generic_io.running
+
 # ------------------------------------------------------------------ python-canopen
 canopen = pytest.importorskip("canopen")
 

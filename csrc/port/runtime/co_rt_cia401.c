@@ -7,6 +7,10 @@
 
 #include <string.h>
 
+/* What one CO_EV_CIA401 event carries: a byte per digital output group, an
+ * INTEGER16 per analogue output (a start refuses an OD with more). */
+enum { OUTPUT_GROUPS_MAX = CO_FRAME_MAX_DATA, ANALOG_OUTPUTS_MAX = CO_FRAME_MAX_DATA / 2 };
+
 /* One event per kind that changed, carrying every level of that kind, so
  * the application sees each write's result even when it reads late. */
 static void post_kind(rt_line_t *l, const co_cia401_od_t *io, uint8_t kind, uint8_t kinds)
@@ -16,13 +20,13 @@ static void post_kind(rt_line_t *l, const co_cia401_od_t *io, uint8_t kind, uint
     uint8_t count;
     if (kind == CO_CIA401_OUT_DIGITAL) {
         count = io->counts.output_groups;
-        for (uint8_t g = 1; g <= count && g <= CO_FRAME_MAX_DATA; g++) {
+        for (uint8_t g = 1; g <= count; g++) {
             frame.data[g - 1] = co_cia401_od_digital_output(io, g);
         }
         frame.len = count;
     } else {
         count = io->counts.analog_outputs;
-        for (uint8_t c = 1; c <= count && c <= CO_FRAME_MAX_DATA / 2; c++) {
+        for (uint8_t c = 1; c <= count; c++) {
             uint16_t v = (uint16_t)(int16_t)co_cia401_od_analog_output(io, c);
             frame.data[2 * (c - 1)] = (uint8_t)v;
             frame.data[2 * (c - 1) + 1] = (uint8_t)(v >> 8);
@@ -70,6 +74,16 @@ int co_rt_cia401_start(co_rt_t *rt, int line)
         rt_set_error(rt, "line %d: the node's OD %s 0x%04X:%02X (CiA 401 channels: 0x6000/0x6200 "
                      "UNSIGNED8, 0x6401/0x6411 INTEGER16, sub 1..sub 0)", line,
                      scan_text(why), (unsigned)index, (unsigned)sub);
+        return rt_kick_unlock(rt, CO_RT_ERR_ARGUMENT);
+    }
+    const co_cia401_od_t *io = co_stack_cia401(&l->stack);
+    if (status == CO_STACK_OK && (io->counts.output_groups > OUTPUT_GROUPS_MAX ||
+                                  io->counts.analog_outputs > ANALOG_OUTPUTS_MAX)) {
+        rt_set_error(rt, "line %d: the node's OD has %u digital output groups (0x6200) and %u "
+                     "analogue outputs (0x6411); the runtime reports at most %d and %d",
+                     line, (unsigned)io->counts.output_groups,
+                     (unsigned)io->counts.analog_outputs, OUTPUT_GROUPS_MAX, ANALOG_OUTPUTS_MAX);
+        co_stack_cia401_deinit(&l->stack);   /* its outputs would not fit one event */
         return rt_kick_unlock(rt, CO_RT_ERR_ARGUMENT);
     }
     if (status != CO_STACK_OK) {
